@@ -1,0 +1,135 @@
+// hybridbrdf._core — Python bindings over libhybridbrdf, for verification and
+// for the Python front end. Array in, array out: float32, C-contiguous; other
+// dtypes and layouts are converted. The GIL is released while kernels run.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <array>
+#include <string>
+
+#include "hybridbrdf/hybridbrdf.hpp"
+
+namespace py = pybind11;
+using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+namespace {
+
+hbrdf::Strategy parse_strategy(const std::string& name) {
+    if (name == "cosine") return hbrdf::Strategy::Cosine;
+    if (name == "ggx") return hbrdf::Strategy::Ggx;
+    if (name == "mis") return hbrdf::Strategy::Mis;
+    throw py::value_error("unknown sampling strategy '" + name + "'; expected 'cosine', 'ggx' or 'mis'");
+}
+
+// Checks that `a` has shape (n, cols) (n taken from the first array checked
+// when n < 0) and returns n.
+py::ssize_t check_rows(const FloatArray& a, const char* name, py::ssize_t cols, py::ssize_t n) {
+    if (a.ndim() != 2 || a.shape(1) != cols)
+        throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(cols) + "), got ndim " +
+                              std::to_string(a.ndim()) + (a.ndim() >= 2 ? ", shape[1] " + std::to_string(a.shape(1)) : ""));
+    if (n >= 0 && a.shape(0) != n)
+        throw py::value_error(std::string(name) + " has " + std::to_string(a.shape(0)) + " rows, expected " +
+                              std::to_string(n));
+    return a.shape(0);
+}
+
+hbrdf::AnalyticParams make_params(const std::array<float, 3>& kd, const std::array<float, 3>& eta,
+                                  const std::array<float, 2>& alpha) {
+    hbrdf::AnalyticParams p;
+    p.kd = hbrdf::Vec3<float>(kd[0], kd[1], kd[2]);
+    p.eta = hbrdf::Vec3<float>(eta[0], eta[1], eta[2]);
+    p.alpha = hbrdf::Vec2<float>(alpha[0], alpha[1]);
+    return p;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+    m.doc() = "libhybridbrdf bindings: analytic BRDF evaluation and importance sampling (float32).";
+    m.attr("__version__") = hbrdf::kVersion;
+    m.attr("CONVENTIONS_VERSION") = hbrdf::kConventionsVersion;
+    m.attr("ALPHA_MIN") = hbrdf::kAlphaMin;
+    m.attr("ALPHA_MAX") = hbrdf::kAlphaMax;
+    m.attr("ETA_MIN") = hbrdf::kEtaMin;
+    m.attr("ETA_MAX") = hbrdf::kEtaMax;
+    m.attr("MIS_MIN_LOBE_PROBABILITY") = hbrdf::kMisMinLobeProbability;
+
+    py::class_<hbrdf::AnalyticParams>(m, "AnalyticParams",
+                                      "Parameters of f_a as the C++ library stores them (float32, unchecked; "
+                                      "evaluation clamps them into range).")
+        .def(py::init(&make_params), py::arg("kd"), py::arg("eta"), py::arg("alpha"))
+        .def_property_readonly("kd", [](const hbrdf::AnalyticParams& p) { return std::array<float, 3>{p.kd.x, p.kd.y, p.kd.z}; })
+        .def_property_readonly("eta", [](const hbrdf::AnalyticParams& p) { return std::array<float, 3>{p.eta.x, p.eta.y, p.eta.z}; })
+        .def_property_readonly("alpha", [](const hbrdf::AnalyticParams& p) { return std::array<float, 2>{p.alpha.x, p.alpha.y}; })
+        .def("validate", [](const hbrdf::AnalyticParams& p) {
+            try {
+                hbrdf::validate(p);
+            } catch (const std::invalid_argument& e) {
+                throw py::value_error(e.what());
+            }
+        }, "Raise ValueError naming the first parameter outside its range.");
+
+    m.def("eval_analytic", [](const FloatArray& wi, const FloatArray& wo, const hbrdf::AnalyticParams& p) {
+        const py::ssize_t n = check_rows(wi, "wi", 3, -1);
+        check_rows(wo, "wo", 3, n);
+        FloatArray f({n, py::ssize_t(3)});
+        {
+            py::gil_scoped_release release;
+            hbrdf::eval_analytic_aos(p, std::size_t(n), wi.data(), wo.data(), f.mutable_data());
+        }
+        return f;
+    }, py::arg("wi"), py::arg("wo"), py::arg("params"),
+       "f_a for (N,3) wi and wo (local frame, wi toward the light); returns (N,3) RGB without the cosine.");
+
+    m.def("eval_analytic_soa", [](const FloatArray& wi, const FloatArray& wo, const hbrdf::AnalyticParams& p) {
+        if (wi.ndim() != 2 || wi.shape(0) != 3) throw py::value_error("wi must have shape (3, N)");
+        if (wo.ndim() != 2 || wo.shape(0) != 3 || wo.shape(1) != wi.shape(1))
+            throw py::value_error("wo must have shape (3, N) like wi");
+        const py::ssize_t n = wi.shape(1);
+        FloatArray f({py::ssize_t(3), n});
+        {
+            py::gil_scoped_release release;
+            const float* a = wi.data();
+            const float* b = wo.data();
+            float* o = f.mutable_data();
+            hbrdf::eval_analytic_soa(p, std::size_t(n), {a, a + n, a + 2 * n}, {b, b + n, b + 2 * n},
+                                     {o, o + n, o + 2 * n});
+        }
+        return f;
+    }, py::arg("wi"), py::arg("wo"), py::arg("params"),
+       "f_a in structure-of-arrays layout: wi, wo of shape (3,N); returns (3,N). The fast path.");
+
+    m.def("sample", [](const FloatArray& wo, const FloatArray& u, const hbrdf::AnalyticParams& p,
+                       const std::string& strategy) {
+        const hbrdf::Strategy s = parse_strategy(strategy);
+        const py::ssize_t n = check_rows(wo, "wo", 3, -1);
+        check_rows(u, "u", 2, n);
+        FloatArray wi({n, py::ssize_t(3)}), pdf({n}), weight({n, py::ssize_t(3)});
+        {
+            py::gil_scoped_release release;
+            hbrdf::sample_aos(s, p, std::size_t(n), wo.data(), u.data(), wi.mutable_data(), pdf.mutable_data(),
+                              weight.mutable_data());
+        }
+        return py::make_tuple(wi, pdf, weight);
+    }, py::arg("wo"), py::arg("u"), py::arg("params"), py::arg("strategy") = "mis",
+       "Sample wi for each wo from u in [0,1)^2: returns (wi (N,3), pdf (N,), weight (N,3)).");
+
+    m.def("pdf", [](const FloatArray& wi, const FloatArray& wo, const hbrdf::AnalyticParams& p,
+                    const std::string& strategy) {
+        const hbrdf::Strategy s = parse_strategy(strategy);
+        const py::ssize_t n = check_rows(wi, "wi", 3, -1);
+        check_rows(wo, "wo", 3, n);
+        FloatArray out({n});
+        {
+            py::gil_scoped_release release;
+            hbrdf::pdf_aos(s, p, std::size_t(n), wi.data(), wo.data(), out.mutable_data());
+        }
+        return out;
+    }, py::arg("wi"), py::arg("wo"), py::arg("params"), py::arg("strategy") = "mis",
+       "Solid-angle density with which `strategy` samples wi given wo (over the whole sphere).");
+
+    m.def("simd_path", &hbrdf::simd_path, "Instruction set the batched kernels use on this CPU.");
+    m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),
+          "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
+}

@@ -1,0 +1,12 @@
+// hybridbrdf — umbrella header: everything the library offers.
+#pragma once
+
+#include "hybridbrdf/analytic.hpp"
+#include "hybridbrdf/batch.hpp"
+#include "hybridbrdf/fresnel.hpp"
+#include "hybridbrdf/ggx.hpp"
+#include "hybridbrdf/math.hpp"
+#include "hybridbrdf/params.hpp"
+#include "hybridbrdf/sampling.hpp"
+#include "hybridbrdf/version.hpp"
+#include "hybridbrdf/warp.hpp"

@@ -1,0 +1,61 @@
+// hybridbrdf — parameters of the analytic component f_a (Lambert + anisotropic GGX).
+//
+// p = (kd, eta, alpha): kd in [0,1]^3, eta in [1,10]^3 (real IOR per RGB
+// channel), alpha = (alpha_x, alpha_y) in [kAlphaMin, 1]^2, alpha_x along the
+// tangent (+x). See docs/CONVENTIONS.md.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+#include "hybridbrdf/math.hpp"
+
+namespace hbrdf {
+
+/// Smallest GGX roughness. pbrt-v4 and Mitsuba 3 use the same bound: below it
+/// D(h) = 1/(pi ax ay) at h = n exceeds 3e7 and its float32 footprint becomes a
+/// few ULP of the half vector, so the lobe is a mirror in all but name.
+inline constexpr double kAlphaMin = 1e-4;
+inline constexpr double kAlphaMax = 1.0;
+/// Real index of refraction range. eta = 1 switches the specular lobe off
+/// (F = 0); 10 is the paper's upper bound (F(normal) = 0.67).
+inline constexpr double kEtaMin = 1.0;
+inline constexpr double kEtaMax = 10.0;
+
+template <typename T> struct AnalyticParamsT {
+    Vec3<T> kd{T(0.5)};    ///< Lambertian albedo per channel, [0, 1]
+    Vec3<T> eta{T(1.5)};   ///< real index of refraction per channel, [1, 10]
+    Vec2<T> alpha{T(0.3)}; ///< GGX roughness (alpha_x, alpha_y), [kAlphaMin, 1]
+
+    bool isotropic() const { return alpha.x == alpha.y; }
+};
+using AnalyticParams = AnalyticParamsT<float>;
+
+/// Every evaluation function accepts any parameters and clamps them into the
+/// valid box first (NaN goes to the lower bound), so no input can make them
+/// return NaN. Front ends that want an error instead call validate().
+template <typename T> AnalyticParamsT<T> clamped(const AnalyticParamsT<T>& p) {
+    AnalyticParamsT<T> q;
+    for (int c = 0; c < 3; ++c) {
+        q.kd[c] = clamp_nan_lo(p.kd[c], T(0), T(1));
+        q.eta[c] = clamp_nan_lo(p.eta[c], T(kEtaMin), T(kEtaMax));
+    }
+    for (int c = 0; c < 2; ++c) q.alpha[c] = clamp_nan_lo(p.alpha[c], T(kAlphaMin), T(kAlphaMax));
+    return q;
+}
+
+/// Throws std::invalid_argument naming the first parameter outside its range
+/// (or NaN). The message is meant for people: "eta[1] = 0.5 is outside [1, 10]".
+template <typename T> void validate(const AnalyticParamsT<T>& p) {
+    auto check = [](const char* name, int c, T v, double lo, double hi) {
+        if (!(v >= T(lo) && v <= T(hi)))  // written so that NaN fails
+            throw std::invalid_argument(std::string(name) + "[" + std::to_string(c) + "] = " +
+                                        std::to_string(double(v)) + " is outside [" + std::to_string(lo) +
+                                        ", " + std::to_string(hi) + "]");
+    };
+    for (int c = 0; c < 3; ++c) check("kd", c, p.kd[c], 0.0, 1.0);
+    for (int c = 0; c < 3; ++c) check("eta", c, p.eta[c], kEtaMin, kEtaMax);
+    for (int c = 0; c < 2; ++c) check("alpha", c, p.alpha[c], kAlphaMin, kAlphaMax);
+}
+
+}  // namespace hbrdf
