@@ -1,0 +1,39 @@
+"""hybridbrdf — hybrid neural-microfacet BRDFs.
+
+The analytic component f_a (Lambert + anisotropic GGX with exact dielectric
+Fresnel) is evaluated and sampled by the C++ library (``hybridbrdf._core``);
+``hybridbrdf.torch_brdf`` holds the same formulas in PyTorch for fitting.
+Conventions: ``docs/CONVENTIONS.md``.
+"""
+
+from hybridbrdf._core import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    CONVENTIONS_VERSION,
+    ETA_MAX,
+    ETA_MIN,
+    MIS_MIN_LOBE_PROBABILITY,
+)
+from hybridbrdf._core import __version__ as _core_version
+from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
+
+__version__ = "0.1.0"
+if _core_version != __version__:  # a stale extension from an older build
+    raise ImportError(f"hybridbrdf {__version__} found extension hybridbrdf._core {_core_version}; reinstall the package")
+
+STRATEGIES = ("cosine", "ggx", "mis")
+
+__all__ = [
+    "ALPHA_MAX",
+    "ALPHA_MIN",
+    "CONVENTIONS_VERSION",
+    "ETA_MAX",
+    "ETA_MIN",
+    "MIS_MIN_LOBE_PROBABILITY",
+    "STRATEGIES",
+    "AnalyticParams",
+    "analytic_eval",
+    "pdf",
+    "sample",
+    "simd_path",
+]
