@@ -79,8 +79,8 @@ def run_demo(out: str, samples: int = 200_000) -> None:
         for k, ti in enumerate(angles):
             wi, wo = in_plane(ti, theta_o)
             f = analytic_eval(wi, wo, p).astype(np.float64)
-            ref = torch_eval(torch.from_numpy(wi), torch.from_numpy(wo), torch.from_numpy(p.kd),
-                             torch.from_numpy(p.eta), torch.from_numpy(p.alpha)).numpy()
+            ref = torch_eval(torch.from_numpy(wi), torch.from_numpy(wo), torch.tensor(p.kd),
+                             torch.tensor(p.eta), torch.tensor(p.alpha)).numpy()
             worst_rel = max(worst_rel, float(np.max(np.abs(f - ref) / np.maximum(ref, 1e-12))))
             lum = (f * wi[:, 2:3]).mean(axis=1)
             colour = f"C{k}"

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Installs everything hybridbrdf needs on a fresh Debian 12 machine, then the
+# package itself (with its test extras). Idempotent; run from anywhere.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SUDO=""
+if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+
+apt_packages=(
+  build-essential cmake ninja-build pkg-config
+  libglm-dev                       # vector math in libhybridbrdf
+  libembree-dev                    # Embree 3: the reference path tracer
+  glslang-tools spirv-tools        # shader validation
+  mesa-vulkan-drivers libvulkan-dev vulkan-validationlayers   # lavapipe + loader + validation layer
+  doctest-dev                      # C++ unit tests
+)
+missing=()
+for p in "${apt_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" > /dev/null
+fi
+
+PY=${PYTHON:-python3}
+# torch first, pinned: an unpinned torch would pull a multi-GB CUDA build. The
+# package itself only declares a range, which this satisfies.
+if ! "$PY" -c 'import torch, sys; sys.exit(torch.__version__.split("+")[0] != "2.13.0")' 2>/dev/null; then
+  echo "setup: installing torch==2.13.0 (CPU)"
+  "$PY" -m pip install -q "torch==2.13.0"
+fi
+"$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12"
+echo "setup: building and installing hybridbrdf"
+# No build isolation: reuses build-py/ for incremental rebuilds and the
+# scikit-build-core/pybind11 installed just above.
+"$PY" -m pip install -q --no-build-isolation ".[test]"
+echo "setup: done ($("$PY" -c 'import hybridbrdf as h; print("hybridbrdf", h.__version__, "simd", h.simd_path())'))"
