@@ -32,7 +32,7 @@ def _vector(value, n: int, name: str) -> np.ndarray:
 def _check_range(arr: np.ndarray, lo: float, hi: float, name: str) -> None:
     for i, v in enumerate(arr):
         if not (lo <= v <= hi):  # written so that NaN fails
-            raise ValueError(f"{name}[{i}] = {v!r} is outside [{lo:g}, {hi:g}]")
+            raise ValueError(f"{name}[{i}] = {float(v)!r} is outside [{lo:g}, {hi:g}]")
 
 
 @dataclass(frozen=True)

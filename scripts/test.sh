@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Runs every test: sets up first (idempotent), then
+#   1. the C++ unit tests and the installed-package consumer (ctest, Release),
+#   2. the C++ unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer,
+#   3. the Python suite (pytest).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash scripts/setup.sh
+PY=${PYTHON:-python3}
+JOBS=${JOBS:-$(nproc)}
+
+echo "== C++ tests (Release) =="
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
+cmake --build build -j "$JOBS" > /dev/null
+ctest --test-dir build --output-on-failure
+
+echo "== C++ tests under ASan + UBSan =="
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null
+cmake --build build-asan -j "$JOBS" --target hbrdf_tests > /dev/null
+# Guard against a silently unsanitised build (a flag typo would pass everything).
+nm -C build-asan/tests/cpp/hbrdf_tests | grep -q __asan_init || { echo "test: ASan build is not instrumented" >&2; exit 1; }
+nm -C build-asan/tests/cpp/hbrdf_tests | grep -q __ubsan_handle || { echo "test: UBSan build is not instrumented" >&2; exit 1; }
+# The consumer test links an installed static library and is not sanitised.
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan --output-on-failure -R cpp_unit_tests
+
+echo "== Python tests =="
+"$PY" -m pytest tests/python
