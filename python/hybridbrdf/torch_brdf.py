@@ -106,3 +106,121 @@ def eval_analytic(
     F = fresnel_dielectric(c[..., None], eta * eta - 1.0)
     f = kd * INV_PI + F * dg[..., None]
     return torch.where(valid[..., None], f, torch.zeros_like(f))
+
+
+# ---- importance sampling (the library's three strategies, in PyTorch) --------
+
+MIS_MIN_LOBE_PROBABILITY = _core.MIS_MIN_LOBE_PROBABILITY
+
+
+def _unit_z(like: torch.Tensor) -> torch.Tensor:
+    z = torch.zeros_like(like)
+    z[..., 2] = 1.0
+    return z
+
+
+def square_to_cosine_hemisphere(u: torch.Tensor) -> torch.Tensor:
+    """Malley's method on the Shirley-Chiu concentric disk; pdf = w.z / pi."""
+    a = 2.0 * u[..., 0] - 1.0
+    b = 2.0 * u[..., 1] - 1.0
+    a_major = a * a > b * b
+    r = torch.where(a_major, a, b)
+    num = torch.where(a_major, b, a)
+    ratio = torch.where(r != 0, num / torch.where(r != 0, r, torch.ones_like(r)), torch.zeros_like(r))
+    phi = torch.where(a_major, (math.pi / 4) * ratio, math.pi / 2 - (math.pi / 4) * ratio)
+    x, y = r * torch.cos(phi), r * torch.sin(phi)
+    return torch.stack([x, y, torch.sqrt(torch.clamp(1.0 - x * x - y * y, min=0.0))], dim=-1)
+
+
+def sample_ggx_vndf(wo: torch.Tensor, u: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """GGX visible normals by spherical caps (Dupuy & Benyoub 2023); wo unit, wo.z > 0."""
+    wo_std, _ = _normalize(torch.stack([wo[..., 0] * ax, wo[..., 1] * ay, wo[..., 2]], dim=-1))
+    phi = 2.0 * math.pi * u[..., 0]
+    z = (1.0 - u[..., 1]) * (1.0 + wo_std[..., 2]) - wo_std[..., 2]
+    sin_theta = torch.sqrt(torch.clamp(1.0 - z * z, min=0.0))
+    h_std = torch.stack([sin_theta * torch.cos(phi), sin_theta * torch.sin(phi), z], dim=-1) + wo_std
+    h, _ = _normalize(torch.stack([h_std[..., 0] * ax, h_std[..., 1] * ay, h_std[..., 2].clamp(min=0.0)], dim=-1))
+    return h
+
+
+def pdf_ggx_vndf(wi: torch.Tensor, wo: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """Density of reflect(wo, h) with h from sample_ggx_vndf: G1(wo) D(h) / (4 wo.z), over the sphere."""
+    h, ok = _normalize(wi + wo)
+    p = ggx_D(h, ax, ay) * 0.5 * smith_g1_over_2cos(wo, ax, ay)
+    return torch.where(ok & (wo[..., 2] > 0), p, torch.zeros_like(p))
+
+
+def ggx_lobe_probability(wo: torch.Tensor, kd: torch.Tensor, eta: torch.Tensor) -> torch.Tensor:
+    """P_ggx = clamp(Fs / (Fs + Kd), 0.1, 0.9), Fs = mean Fresnel at wo.z, Kd = mean kd."""
+    fs = fresnel_dielectric(wo[..., 2:3], eta * eta - 1.0).mean(-1)
+    kdm = kd.mean(-1)
+    tot = fs + kdm
+    p = torch.where(tot > 0, fs / torch.where(tot > 0, tot, torch.ones_like(tot)), torch.full_like(tot, 0.5))
+    return p.clamp(MIS_MIN_LOBE_PROBABILITY, 1.0 - MIS_MIN_LOBE_PROBABILITY)
+
+
+def _prepared(wo, kd, eta, alpha):
+    dtype, dev = wo.dtype, wo.device
+    kd = _clamp_nan_lo(torch.as_tensor(kd, dtype=dtype, device=dev), 0.0, 1.0)
+    eta = _clamp_nan_lo(torch.as_tensor(eta, dtype=dtype, device=dev), ETA_MIN, ETA_MAX)
+    alpha = _clamp_nan_lo(torch.as_tensor(alpha, dtype=dtype, device=dev), ALPHA_MIN, 1.0)
+    return kd, eta, alpha
+
+
+def pdf(wi: torch.Tensor, wo: torch.Tensor, kd, eta, alpha, strategy: str = "mis") -> torch.Tensor:
+    """Solid-angle density of ``strategy`` ('cosine', 'ggx', 'mis'), as the C++ pdf()."""
+    kd, eta, alpha = _prepared(wo, kd, eta, alpha)
+    wi_n, ok_i = _normalize(wi.to(wo.dtype))
+    wo_n, ok_o = _normalize(wo)
+    valid = ok_i & ok_o & (wo_n[..., 2] > 0)
+    p_cos = torch.clamp(wi_n[..., 2], min=0.0) * INV_PI
+    if strategy == "cosine":
+        p = p_cos
+    else:
+        p_ggx = pdf_ggx_vndf(wi_n, wo_n, alpha[..., 0], alpha[..., 1])
+        if strategy == "ggx":
+            p = p_ggx
+        elif strategy == "mis":
+            w = ggx_lobe_probability(wo_n, kd, eta)
+            p = w * p_ggx + (1.0 - w) * p_cos
+        else:
+            raise ValueError(f"unknown sampling strategy {strategy!r}; expected 'cosine', 'ggx' or 'mis'")
+    return torch.where(valid, p, torch.zeros_like(p))
+
+
+def sample(wo: torch.Tensor, u: torch.Tensor, kd, eta, alpha, strategy: str = "mis"):
+    """Samples wi for each wo with u in [0,1)^2; returns (wi, pdf, weight = f cos / pdf).
+
+    The same mapping as the C++ sample(): a row with pdf 0 is "no sample"
+    (wi = +z, weight 0). Not differentiable with respect to u.
+    """
+    if strategy not in ("cosine", "ggx", "mis"):
+        raise ValueError(f"unknown sampling strategy {strategy!r}; expected 'cosine', 'ggx' or 'mis'")
+    kd, eta, alpha = _prepared(wo, kd, eta, alpha)
+    one_minus_eps = 1.0 - torch.finfo(wo.dtype).eps / 2
+    u = _clamp_nan_lo(u.to(wo.dtype), 0.0, one_minus_eps)
+    wo_n, ok_o = _normalize(wo)
+    valid = ok_o & (wo_n[..., 2] > 0)
+    wo_n = torch.where(valid[..., None], wo_n, _unit_z(wo_n))
+
+    ux = u[..., 0]
+    if strategy == "mis":
+        p_ggx = ggx_lobe_probability(wo_n, kd, eta)
+        use_ggx = ux < p_ggx
+        ux = torch.where(use_ggx, ux / p_ggx, (ux - p_ggx) / (1.0 - p_ggx)).clamp(0.0, one_minus_eps)
+    else:
+        use_ggx = torch.full_like(ux, strategy == "ggx", dtype=torch.bool)
+    u2 = torch.stack([ux, u[..., 1]], dim=-1)
+    h = sample_ggx_vndf(wo_n, u2, alpha[..., 0], alpha[..., 1])
+    wi_ggx = 2.0 * (wo_n * h).sum(-1, keepdim=True) * h - wo_n
+    wi = torch.where(use_ggx[..., None], wi_ggx, square_to_cosine_hemisphere(u2))
+
+    p = pdf(wi, wo_n, kd, eta, alpha, strategy)
+    ok = valid & (p > 0)
+    safe_p = torch.where(ok, p, torch.ones_like(p))
+    weight = eval_analytic(wi, wo_n, kd, eta, alpha) * (torch.clamp(wi[..., 2], min=0.0) / safe_p)[..., None]
+    return (
+        torch.where(ok[..., None], wi, _unit_z(wi)),
+        torch.where(ok, p, torch.zeros_like(p)),
+        torch.where(ok[..., None], weight, torch.zeros_like(weight)),
+    )
