@@ -19,8 +19,10 @@ echo "== C++ tests under ASan + UBSan =="
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null
 cmake --build build-asan -j "$JOBS" --target hbrdf_tests > /dev/null
 # Guard against a silently unsanitised build (a flag typo would pass everything).
-nm -C build-asan/tests/cpp/hbrdf_tests | grep -q __asan_init || { echo "test: ASan build is not instrumented" >&2; exit 1; }
-nm -C build-asan/tests/cpp/hbrdf_tests | grep -q __ubsan_handle || { echo "test: UBSan build is not instrumented" >&2; exit 1; }
+# (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
+symbols=$(nm -C build-asan/tests/cpp/hbrdf_tests)
+grep __asan_init <<< "$symbols" > /dev/null || { echo "test: ASan build is not instrumented" >&2; exit 1; }
+grep __ubsan_handle <<< "$symbols" > /dev/null || { echo "test: UBSan build is not instrumented" >&2; exit 1; }
 # The consumer test links an installed static library and is not sanitised.
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -R cpp_unit_tests
