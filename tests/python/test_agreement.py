@@ -123,3 +123,26 @@ def test_torch_sampler_matches_cpp(rng):
             assert np.allclose(w_c[good], w_t[good], rtol=5e-4, atol=1e-7)
             q = torch_pdf(t(wi_c), t(wo), t(p.kd), t(p.eta), t(p.alpha), strategy).numpy()
             assert np.allclose(q[good], pdf_c[good], rtol=5e-4)
+
+
+def test_torch_sampler_hard_cases():
+    """The PyTorch sampler keeps the hard-case contract of the C++ one."""
+    from hybridbrdf.torch_brdf import sample as torch_sample
+
+    from conftest import hard_directions
+
+    d = hard_directions()
+    us = np.array([[0, 0], [0.5, 0.5], [1, 1], [np.nan, 0.5], [-1, 2], [0.999999, 0.1]])
+    wo = torch.tensor(np.repeat(d, len(us), axis=0))
+    u = torch.tensor(np.tile(us, (len(d), 1)))
+    invalid = ~torch.tensor(valid_upper(np.repeat(d, len(us), axis=0), np.float64))
+    for p in PARAM_CORNERS:
+        for dtype in (torch.float32, torch.float64):
+            for strategy in hb.STRATEGIES:
+                wi, q, w = torch_sample(wo.to(dtype), u.to(dtype), torch.tensor(p.kd), torch.tensor(p.eta),
+                                        torch.tensor(p.alpha), strategy)
+                assert torch.isfinite(wi).all() and torch.isfinite(q).all() and torch.isfinite(w).all()
+                assert (q >= 0).all() and (w >= 0).all()
+                if dtype == torch.float64:
+                    assert (q[invalid] == 0).all()
+                assert (w[q == 0] == 0).all()
