@@ -1,0 +1,77 @@
+"""The one interface every BRDF source presents: measured files, published
+networks and synthetic materials alike. Nothing downstream knows the format."""
+
+from __future__ import annotations
+
+import abc
+import os
+from typing import Optional
+
+import numpy as np
+
+
+class BRDFFormatError(ValueError):
+    """A file (or synthetic name) that cannot be read as a BRDF.
+
+    ``str(err)`` is ``"<path>: <problem>"``, one line, meant for people; the
+    CLI prints it as is. ``path`` and ``problem`` are kept as attributes.
+    """
+
+    def __init__(self, path, problem: str):
+        self.path = os.fspath(path) if path is not None else "<unknown>"
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class BRDFSource(abc.ABC):
+    """A BRDF f(wi, wo) (no cosine, RGB) in the local frame of docs/CONVENTIONS.md.
+
+    Attributes every source sets:
+
+    - ``name``: material name (the file stem, or the synthetic material's name)
+    - ``isotropic``: True when f depends on phi_i - phi_o only
+    - ``origin``: where the values come from, the label figures must carry,
+      e.g. ``"RGL measurement (raw .bsdf)"``, ``"MERL (NBRDF reconstruction)"``,
+      ``"synthetic (exact)"``
+    - ``path``: the file read, or None
+
+    Subclasses implement :meth:`_eval` for unit directions strictly above the
+    horizon; :meth:`eval` does the checking, normalising and masking.
+    """
+
+    name: str
+    isotropic: bool
+    origin: str
+    path: Optional[str] = None
+
+    def eval(self, wi, wo) -> np.ndarray:
+        """f(wi, wo) for (N,3) arrays; returns (N,3) float64.
+
+        Directions are normalised. Rows where either direction is at or
+        below the horizon, has zero length or is not finite give 0. Measured
+        sources return their data as it is: values may be slightly negative
+        where the measurement was noisy (metrics clamp them to 0).
+        """
+        wi = np.asarray(wi, dtype=np.float64)
+        wo = np.asarray(wo, dtype=np.float64)
+        for arr, nm in ((wi, "wi"), (wo, "wo")):
+            if arr.ndim != 2 or arr.shape[1] != 3:
+                raise ValueError(f"{nm} must have shape (N, 3), got {arr.shape}")
+        if wi.shape[0] != wo.shape[0]:
+            raise ValueError(f"wi has {wi.shape[0]} rows but wo has {wo.shape[0]}")
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            li = np.sqrt((wi * wi).sum(axis=1))
+            lo = np.sqrt((wo * wo).sum(axis=1))
+            ok = np.isfinite(li) & np.isfinite(lo) & (li > 1e-300) & (lo > 1e-300)
+            ok &= (wi[:, 2] > 0) & (wo[:, 2] > 0)
+        out = np.zeros((wi.shape[0], 3))
+        if ok.any():
+            out[ok] = self._eval(wi[ok] / li[ok, None], wo[ok] / lo[ok, None])
+        return out
+
+    @abc.abstractmethod
+    def _eval(self, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """f for unit (M,3) float64 directions with wi.z > 0 and wo.z > 0; returns (M,3)."""
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} ({self.origin})>"
