@@ -16,6 +16,9 @@ from hybridbrdf._core import (
 )
 from hybridbrdf._core import __version__ as _core_version
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
+from hybridbrdf.errors import InputFileError, ModelFileError
+from hybridbrdf.model_file import HybridModel, load_model
+from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open_source
 
 __version__ = "0.1.0"
 if _core_version != __version__:  # a stale extension from an older build
@@ -32,6 +35,14 @@ __all__ = [
     "MIS_MIN_LOBE_PROBABILITY",
     "STRATEGIES",
     "AnalyticParams",
+    "BRDFFormatError",
+    "BRDFSource",
+    "HybridModel",
+    "InputFileError",
+    "ModelFileError",
+    "expand_sources",
+    "load_model",
+    "open_source",
     "analytic_eval",
     "pdf",
     "sample",

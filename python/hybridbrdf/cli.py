@@ -1,8 +1,15 @@
 """The ``hbrdf`` command line.
 
-    hbrdf demo [--out PATH] [--samples N]   plot f_a slices of a few materials to PNG
-    hbrdf --version
+    hbrdf fit SOURCE... --out MODEL [--arch hybrid|neural|additive|logmul|analytic-input]
+              [--mlp 32x3] [--latent 4] [--activation hardgelu|relu] [--steps N] [--batch 1024]
+              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--device cpu|cuda]
+              [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
+    hbrdf eval MODEL SOURCE... [--pairs N]
+    hbrdf info MODEL
+    hbrdf demo [--out PATH] [--samples N]
 
+A SOURCE is a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF), a folder, a
+glob, or synthetic:NAME (synthetic:all for every built-in material).
 Errors are printed as one line on stderr with a non-zero exit status.
 """
 
@@ -10,6 +17,81 @@ from __future__ import annotations
 
 import argparse
 import sys
+
+EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
+          "or synthetic:NAME (synthetic:all = every built-in material).")
+
+
+def _open_all(specs):
+    from hybridbrdf.sources import expand_sources, open_source
+
+    return [open_source(s) for s in expand_sources(specs)]
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from hybridbrdf.fitting import FitSettings, default_device, fit, format_table
+    from hybridbrdf.model_file import load_model
+    from hybridbrdf.models import parse_mlp
+
+    width, depth = parse_mlp(args.mlp)
+    latent = args.latent if args.latent is not None else (12 if args.arch == "neural" else 4)
+    settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=latent, activation=args.activation,
+                           steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, pool=args.pool,
+                           eval_pairs=args.eval_pairs, device=args.device or default_device(),
+                           sources=list(args.sources), frozen_from=args.frozen)
+    settings.check()
+    frozen = load_model(args.frozen) if args.frozen else None
+    sources = _open_all(args.sources)
+    log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    model = fit(sources, settings, frozen=frozen, checkpoint=args.checkpoint, checkpoint_every=args.checkpoint_every,
+                resume=args.resume, progress=not args.quiet, log=log)
+    model.save(args.out)
+    rows = [dict(material=m["name"], origin=m["origin"], **m["metrics"]) for m in model.material_info]
+    print(format_table(rows, settings.eval_pairs))
+    rate = model.training.get("pairs_x_materials_per_second")
+    print(f"trained {settings.steps} steps in {model.training['train_seconds']:.1f} s"
+          + (f" ({rate:,.0f} pairs x materials / s)" if rate else "") + f"; wrote {args.out}")
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from hybridbrdf.fitting import evaluate, format_table
+    from hybridbrdf.model_file import load_model
+
+    model = load_model(args.model)
+    rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs)
+    print(format_table(rows, args.pairs))
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from hybridbrdf.model_file import load_model
+
+    model = load_model(args.model)
+    a = model.arch
+    h = model.header()
+    print(f"{args.model}: hybridbrdf model, format {h['format_version']}, conventions {h['conventions_version']}, "
+          f"written by hybridbrdf {h['library_version']}")
+    print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "
+          f"{a['n_in']} inputs -> {a['n_out']} outputs")
+    n_net = sum(v.size for k, v in model.tensors.items() if not k.startswith("materials."))
+    print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
+    t = model.training
+    if t:
+        keys = ("steps", "batch", "lr", "seed", "pool", "device", "train_seconds", "frozen_from")
+        print("training: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None))
+    print(f"{len(model.materials)} materials:")
+    for m in model.material_info:
+        line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {m.get('origin', '')}"
+        if model.kind != "neural":
+            p = model.analytic_params(m["name"])
+            line += (f"\n      kd {p.kd.round(4).tolist()} eta {p.eta.round(4).tolist()} "
+                     f"alpha {p.alpha.round(5).tolist()}")
+        met = m.get("metrics") or {}
+        if met:
+            line += "\n      " + ", ".join(f"{k} {v:.4g}" for k, v in met.items() if isinstance(v, (int, float)))
+        print(line)
+    return 0
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -19,12 +101,62 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_int(text: str) -> int:
+    try:
+        v = int(float(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     from hybridbrdf import __version__
+    from hybridbrdf.models import ACTIVATIONS, ARCHS
 
-    parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.")
+    parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.", epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"hybridbrdf {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+
+    fit = sub.add_parser("fit", help="fit one shared network + per-material parameters to BRDF sources",
+                         description="Jointly fit a collection of BRDFs (paper Sec. 3.3) and write a model file. "
+                                     "Prints the per-material metrics table.", epilog=EPILOG)
+    fit.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    fit.add_argument("--out", required=True, help="model file to write (safetensors)")
+    fit.add_argument("--arch", choices=ARCHS, default="hybrid", help="model architecture (default: %(default)s)")
+    fit.add_argument("--mlp", default="32x3", help="hidden layers as WIDTHxDEPTH (default: %(default)s)")
+    fit.add_argument("--latent", type=int, default=None,
+                     help="latent dimensions per material (default: 4, or 12 for --arch neural)")
+    fit.add_argument("--activation", choices=ACTIVATIONS, default="hardgelu", help="hidden activation (default: %(default)s)")
+    fit.add_argument("--steps", type=_positive_int, default=2000, help="optimiser steps (default: %(default)s)")
+    fit.add_argument("--batch", type=_positive_int, default=1024, help="direction pairs per step (default: %(default)s)")
+    fit.add_argument("--lr", type=float, default=5e-3, help="AdamW learning rate, cosine-decayed (default: %(default)s)")
+    fit.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    fit.add_argument("--pool", type=_positive_int, default=1 << 18,
+                     help="direction pairs in the training pool, evaluated once per source (default: %(default)s)")
+    fit.add_argument("--eval-pairs", type=_positive_int, default=100_000,
+                     help="pairs for the metrics stored with the model (default: %(default)s; CONVENTIONS uses 1e6)")
+    fit.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")
+    fit.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
+    fit.add_argument("--checkpoint-every", type=_positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
+    fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
+    fit.add_argument("--frozen", metavar="MODEL", help="sparse fitting: keep MODEL's network, fit only (p, z) of the sources")
+    fit.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
+    fit.set_defaults(func=_cmd_fit)
+
+    ev = sub.add_parser("eval", help="per-material SMAPE/cMAE of a model against BRDF sources",
+                        description="Evaluate a model against the sources its materials were fitted to (matched by "
+                                    "name): SMAPE and cMAE of the analytic part and of the full model.", epilog=EPILOG)
+    ev.add_argument("model", help="model file")
+    ev.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    ev.add_argument("--pairs", type=_positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
+    ev.set_defaults(func=_cmd_eval)
+
+    info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
+                                                                            "training settings and materials.")
+    info.add_argument("model", help="model file")
+    info.set_defaults(func=_cmd_info)
 
     demo = sub.add_parser(
         "demo",
@@ -34,9 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
         "directional albedo estimated with every sampling strategy.",
     )
     demo.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
-    demo.add_argument(
-        "--samples", type=int, default=200_000, help="samples per albedo estimate (default: %(default)s)"
-    )
+    demo.add_argument("--samples", type=int, default=200_000, help="samples per albedo estimate (default: %(default)s)")
     demo.set_defaults(func=_cmd_demo)
     return parser
 
@@ -46,8 +176,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, OSError) as exc:
-        print(f"hbrdf {args.command}: error: {exc}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"hbrdf {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, KeyError, OSError, FloatingPointError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        print(f"hbrdf {args.command}: error: {msg}", file=sys.stderr)
         return 1
 
 

@@ -4,23 +4,19 @@ networks and synthetic materials alike. Nothing downstream knows the format."""
 from __future__ import annotations
 
 import abc
-import os
 from typing import Optional
 
 import numpy as np
 
+from hybridbrdf.errors import InputFileError
 
-class BRDFFormatError(ValueError):
+
+class BRDFFormatError(InputFileError):
     """A file (or synthetic name) that cannot be read as a BRDF.
 
     ``str(err)`` is ``"<path>: <problem>"``, one line, meant for people; the
     CLI prints it as is. ``path`` and ``problem`` are kept as attributes.
     """
-
-    def __init__(self, path, problem: str):
-        self.path = os.fspath(path) if path is not None else "<unknown>"
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")
 
 
 class BRDFSource(abc.ABC):

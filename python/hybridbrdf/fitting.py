@@ -1,0 +1,281 @@
+"""Joint fitting of a collection of BRDFs (paper Sec. 3.3, docs/CONVENTIONS.md "Fitting").
+
+    loss = sum_materials mean_batch  L(f_ref, f_a) + L(f_ref, f_t)
+    L(f1, f2) = || log(1 + cos(theta_i) f1) - log(1 + cos(theta_i) f2) ||^2   (squared norm over RGB)
+
+Each step draws one batch of direction pairs (cosine-weighted, wi and wo
+independent) from a training pool and evaluates every material on it. The pool
+holds every source's values at ``pool`` pairs, computed once (readers can be
+slow; the network is fast). Measured negatives (noise) are clamped to 0.
+
+AdamW (network weights with weight decay 0.01, per-material parameters without:
+decay would pull kd, eta, alpha towards the middle of their ranges), learning
+rate 5e-3 with cosine decay to 0 over the run, gradient-norm clipping at 0.01.
+The neural baseline has no analytic term in its loss.
+
+Sparse fitting (paper Sec. 4.2): ``frozen=<HybridModel>`` keeps that model's
+network and fits only (p, z) of the given materials.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Dict, List, Optional, Sequence
+
+import numpy as np
+import torch
+
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.metrics import cmae, cosine_hemisphere, metric_directions, smape
+from hybridbrdf.model_file import HybridModel
+from hybridbrdf.models import build_model
+from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.util import atomic_write_bytes
+
+
+@dataclass
+class FitSettings:
+    """Everything that defines a fit; recorded in the model file."""
+
+    arch: str = "hybrid"
+    width: int = 32
+    depth: int = 3
+    latent: int = 4
+    activation: str = "hardgelu"
+    steps: int = 2000
+    batch: int = 1024
+    lr: float = 5e-3
+    clip: float = 0.01
+    weight_decay: float = 0.01
+    seed: int = 0
+    pool: int = 1 << 18
+    eval_pairs: int = 100_000
+    device: str = "cpu"
+    sources: List[str] = field(default_factory=list)
+    frozen_from: Optional[str] = None
+
+    def check(self) -> None:
+        for name in ("width", "depth", "steps", "batch", "pool", "eval_pairs"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.latent < 0:
+            raise ValueError(f"latent must be >= 0, got {self.latent}")
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f"lr must be positive, got {self.lr}")
+
+
+def default_device() -> str:
+    return "cuda" if torch.cuda.is_available() else "cpu"
+
+
+class TrainingPool:
+    """Direction pairs and every source's reference values on them (float32)."""
+
+    def __init__(self, sources: Sequence[BRDFSource], n_pairs: int, seed: int,
+                 progress: Optional[Callable[[str], None]] = None):
+        rng = np.random.default_rng(seed + 1_000_003)
+        wi = cosine_hemisphere(rng, n_pairs)
+        wo = cosine_hemisphere(rng, n_pairs)
+        ref = np.empty((len(sources), n_pairs, 3), dtype=np.float32)
+        for m, src in enumerate(sources):
+            if progress:
+                progress(f"evaluating {src.name} ({m + 1}/{len(sources)}) on {n_pairs} pairs")
+            values = np.asarray(src.eval(wi, wo), dtype=np.float64)
+            if not np.isfinite(values).all():
+                raise InputFileError(src.path or src.name, "source returned NaN or Inf values")
+            ref[m] = np.maximum(values, 0.0)
+        self.wi = torch.from_numpy(wi.astype(np.float32))
+        self.wo = torch.from_numpy(wo.astype(np.float32))
+        self.ref = torch.from_numpy(ref)
+
+    def to(self, device: str) -> "TrainingPool":
+        self.wi, self.wo, self.ref = self.wi.to(device), self.wo.to(device), self.ref.to(device)
+        return self
+
+
+def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor) -> torch.Tensor:
+    """Per-material L: mean over the batch of the squared RGB norm of the log-cos difference. (M,)"""
+    c = cos_i[None, :, None]
+    d = torch.log1p(c * f_ref) - torch.log1p(c * f)
+    return (d * d).sum(-1).mean(-1)
+
+
+def _optimizer(module, settings: FitSettings, frozen: bool):
+    net = [p for n, p in module.named_parameters() if n.startswith(("mlp.", "frames."))]
+    per_material = [p for n, p in module.named_parameters() if not n.startswith(("mlp.", "frames."))]
+    if frozen:
+        for p in net:
+            p.requires_grad_(False)
+        groups = [{"params": per_material, "weight_decay": 0.0}]
+    else:
+        groups = [{"params": net, "weight_decay": settings.weight_decay},
+                  {"params": per_material, "weight_decay": 0.0}]
+    opt = torch.optim.AdamW(groups, lr=settings.lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda step: 0.5 * (1.0 + math.cos(math.pi * min(step, settings.steps) / settings.steps)))
+    return opt, sched
+
+
+def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSettings, names: List[str]) -> None:
+    buf = io.BytesIO()
+    torch.save({"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                "step": step, "settings": dataclasses.asdict(settings), "names": names,
+                "torch_rng": torch.get_rng_state()}, buf)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel] = None,
+        checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
+        progress: bool = True, log: Callable[[str], None] = print,
+        stop_after: Optional[int] = None) -> Optional[HybridModel]:
+    """Fit ``sources`` jointly; returns the fitted :class:`HybridModel` (with per-material metrics).
+
+    ``checkpoint``: file written every ``checkpoint_every`` steps (atomically);
+    with ``resume`` an existing checkpoint is continued, reproducing the
+    uninterrupted run exactly (same batches, optimiser state and RNG).
+    ``stop_after``: write the checkpoint after that many steps and return None
+    (splits a long fit into bounded jobs; requires ``checkpoint``).
+    """
+    if stop_after is not None and not checkpoint:
+        raise ValueError("stop_after needs a checkpoint file to stop into")
+    settings.check()
+    if not sources:
+        raise ValueError("no BRDF sources to fit")
+    names = [s.name for s in sources]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise ValueError(f"two sources share the material name(s) {', '.join(dupes)}; names must be unique")
+    torch.manual_seed(settings.seed)
+    iso = [bool(s.isotropic) for s in sources]
+
+    if frozen is not None:
+        a = frozen.arch
+        settings.arch, settings.width, settings.depth = a["kind"], a["width"], a["depth"]
+        settings.latent, settings.activation = a["latent"], a["activation"]
+    module = build_model(settings.arch, len(sources), settings.width, settings.depth, settings.latent,
+                         settings.activation, iso)
+    if frozen is not None:
+        state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
+        module.load_state_dict(state, strict=False)
+
+    pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None).to(settings.device)
+    module.to(settings.device)
+    opt, sched = _optimizer(module, settings, frozen is not None)
+    start = 0
+    if resume and checkpoint and os.path.exists(checkpoint):
+        state = torch.load(checkpoint, map_location=settings.device, weights_only=True)
+        if state["names"] != names:
+            raise InputFileError(checkpoint, "checkpoint was written for other materials; refusing to resume")
+        saved = {k: v for k, v in state["settings"].items() if k not in ("sources", "device", "eval_pairs")}
+        mine = {k: v for k, v in dataclasses.asdict(settings).items() if k not in ("sources", "device", "eval_pairs")}
+        if saved != mine:
+            diff = ", ".join(f"{k}: {saved.get(k)!r} -> {mine.get(k)!r}" for k in mine if saved.get(k) != mine.get(k))
+            raise InputFileError(checkpoint, f"checkpoint was written with other settings ({diff})")
+        module.load_state_dict(state["module"])
+        opt.load_state_dict(state["optimizer"])
+        sched.load_state_dict(state["scheduler"])
+        torch.set_rng_state(state["torch_rng"])
+        start = int(state["step"])
+        log(f"resuming from {checkpoint} at step {start}")
+
+    gen = torch.Generator(device="cpu").manual_seed(settings.seed)
+    for _ in range(start):  # keep the batch sequence identical to an uninterrupted run
+        torch.randint(0, settings.pool, (settings.batch,), generator=gen)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=settings.steps, initial=start, desc=f"fit {settings.arch} {settings.width}x{settings.depth}",
+                   unit="step", dynamic_ncols=True, mininterval=0.5)
+    module.train()
+    has_analytic = settings.arch != "neural"
+    t0 = time.perf_counter()
+    for step in range(start, settings.steps):
+        idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
+        wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
+        f_t, f_a = module(wi, wo)
+        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2])
+        if has_analytic:
+            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2])
+        loss = loss_per_material.sum()
+        if not torch.isfinite(loss):
+            raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_([p for p in module.parameters() if p.requires_grad], settings.clip)
+        opt.step()
+        sched.step()
+        if bar is not None:
+            bar.update(1)
+            if step % 20 == 0:
+                bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
+        if checkpoint and (step + 1) % checkpoint_every == 0 and step + 1 < settings.steps:
+            _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names)
+        if stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps:
+            _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names)
+            if bar is not None:
+                bar.close()
+            return None
+    if bar is not None:
+        bar.close()
+    elapsed = time.perf_counter() - t0
+    module.eval().cpu()
+
+    training = dataclasses.asdict(settings)
+    training["train_seconds"] = round(elapsed, 3)
+    training["pairs_x_materials_per_second"] = (
+        round((settings.steps - start) * settings.batch * len(sources) / elapsed) if elapsed > 0 else None)
+    model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
+    metrics = evaluate(model, sources, n_pairs=settings.eval_pairs)
+    for info, row in zip(model.material_info, metrics):
+        info["metrics"] = {k: v for k, v in row.items() if k not in ("material", "origin")}
+    return model
+
+
+def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
+             seed: int = 7) -> List[Dict[str, object]]:
+    """Per-material metrics of CONVENTIONS on ``n_pairs`` seeded cosine-weighted pairs:
+    SMAPE and cMAE of the full model and (hybrid kinds) of its analytic part.
+    Sources are matched to the model's materials by name."""
+    wi, wo = metric_directions(n_pairs, seed)
+    rows = []
+    for src in sources:
+        if src.name not in model.materials:
+            raise KeyError(f"material {src.name!r} is not in the model (it has {', '.join(model.materials)})")
+        ref = src.eval(wi, wo)
+        f, fa = model._eval(wi, wo, src.name, torch.float32)
+        row: Dict[str, object] = {"material": src.name, "origin": src.origin,
+                                  "smape": smape(ref, f), "cmae": cmae(ref, f, wi[:, 2])}
+        if fa is not None:
+            row["smape_analytic"] = smape(ref, fa)
+            row["cmae_analytic"] = cmae(ref, fa, wi[:, 2])
+        rows.append(row)
+    return rows
+
+
+def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:
+    """The per-material table `hbrdf fit` and `hbrdf eval` print."""
+    has_a = any("smape_analytic" in r for r in rows)
+    head = f"{'material':28s} {'reference':32s} " + (
+        f"{'SMAPE analytic':>14s} {'SMAPE model':>12s} {'cMAE analytic':>14s} {'cMAE model':>11s}" if has_a
+        else f"{'SMAPE model':>12s} {'cMAE model':>11s}")
+    lines = [f"metrics on {n_pairs} cosine-weighted pairs (seed 7); negatives in references clamped to 0", head]
+    for r in rows:
+        if has_a:
+            lines.append(f"{r['material'][:28]:28s} {str(r['origin'])[:32]:32s} {r['smape_analytic']:14.4f} "
+                         f"{r['smape']:12.4f} {r['cmae_analytic']:14.5f} {r['cmae']:11.5f}")
+        else:
+            lines.append(f"{r['material'][:28]:28s} {str(r['origin'])[:32]:32s} {r['smape']:12.4f} {r['cmae']:11.5f}")
+    if rows:
+        mean = lambda k: np.mean([r[k] for r in rows])  # noqa: E731
+        if has_a:
+            lines.append(f"{'mean':28s} {'':32s} {mean('smape_analytic'):14.4f} {mean('smape'):12.4f} "
+                         f"{mean('cmae_analytic'):14.5f} {mean('cmae'):11.5f}")
+        else:
+            lines.append(f"{'mean':28s} {'':32s} {mean('smape'):12.4f} {mean('cmae'):11.5f}")
+    return "\n".join(lines)

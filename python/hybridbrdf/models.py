@@ -1,0 +1,274 @@
+"""The hybrid model of the paper (Eq. 1), its ablation variants and the fully
+neural baseline, in PyTorch.
+
+    f_t(wi, wo) = f_c + f_g * f_a,    (f_c, f_g) = psi(wi, wo, z)       (paper Eq. 1)
+
+A model holds one shared network and, per material, the analytic parameters
+p = (kd, eta, alpha) and a latent code z. Parameters are stored
+reparameterised so that every optimiser step keeps them in range:
+
+    kd    = sigmoid(kd_raw)                          in (0, 1)
+    eta   = 1 + 9 sigmoid(eta_raw)                   in (1, 10)
+    alpha = exp(log(ALPHA_MIN) (1 - sigmoid(a_raw)))  in (ALPHA_MIN, 1), log-uniform in the raw value
+
+Isotropic materials use alpha_y = alpha_x (one raw value is ignored).
+
+Architectures (``arch``):
+
+- ``hybrid``: network input (wi, wo, z) in that order; 6 outputs, f_c = exp(o[0:3]),
+  f_g = sigmoid(o[3:6]); the pre-exp value is clamped to ``PRE_EXP_MAX``.
+- ``additive`` (ablation): 3 outputs o, f_t = max(f_a + o, 0). The paper adds o
+  unclamped; the clamp keeps the loss's log(1 + cos f) defined.
+- ``logmul`` (ablation): 3 outputs o, f_t = exp(log f_a + o) = f_a exp(o).
+- ``analytic-input`` (ablation): as ``hybrid``, with log(1 + f_a) (3 values) appended to the input.
+- ``neural``: the fully neural baseline, the paper's adaptation of Zeltner et al. 2024 (see
+  :class:`NeuralBRDF`): no analytic part, a latent of ``latent`` dims per material.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Optional, Sequence
+
+import torch
+from torch import nn
+
+from hybridbrdf import _core
+from hybridbrdf.torch_brdf import eval_analytic
+
+ARCHS = ("hybrid", "neural", "additive", "logmul", "analytic-input")
+ACTIVATIONS = ("relu", "hardgelu")
+#: Bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6 is far
+#: above any measured BRDF value and keeps float32 (and float16 products) from overflowing.
+PRE_EXP_MAX = 16.0
+ALPHA_MIN = _core.ALPHA_MIN
+_LOG_ALPHA_MIN = math.log(ALPHA_MIN)
+
+
+def hardgelu(x: torch.Tensor) -> torch.Tensor:
+    """The paper authors' "hardGeLU": 0 for x < -1.5, x for x > 1.5, x (x + 1.5) / 3 between.
+    A piecewise-quadratic GELU that costs two compares and one multiply-add in a shader."""
+    return torch.where(x < -1.5, torch.zeros_like(x), torch.where(x > 1.5, x, x * (x + 1.5) / 3.0))
+
+
+def activation_fn(name: str):
+    if name == "relu":
+        return torch.relu
+    if name == "hardgelu":
+        return hardgelu
+    raise ValueError(f"unknown activation {name!r}; expected one of {', '.join(ACTIVATIONS)}")
+
+
+class MLP(nn.Module):
+    """``depth`` hidden layers of ``width`` units with the chosen activation, then a linear output."""
+
+    def __init__(self, n_in: int, width: int, depth: int, n_out: int, activation: str):
+        super().__init__()
+        if depth < 1 or width < 1:
+            raise ValueError(f"MLP needs depth >= 1 and width >= 1, got {width}x{depth}")
+        sizes = [n_in] + [width] * depth
+        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
+        self.out = nn.Linear(width, n_out)
+        self.activation_name = activation
+        self._act = activation_fn(activation)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for layer in self.hidden:
+            x = self._act(layer(x))
+        return self.out(x)
+
+    def layers(self) -> List[nn.Linear]:
+        return list(self.hidden) + [self.out]
+
+
+def _inverse_sigmoid(p: torch.Tensor) -> torch.Tensor:
+    p = p.clamp(1e-6, 1 - 1e-6)
+    return torch.log(p) - torch.log1p(-p)
+
+
+class HybridBRDF(nn.Module):
+    """Shared network + per-material (p, z) for the hybrid architecture and its ablations.
+
+    ``isotropic``: one flag per material. ``forward(wi, wo)`` with wi, wo of shape
+    (B, 3) evaluates every material on the same directions and returns
+    ``(f_t, f_a)`` of shape (M, B, 3); ``material`` restricts to a subset (LongTensor).
+    """
+
+    def __init__(
+        self,
+        n_materials: int,
+        arch: str = "hybrid",
+        width: int = 32,
+        depth: int = 3,
+        latent: int = 4,
+        activation: str = "hardgelu",
+        isotropic: Optional[Sequence[bool]] = None,
+    ):
+        super().__init__()
+        if arch not in ARCHS or arch == "neural":
+            raise ValueError(f"HybridBRDF arch must be one of hybrid, additive, logmul, analytic-input; got {arch!r}")
+        if latent < 0:
+            raise ValueError(f"latent dimension must be >= 0, got {latent}")
+        self.arch = arch
+        self.width, self.depth, self.latent_dim, self.activation = width, depth, latent, activation
+        n_out = 6 if arch in ("hybrid", "analytic-input") else 3
+        n_in = 6 + latent + (3 if arch == "analytic-input" else 0)
+        self.mlp = MLP(n_in, width, depth, n_out, activation)
+        iso = torch.ones(n_materials, dtype=torch.bool) if isotropic is None else torch.as_tensor(list(isotropic))
+        if iso.shape != (n_materials,):
+            raise ValueError(f"isotropic needs {n_materials} flags, got {tuple(iso.shape)}")
+        self.register_buffer("isotropic", iso)
+        # Start every material as a grey (kd 0.5), fairly rough (alpha 0.3) dielectric
+        # (eta 1.5): a broad lobe receives gradient from everywhere, a sharp one does not.
+        self.kd_raw = nn.Parameter(torch.zeros(n_materials, 3))
+        self.eta_raw = nn.Parameter(torch.full((n_materials, 3), float(_inverse_sigmoid(torch.tensor(0.5 / 9)))))
+        alpha0 = float(_inverse_sigmoid(torch.tensor(1.0 - math.log(0.3) / _LOG_ALPHA_MIN)))
+        self.alpha_raw = nn.Parameter(torch.full((n_materials, 2), alpha0))
+        self.z = nn.Parameter(torch.randn(n_materials, latent) * 0.01)
+        with torch.no_grad():
+            if n_out == 6:
+                # Start with a small correction (f_c = exp(-4) = 0.018) and an open gate
+                # (f_g = sigmoid(2) = 0.88): the analytic part carries the fit at first.
+                self.mlp.out.bias[0:3] = -4.0
+                self.mlp.out.bias[3:6] = 2.0
+            else:
+                self.mlp.out.bias.zero_()
+
+    @property
+    def n_materials(self) -> int:
+        return self.kd_raw.shape[0]
+
+    # ---- analytic parameters -------------------------------------------------
+    def kd(self) -> torch.Tensor:
+        return torch.sigmoid(self.kd_raw)
+
+    def eta(self) -> torch.Tensor:
+        return 1.0 + 9.0 * torch.sigmoid(self.eta_raw)
+
+    def alpha(self) -> torch.Tensor:
+        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw)))
+        return torch.where(self.isotropic[:, None], a[:, :1].expand_as(a), a)
+
+    def set_analytic(self, index: int, kd, eta, alpha) -> None:
+        """Initialise material ``index`` from parameter values (inverse of the reparameterisation)."""
+        with torch.no_grad():
+            self.kd_raw[index] = _inverse_sigmoid(torch.as_tensor(kd, dtype=torch.float32))
+            self.eta_raw[index] = _inverse_sigmoid((torch.as_tensor(eta, dtype=torch.float32) - 1.0) / 9.0)
+            a = torch.as_tensor(alpha, dtype=torch.float32).clamp(ALPHA_MIN, 1.0)
+            self.alpha_raw[index] = _inverse_sigmoid(1.0 - torch.log(a) / _LOG_ALPHA_MIN)
+
+    # ---- evaluation ------------------------------------------------------------
+    def forward(self, wi: torch.Tensor, wo: torch.Tensor, material: Optional[torch.Tensor] = None):
+        idx = torch.arange(self.n_materials, device=wi.device) if material is None else material
+        return self.evaluate(wi, wo, self.kd()[idx], self.eta()[idx], self.alpha()[idx], self.z[idx])
+
+    def evaluate(self, wi, wo, kd, eta, alpha, z):
+        """(f_t, f_a), each (M, B, 3), for explicit per-material values kd, eta (M,3),
+        alpha (M,2), z (M,l) on shared directions wi, wo (B,3)."""
+        m, b = kd.shape[0], wi.shape[0]
+        f_a = eval_analytic(wi[None], wo[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
+        x = [wi[None].expand(m, b, 3), wo[None].expand(m, b, 3), z[:, None].expand(m, b, self.latent_dim)]
+        if self.arch == "analytic-input":
+            x.append(torch.log1p(f_a))
+        o = self.mlp(torch.cat(x, dim=-1))
+        return self.combine(o, f_a), f_a
+
+    def combine(self, o: torch.Tensor, f_a: torch.Tensor) -> torch.Tensor:
+        """The network output o and f_a -> f_t, per architecture."""
+        if self.arch in ("hybrid", "analytic-input"):
+            f_c = torch.exp(o[..., 0:3].clamp(max=PRE_EXP_MAX))
+            f_g = torch.sigmoid(o[..., 3:6])
+            return f_c + f_g * f_a
+        if self.arch == "additive":
+            return torch.clamp(f_a + o, min=0.0)
+        return f_a * torch.exp(o.clamp(max=PRE_EXP_MAX))  # logmul
+
+    def material_tensors(self) -> Dict[str, torch.Tensor]:
+        """Evaluation-ready per-material values: kd, eta, alpha, z (float32, detached)."""
+        return {
+            "kd": self.kd().detach().float(),
+            "eta": self.eta().detach().float(),
+            "alpha": self.alpha().detach().float(),
+            "z": self.z.detach().float(),
+        }
+
+
+class NeuralBRDF(nn.Module):
+    """The fully neural baseline: the paper's adaptation (Sec. 4.1) of Zeltner et al. 2024,
+    "Real-Time Neural Appearance Models".
+
+    Our reading, documented because the paper gives it in one sentence: the encoder is
+    replaced by a trainable latent code of ``latent`` dims per material (12 or 16 = the
+    hybrid's l + analytic parameter count). A frame-transform module, one linear layer
+    from the latent code, predicts 3 shading frames (a normal and a tangent each,
+    Gram-Schmidt orthonormalised; initialised to the geometric frame). wi and wo are
+    expressed in each frame (18 numbers) and, with the latent code, feed a shallow MLP
+    whose 3 outputs give f = exp(o) (o clamped to PRE_EXP_MAX).
+    """
+
+    N_FRAMES = 3
+
+    def __init__(self, n_materials: int, width: int = 32, depth: int = 3, latent: int = 12,
+                 activation: str = "hardgelu", isotropic: Optional[Sequence[bool]] = None):
+        super().__init__()
+        self.arch = "neural"
+        self.width, self.depth, self.latent_dim, self.activation = width, depth, latent, activation
+        self.frames = nn.Linear(latent, self.N_FRAMES * 6)
+        with torch.no_grad():
+            self.frames.weight.mul_(0.1)
+            self.frames.bias.copy_(torch.tensor([0.0, 0, 1, 1, 0, 0] * self.N_FRAMES))
+        self.mlp = MLP(self.N_FRAMES * 6 + latent, width, depth, 3, activation)
+        iso = torch.ones(n_materials, dtype=torch.bool) if isotropic is None else torch.as_tensor(list(isotropic))
+        self.register_buffer("isotropic", iso)
+        self.z = nn.Parameter(torch.randn(n_materials, latent) * 0.01)
+
+    @property
+    def n_materials(self) -> int:
+        return self.z.shape[0]
+
+    def shading_frames(self, z: torch.Tensor):
+        """(M, 3 frames, 3 axes t, b, n, 3) orthonormal frames from latent codes (M, L)."""
+        raw = self.frames(z).view(-1, self.N_FRAMES, 2, 3)
+        n = torch.nn.functional.normalize(raw[:, :, 0], dim=-1, eps=1e-8)
+        t = raw[:, :, 1] - (raw[:, :, 1] * n).sum(-1, keepdim=True) * n
+        t = torch.nn.functional.normalize(t, dim=-1, eps=1e-8)
+        b = torch.cross(n, t, dim=-1)
+        return torch.stack([t, b, n], dim=2)
+
+    def forward(self, wi: torch.Tensor, wo: torch.Tensor, material: Optional[torch.Tensor] = None):
+        idx = torch.arange(self.n_materials, device=wi.device) if material is None else material
+        return self.evaluate(wi, wo, self.z[idx])
+
+    def evaluate(self, wi, wo, z):
+        """(f, None): f (M, B, 3) for latent codes z (M, L) on shared directions (B, 3)."""
+        frames = self.shading_frames(z)  # (M, F, 3, 3)
+        m, b = z.shape[0], wi.shape[0]
+        wi_f = torch.einsum("mfac,bc->mbfa", frames, wi).reshape(m, b, -1)
+        wo_f = torch.einsum("mfac,bc->mbfa", frames, wo).reshape(m, b, -1)
+        o = self.mlp(torch.cat([wi_f, wo_f, z[:, None].expand(m, b, self.latent_dim)], dim=-1))
+        f = torch.exp(o.clamp(max=PRE_EXP_MAX))
+        up = ((wi[:, 2] > 0) & (wo[:, 2] > 0))[None, :, None]
+        return torch.where(up, f, torch.zeros_like(f)), None
+
+    def material_tensors(self) -> Dict[str, torch.Tensor]:
+        return {"z": self.z.detach().float()}
+
+
+def build_model(arch: str, n_materials: int, width: int, depth: int, latent: int, activation: str,
+                isotropic: Optional[Sequence[bool]] = None) -> nn.Module:
+    """A fresh model of architecture ``arch`` for ``n_materials`` materials."""
+    if arch == "neural":
+        return NeuralBRDF(n_materials, width, depth, latent, activation, isotropic)
+    return HybridBRDF(n_materials, arch, width, depth, latent, activation, isotropic)
+
+
+def parse_mlp(spec: str):
+    """'32x3' -> (width 32, depth 3)."""
+    try:
+        w, d = spec.lower().split("x")
+        width, depth = int(w), int(d)
+    except ValueError:
+        raise ValueError(f"--mlp must look like WIDTHxDEPTH (e.g. 32x3), got {spec!r}") from None
+    if width < 1 or depth < 1:
+        raise ValueError(f"--mlp needs positive width and depth, got {spec!r}")
+    return width, depth

@@ -1,0 +1,163 @@
+"""Model files: bit-exact round trip, atomic writes, and a clear ModelFileError
+naming the file for every kind of damage."""
+
+import json
+import os
+import struct
+
+import numpy as np
+import pytest
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf.model_file import HybridModel, _decode_safetensors, _encode_safetensors
+from hybridbrdf.models import build_model
+
+
+def make_model(arch="hybrid", n=3, latent=4, width=16, depth=2, isotropic=None):
+    torch.manual_seed(0)
+    mod = build_model(arch, n, width, depth, latent, "hardgelu", isotropic)
+    with torch.no_grad():
+        for p in mod.parameters():
+            p.add_(torch.randn_like(p) * 0.3)
+    names = [f"mat-{i}" for i in range(n)]
+    return mod, HybridModel.from_module(mod, names, ["test"] * n, {"steps": 0})
+
+
+@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
+def test_save_then_load_is_bit_exact(tmp_path, arch):
+    mod, model = make_model(arch, latent=12 if arch == "neural" else 4, isotropic=[True, False, True])
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    back = hb.load_model(path)
+    assert back.materials == model.materials and back.arch == model.arch
+    assert set(back.tensors) == set(model.tensors)
+    for k in model.tensors:
+        assert back.tensors[k].dtype == np.float32
+        assert np.array_equal(back.tensors[k], model.tensors[k]), k
+    rng = np.random.default_rng(0)
+    wi, wo = np.abs(rng.normal(size=(500, 3))), np.abs(rng.normal(size=(500, 3)))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    for m in model.materials:
+        assert np.array_equal(back.eval(wi, wo, m), model.eval(wi, wo, m))
+    # The loaded model computes what the training module computes.
+    with torch.no_grad():
+        f_mod = mod(torch.tensor(wi, dtype=torch.float32), torch.tensor(wo, dtype=torch.float32))[0].double().numpy()
+    for i, m in enumerate(model.materials):
+        assert np.allclose(back.eval(wi, wo, m), f_mod[i], rtol=1e-5, atol=1e-7)
+    # The file is a standard safetensors file.
+    from safetensors.numpy import load_file
+
+    std = load_file(str(path))
+    assert all(np.array_equal(std[k], model.tensors[k]) for k in model.tensors)
+
+
+def test_isotropic_materials_store_equal_alphas_and_eval_analytic_matches_the_cpp_library(tmp_path):
+    _, model = make_model(isotropic=[True, False, True])
+    alpha = model.tensors["materials.alpha"]
+    assert alpha[0, 0] == alpha[0, 1] and alpha[2, 0] == alpha[2, 1]
+    rng = np.random.default_rng(1)
+    wi, wo = np.abs(rng.normal(size=(300, 3))), np.abs(rng.normal(size=(300, 3)))
+    for m in model.materials:
+        ref = hb.analytic_eval(wi, wo, model.analytic_params(m))
+        assert np.allclose(model.eval_analytic(wi, wo, m), ref, rtol=2e-5, atol=1e-8)
+
+
+def test_save_is_atomic(tmp_path, monkeypatch):
+    _, model = make_model()
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    before = path.read_bytes()
+
+    def boom(*a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        model.save(path)
+    assert path.read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == ["m.safetensors"]
+
+
+def _rewrite(src, dst, edit_doc=None, edit_tensors=None):
+    meta, tensors = _decode_safetensors(str(src))
+    doc = json.loads(meta["hybridbrdf"])
+    if edit_doc:
+        edit_doc(doc)
+    if edit_tensors:
+        edit_tensors(tensors)
+    meta["hybridbrdf"] = json.dumps(doc)
+    dst.write_bytes(_encode_safetensors(tensors, meta))
+
+
+def _set(d, key, value):
+    d[key] = value
+
+
+DAMAGE = {
+    "format version": (lambda d: _set(d, "format_version", 99), None, "format_version 99"),
+    "conventions": (lambda d: _set(d, "conventions_version", 0), None, "conventions_version 0"),
+    "unknown kind": (lambda d: d["arch"].__setitem__("kind", "transformer"), None, "arch.kind 'transformer'"),
+    "bad activation": (lambda d: d["arch"].__setitem__("activation", "tanh"), None, "arch.activation"),
+    "width mismatch": (lambda d: d["arch"].__setitem__("width", 32), None, "shape"),
+    "latent mismatch": (lambda d: d["arch"].__setitem__("latent", 5), None, "n_in/n_out"),
+    "no materials": (lambda d: _set(d, "materials", []), None, "no materials"),
+    "duplicate names": (lambda d: d["materials"][1].__setitem__("name", "mat-0"), None, "duplicate material names: mat-0"),
+    "missing tensor": (None, lambda t: t.pop("mlp.out.bias"), "missing tensors: mlp.out.bias"),
+    "extra tensor": (None, lambda t: t.__setitem__("rogue", np.zeros(2, np.float32)), "unexpected tensors: rogue"),
+    "wrong shape": (None, lambda t: t.__setitem__("materials.z", np.zeros((3, 5), np.float32)), "materials.z has shape"),
+    "NaN weight": (None, lambda t: t["mlp.hidden.0.weight"].__setitem__((0, 0), np.nan), "NaN or Inf"),
+    "kd out of range": (None, lambda t: t["materials.kd"].__setitem__((1, 2), 1.5), "'mat-1': kd[2] = 1.5"),
+    "alpha zero": (None, lambda t: t["materials.alpha"].__setitem__((0, 0), 0.0), "alpha[0] = 0.0"),
+    "aniso alpha on iso": (None, lambda t: t["materials.alpha"].__setitem__((0, 1), 0.77), "marked isotropic"),
+}
+
+
+@pytest.mark.parametrize("case", list(DAMAGE))
+def test_damaged_model_files_are_rejected_by_name(tmp_path, case):
+    _, model = make_model(isotropic=[True, False, True])
+    good = tmp_path / "good.safetensors"
+    model.save(good)
+    edit_doc, edit_tensors, message = DAMAGE[case]
+    bad = tmp_path / "bad.safetensors"
+    _rewrite(good, bad, edit_doc, edit_tensors)
+    with pytest.raises(hb.ModelFileError) as err:
+        hb.load_model(bad)
+    assert str(err.value).startswith(str(bad) + ": ")
+    assert message in str(err.value), str(err.value)
+
+
+def test_truncated_and_foreign_files(tmp_path):
+    _, model = make_model()
+    good = tmp_path / "good.safetensors"
+    model.save(good)
+    raw = good.read_bytes()
+    cases = {
+        "empty": b"",
+        "header cut": raw[:20],
+        "data cut": raw[:-7],
+        "not json": struct.pack("<Q", 8) + b"notjson!" + b"\0" * 16,
+        "random": os.urandom(200),
+    }
+    for name, data in cases.items():
+        p = tmp_path / f"{name}.safetensors"
+        p.write_bytes(data)
+        with pytest.raises(hb.ModelFileError) as err:
+            hb.load_model(p)
+        assert str(p) in str(err.value), name
+    with pytest.raises(hb.ModelFileError, match="no such file"):
+        hb.load_model(tmp_path / "missing.safetensors")
+    # A valid safetensors file that is not a hybridbrdf model.
+    from safetensors.numpy import save_file
+
+    other = tmp_path / "other.safetensors"
+    save_file({"w": np.zeros(3, np.float32)}, str(other))
+    with pytest.raises(hb.ModelFileError, match="not a hybridbrdf model"):
+        hb.load_model(other)
+
+
+def test_unknown_material_name():
+    _, model = make_model()
+    with pytest.raises(KeyError, match="no material 'nope'"):
+        model.eval(np.zeros((1, 3)), np.zeros((1, 3)), "nope")
