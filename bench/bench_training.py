@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""Training throughput of joint fitting: direction pairs x materials per second.
+
+Fits M materials (analytic sources with random parameters: the reference values
+do not change the cost of a step) for a fixed number of steps at each MLP size
+and prints pairs x materials / s measured over the optimisation loop only (the
+pool evaluation and the final metrics are excluded). Uses all cores torch is
+given (``--threads``, default: all).
+
+    python bench/bench_training.py [--materials 50] [--steps 200] [--batch 1024] [--sizes 16x3,32x3,64x3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import platform
+import sys
+
+import numpy as np
+import torch
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "python"))
+
+import hybridbrdf as hb  # noqa: E402
+from hybridbrdf.fitting import FitSettings, fit  # noqa: E402
+from hybridbrdf.models import parse_mlp  # noqa: E402
+from analytic_source import AnalyticTestSource  # noqa: E402
+
+
+def cpu_name() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--materials", type=int, default=50)
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--batch", type=int, default=1024)
+    ap.add_argument("--sizes", default="16x3,32x3,64x3")
+    ap.add_argument("--archs", default="hybrid,neural")
+    ap.add_argument("--threads", type=int, default=os.cpu_count())
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    rng = np.random.default_rng(0)
+    sources = [AnalyticTestSource(f"m{i}", hb.AnalyticParams(kd=rng.random(3), eta=1 + 3 * rng.random(),
+                                                             alpha=0.05 + 0.9 * rng.random()))
+               for i in range(args.materials)]
+    print(f"machine: {cpu_name()}, {args.threads} torch threads, torch {torch.__version__}; "
+          f"{args.materials} materials, batch {args.batch}, {args.steps} steps per size")
+    print(f"{'arch':8s} {'MLP':6s} {'latent':>6s} {'ms/step':>8s} {'pairs x materials / s':>22s}")
+    for arch in args.archs.split(","):
+        for size in args.sizes.split(","):
+            width, depth = parse_mlp(size)
+            latent = 12 if arch == "neural" else 4
+            s = FitSettings(arch=arch, width=width, depth=depth, latent=latent, steps=args.steps, batch=args.batch,
+                            pool=1 << 14, eval_pairs=1000)
+            model = fit(sources, s, progress=False)
+            secs = model.training["train_seconds"]
+            rate = model.training["pairs_x_materials_per_second"]
+            print(f"{arch:8s} {size:6s} {latent:6d} {1000 * secs / args.steps:8.1f} {rate:22,.0f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
