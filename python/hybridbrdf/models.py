@@ -47,8 +47,10 @@ _LOG_ALPHA_MIN = math.log(ALPHA_MIN)
 
 def hardgelu(x: torch.Tensor) -> torch.Tensor:
     """The paper authors' "hardGeLU": 0 for x < -1.5, x for x > 1.5, x (x + 1.5) / 3 between.
-    A piecewise-quadratic GELU that costs two compares and one multiply-add in a shader."""
-    return torch.where(x < -1.5, torch.zeros_like(x), torch.where(x > 1.5, x, x * (x + 1.5) / 3.0))
+
+    Written as x * clamp((x + 1.5) / 3, 0, 1) (x times a hard sigmoid), which is the
+    same function in three branch-free operations, for shaders as for PyTorch."""
+    return x * torch.clamp((x + 1.5) * (1.0 / 3.0), 0.0, 1.0)
 
 
 def activation_fn(name: str):

@@ -57,16 +57,21 @@ def fresnel_dielectric(cos_theta: torch.Tensor, eta2_minus_1: torch.Tensor) -> t
     s2 = s * s
     den = 2.0 * s2 * s2 * b * b
     num = e * e * (a * a * s2 + b * b)
-    ok = den > 0
-    return torch.where(ok, num / torch.where(ok, den, torch.ones_like(den)), torch.zeros_like(den))
+    # den = 0 only when e = 0 (then num = 0 too); otherwise den >= ~1e-20 since
+    # s >= sqrt(e), so clamping to the smallest normal changes no value.
+    return num / torch.clamp(den, min=torch.finfo(den.dtype).tiny)
 
 
 def ggx_D(h: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
     """Anisotropic GGX normal distribution D(h) (0 for h.z <= 0); Walter et al. 2007."""
+    return torch.where(h[..., 2] > 0, _ggx_D_upper(h, ax, ay), torch.zeros_like(h[..., 2]))
+
+
+def _ggx_D_upper(h: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """D(h) without the h.z > 0 mask, for half vectors known to be upper (eval_analytic)."""
     hx, hy, hz = h.unbind(-1)
     t = hx * hx / (ax * ax) + hy * hy / (ay * ay) + hz * hz
-    d = 1.0 / (math.pi * ax * ay * t * t)
-    return torch.where(hz > 0, d, torch.zeros_like(d))
+    return 1.0 / (math.pi * ax * ay * t * t)
 
 
 def smith_g1_over_2cos(w: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -101,7 +106,7 @@ def eval_analytic(
     # Both above the horizon => (wi + wo).z > 0; an underflowing length
     # (wi ~ -wo at grazing angles) has the limit h = +z, which _normalize gives.
     h, _ = _normalize(wi_n + wo_n)
-    dg = ggx_D(h, ax, ay) * smith_g1_over_2cos(wi_n, ax, ay) * smith_g1_over_2cos(wo_n, ax, ay)
+    dg = _ggx_D_upper(h, ax, ay) * smith_g1_over_2cos(wi_n, ax, ay) * smith_g1_over_2cos(wo_n, ax, ay)
     c = 0.5 * ((wo_n * h).sum(-1) + (wi_n * h).sum(-1))  # symmetric: exact reciprocity
     F = fresnel_dielectric(c[..., None], eta * eta - 1.0)
     f = kd * INV_PI + F * dg[..., None]
