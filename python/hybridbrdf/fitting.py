@@ -98,6 +98,30 @@ class TrainingPool:
         return self
 
 
+_FORMAT_TAGS = {".bsdf": "rgl", ".h5": "nbrdf", ".binary": "merl", ".bin": "utia"}
+
+
+def format_tag(src: BRDFSource) -> str:
+    """Short name of a source's format: rgl, nbrdf, merl, utia, synthetic (or other)."""
+    if src.path is None:
+        return "synthetic"
+    return _FORMAT_TAGS.get(os.path.splitext(src.path)[1].lower(), "other")
+
+
+def material_names(sources: Sequence[BRDFSource]) -> List[str]:
+    """Material names for a collection: each source's name, except that names
+    shared by sources of different formats (e.g. an RGL file and the NBRDF
+    network fitted to it) become ``<name>.<format>``. Raises ValueError if
+    names still collide."""
+    names = [s.name for s in sources]
+    shared = {n for n in names if names.count(n) > 1}
+    out = [f"{s.name}.{format_tag(s)}" if s.name in shared else s.name for s in sources]
+    dupes = sorted({n for n in out if out.count(n) > 1})
+    if dupes:
+        raise ValueError(f"two sources share the material name(s) {', '.join(dupes)}; names must be unique")
+    return out
+
+
 def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor) -> torch.Tensor:
     """Per-material L: mean over the batch of the squared RGB norm of the log-cos difference. (M,)"""
     c = cos_i[None, :, None]
@@ -146,10 +170,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     settings.check()
     if not sources:
         raise ValueError("no BRDF sources to fit")
-    names = [s.name for s in sources]
-    dupes = sorted({n for n in names if names.count(n) > 1})
-    if dupes:
-        raise ValueError(f"two sources share the material name(s) {', '.join(dupes)}; names must be unique")
+    names = material_names(sources)
     torch.manual_seed(settings.seed)
     iso = [bool(s.isotropic) for s in sources]
 
@@ -231,25 +252,32 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     training["pairs_x_materials_per_second"] = (
         round((settings.steps - start) * settings.batch * len(sources) / elapsed) if elapsed > 0 else None)
     model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
-    metrics = evaluate(model, sources, n_pairs=settings.eval_pairs)
+    metrics = evaluate(model, sources, n_pairs=settings.eval_pairs, names=names)
     for info, row in zip(model.material_info, metrics):
         info["metrics"] = {k: v for k, v in row.items() if k not in ("material", "origin")}
     return model
 
 
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
-             seed: int = 7) -> List[Dict[str, object]]:
+             seed: int = 7, names: Optional[Sequence[str]] = None) -> List[Dict[str, object]]:
     """Per-material metrics of CONVENTIONS on ``n_pairs`` seeded cosine-weighted pairs:
     SMAPE and cMAE of the full model and (hybrid kinds) of its analytic part.
-    Sources are matched to the model's materials by name."""
+    Sources are matched to the model's materials by name (``<name>`` or
+    ``<name>.<format>``, see material_names), or by the given ``names``."""
     wi, wo = metric_directions(n_pairs, seed)
     rows = []
-    for src in sources:
-        if src.name not in model.materials:
-            raise KeyError(f"material {src.name!r} is not in the model (it has {', '.join(model.materials)})")
+    for i, src in enumerate(sources):
+        if names is not None:
+            name = names[i]
+        else:
+            candidates = [src.name, f"{src.name}.{format_tag(src)}"]
+            found = [c for c in candidates if c in model.materials]
+            if not found:
+                raise KeyError(f"material {src.name!r} is not in the model (it has {', '.join(model.materials)})")
+            name = found[0]
         ref = src.eval(wi, wo)
-        f, fa = model._eval(wi, wo, src.name, torch.float32)
-        row: Dict[str, object] = {"material": src.name, "origin": src.origin,
+        f, fa = model._eval(wi, wo, name, torch.float32)
+        row: Dict[str, object] = {"material": name, "origin": src.origin,
                                   "smape": smape(ref, f), "cmae": cmae(ref, f, wi[:, 2])}
         if fa is not None:
             row["smape_analytic"] = smape(ref, fa)

@@ -123,5 +123,13 @@ def test_bad_settings_and_inputs():
         fit(sources(), quick(steps=0), progress=False)
     with pytest.raises(ValueError, match="share the material name"):
         fit([AnalyticTestSource("x", P_PLAIN), AnalyticTestSource("x", P_RETRO)], quick(), progress=False)
+
+
+def test_same_material_from_two_formats_gets_qualified_names():
+    from hybridbrdf.fitting import material_names
+
+    a, b, c = AnalyticTestSource("gold", P_PLAIN), AnalyticTestSource("gold", P_RETRO), AnalyticTestSource("x", P_PLAIN)
+    a.path, b.path = "/d/rgl/gold.bsdf", "/d/nbrdf/gold.h5"
+    assert material_names([a, b, c]) == ["gold.rgl", "gold.nbrdf", "x"]
     with pytest.raises(ValueError, match="no BRDF sources"):
         fit([], quick(), progress=False)
