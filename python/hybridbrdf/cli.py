@@ -2,7 +2,8 @@
 
     hbrdf fit SOURCE... --out MODEL [--arch hybrid|neural|additive|logmul|analytic-input]
               [--mlp 32x3] [--latent 4] [--activation hardgelu|relu] [--steps N] [--batch 1024]
-              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--device cpu|cuda]
+              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--fc-init -4]
+              [--device cpu|cuda]
               [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
     hbrdf eval MODEL SOURCE... [--pairs N]
     hbrdf info MODEL
@@ -37,7 +38,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     latent = args.latent if args.latent is not None else (12 if args.arch == "neural" else 4)
     settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=latent, activation=args.activation,
                            steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, pool=args.pool,
-                           eval_pairs=args.eval_pairs, device=args.device or default_device(),
+                           eval_pairs=args.eval_pairs, loss_eps=args.loss_eps, fc_init=args.fc_init,
+                           device=args.device or default_device(),
                            sources=list(args.sources), frozen_from=args.frozen)
     settings.check()
     frozen = load_model(args.frozen) if args.frozen else None
@@ -137,6 +139,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="direction pairs in the training pool, evaluated once per source (default: %(default)s)")
     fit.add_argument("--eval-pairs", type=_positive_int, default=100_000,
                      help="pairs for the metrics stored with the model (default: %(default)s; CONVENTIONS uses 1e6)")
+    fit.add_argument("--loss-eps", type=float, default=1.0,
+                     help="epsilon of the loss log(eps + cos f); 1 = the paper's log(1 + cos f), smaller values weigh "
+                          "relative errors in dark regions (default: %(default)s)")
+    fit.add_argument("--fc-init", type=float, default=-4.0,
+                     help="initial pre-exp bias of the hybrid correction f_c = exp(o) (default: %(default)s)")
     fit.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")
     fit.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
     fit.add_argument("--checkpoint-every", type=_positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")

@@ -55,6 +55,11 @@ class FitSettings:
     seed: int = 0
     pool: int = 1 << 18
     eval_pairs: int = 100_000
+    #: epsilon of the loss log(eps + cos f); 1 is the paper's log(1 + cos f). Smaller values make the
+    #: loss relative in dark regions (see docs/FITTING.md, "Dark regions").
+    loss_eps: float = 1.0
+    #: initial pre-exp bias of the hybrid correction f_c (f_c starts at exp(fc_init)).
+    fc_init: float = -4.0
     device: str = "cpu"
     sources: List[str] = field(default_factory=list)
     frozen_from: Optional[str] = None
@@ -67,6 +72,8 @@ class FitSettings:
             raise ValueError(f"latent must be >= 0, got {self.latent}")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise ValueError(f"lr must be positive, got {self.lr}")
+        if not (self.loss_eps > 0 and math.isfinite(self.loss_eps)):
+            raise ValueError(f"loss_eps must be positive, got {self.loss_eps}")
 
 
 def default_device() -> str:
@@ -122,10 +129,14 @@ def material_names(sources: Sequence[BRDFSource]) -> List[str]:
     return out
 
 
-def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor) -> torch.Tensor:
-    """Per-material L: mean over the batch of the squared RGB norm of the log-cos difference. (M,)"""
+def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps: float = 1.0) -> torch.Tensor:
+    """Per-material L: mean over the batch of the squared RGB norm of
+    log(eps + cos f_ref) - log(eps + cos f). (M,). eps = 1 is the paper's loss."""
     c = cos_i[None, :, None]
-    d = torch.log1p(c * f_ref) - torch.log1p(c * f)
+    if eps == 1.0:
+        d = torch.log1p(c * f_ref) - torch.log1p(c * f)
+    else:
+        d = torch.log(eps + c * f_ref) - torch.log(eps + c * f)
     return (d * d).sum(-1).mean(-1)
 
 
@@ -180,6 +191,9 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         settings.latent, settings.activation = a["latent"], a["activation"]
     module = build_model(settings.arch, len(sources), settings.width, settings.depth, settings.latent,
                          settings.activation, iso)
+    if settings.arch in ("hybrid", "analytic-input") and frozen is None:
+        with torch.no_grad():
+            module.mlp.out.bias[0:3] = settings.fc_init
     if frozen is not None:
         state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
         module.load_state_dict(state, strict=False)
@@ -220,9 +234,9 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
         wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
         f_t, f_a = module(wi, wo)
-        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2])
+        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2], settings.loss_eps)
         if has_analytic:
-            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2])
+            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2], settings.loss_eps)
         loss = loss_per_material.sum()
         if not torch.isfinite(loss):
             raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")

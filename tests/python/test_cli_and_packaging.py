@@ -53,3 +53,37 @@ def test_alpha_min_is_one_constant():
     p = hb.AnalyticParams(alpha=hb.ALPHA_MIN)
     f = hb.analytic_eval(np.array([[0.0, 0, 1]]), np.array([[0.0, 0, 1]]), p)
     assert np.isfinite(f).all() and f[0, 0] > 1e5  # a near-mirror lobe, still finite
+
+
+def test_fit_eval_info_on_synthetic_materials(tmp_path):
+    out = tmp_path / "m.safetensors"
+    r = run_cli("fit", "synthetic:plastic", "synthetic:gold", "--mlp", "16x2", "--steps", "150", "--pool", "4096",
+                "--eval-pairs", "5000", "--out", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert "plastic" in r.stdout and "gold" in r.stdout and "SMAPE analytic" in r.stdout
+    model = hb.load_model(out)
+    assert model.materials == ["plastic", "gold"] and model.arch["width"] == 16 and model.arch["depth"] == 2
+    assert model.training["steps"] == 150 and model.training["sources"] == ["synthetic:plastic", "synthetic:gold"]
+    r = run_cli("eval", str(out), "synthetic:gold", "--pairs", "5000")
+    assert r.returncode == 0, r.stderr
+    row = [line for line in r.stdout.splitlines() if line.startswith("gold")][0]
+    smape_a, smape_m = (float(x) for x in row.split()[-4:-2])
+    assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
+    r = run_cli("info", str(out))
+    assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
+
+
+def test_cli_errors_are_one_line(tmp_path):
+    bad = tmp_path / "bad.safetensors"
+    bad.write_bytes(b"\x00" * 5)
+    for args, needle in (
+        (("info", str(bad)), "truncated"),
+        (("fit", str(tmp_path / "none.bsdf"), "--out", str(tmp_path / "o.st")), "no such file"),
+        (("fit", "synthetic:unobtainium", "--out", str(tmp_path / "o.st")), "unknown synthetic material"),
+        (("fit", str(bad), "--out", str(tmp_path / "o.st")), "unknown BRDF format"),
+        (("fit", "synthetic:gold", "--mlp", "32by3", "--out", str(tmp_path / "o.st")), "WIDTHxDEPTH"),
+    ):
+        r = run_cli(*args)
+        assert r.returncode == 1, (args, r.stderr)
+        assert needle in r.stderr and r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "o.st").exists()
