@@ -5,7 +5,7 @@
               [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--fc-init -4]
               [--device cpu|cuda]
               [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
-    hbrdf eval MODEL SOURCE... [--pairs N]
+    hbrdf eval MODEL SOURCE... [--pairs N] [--all-metrics]
     hbrdf info MODEL
     hbrdf demo [--out PATH] [--samples N]
 
@@ -57,12 +57,15 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from hybridbrdf.fitting import evaluate, format_table
+    from hybridbrdf.fitting import evaluate, format_extended_table, format_table
     from hybridbrdf.model_file import load_model
 
     model = load_model(args.model)
-    rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs)
+    rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs, extended=args.all_metrics)
     print(format_table(rows, args.pairs))
+    if args.all_metrics:
+        print()
+        print(format_extended_table(rows))
     return 0
 
 
@@ -158,6 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("model", help="model file")
     ev.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
     ev.add_argument("--pairs", type=_positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
+    ev.add_argument("--all-metrics", action="store_true",
+                    help="also print MAE, reciprocity error (SMAPE of f(wi,wo) vs f(wo,wi)) and directional albedo "
+                         "at 45 degrees for the reference, the analytic part and the model")
     ev.set_defaults(func=_cmd_eval)
 
     info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "

@@ -273,11 +273,15 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
 
 
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
-             seed: int = 7, names: Optional[Sequence[str]] = None) -> List[Dict[str, object]]:
+             seed: int = 7, names: Optional[Sequence[str]] = None, extended: bool = False) -> List[Dict[str, object]]:
     """Per-material metrics of CONVENTIONS on ``n_pairs`` seeded cosine-weighted pairs:
     SMAPE and cMAE of the full model and (hybrid kinds) of its analytic part.
     Sources are matched to the model's materials by name (``<name>`` or
-    ``<name>.<format>``, see material_names), or by the given ``names``."""
+    ``<name>.<format>``, see material_names), or by the given ``names``.
+
+    ``extended`` adds MAE, the reciprocity error (SMAPE between f(wi, wo) and
+    f(wo, wi) on min(n_pairs, 10^5) pairs) and the directional albedo at
+    theta_o = 45 degrees (mean RGB), for the reference, the analytic part and the model."""
     wi, wo = metric_directions(n_pairs, seed)
     rows = []
     for i, src in enumerate(sources):
@@ -296,8 +300,40 @@ def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1
         if fa is not None:
             row["smape_analytic"] = smape(ref, fa)
             row["cmae_analytic"] = cmae(ref, fa, wi[:, 2])
+        if extended:
+            row.update(_extended_metrics(model, name, src, ref, f, fa, min(n_pairs, 100_000), seed))
         rows.append(row)
     return rows
+
+
+def _extended_metrics(model, name, src, ref, f, fa, n_small, seed) -> Dict[str, float]:
+    from hybridbrdf.metrics import directional_albedo, mae, reciprocity_error
+
+    full = lambda a, b: model._eval(a, b, name, torch.float32)[0]  # noqa: E731
+    analytic = lambda a, b: model._eval(a, b, name, torch.float32)[1]  # noqa: E731
+    out = {"mae": mae(ref, f), "reciprocity_reference": reciprocity_error(src.eval, n_small, seed),
+           "reciprocity": reciprocity_error(full, n_small, seed),
+           "albedo45_reference": float(directional_albedo(src.eval, math.pi / 4, n_small, seed).mean()),
+           "albedo45": float(directional_albedo(full, math.pi / 4, n_small, seed).mean())}
+    if fa is not None:
+        out["mae_analytic"] = mae(ref, fa)
+        out["reciprocity_analytic"] = reciprocity_error(analytic, n_small, seed)
+        out["albedo45_analytic"] = float(directional_albedo(analytic, math.pi / 4, n_small, seed).mean())
+    return out
+
+
+def format_extended_table(rows: List[Dict[str, object]]) -> str:
+    """MAE, reciprocity error and albedo at 45 degrees: reference (ref), analytic part (a), model (m)."""
+    has_a = any("mae_analytic" in r for r in rows)
+    dash = float("nan")
+    lines = [f"{'material':28s} {'MAE a':>9s} {'MAE m':>9s} {'recip ref':>9s} {'recip a':>9s} {'recip m':>9s} "
+             f"{'alb45 ref':>9s} {'alb45 a':>9s} {'alb45 m':>9s}"]
+    for r in rows:
+        lines.append(f"{r['material'][:28]:28s} {r.get('mae_analytic', dash) if has_a else dash:9.5f} {r['mae']:9.5f} "
+                     f"{r['reciprocity_reference']:9.4f} {r.get('reciprocity_analytic', dash):9.2e} "
+                     f"{r['reciprocity']:9.4f} {r['albedo45_reference']:9.4f} {r.get('albedo45_analytic', dash):9.4f} "
+                     f"{r['albedo45']:9.4f}")
+    return "\n".join(lines)
 
 
 def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:

@@ -64,8 +64,11 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     model = hb.load_model(out)
     assert model.materials == ["plastic", "gold"] and model.arch["width"] == 16 and model.arch["depth"] == 2
     assert model.training["steps"] == 150 and model.training["sources"] == ["synthetic:plastic", "synthetic:gold"]
-    r = run_cli("eval", str(out), "synthetic:gold", "--pairs", "5000")
+    r = run_cli("eval", str(out), "synthetic:gold", "--pairs", "5000", "--all-metrics")
     assert r.returncode == 0, r.stderr
+    ext = [line for line in r.stdout.splitlines() if line.startswith("gold")][1].split()
+    # gold is reciprocal and so is its analytic fit; the reference albedo of gold at 45 degrees is < 1
+    assert float(ext[3]) < 1e-6 and float(ext[4]) < 1e-4 and 0 < float(ext[6]) < 1
     row = [line for line in r.stdout.splitlines() if line.startswith("gold")][0]
     smape_a, smape_m = (float(x) for x in row.split()[-4:-2])
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
