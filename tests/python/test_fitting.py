@@ -133,3 +133,23 @@ def test_same_material_from_two_formats_gets_qualified_names():
     assert material_names([a, b, c]) == ["gold.rgl", "gold.nbrdf", "x"]
     with pytest.raises(ValueError, match="no BRDF sources"):
         fit([], quick(), progress=False)
+
+
+SHARED = __import__("pathlib").Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/data is not present")
+def test_fitting_is_stable_on_every_shared_material():
+    """Every shared material (5 raw RGL files, 137 NBRDF networks) in one joint fit:
+    no NaN loss (fit raises on one), finite metrics, parameters in range."""
+    specs = [str(SHARED / "rgl"), str(SHARED / "nbrdf" / "merl"), str(SHARED / "nbrdf" / "rgl"),
+             str(SHARED / "nbrdf" / "nielsen")]
+    srcs = [hb.open_source(s) for s in hb.expand_sources(specs)]
+    assert len(srcs) == 5 + 80 + 49 + 8
+    model = fit(srcs, quick(steps=40, pool=1 << 11, batch=256, eval_pairs=2000, loss_eps=0.01), progress=False)
+    for info in model.material_info:
+        assert all(np.isfinite(v) for v in info["metrics"].values()), info["name"]
+    t = model.tensors
+    assert np.isfinite(t["materials.z"]).all()
+    assert ((t["materials.alpha"] >= np.float32(hb.ALPHA_MIN)) & (t["materials.alpha"] <= 1)).all()
+    assert ((t["materials.eta"] >= 1) & (t["materials.eta"] <= 10)).all()
