@@ -14,6 +14,7 @@ apt_packages=(
   glslang-tools spirv-tools        # shader validation
   mesa-vulkan-drivers libvulkan-dev vulkan-validationlayers   # lavapipe + loader + validation layer
   doctest-dev                      # C++ unit tests
+  nlohmann-json3-dev               # model-file header parsing in libhybridbrdf
 )
 missing=()
 for p in "${apt_packages[@]}"; do

@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from hybridbrdf import _core
-from hybridbrdf.torch_brdf import eval_analytic
+from hybridbrdf.torch_brdf import _normalize, eval_analytic
 
 ARCHS = ("hybrid", "neural", "additive", "logmul", "analytic-input")
 ACTIVATIONS = ("relu", "hardgelu")
@@ -81,6 +81,14 @@ class MLP(nn.Module):
 
     def layers(self) -> List[nn.Linear]:
         return list(self.hidden) + [self.out]
+
+
+def _unit_pair(wi: torch.Tensor, wo: torch.Tensor):
+    """Unit wi, wo (invalid ones replaced by +z) and the mask of pairs where both are
+    valid and above the horizon."""
+    wi_n, ok_i = _normalize(wi)
+    wo_n, ok_o = _normalize(wo)
+    return wi_n, wo_n, ok_i & ok_o & (wi_n[..., 2] > 0) & (wo_n[..., 2] > 0)
 
 
 def _inverse_sigmoid(p: torch.Tensor) -> torch.Tensor:
@@ -166,14 +174,19 @@ class HybridBRDF(nn.Module):
 
     def evaluate(self, wi, wo, kd, eta, alpha, z):
         """(f_t, f_a), each (M, B, 3), for explicit per-material values kd, eta (M,3),
-        alpha (M,2), z (M,l) on shared directions wi, wo (B,3)."""
+        alpha (M,2), z (M,l) on shared directions wi, wo (B,3).
+
+        The network sees unit directions; f_t is 0 where either direction is below
+        the horizon or invalid (as f_a is), so f_c cannot leak light there."""
         m, b = kd.shape[0], wi.shape[0]
-        f_a = eval_analytic(wi[None], wo[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
-        x = [wi[None].expand(m, b, 3), wo[None].expand(m, b, 3), z[:, None].expand(m, b, self.latent_dim)]
+        wi_n, wo_n, valid = _unit_pair(wi, wo)
+        f_a = eval_analytic(wi_n[None], wo_n[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
+        x = [wi_n[None].expand(m, b, 3), wo_n[None].expand(m, b, 3), z[:, None].expand(m, b, self.latent_dim)]
         if self.arch == "analytic-input":
             x.append(torch.log1p(f_a))
         o = self.mlp(torch.cat(x, dim=-1))
-        return self.combine(o, f_a), f_a
+        f_t = self.combine(o, f_a)
+        return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
 
     def combine(self, o: torch.Tensor, f_a: torch.Tensor) -> torch.Tensor:
         """The network output o and f_a -> f_t, per architecture."""
@@ -245,12 +258,12 @@ class NeuralBRDF(nn.Module):
         """(f, None): f (M, B, 3) for latent codes z (M, L) on shared directions (B, 3)."""
         frames = self.shading_frames(z)  # (M, F, 3, 3)
         m, b = z.shape[0], wi.shape[0]
-        wi_f = torch.einsum("mfac,bc->mbfa", frames, wi).reshape(m, b, -1)
-        wo_f = torch.einsum("mfac,bc->mbfa", frames, wo).reshape(m, b, -1)
+        wi_n, wo_n, valid = _unit_pair(wi, wo)
+        wi_f = torch.einsum("mfac,bc->mbfa", frames, wi_n).reshape(m, b, -1)
+        wo_f = torch.einsum("mfac,bc->mbfa", frames, wo_n).reshape(m, b, -1)
         o = self.mlp(torch.cat([wi_f, wo_f, z[:, None].expand(m, b, self.latent_dim)], dim=-1))
         f = torch.exp(o.clamp(max=PRE_EXP_MAX))
-        up = ((wi[:, 2] > 0) & (wo[:, 2] > 0))[None, :, None]
-        return torch.where(up, f, torch.zeros_like(f)), None
+        return torch.where(valid[None, :, None], f, torch.zeros_like(f)), None
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         return {"z": self.z.detach().float()}

@@ -161,3 +161,21 @@ def test_unknown_material_name():
     _, model = make_model()
     with pytest.raises(KeyError, match="no material 'nope'"):
         model.eval(np.zeros((1, 3)), np.zeros((1, 3)), "nope")
+
+
+@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
+def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
+    from conftest import hard_pairs, valid_upper
+
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4)
+    wi, wo = hard_pairs()
+    for dtype in (torch.float32, torch.float64):
+        f = model.eval(wi, wo, 0, dtype=dtype)
+        np_dtype = np.float32 if dtype == torch.float32 else np.float64
+        valid = valid_upper(wi, np_dtype) & valid_upper(wo, np_dtype)
+        assert np.isfinite(f).all() and (f >= 0).all()
+        assert (f[~valid] == 0).all()
+        # Scaling a direction does not change the value: the network sees unit vectors.
+        # (atol: the additive ablation max(f_a + o, 0) cancels, so rounding is absolute there.)
+        ok = valid & (np.abs(wi).max(axis=1) < 1e10)
+        assert np.allclose(model.eval(3.0 * wi[ok], wo[ok], 0, dtype=dtype), f[ok], rtol=1e-5, atol=1e-6)
