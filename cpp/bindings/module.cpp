@@ -43,6 +43,16 @@ hbrdf::AnalyticParams make_params(const std::array<float, 3>& kd, const std::arr
     return p;
 }
 
+FloatArray hbrdf_eval_analytic_rows(const hbrdf::AnalyticParams& p, const FloatArray& wi, const FloatArray& wo,
+                                    py::ssize_t n) {
+    FloatArray f({n, py::ssize_t(3)});
+    {
+        py::gil_scoped_release release;
+        hbrdf::eval_analytic_aos(p, std::size_t(n), wi.data(), wo.data(), f.mutable_data());
+    }
+    return f;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -128,6 +138,36 @@ PYBIND11_MODULE(_core, m) {
         return out;
     }, py::arg("wi"), py::arg("wo"), py::arg("params"), py::arg("strategy") = "mis",
        "Solid-angle density with which `strategy` samples wi given wo (over the whole sphere).");
+
+    py::register_exception<hbrdf::ModelFileError>(m, "ModelFileError", PyExc_ValueError);
+    py::class_<hbrdf::HybridModel>(m, "Model", "A model file evaluated by libhybridbrdf (float32).")
+        .def(py::init([](const std::string& path) { return hbrdf::HybridModel::load(path); }), py::arg("path"))
+        .def_property_readonly("materials", [](const hbrdf::HybridModel& md) {
+            std::vector<std::string> names;
+            for (const auto& mat : md.materials()) names.push_back(mat.name);
+            return names;
+        })
+        .def("find", &hbrdf::HybridModel::find, py::arg("name"), "Index of a material, or -1.")
+        .def("eval", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
+            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
+            check_rows(wo, "wo", 3, n);
+            if (material < 0 || material >= static_cast<int>(md.materials().size()))
+                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            FloatArray f({n, py::ssize_t(3)});
+            {
+                py::gil_scoped_release release;
+                md.eval_batch(material, std::size_t(n), wi.data(), wo.data(), f.mutable_data());
+            }
+            return f;
+        }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_t for (N,3) wi, wo; returns (N,3).")
+        .def("eval_analytic", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
+            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
+            check_rows(wo, "wo", 3, n);
+            if (md.kind() == hbrdf::ModelKind::Neural) throw py::value_error("the neural baseline has no analytic part");
+            if (material < 0 || material >= static_cast<int>(md.materials().size()))
+                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            return hbrdf_eval_analytic_rows(md.materials()[material].params, wi, wo, n);
+        }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_a of a hybrid material for (N,3) wi, wo.");
 
     m.def("simd_path", &hbrdf::simd_path, "Instruction set the batched kernels use on this CPU.");
     m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),

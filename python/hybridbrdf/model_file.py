@@ -141,6 +141,7 @@ class HybridModel:
         self.training = training or {}
         self.path = path
         self._modules: Dict[torch.dtype, torch.nn.Module] = {}
+        self._cpp = None  # libhybridbrdf's HybridModel for this file, loaded on first use
 
     # ---- description ---------------------------------------------------------
     @property
@@ -193,15 +194,36 @@ class HybridModel:
              for k, v in self.tensors.items() if k.startswith("materials.")}
         return t
 
-    def eval(self, wi, wo, material, dtype: torch.dtype = torch.float32) -> np.ndarray:
-        """f_t(wi, wo) for material (name or index): (N,3) float64 array (no cosine)."""
-        return self._eval(wi, wo, material, dtype)[0]
+    def eval(self, wi, wo, material, dtype: Optional[torch.dtype] = None) -> np.ndarray:
+        """f_t(wi, wo) for material (name or index): (N,3) float64 array (no cosine).
 
-    def eval_analytic(self, wi, wo, material, dtype: torch.dtype = torch.float32) -> np.ndarray:
+        By default a model read from (or saved to) a file is evaluated by
+        libhybridbrdf in float32, the runtime every engine uses; ``dtype``
+        (torch.float32 or torch.float64) evaluates the PyTorch model instead,
+        float64 being the reference the C++ library is tested against."""
+        if dtype is None and self.path is not None:
+            return self._cpp_model().eval(*self._rows(wi, wo), self.index(material)).astype(np.float64)
+        return self._eval(wi, wo, material, dtype or torch.float32)[0]
+
+    def eval_analytic(self, wi, wo, material, dtype: Optional[torch.dtype] = None) -> np.ndarray:
         """The analytic part f_a of a hybrid material (not available for the neural baseline)."""
         if self.kind == "neural":
             raise ValueError("the neural baseline has no analytic part")
-        return self._eval(wi, wo, material, dtype)[1]
+        if dtype is None and self.path is not None:
+            return self._cpp_model().eval_analytic(*self._rows(wi, wo), self.index(material)).astype(np.float64)
+        return self._eval(wi, wo, material, dtype or torch.float32)[1]
+
+    def _cpp_model(self):
+        if self._cpp is None:
+            self._cpp = _core.Model(self.path)
+        return self._cpp
+
+    @staticmethod
+    def _rows(wi, wo):
+        a, b = np.asarray(wi, dtype=np.float32), np.asarray(wo, dtype=np.float32)
+        if a.ndim != 2 or a.shape[1] != 3 or b.shape != a.shape:
+            raise ValueError(f"wi and wo must both have shape (N, 3), got {a.shape} and {b.shape}")
+        return a, b
 
     def _eval(self, wi, wo, material, dtype):
         i = self.index(material)
@@ -232,6 +254,7 @@ class HybridModel:
         meta = {METADATA_KEY: json.dumps(self.header(), sort_keys=True)}
         atomic_write_bytes(path, _encode_safetensors(self.tensors, meta))
         self.path = os.fspath(path)
+        self._cpp = None
 
     @classmethod
     def from_module(cls, module, names: List[str], origins: List[str], training: Dict[str, Any],

@@ -156,7 +156,8 @@ class HybridBRDF(nn.Module):
         return 1.0 + 9.0 * torch.sigmoid(self.eta_raw)
 
     def alpha(self) -> torch.Tensor:
-        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw)))
+        # The clamp only absorbs exp()'s last-bit rounding below ALPHA_MIN.
+        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw))).clamp(ALPHA_MIN, 1.0)
         return torch.where(self.isotropic[:, None], a[:, :1].expand_as(a), a)
 
     def set_analytic(self, index: int, kd, eta, alpha) -> None:

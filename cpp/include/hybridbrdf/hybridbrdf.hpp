@@ -6,6 +6,7 @@
 #include "hybridbrdf/fresnel.hpp"
 #include "hybridbrdf/ggx.hpp"
 #include "hybridbrdf/math.hpp"
+#include "hybridbrdf/model.hpp"
 #include "hybridbrdf/params.hpp"
 #include "hybridbrdf/sampling.hpp"
 #include "hybridbrdf/version.hpp"

@@ -1,0 +1,97 @@
+// hybridbrdf — fitted models at run time: read a model file (safetensors +
+// JSON metadata, docs/FITTING.md) and evaluate the hybrid model
+//
+//     f_t(wi, wo) = f_c + f_g f_a,   (f_c, f_g) = psi(wi, wo, z)      (paper Eq. 1)
+//
+// its ablation variants and the fully neural baseline, without Python.
+// Thread-safe: a loaded model is immutable and evaluation keeps its scratch
+// space on the stack.
+#pragma once
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "hybridbrdf/analytic.hpp"
+#include "hybridbrdf/batch.hpp"
+
+namespace hbrdf {
+
+/// A model file that is missing, truncated, malformed or inconsistent.
+/// what() is "<path>: <problem>", one line.
+class ModelFileError : public std::runtime_error {
+public:
+    ModelFileError(const std::string& path, const std::string& problem)
+        : std::runtime_error(path + ": " + problem), path_(path), problem_(problem) {}
+    const std::string& path() const { return path_; }
+    const std::string& problem() const { return problem_; }
+
+private:
+    std::string path_, problem_;
+};
+
+enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput };
+enum class Activation { Relu, HardGelu };
+
+/// Widest layer and longest input the scalar path keeps on the stack.
+inline constexpr int kMaxLayerWidth = 256;
+
+/// Bound on every value passed to exp() (same constant as the Python PRE_EXP_MAX).
+inline constexpr float kPreExpMax = 16.0f;
+
+/// One dense layer, y = W x + b, W row-major (n_out rows of n_in).
+struct DenseLayer {
+    int n_in = 0, n_out = 0;
+    std::vector<float> weight;
+    std::vector<float> bias;
+};
+
+struct ModelMaterial {
+    std::string name;
+    std::string origin;
+    bool isotropic = true;
+    AnalyticParams params;     ///< unused by the neural baseline
+    std::vector<float> latent; ///< z
+};
+
+class HybridModel {
+public:
+    /// Reads and validates a model file; throws ModelFileError naming the file and the problem.
+    static HybridModel load(const std::string& path);
+
+    ModelKind kind() const { return kind_; }
+    Activation activation() const { return activation_; }
+    int width() const { return width_; }
+    int depth() const { return depth_; }
+    int latent_dim() const { return latent_; }
+    int conventions_version() const { return conventions_version_; }
+    const std::vector<ModelMaterial>& materials() const { return materials_; }
+    const std::vector<DenseLayer>& layers() const { return layers_; }
+    /// Index of a material by name, or -1.
+    int find(const std::string& name) const;
+
+    /// f_t(wi, wo) for material m (no cosine). Directions are normalised; 0 when
+    /// either is below the horizon or invalid.
+    Vec3<float> eval(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// The analytic part f_a of material m (hybrid kinds; throws for the neural baseline).
+    Vec3<float> eval_analytic(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// Batched f_t: wi, wo (n, 3) row-major in, f (n, 3) out.
+    void eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const;
+
+private:
+    HybridModel() = default;
+    void check_material(int m) const;
+    // Runs the shared MLP on `x` (n_in values); writes n_out values to `out`.
+    void run_mlp(const float* x, float* out) const;
+
+    ModelKind kind_ = ModelKind::Hybrid;
+    Activation activation_ = Activation::HardGelu;
+    int width_ = 0, depth_ = 0, latent_ = 0, n_in_ = 0, n_out_ = 0, conventions_version_ = 0;
+    std::vector<DenseLayer> layers_;  ///< hidden layers then the output layer
+    DenseLayer frames_;               ///< neural baseline: latent -> 3 frames (18 values)
+    std::vector<ModelMaterial> materials_;
+    std::vector<AnalyticBrdf> analytic_;  ///< per material, prepared once
+};
+
+}  // namespace hbrdf

@@ -1,0 +1,87 @@
+"""libhybridbrdf reads model files without Python and computes what the
+float64 PyTorch model computes; its loader rejects every damaged file the
+Python loader rejects, with the same message."""
+
+import numpy as np
+import pytest
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf import _core
+
+from conftest import cosine_directions, hard_pairs, valid_upper
+from test_model_file import DAMAGE, _rewrite, make_model
+
+ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input"]
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+@pytest.mark.parametrize("activation", ["hardgelu", "relu"])
+def test_cpp_model_agrees_with_float64_torch(tmp_path, arch, activation):
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=32, depth=3,
+                          isotropic=[True, False, True])
+    model.arch["activation"] = activation
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    py = hb.load_model(path)
+    cpp = _core.Model(str(path))
+    assert cpp.materials == py.materials
+    rng = np.random.default_rng(4)
+    wi = cosine_directions(rng, 20000).astype(np.float32).astype(np.float64)
+    wo = cosine_directions(rng, 20000).astype(np.float32).astype(np.float64)
+    worst = 0.0
+    for m in range(len(py.materials)):
+        ref = py.eval(wi, wo, m, dtype=torch.float64)
+        got = cpp.eval(wi, wo, m).astype(np.float64)
+        # Relative error where the value is not tiny; the additive ablation max(f_a + o, 0)
+        # cancels, so it gets an absolute floor scaled by the magnitude of its terms.
+        floor = 1e-6 * np.abs(ref).max() if arch == "additive" else 1e-12
+        rel = np.abs(got - ref) / np.maximum(np.abs(ref), floor / 1e-5)
+        worst = max(worst, float(rel.max()))
+        if arch != "neural":
+            assert np.allclose(cpp.eval_analytic(wi, wo, m), py.eval_analytic(wi, wo, m, dtype=torch.float64),
+                               rtol=2e-4, atol=1e-9)
+    assert worst < 1e-5, worst
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_cpp_model_hard_cases(tmp_path, arch):
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4)
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    cpp = _core.Model(str(path))
+    wi, wo = hard_pairs()
+    valid = valid_upper(wi) & valid_upper(wo)
+    for m in range(3):
+        f = cpp.eval(wi, wo, m)
+        assert np.isfinite(f).all() and (f >= 0).all()
+        assert (f[~valid] == 0).all()
+
+
+@pytest.mark.parametrize("case", list(DAMAGE))
+def test_cpp_loader_rejects_damaged_files_like_python(tmp_path, case):
+    _, model = make_model(isotropic=[True, False, True])
+    good = tmp_path / "good.safetensors"
+    model.save(good)
+    edit_doc, edit_tensors, message = DAMAGE[case]
+    bad = tmp_path / "bad.safetensors"
+    _rewrite(good, bad, edit_doc, edit_tensors)
+    with pytest.raises(ValueError) as err:
+        _core.Model(str(bad))
+    assert str(err.value).startswith(str(bad) + ": "), str(err.value)
+    key = message.split(":")[0].split(" = ")[0].replace("'", "")
+    assert key.split()[-1] in str(err.value).replace("'", ""), (message, str(err.value))
+
+
+def test_cpp_loader_on_truncated_files(tmp_path):
+    _, model = make_model()
+    good = tmp_path / "good.safetensors"
+    model.save(good)
+    raw = good.read_bytes()
+    for name, data in {"empty": b"", "header cut": raw[:20], "data cut": raw[:-7]}.items():
+        p = tmp_path / f"{name}.safetensors"
+        p.write_bytes(data)
+        with pytest.raises(ValueError, match="truncated|not a safetensors"):
+            _core.Model(str(p))
+    with pytest.raises(ValueError, match="no such file"):
+        _core.Model(str(tmp_path / "missing.safetensors"))
