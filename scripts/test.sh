@@ -28,4 +28,4 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
   ctest --test-dir build-asan --output-on-failure -R cpp_unit_tests
 
 echo "== Python tests =="
-"$PY" -m pytest tests/python
+HBRDF_REQUIRE_VULKAN=1 "$PY" -m pytest tests/python

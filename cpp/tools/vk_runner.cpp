@@ -1,0 +1,314 @@
+// hbrdf_vk_runner — runs a compute shader over a float buffer with the plain
+// Vulkan API, for conformance tests and benchmarks of generated shaders.
+//
+//   hbrdf_vk_runner SHADER.spv INPUT.bin OUTPUT.bin N_ITEMS OUT_FLOATS_PER_ITEM
+//                   [--validation] [--repeat R] [--local-size 64]
+//
+// Binding 0: the input file as a read-only storage buffer; binding 1: the
+// output (N_ITEMS * OUT_FLOATS_PER_ITEM floats). Dispatches ceil(N / local size)
+// workgroups. With --validation the Khronos validation layer is enabled and any
+// error or warning it reports makes the run fail. With --repeat R the dispatch
+// is submitted R more times and the best time is printed ("best_ms <t>") for
+// benchmarks. Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
+#include <vulkan/vulkan.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace {
+
+int g_validation_messages = 0;
+
+VKAPI_ATTR VkBool32 VKAPI_CALL on_validation_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                     VkDebugUtilsMessageTypeFlagsEXT,
+                                                     const VkDebugUtilsMessengerCallbackDataEXT* data, void*) {
+    if (severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT) {
+        ++g_validation_messages;
+        std::fprintf(stderr, "validation: %s\n", data->pMessage);
+    }
+    return VK_FALSE;
+}
+
+void check(VkResult r, const char* what) {
+    if (r != VK_SUCCESS) throw std::runtime_error(std::string(what) + " failed (VkResult " + std::to_string(r) + ")");
+}
+
+std::vector<char> read_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read " + path);
+    return std::vector<char>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+struct Buffer {
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkDeviceSize size = 0;
+};
+
+Buffer make_buffer(VkPhysicalDevice phys, VkDevice dev, VkDeviceSize size) {
+    Buffer b;
+    b.size = size;
+    VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    bi.size = size;
+    bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    check(vkCreateBuffer(dev, &bi, nullptr, &b.buffer), "vkCreateBuffer");
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(dev, b.buffer, &req);
+    VkPhysicalDeviceMemoryProperties props;
+    vkGetPhysicalDeviceMemoryProperties(phys, &props);
+    const VkMemoryPropertyFlags want = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    uint32_t type = UINT32_MAX;
+    for (uint32_t i = 0; i < props.memoryTypeCount; ++i)
+        if ((req.memoryTypeBits & (1u << i)) && (props.memoryTypes[i].propertyFlags & want) == want) {
+            type = i;
+            break;
+        }
+    if (type == UINT32_MAX) throw std::runtime_error("no host-visible coherent memory type");
+    VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    ai.allocationSize = req.size;
+    ai.memoryTypeIndex = type;
+    check(vkAllocateMemory(dev, &ai, nullptr, &b.memory), "vkAllocateMemory");
+    check(vkBindBufferMemory(dev, b.buffer, b.memory, 0), "vkBindBufferMemory");
+    return b;
+}
+
+int run(int argc, char** argv) {
+    if (argc < 6) {
+        std::fprintf(stderr,
+                     "usage: %s SHADER.spv INPUT.bin OUTPUT.bin N_ITEMS OUT_FLOATS_PER_ITEM [--validation] "
+                     "[--repeat R] [--local-size 64]\n",
+                     argv[0]);
+        return 2;
+    }
+    const std::vector<char> spirv = read_file(argv[1]);
+    std::vector<char> input = read_file(argv[2]);
+    const std::string out_path = argv[3];
+    const uint64_t n_items = std::strtoull(argv[4], nullptr, 10);
+    const uint64_t out_floats = std::strtoull(argv[5], nullptr, 10);
+    bool validation = false;
+    int repeat = 0;
+    uint32_t local_size = 64;
+    for (int i = 6; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--validation")) validation = true;
+        else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--local-size") && i + 1 < argc) local_size = uint32_t(std::atoi(argv[++i]));
+        else throw std::runtime_error(std::string("unknown argument ") + argv[i]);
+    }
+    if (spirv.size() % 4 != 0 || spirv.empty()) throw std::runtime_error("SPIR-V size is not a multiple of 4");
+    if (input.empty()) input.resize(4);
+
+    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.pApplicationName = "hbrdf_vk_runner";
+    app.apiVersion = VK_API_VERSION_1_1;
+    const char* layers[] = {"VK_LAYER_KHRONOS_validation"};
+    const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+    VkInstanceCreateInfo ici{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    ici.pApplicationInfo = &app;
+    VkDebugUtilsMessengerCreateInfoEXT dbg{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    dbg.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    dbg.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                      VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    dbg.pfnUserCallback = on_validation_message;
+    if (validation) {
+        ici.enabledLayerCount = 1;
+        ici.ppEnabledLayerNames = layers;
+        ici.enabledExtensionCount = 1;
+        ici.ppEnabledExtensionNames = extensions;
+        ici.pNext = &dbg;  // also reports problems in instance creation itself
+    }
+    VkInstance instance;
+    check(vkCreateInstance(&ici, nullptr, &instance), "vkCreateInstance");
+    VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
+    if (validation) {
+        auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+            vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
+        if (!create) throw std::runtime_error("validation requested but VK_EXT_debug_utils is unavailable");
+        check(create(instance, &dbg, nullptr, &messenger), "vkCreateDebugUtilsMessengerEXT");
+    }
+
+    uint32_t n_phys = 0;
+    vkEnumeratePhysicalDevices(instance, &n_phys, nullptr);
+    if (n_phys == 0) throw std::runtime_error("no Vulkan device (is mesa-vulkan-drivers installed?)");
+    std::vector<VkPhysicalDevice> physs(n_phys);
+    vkEnumeratePhysicalDevices(instance, &n_phys, physs.data());
+    VkPhysicalDevice phys = physs[0];
+    VkPhysicalDeviceProperties props;
+    vkGetPhysicalDeviceProperties(phys, &props);
+
+    uint32_t n_families = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(phys, &n_families, nullptr);
+    std::vector<VkQueueFamilyProperties> families(n_families);
+    vkGetPhysicalDeviceQueueFamilyProperties(phys, &n_families, families.data());
+    uint32_t family = UINT32_MAX;
+    for (uint32_t i = 0; i < n_families; ++i)
+        if (families[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
+            family = i;
+            break;
+        }
+    if (family == UINT32_MAX) throw std::runtime_error("no compute queue");
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    qci.queueFamilyIndex = family;
+    qci.queueCount = 1;
+    qci.pQueuePriorities = &priority;
+    VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    dci.queueCreateInfoCount = 1;
+    dci.pQueueCreateInfos = &qci;
+    VkDevice dev;
+    check(vkCreateDevice(phys, &dci, nullptr, &dev), "vkCreateDevice");
+    VkQueue queue;
+    vkGetDeviceQueue(dev, family, 0, &queue);
+
+    Buffer in_buf = make_buffer(phys, dev, input.size());
+    Buffer out_buf = make_buffer(phys, dev, std::max<VkDeviceSize>(4, n_items * out_floats * 4));
+    void* mapped = nullptr;
+    check(vkMapMemory(dev, in_buf.memory, 0, in_buf.size, 0, &mapped), "vkMapMemory");
+    std::memcpy(mapped, input.data(), input.size());
+    vkUnmapMemory(dev, in_buf.memory);
+
+    VkDescriptorSetLayoutBinding bindings[2] = {};
+    for (uint32_t i = 0; i < 2; ++i) {
+        bindings[i].binding = i;
+        bindings[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        bindings[i].descriptorCount = 1;
+        bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+    }
+    VkDescriptorSetLayoutCreateInfo dsl{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    dsl.bindingCount = 2;
+    dsl.pBindings = bindings;
+    VkDescriptorSetLayout set_layout;
+    check(vkCreateDescriptorSetLayout(dev, &dsl, nullptr, &set_layout), "vkCreateDescriptorSetLayout");
+    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pli.setLayoutCount = 1;
+    pli.pSetLayouts = &set_layout;
+    VkPipelineLayout pipe_layout;
+    check(vkCreatePipelineLayout(dev, &pli, nullptr, &pipe_layout), "vkCreatePipelineLayout");
+    VkShaderModuleCreateInfo smi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    smi.codeSize = spirv.size();
+    smi.pCode = reinterpret_cast<const uint32_t*>(spirv.data());
+    VkShaderModule module;
+    check(vkCreateShaderModule(dev, &smi, nullptr, &module), "vkCreateShaderModule");
+    VkComputePipelineCreateInfo cpi{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    cpi.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+    cpi.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    cpi.stage.module = module;
+    cpi.stage.pName = "main";
+    cpi.layout = pipe_layout;
+    VkPipeline pipeline;
+    check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cpi, nullptr, &pipeline), "vkCreateComputePipelines");
+
+    VkDescriptorPoolSize pool_size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2};
+    VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    dpi.maxSets = 1;
+    dpi.poolSizeCount = 1;
+    dpi.pPoolSizes = &pool_size;
+    VkDescriptorPool pool;
+    check(vkCreateDescriptorPool(dev, &dpi, nullptr, &pool), "vkCreateDescriptorPool");
+    VkDescriptorSetAllocateInfo dsa{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    dsa.descriptorPool = pool;
+    dsa.descriptorSetCount = 1;
+    dsa.pSetLayouts = &set_layout;
+    VkDescriptorSet set;
+    check(vkAllocateDescriptorSets(dev, &dsa, &set), "vkAllocateDescriptorSets");
+    VkDescriptorBufferInfo infos[2] = {{in_buf.buffer, 0, VK_WHOLE_SIZE}, {out_buf.buffer, 0, VK_WHOLE_SIZE}};
+    VkWriteDescriptorSet writes[2] = {};
+    for (uint32_t i = 0; i < 2; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = set;
+        writes[i].dstBinding = i;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        writes[i].pBufferInfo = &infos[i];
+    }
+    vkUpdateDescriptorSets(dev, 2, writes, 0, nullptr);
+
+    VkCommandPoolCreateInfo cpci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    cpci.queueFamilyIndex = family;
+    VkCommandPool cmd_pool;
+    check(vkCreateCommandPool(dev, &cpci, nullptr, &cmd_pool), "vkCreateCommandPool");
+    VkCommandBufferAllocateInfo cbai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    cbai.commandPool = cmd_pool;
+    cbai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    cbai.commandBufferCount = 1;
+    VkCommandBuffer cmd;
+    check(vkAllocateCommandBuffers(dev, &cbai, &cmd), "vkAllocateCommandBuffers");
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer");
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipe_layout, 0, 1, &set, 0, nullptr);
+    const uint32_t groups = uint32_t((n_items + local_size - 1) / local_size);
+    vkCmdDispatch(cmd, std::max<uint32_t>(groups, 1), 1, 1);
+    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0,
+                         nullptr, 0, nullptr);
+    check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
+    VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VkFence fence;
+    check(vkCreateFence(dev, &fci, nullptr, &fence), "vkCreateFence");
+    double best_ms = 1e30;
+    for (int r = 0; r <= repeat; ++r) {
+        VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+        si.commandBufferCount = 1;
+        si.pCommandBuffers = &cmd;
+        const auto t0 = std::chrono::steady_clock::now();
+        check(vkQueueSubmit(queue, 1, &si, fence), "vkQueueSubmit");
+        check(vkWaitForFences(dev, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (r > 0 || repeat == 0) best_ms = std::min(best_ms, ms);  // the first submit warms up when repeating
+        check(vkResetFences(dev, 1, &fence), "vkResetFences");
+    }
+    check(vkMapMemory(dev, out_buf.memory, 0, out_buf.size, 0, &mapped), "vkMapMemory");
+    {
+        std::ofstream out(out_path, std::ios::binary);
+        out.write(static_cast<const char*>(mapped), std::streamsize(n_items * out_floats * 4));
+        if (!out) throw std::runtime_error("cannot write " + out_path);
+    }
+    vkUnmapMemory(dev, out_buf.memory);
+    std::printf("device %s\nbest_ms %.4f\n", props.deviceName, best_ms);
+
+    vkDestroyFence(dev, fence, nullptr);
+    vkDestroyCommandPool(dev, cmd_pool, nullptr);
+    vkDestroyDescriptorPool(dev, pool, nullptr);
+    vkDestroyPipeline(dev, pipeline, nullptr);
+    vkDestroyShaderModule(dev, module, nullptr);
+    vkDestroyPipelineLayout(dev, pipe_layout, nullptr);
+    vkDestroyDescriptorSetLayout(dev, set_layout, nullptr);
+    for (Buffer* b : {&in_buf, &out_buf}) {
+        vkDestroyBuffer(dev, b->buffer, nullptr);
+        vkFreeMemory(dev, b->memory, nullptr);
+    }
+    vkDestroyDevice(dev, nullptr);
+    if (messenger) {
+        auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+            vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT"));
+        if (destroy) destroy(instance, messenger, nullptr);
+    }
+    vkDestroyInstance(instance, nullptr);
+    if (g_validation_messages) {
+        std::fprintf(stderr, "%d validation message(s)\n", g_validation_messages);
+        return 3;
+    }
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "hbrdf_vk_runner: %s\n", e.what());
+        return 1;
+    }
+}
