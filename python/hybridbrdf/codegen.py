@@ -32,7 +32,7 @@ from hybridbrdf.errors import InputFileError
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.util import atomic_write_bytes
 
-TARGETS = ("glsl", "hlsl", "cpp")
+TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
 
 
 def _template_dir() -> pathlib.Path:
@@ -112,9 +112,16 @@ def material_constant(name: str) -> str:
     return "HBRDF_MATERIAL_" + re.sub(r"[^A-Za-z0-9_]", "_", name).upper()
 
 
+_F_SUFFIX = re.compile(r"(?<=[0-9.])f\b")
+
+
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
              model_path: str = "MODEL", extra_args: str = "") -> str:
-    """Source code of ``model`` for ``target`` (glsl, hlsl or cpp), for all or the named materials."""
+    """Source code of ``model`` for ``target`` (glsl, hlsl, cpp or brdfexplorer), for all or
+    the named materials. For brdfexplorer the first (or only) material gives the parameters'
+    default values; kd, eta, alpha and the latent code become sliders."""
+    if target == "brdfexplorer":
+        return _generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
     import jinja2
@@ -157,6 +164,54 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
         frames_bias=t["frames.bias"] if model.kind == "neural" else [])
     return text
+
+
+def _param_line_value(x: float) -> str:
+    s = f"{float(np.float32(x)):.9g}"
+    return s if ("." in s or "e" in s) else s + ".0"
+
+
+def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra_args: str) -> str:
+    import jinja2
+
+    names = list(materials) if materials else model.materials
+    default = model.index(names[0])
+    # The GLSL body without material constants; BRDF Explorer's GLSL takes no 'f' suffixes.
+    body = generate(model, "glsl", [names[0]], model_path, extra_args)
+    body = "\n".join(line for line in body.splitlines()
+                      if not line.startswith(("const HbrdfMaterial", "// hybridbrdf generated", "//   hbrdf-codegen")))
+    body = _F_SUFFIX.sub("", body)
+    t = model.tensors
+    latent = model.arch["latent"]
+    params = []
+    if model.kind != "neural":
+        for label, key, lo, hi in (("kd", "materials.kd", 0.0, 1.0), ("eta", "materials.eta", 1.0, 10.0)):
+            for c, ch in enumerate("rgb"):
+                params.append({"name": f"{label}_{ch}", "min": _param_line_value(lo), "max": _param_line_value(hi),
+                               "default": _param_line_value(t[key][default, c])})
+        for c, ax in enumerate("xy"):
+            params.append({"name": f"alpha_{ax}", "min": _param_line_value(_core.ALPHA_MIN), "max": "1.0",
+                           "default": _param_line_value(t["materials.alpha"][default, c])})
+    else:
+        for label, value in (("kd", 0.0), ("eta", 1.0)):
+            for ch in "rgb":
+                params.append({"name": f"{label}_{ch}", "min": "0.0", "max": "10.0", "default": _param_line_value(value)})
+        for ax in "xy":
+            params.append({"name": f"alpha_{ax}", "min": "0.0001", "max": "1.0", "default": "1.0"})
+    z = t["materials.z"]
+    span = float(np.abs(z).max()) * 2.0 + 1.0 if z.size else 1.0
+    for k in range(latent):
+        params.append({"name": f"z{k}", "min": _param_line_value(-span), "max": _param_line_value(span),
+                       "default": _param_line_value(z[default, k])})
+    z_args = ", ".join(f"z{k}" for k in range(latent)) if latent else "0.0"
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(_template_dir())), undefined=jinja2.StrictUndefined,
+                             keep_trailing_newline=True)
+    a = model.arch
+    return env.get_template("brdfexplorer.j2").render(
+        model_path=model_path, extra_args=extra_args, kind=model.kind, width=a["width"], depth=a["depth"],
+        activation=a["activation"], latent=latent, conventions_version=_core.CONVENTIONS_VERSION,
+        default_material=names[0], material_names=model.materials, params=params, body=body,
+        z_len=max(latent, 1), z_args=z_args)
 
 
 def main(argv=None) -> int:
