@@ -115,8 +115,36 @@ def material_constant(name: str) -> str:
 _F_SUFFIX = re.compile(r"(?<=[0-9.])f\b")
 
 
+def load_scene(path) -> Dict[str, object]:
+    """Read a scene file: {"materials": ["name", {"name": "other", "evaluate": "analytic"}, ...]}.
+    ``evaluate`` is "full" (default) or "analytic" (the material renders with f_a only)."""
+    import json
+
+    path = os.fspath(path)
+    try:
+        with open(path) as fh:
+            doc = json.load(fh)
+    except FileNotFoundError:
+        raise InputFileError(path, "no such file") from None
+    except json.JSONDecodeError as exc:
+        raise InputFileError(path, f"not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("materials"), list) or not doc["materials"]:
+        raise InputFileError(path, "a scene needs a non-empty 'materials' list")
+    entries = []
+    for i, m in enumerate(doc["materials"]):
+        if isinstance(m, str):
+            m = {"name": m}
+        if not isinstance(m, dict) or not isinstance(m.get("name"), str):
+            raise InputFileError(path, f"materials[{i}] must be a name or an object with a 'name'")
+        evaluate = m.get("evaluate", "full")
+        if evaluate not in ("full", "analytic"):
+            raise InputFileError(path, f"materials[{i}].evaluate must be 'full' or 'analytic', got {evaluate!r}")
+        entries.append({"name": m["name"], "evaluate": evaluate})
+    return {"name": os.path.basename(path), "materials": entries}
+
+
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
-             model_path: str = "MODEL", extra_args: str = "") -> str:
+             model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None) -> str:
     """Source code of ``model`` for ``target`` (glsl, hlsl, cpp or brdfexplorer), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
     default values; kd, eta, alpha and the latent code become sliders."""
@@ -127,6 +155,16 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     import jinja2
 
     names = list(materials) if materials else model.materials
+    analytic_only = isotropic_only = fold_latent = False
+    if scene is not None:
+        # Simulate only what the scene calls for (docs/CODEGEN.md, "Specialisation").
+        names = [m["name"] for m in scene["materials"]]
+        analytic_only = all(m["evaluate"] == "analytic" for m in scene["materials"])
+        if analytic_only and model.kind == "neural":
+            raise ValueError("the scene asks for analytic-only evaluation but the model is the neural baseline")
+        isotropic_only = model.kind != "neural" and all(
+            model.material_info[model.index(n)].get("isotropic", True) for n in names)
+        fold_latent = len(names) == 1 and not analytic_only
     for n in names:
         model.index(n)  # KeyError naming the material if absent
     consts = [material_constant(n) for n in names]
@@ -142,6 +180,16 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t[f"mlp.hidden.{i}.bias"]})
     w = t["mlp.out.weight"]
     layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t["mlp.out.bias"]})
+    n_in, latent_in = a["n_in"], latent
+    if fold_latent and latent:
+        # One material: its latent inputs are constants, so W0[:, z] z joins the first bias.
+        z_start = 18 if model.kind == "neural" else 6
+        w0 = t["mlp.hidden.0.weight"].astype(np.float64)
+        z = t["materials.z"][model.index(names[0])].astype(np.float64)
+        bias = (t["mlp.hidden.0.bias"].astype(np.float64) + w0[:, z_start:z_start + latent] @ z).astype(np.float32)
+        w0 = np.delete(w0, np.s_[z_start:z_start + latent], axis=1).astype(np.float32)
+        layers[0] = {"n_in": w0.shape[1], "n_out": w0.shape[0], "weight": w0.ravel(), "bias": bias}
+        n_in, latent_in = n_in - latent, 0
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
@@ -157,8 +205,10 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     d = DIALECTS[target]
     text = env.get_template("hbrdf.j2").render(
         d=d, target=target, model_path=model_path, extra_args=extra_args, kind=model.kind, width=a["width"],
-        depth=a["depth"], activation=a["activation"], latent=latent, z_len=max(latent, 1), n_in=a["n_in"],
-        n_out=a["n_out"], max_width=max(a["n_in"], a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
+        depth=a["depth"], activation=a["activation"], latent=latent, latent_in=latent_in, z_len=max(latent, 1),
+        n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
+        specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
+        isotropic_only=isotropic_only, fold_latent=fold_latent,
         material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
         pre_exp_max=float_literal(a.get("pre_exp_max", 16.0)),
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
@@ -214,18 +264,61 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
         z_len=max(latent, 1), z_args=z_args)
 
 
+SPIRV_PROBE = """#version 450
+#extension GL_GOOGLE_include_directive : require
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer In { float data_in[]; };
+layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+#include "probe_model.glsl"
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
+    vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
+    vec3 f = hbrdf_eval(wi, wo, MATERIAL);
+    data_out[3 * i] = f.x;
+    data_out[3 * i + 1] = f.y;
+    data_out[3 * i + 2] = f.z;
+}
+"""
+
+
+def spirv_size(glsl_code: str, material_constant_name: str, workdir) -> int:
+    """Bytes of the SPIR-V (glslangValidator -V, optimised with -Os) of a compute shader
+    that evaluates ``hbrdf_eval`` for one material of the given generated GLSL."""
+    import subprocess
+
+    workdir = pathlib.Path(workdir)
+    (workdir / "probe_model.glsl").write_text(glsl_code)
+    src = workdir / "probe.comp"
+    src.write_text(SPIRV_PROBE.replace("MATERIAL", material_constant_name))
+    spv = workdir / "probe.spv"
+    r = subprocess.run(["glslangValidator", "-V", "-Os", "--target-env", "vulkan1.1", "-I" + str(workdir), str(src),
+                        "-o", str(spv)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"glslangValidator failed: {r.stdout[-2000:]}")
+    return spv.stat().st_size
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="hbrdf-codegen", description="Generate GLSL, HLSL or C++ code from a model file.")
     ap.add_argument("model", help="model file written by hbrdf fit")
     ap.add_argument("--target", required=True, choices=TARGETS, help="output language")
     ap.add_argument("--materials", help="comma-separated material names to include (default: all)")
+    ap.add_argument("--scene", help="scene JSON naming the materials it uses; specialises the code (isotropic-only "
+                                    "GGX, no network for analytic-only scenes, latent folded for one material)")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:
         model = load_model(args.model)
         materials = [m for m in args.materials.split(",") if m] if args.materials else None
-        extra = f" --materials {args.materials}" if args.materials else ""
-        text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra)
+        scene = load_scene(args.scene) if args.scene else None
+        if scene is not None and materials:
+            raise ValueError("give either --materials or --scene, not both")
+        extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
+        text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra,
+                        scene=scene)
+        if scene is not None:
+            materials = [m["name"] for m in scene["materials"]]
         atomic_write_bytes(args.out, text.encode("utf-8"))
     except (InputFileError, ValueError, KeyError, OSError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)

@@ -185,3 +185,59 @@ def test_codegen_cli(tmp_path, capsys):
     bad.write_bytes(b"123")
     assert codegen_main([str(bad), "--target", "cpp", "-o", str(tmp_path / "z.h")]) == 1
     assert not (tmp_path / "y").exists() and not (tmp_path / "z.h").exists()
+
+
+def _run_driver(exe, wi, wo, u, n_mats):
+    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo, u], axis=1).astype(np.float32).tobytes()
+    r = subprocess.run([str(exe)], input=payload, capture_output=True)
+    assert r.returncode == 0
+    return np.frombuffer(r.stdout, dtype=np.float32).reshape(n_mats, len(wi), 11)
+
+
+@pytest.mark.parametrize("arch", ["hybrid", "neural", "analytic-input"])
+def test_scene_specialisation_keeps_the_values(tmp_path, arch):
+    """Folding one material's latent into the first layer and isotropic-only GGX change
+    nothing but rounding; an analytic-only scene evaluates f_a exactly."""
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2,
+                          isotropic=[True, False, True])
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    model = hb.load_model(path)
+    rng = np.random.default_rng(5)
+    wi = cosine_directions(rng, 5000).astype(np.float32)
+    wo = cosine_directions(rng, 5000).astype(np.float32)
+    u = rng.random((5000, 2)).astype(np.float32)
+    cpp = _core.Model(str(path))
+    scene = {"name": "one.json", "materials": [{"name": "mat-2", "evaluate": "full"}]}
+    text = generate(model, "cpp", scene=scene)
+    assert "folded into the first layer" in text and ("isotropic-only" in text) == (arch != "neural")
+    got = _run_driver(_build_driver(tmp_path, text, ["mat-2"]), wi, wo, u, 1)[0]
+    ref = cpp.eval(wi, wo, 2)
+    assert np.allclose(got[:, :3], ref, rtol=1e-5, atol=1e-9)
+    if arch != "neural":
+        scene = {"name": "flat.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
+                                                     {"name": "mat-1", "evaluate": "analytic"}]}
+        text = generate(model, "cpp", scene=scene)
+        assert "HBRDF_W0" not in text and "isotropic-only" not in text  # mat-1 is anisotropic
+        got = _run_driver(_build_driver(tmp_path, text, ["mat-0", "mat-1"]), wi, wo, u, 2)
+        _core.force_baseline_simd(True)  # the non-FMA kernels round like the -ffp-contract=off header
+        try:
+            for k in range(2):
+                assert np.allclose(got[k, :, :3], cpp.eval_analytic(wi, wo, k), rtol=1e-6, atol=1e-12)
+        finally:
+            _core.force_baseline_simd(False)
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
+def test_specialisation_shrinks_spirv(tmp_path):
+    from hybridbrdf.codegen import spirv_size
+
+    _, model = make_model("hybrid", width=32, depth=3)
+    generic = spirv_size(generate(model, "glsl"), material_constant("mat-0"), tmp_path)
+    folded = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": ["mat-0"]} and
+                                 {"name": "s", "materials": [{"name": "mat-0", "evaluate": "full"}]}),
+                        material_constant("mat-0"), tmp_path)
+    flat = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
+                                                                                  "evaluate": "analytic"}]}),
+                      material_constant("mat-0"), tmp_path)
+    assert flat < folded < generic, (generic, folded, flat)
