@@ -59,6 +59,18 @@ def _brace_array(n: int, values) -> str:
     return "{" + ", ".join(float_literal(v) for v in values) + "}"
 
 
+def half_pairs(values) -> List[int]:
+    """float32 values rounded to IEEE binary16 and packed two per uint32 (even index low)."""
+    bits = np.asarray(values, dtype=np.float32).astype(np.float16).view(np.uint16).astype(np.uint32)
+    if len(bits) % 2:
+        bits = np.append(bits, np.uint32(0))
+    return [int(lo | (hi << 16)) for lo, hi in zip(bits[0::2], bits[1::2])]
+
+
+def _hex_list(values) -> str:
+    return ", ".join(f"0x{v:08x}u" for v in values)
+
+
 CPP_PRELUDE = """#pragma once
 #include <cmath>
 
@@ -87,6 +99,15 @@ inline float3 operator*(const float3 a, float s) { return float3(a.x * s, a.y * 
 inline float3 operator*(float s, const float3 a) { return float3(a.x * s, a.y * s, a.z * s); }
 inline float3 operator/(const float3 a, float s) { return float3(a.x / s, a.y / s, a.z / s); }
 inline float dot(const float3 a, const float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+// IEEE binary16 (low 16 bits of h) to float, subnormals included; used for fp16 weights.
+inline float hbrdf_half_to_float(unsigned h) {
+    const unsigned sign = (h & 0x8000u) << 16, exponent = (h >> 10) & 0x1fu, mantissa = h & 0x3ffu;
+    float magnitude;
+    if (exponent == 0) magnitude = std::ldexp(float(mantissa), -24);
+    else if (exponent == 31) magnitude = mantissa ? NAN : INFINITY;
+    else magnitude = std::ldexp(float(mantissa | 0x400u), int(exponent) - 25);
+    return sign ? -magnitude : magnitude;
+}
 inline float3 cross(const float3 a, const float3 b) {
     return float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
@@ -95,15 +116,21 @@ inline float3 cross(const float3 a, const float3 b) {
 DIALECTS: Dict[str, Dict[str, object]] = {
     "glsl": {"name": "GLSL 4.50", "comment": "//", "prelude": "", "epilogue": "", "v3": "vec3", "v2": "vec2",
              "const": "const", "fn": "", "out_array": "out ", "out_float": lambda n: f"out float {n}",
-             "array": _glsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")"},
+             "array": _glsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "uint",
+             "uint_array": lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
+             "weight": lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]"},
     "hlsl": {"name": "HLSL (Shader Model 5+, glslang/DXC)", "comment": "//", "prelude": "", "epilogue": "",
              "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
              "out_float": lambda n: f"out float {n}", "array": _brace_array,
-             "struct_open": lambda t: "{", "struct_close": "}"},
+             "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
+             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
+             "weight": lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))"},
     "cpp": {"name": "C++17, dependency-free", "comment": "//", "prelude": CPP_PRELUDE,
             "epilogue": "}  // namespace hbrdf", "v3": "float3", "v2": "float2", "const": "inline constexpr",
             "fn": "inline ", "out_array": "", "out_float": lambda n: f"float& {n}", "array": _brace_array,
-            "struct_open": lambda t: "{", "struct_close": "}"},
+            "struct_open": lambda t: "{", "struct_close": "}", "uint": "unsigned",
+            "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
+            "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))"},
 }
 
 
@@ -144,7 +171,8 @@ def load_scene(path) -> Dict[str, object]:
 
 
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
-             model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None) -> str:
+             model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
+             precision: str = "fp32") -> str:
     """Source code of ``model`` for ``target`` (glsl, hlsl, cpp or brdfexplorer), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
     default values; kd, eta, alpha and the latent code become sliders."""
@@ -152,6 +180,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         return _generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
+    if precision not in ("fp32", "fp16"):
+        raise ValueError(f"unknown precision {precision!r}; expected fp32 or fp16")
     import jinja2
 
     names = list(materials) if materials else model.materials
@@ -190,6 +220,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         w0 = np.delete(w0, np.s_[z_start:z_start + latent], axis=1).astype(np.float32)
         layers[0] = {"n_in": w0.shape[1], "n_out": w0.shape[0], "weight": w0.ravel(), "bias": bias}
         n_in, latent_in = n_in - latent, 0
+    for layer in layers:
+        layer["weight_half_pairs"] = half_pairs(layer["weight"])
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
@@ -208,7 +240,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         depth=a["depth"], activation=a["activation"], latent=latent, latent_in=latent_in, z_len=max(latent, 1),
         n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
         specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
-        isotropic_only=isotropic_only, fold_latent=fold_latent,
+        isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16",
         material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
         pre_exp_max=float_literal(a.get("pre_exp_max", 16.0)),
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
@@ -306,6 +338,8 @@ def main(argv=None) -> int:
     ap.add_argument("--materials", help="comma-separated material names to include (default: all)")
     ap.add_argument("--scene", help="scene JSON naming the materials it uses; specialises the code (isotropic-only "
                                     "GGX, no network for analytic-only scenes, latent folded for one material)")
+    ap.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
+                    help="storage of the layer weights: fp32 (exact) or fp16 (IEEE half, two per 32-bit word)")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:
@@ -315,8 +349,12 @@ def main(argv=None) -> int:
         if scene is not None and materials:
             raise ValueError("give either --materials or --scene, not both")
         extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
+        if args.precision != "fp32":
+            extra += f" --precision {args.precision}"
+        if args.target == "brdfexplorer" and args.precision != "fp32":
+            raise ValueError("--precision fp16 is not available for brdfexplorer")
         text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra,
-                        scene=scene)
+                        scene=scene, precision=args.precision)
         if scene is not None:
             materials = [m["name"] for m in scene["materials"]]
         atomic_write_bytes(args.out, text.encode("utf-8"))

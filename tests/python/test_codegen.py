@@ -241,3 +241,35 @@ def test_specialisation_shrinks_spirv(tmp_path):
                                                                                   "evaluate": "analytic"}]}),
                       material_constant("mat-0"), tmp_path)
     assert flat < folded < generic, (generic, folded, flat)
+
+
+def _half_rounded_copy(model, path):
+    """The same model with its layer weights rounded to binary16 (what --precision fp16 stores)."""
+    import copy
+
+    rounded = copy.deepcopy(model)
+    for k, v in rounded.tensors.items():
+        if k.startswith("mlp.") and k.endswith(".weight"):
+            rounded.tensors[k] = v.astype(np.float16).astype(np.float32)
+    rounded.save(path)
+    return hb.load_model(path)
+
+
+@pytest.mark.parametrize("arch", ["hybrid", "neural"])
+def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
+    model.save(tmp_path / "m.safetensors")
+    half = _half_rounded_copy(model, tmp_path / "half.safetensors")
+    text = generate(model, "cpp", precision="fp16")
+    assert "half precision" in text
+    rng = np.random.default_rng(6)
+    wi, wo = cosine_directions(rng, 5000).astype(np.float32), cosine_directions(rng, 5000).astype(np.float32)
+    u = rng.random((5000, 2)).astype(np.float32)
+    got = _run_driver(_build_driver(tmp_path, text, model.materials), wi, wo, u, 3)
+    cpp_half = _core.Model(str(tmp_path / "half.safetensors"))
+    cpp_full = _core.Model(str(tmp_path / "m.safetensors"))
+    for m in range(3):
+        ref = cpp_half.eval(wi, wo, m)
+        assert np.allclose(got[m, :, :3], ref, rtol=1e-6, atol=1e-12)
+        # and the rounding is visible against the float32 model (the test can fail)
+        assert not np.allclose(got[m, :, :3], cpp_full.eval(wi, wo, m), rtol=1e-6, atol=1e-12)

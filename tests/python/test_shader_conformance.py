@@ -114,3 +114,29 @@ def test_shader_matches_the_library_under_lavapipe(tmp_path, target, arch, activ
         assert np.abs(got - ref).max() < 1e-4 * np.abs(ref).max()
     else:
         assert rel.max() < 1e-4, f"max relative error {rel.max():.3g}"
+
+
+@pytest.mark.parametrize("target", ["glsl", "hlsl"])
+def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target):
+    from test_codegen import _half_rounded_copy
+
+    _, model = make_model("hybrid", width=32, depth=2, isotropic=[True, False, True])
+    model.save(tmp_path / "m.safetensors")
+    half = _half_rounded_copy(model, tmp_path / "half.safetensors")
+    rng = np.random.default_rng(12)
+    wi = cosine_directions(rng, 50_000).astype(np.float32)
+    wo = cosine_directions(rng, 50_000).astype(np.float32)
+    import hybridbrdf.codegen as cg
+
+    original = cg.generate
+    cg_generate = lambda m, t, mats=None, **kw: original(m, t, mats, precision="fp16", **kw)  # noqa: E731
+    globals()["generate"] = cg_generate
+    try:
+        got = run_shader(tmp_path, target, model, 1, wi, wo)
+    finally:
+        globals()["generate"] = original
+    ref = _core.Model(str(tmp_path / "half.safetensors")).eval(wi, wo, 1)
+    big = np.abs(ref) > 1e-6
+    assert np.isfinite(got).all() and np.array_equal(got == 0, ref == 0)
+    assert (np.abs(got[big] - ref[big]) / np.abs(ref[big])).max() < 1e-4
+    assert half.materials == model.materials
