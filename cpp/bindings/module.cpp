@@ -160,6 +160,28 @@ PYBIND11_MODULE(_core, m) {
             }
             return f;
         }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_t for (N,3) wi, wo; returns (N,3).")
+        .def("eval_scalar", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
+            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
+            check_rows(wo, "wo", 3, n);
+            if (material < 0 || material >= static_cast<int>(md.materials().size()))
+                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            FloatArray f({n, py::ssize_t(3)});
+            {
+                py::gil_scoped_release release;
+                const float* a = wi.data();
+                const float* b = wo.data();
+                float* o = f.mutable_data();
+                for (py::ssize_t i = 0; i < n; ++i) {
+                    const auto v = md.eval(material, hbrdf::Vec3<float>(a[3 * i], a[3 * i + 1], a[3 * i + 2]),
+                                           hbrdf::Vec3<float>(b[3 * i], b[3 * i + 1], b[3 * i + 2]));
+                    o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
+                }
+            }
+            return f;
+        }, py::arg("wi"), py::arg("wo"), py::arg("material"),
+           "f_t through the scalar (tracer and shader twin) path, one pair at a time.")
+        .def_property_readonly("flops_per_eval", &hbrdf::HybridModel::flops_per_eval,
+                               "Network FLOPs of one batched evaluation (multiply-add = 2).")
         .def("eval_analytic", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
             const py::ssize_t n = check_rows(wi, "wi", 3, -1);
             check_rows(wo, "wo", 3, n);

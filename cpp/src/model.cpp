@@ -266,6 +266,7 @@ HybridModel HybridModel::load(const std::string& path) {
     }
     for (const auto& [name, t] : tensors)
         if (!used.count(name)) throw ModelFileError(path, "unexpected tensors: " + name);
+    model.prepare_batch();
     return model;
 }
 
@@ -355,15 +356,57 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
     return f;
 }
 
-void HybridModel::eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const {
-    check_material(m);
-    for (std::size_t i = 0; i < n; ++i) {
-        const Vec3<float> v = eval(m, Vec3<float>(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),
-                                   Vec3<float>(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]));
-        f[3 * i] = v.x;
-        f[3 * i + 1] = v.y;
-        f[3 * i + 2] = v.z;
+void HybridModel::prepare_batch() {
+    // Inputs that vary per pair: the directions (6), the 3 log1p(f_a) of analytic-input,
+    // or the 18 frame features of the neural baseline. The latent inputs are constant per
+    // material, so W0[:, z] z is added to the first bias once, here, in double.
+    const int z_start = kind_ == ModelKind::Neural ? 18 : 6;
+    n_dir_inputs_ = n_in_ - latent_;
+    const DenseLayer& L0 = layers_[0];
+    w0_dirs_.assign(static_cast<std::size_t>(width_) * n_dir_inputs_, 0.f);
+    for (int j = 0; j < width_; ++j) {
+        int c = 0;
+        for (int k = 0; k < n_in_; ++k)
+            if (k < z_start || k >= z_start + latent_) w0_dirs_[j * n_dir_inputs_ + c++] = L0.weight[j * n_in_ + k];
     }
+    bias0_.clear();
+    frame_cache_.clear();
+    for (const ModelMaterial& mat : materials_) {
+        std::vector<float> b(width_);
+        for (int j = 0; j < width_; ++j) {
+            double acc = L0.bias[j];
+            for (int k = 0; k < latent_; ++k) acc += double(L0.weight[j * n_in_ + z_start + k]) * mat.latent[k];
+            b[j] = float(acc);
+        }
+        bias0_.push_back(std::move(b));
+        if (kind_ == ModelKind::Neural) {
+            std::vector<float> fr(27);
+            for (int f = 0; f < 3; ++f) {
+                float raw[6];
+                for (int j = 0; j < 6; ++j) {
+                    float acc = frames_.bias[6 * f + j];
+                    for (int k = 0; k < latent_; ++k) acc += frames_.weight[(6 * f + j) * latent_ + k] * mat.latent[k];
+                    raw[j] = acc;
+                }
+                const Vec3<float> n = normalize_eps(Vec3<float>(raw[0], raw[1], raw[2]));
+                const Vec3<float> t_raw(raw[3], raw[4], raw[5]);
+                const Vec3<float> t = normalize_eps(t_raw - dot(t_raw, n) * n);
+                const Vec3<float> b3 = glm::cross(n, t);
+                for (int c = 0; c < 3; ++c) {
+                    fr[9 * f + c] = t[c];
+                    fr[9 * f + 3 + c] = b3[c];
+                    fr[9 * f + 6 + c] = n[c];
+                }
+            }
+            frame_cache_.push_back(std::move(fr));
+        }
+    }
+}
+
+double HybridModel::flops_per_eval() const {
+    double fl = 2.0 * width_ * n_dir_inputs_;
+    for (std::size_t l = 1; l < layers_.size(); ++l) fl += 2.0 * layers_[l].n_in * layers_[l].n_out;
+    return fl;
 }
 
 }  // namespace hbrdf

@@ -86,7 +86,7 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation):
     for m in range(len(model.materials)):
         got = out[m]
         assert np.isfinite(got).all() and (got[:, :3] >= 0).all() and (got[:, 6] >= 0).all()
-        ref = cpp.eval(wi, wo, m)
+        ref = cpp.eval_scalar(wi, wo, m)  # the library's scalar path, the header's twin
         zero = ref == 0
         assert np.array_equal(got[:, :3] == 0, zero)  # zeros in the same places
         floor = 1e-6 * np.abs(ref).max() if arch == "additive" else 0.0  # max(f_a + o, 0) cancels
@@ -212,7 +212,7 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
     text = generate(model, "cpp", scene=scene)
     assert "folded into the first layer" in text and ("isotropic-only" in text) == (arch != "neural")
     got = _run_driver(_build_driver(tmp_path, text, ["mat-2"]), wi, wo, u, 1)[0]
-    ref = cpp.eval(wi, wo, 2)
+    ref = cpp.eval_scalar(wi, wo, 2)
     assert np.allclose(got[:, :3], ref, rtol=1e-5, atol=1e-9)
     if arch != "neural":
         scene = {"name": "flat.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
@@ -269,7 +269,7 @@ def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
     cpp_half = _core.Model(str(tmp_path / "half.safetensors"))
     cpp_full = _core.Model(str(tmp_path / "m.safetensors"))
     for m in range(3):
-        ref = cpp_half.eval(wi, wo, m)
+        ref = cpp_half.eval_scalar(wi, wo, m)
         assert np.allclose(got[m, :, :3], ref, rtol=1e-6, atol=1e-12)
         # and the rounding is visible against the float32 model (the test can fail)
         assert not np.allclose(got[m, :, :3], cpp_full.eval(wi, wo, m), rtol=1e-6, atol=1e-12)

@@ -76,8 +76,13 @@ public:
     Vec3<float> eval(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// The analytic part f_a of material m (hybrid kinds; throws for the neural baseline).
     Vec3<float> eval_analytic(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
-    /// Batched f_t: wi, wo (n, 3) row-major in, f (n, 3) out.
+    /// Batched f_t: wi, wo (n, 3) row-major in, f (n, 3) out. Vectorised: chunks of pairs in
+    /// structure-of-arrays layout, each layer a broadcast-weight FMA loop over the pairs
+    /// (AVX2+FMA when the CPU has it), the latent code folded into the first layer's bias.
     void eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const;
+    /// Floating-point operations of one batched evaluation's network (multiply-adds count 2),
+    /// with the latent folded as eval_batch does; for throughput benchmarks.
+    double flops_per_eval() const;
 
 private:
     HybridModel() = default;
@@ -92,6 +97,13 @@ private:
     DenseLayer frames_;               ///< neural baseline: latent -> 3 frames (18 values)
     std::vector<ModelMaterial> materials_;
     std::vector<AnalyticBrdf> analytic_;  ///< per material, prepared once
+    // Batched path, prepared at load (see model_batch.cpp):
+    int n_dir_inputs_ = 0;                       ///< first-layer inputs that vary per pair
+    std::vector<float> w0_dirs_;                 ///< first-layer weights of those inputs (width x n_dir_inputs)
+    std::vector<std::vector<float>> bias0_;      ///< per material: b0 + W0[:, z] z
+    std::vector<std::vector<float>> frame_cache_;  ///< neural, per material: 3 frames x (t, b, n) x 3
+    void prepare_batch();
+    friend struct ModelBatchKernels;
 };
 
 }  // namespace hbrdf
