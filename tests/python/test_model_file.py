@@ -179,3 +179,14 @@ def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
         # (atol: the additive ablation max(f_a + o, 0) cancels, so rounding is absolute there.)
         ok = valid & (np.abs(wi).max(axis=1) < 1e10)
         assert np.allclose(model.eval(3.0 * wi[ok], wo[ok], 0, dtype=dtype), f[ok], rtol=1e-5, atol=1e-6)
+
+
+def test_saved_files_get_ordinary_permissions(tmp_path):
+    _, model = make_model()
+    path = tmp_path / "m.safetensors"
+    old = os.umask(0o022)
+    try:
+        model.save(path)
+    finally:
+        os.umask(old)
+    assert (path.stat().st_mode & 0o777) == 0o644
