@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import platform
 import sys
 
 import numpy as np
@@ -23,21 +22,13 @@ import torch
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf.fitting import FitSettings, fit  # noqa: E402
 from hybridbrdf.models import parse_mlp  # noqa: E402
 from analytic_source import AnalyticTestSource  # noqa: E402
-
-
-def cpu_name() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
+from bench_analytic import cpu_name  # noqa: E402
 
 
 def main() -> int:

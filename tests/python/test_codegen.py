@@ -234,8 +234,8 @@ def test_specialisation_shrinks_spirv(tmp_path):
 
     _, model = make_model("hybrid", width=32, depth=3)
     generic = spirv_size(generate(model, "glsl"), material_constant("mat-0"), tmp_path)
-    folded = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": ["mat-0"]} and
-                                 {"name": "s", "materials": [{"name": "mat-0", "evaluate": "full"}]}),
+    folded = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
+                                                                                    "evaluate": "full"}]}),
                         material_constant("mat-0"), tmp_path)
     flat = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
                                                                                   "evaluate": "analytic"}]}),
