@@ -33,6 +33,7 @@ from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.util import atomic_write_bytes
 
 TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
+MLP_FORMS = ("auto", "unrolled", "loops")
 
 
 def _template_dir() -> pathlib.Path:
@@ -134,6 +135,38 @@ DIALECTS: Dict[str, Dict[str, object]] = {
 }
 
 
+def unrolled_layer(layer: Dict[str, object], index: int, last: bool) -> List[str]:
+    """Statements of one fully connected layer with its weights as literals:
+    ``float h<index>_<j> = hbrdf_activation(b + w * x + ...);`` (``o[j] = ...`` for the
+    output layer). Inputs are ``x[k]`` for the first layer and the previous layer's
+    ``h`` otherwise; exactly-zero weights are left out (the inputs are finite)."""
+    n_in, n_out = layer["n_in"], layer["n_out"]
+    w = np.asarray(layer["weight"], dtype=np.float32).reshape(n_out, n_in)
+    b = np.asarray(layer["bias"], dtype=np.float32)
+    inputs = [f"x[{k}]" for k in range(n_in)] if index == 0 else [f"h{index - 1}_{k}" for k in range(n_in)]
+    lines = []
+    for j in range(n_out):
+        terms = [float_literal(b[j])]
+        for k in range(n_in):
+            if w[j, k] != 0.0:
+                terms.append(f"{'-' if w[j, k] < 0 else '+'} {float_literal(abs(w[j, k]))} * {inputs[k]}")
+        expr = " ".join(terms)
+        lines.append(f"o[{j}] = {expr};" if last else f"float h{index}_{j} = hbrdf_activation({expr});")
+    return lines
+
+
+def _unrolled_frames(tensors) -> List[str]:
+    """``raw_frames[j] = b + W z`` for the neural baseline's 18 frame outputs, weights as literals."""
+    w = np.asarray(tensors["frames.weight"], dtype=np.float32)
+    b = np.asarray(tensors["frames.bias"], dtype=np.float32)
+    lines = []
+    for j in range(w.shape[0]):
+        terms = [float_literal(b[j])] + [f"{'-' if w[j, k] < 0 else '+'} {float_literal(abs(w[j, k]))} * m.z[{k}]"
+                                         for k in range(w.shape[1]) if w[j, k] != 0.0]
+        lines.append(f"raw_frames[{j}] = {' '.join(terms)};")
+    return lines
+
+
 def material_constant(name: str) -> str:
     """HBRDF_MATERIAL_<NAME>: upper-cased, every non-identifier character turned into '_'."""
     return "HBRDF_MATERIAL_" + re.sub(r"[^A-Za-z0-9_]", "_", name).upper()
@@ -172,16 +205,27 @@ def load_scene(path) -> Dict[str, object]:
 
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
              model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
-             precision: str = "fp32") -> str:
+             precision: str = "fp32", mlp_form: str = "auto") -> str:
     """Source code of ``model`` for ``target`` (glsl, hlsl, cpp or brdfexplorer), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
-    default values; kd, eta, alpha and the latent code become sliders."""
+    default values; kd, eta, alpha and the latent code become sliders.
+
+    ``mlp_form`` is "unrolled" (straight-line code, weights as literals), "loops"
+    (weights in constant arrays, loops over them) or "auto": unrolled for GLSL and HLSL
+    at fp32 (shader compilers turn constant arrays indexed in loops into memory loads;
+    see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops) and for
+    fp16 (the packed half-precision arrays are what fp16 is for)."""
     if target == "brdfexplorer":
         return _generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
     if precision not in ("fp32", "fp16"):
         raise ValueError(f"unknown precision {precision!r}; expected fp32 or fp16")
+    if mlp_form not in MLP_FORMS:
+        raise ValueError(f"unknown MLP form {mlp_form!r}; expected one of {', '.join(MLP_FORMS)}")
+    if mlp_form == "unrolled" and precision == "fp16":
+        raise ValueError("--mlp-form unrolled prints the weights as float32 literals; fp16 storage needs --mlp-form loops")
+    unrolled = mlp_form == "unrolled" or (mlp_form == "auto" and target != "cpp" and precision == "fp32")
     import jinja2
 
     names = list(materials) if materials else model.materials
@@ -220,8 +264,9 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         w0 = np.delete(w0, np.s_[z_start:z_start + latent], axis=1).astype(np.float32)
         layers[0] = {"n_in": w0.shape[1], "n_out": w0.shape[0], "weight": w0.ravel(), "bias": bias}
         n_in, latent_in = n_in - latent, 0
-    for layer in layers:
+    for i, layer in enumerate(layers):
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
+        layer["unrolled"] = unrolled_layer(layer, i, i == len(layers) - 1) if unrolled else []
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
@@ -240,9 +285,10 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         depth=a["depth"], activation=a["activation"], latent=latent, latent_in=latent_in, z_len=max(latent, 1),
         n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
         specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
-        isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16",
+        isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
         material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
         pre_exp_max=float_literal(a.get("pre_exp_max", 16.0)),
+        frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
         frames_bias=t["frames.bias"] if model.kind == "neural" else [])
     return text
@@ -340,6 +386,9 @@ def main(argv=None) -> int:
                                     "GGX, no network for analytic-only scenes, latent folded for one material)")
     ap.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
                     help="storage of the layer weights: fp32 (exact) or fp16 (IEEE half, two per 32-bit word)")
+    ap.add_argument("--mlp-form", choices=MLP_FORMS, default="auto",
+                    help="network code: unrolled (weights as literals; default for GLSL/HLSL at fp32), loops "
+                         "(weights in constant arrays; default for C++ and fp16) or auto")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:
@@ -351,10 +400,12 @@ def main(argv=None) -> int:
         extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
         if args.precision != "fp32":
             extra += f" --precision {args.precision}"
+        if args.mlp_form != "auto":
+            extra += f" --mlp-form {args.mlp_form}"
         if args.target == "brdfexplorer" and args.precision != "fp32":
             raise ValueError("--precision fp16 is not available for brdfexplorer")
         text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra,
-                        scene=scene, precision=args.precision)
+                        scene=scene, precision=args.precision, mlp_form=args.mlp_form)
         if scene is not None:
             materials = [m["name"] for m in scene["materials"]]
         atomic_write_bytes(args.out, text.encode("utf-8"))

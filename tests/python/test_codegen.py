@@ -11,7 +11,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf.codegen import generate, main as codegen_main, material_constant
+from hybridbrdf.codegen import float_literal, generate, main as codegen_main, material_constant
 
 from conftest import cosine_directions, hard_pairs
 from test_model_file import make_model
@@ -61,15 +61,16 @@ def _rel(a, b):
     return np.abs(a - b) / np.maximum(np.abs(b), 1e-30)
 
 
-@pytest.mark.parametrize("arch,activation", ARCHS)
-def test_generated_cpp_matches_the_library(tmp_path, arch, activation):
+@pytest.mark.parametrize("arch,activation,mlp_form", [(a, act, "auto") for a, act in ARCHS] + [
+    ("hybrid", "hardgelu", "unrolled"), ("neural", "relu", "unrolled")])
+def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form):
     _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2,
                           isotropic=[True, False, True])
     model.arch["activation"] = activation
     path = tmp_path / "m.safetensors"
     model.save(path)
     model = hb.load_model(path)
-    exe = _build_driver(tmp_path, generate(model, "cpp"), model.materials)
+    exe = _build_driver(tmp_path, generate(model, "cpp", mlp_form=mlp_form), model.materials)
     rng = np.random.default_rng(8)
     n = 20000
     wi = cosine_directions(rng, n).astype(np.float32)
@@ -185,6 +186,28 @@ def test_codegen_cli(tmp_path, capsys):
     bad.write_bytes(b"123")
     assert codegen_main([str(bad), "--target", "cpp", "-o", str(tmp_path / "z.h")]) == 1
     assert not (tmp_path / "y").exists() and not (tmp_path / "z.h").exists()
+
+
+def test_mlp_forms(tmp_path, capsys):
+    """Unrolled code holds the weights as literals and no weight arrays; loops the reverse;
+    fp16 needs the arrays, so asking for both is an error that writes nothing."""
+    _, model = make_model("neural", latent=12, width=16, depth=2)
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    w = model.tensors["mlp.hidden.1.weight"]
+    for target in ("glsl", "hlsl", "cpp"):
+        unrolled = generate(model, target, mlp_form="unrolled")
+        loops = generate(model, target, mlp_form="loops")
+        assert "HBRDF_W0" not in unrolled and "HBRDF_FRAMES_W" not in unrolled and "h1_15" in unrolled
+        assert "HBRDF_W0" in loops and "HBRDF_FRAMES_W" in loops and "h1_15" not in loops
+        assert float_literal(abs(w[3, 5])) in unrolled
+    assert "HBRDF_W0" not in generate(model, "glsl") and "HBRDF_W0" in generate(model, "cpp")
+    out = tmp_path / "x.glsl"
+    assert codegen_main([str(path), "--target", "glsl", "--precision", "fp16", "--mlp-form", "unrolled",
+                         "-o", str(out)]) == 1
+    assert "fp16" in capsys.readouterr().err and not out.exists()
+    assert codegen_main([str(path), "--target", "glsl", "--mlp-form", "loops", "-o", str(out)]) == 0
+    assert "--mlp-form loops" in out.read_text()
 
 
 def _run_driver(exe, wi, wo, u, n_mats):

@@ -65,9 +65,10 @@ void main(uint3 id : SV_DispatchThreadID) {
 """
 
 
-def run_shader(tmp_path, target, model, material, wi, wo):
+def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
     n = len(wi)
-    (tmp_path / f"model.{target}").write_text(generate(model, target, [model.materials[material]]))
+    (tmp_path / f"model.{target}").write_text(generate(model, target, [model.materials[material]],
+                                                       **generate_options))
     const = material_constant(model.materials[material])
     src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
     src.write_text((GLSL if target == "glsl" else HLSL).replace("MAT", const).replace("N)", f"{n}u)"))
@@ -90,9 +91,15 @@ CASES = [("hybrid", "hardgelu", 32, 3), ("hybrid", "relu", 16, 2), ("neural", "h
          ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2)]
 
 
-@pytest.mark.parametrize("target", ["glsl", "hlsl"])
-@pytest.mark.parametrize("arch,activation,width,depth", CASES)
-def test_shader_matches_the_library_under_lavapipe(tmp_path, target, arch, activation, width, depth):
+# The network as straight-line code with literal weights (the shader default) and as loops over
+# constant arrays (the C++ default, and the form fp16 uses), both against the library.
+FORMS = [(case, target, "unrolled") for case in CASES for target in ("glsl", "hlsl")] + [
+    (CASES[0], "glsl", "loops"), (CASES[2], "hlsl", "loops")]
+
+
+@pytest.mark.parametrize("case,target,mlp_form", FORMS)
+def test_shader_matches_the_library_under_lavapipe(tmp_path, case, target, mlp_form):
+    arch, activation, width, depth = case
     _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
                           isotropic=[True, False, True])
     model.arch["activation"] = activation
@@ -104,7 +111,7 @@ def test_shader_matches_the_library_under_lavapipe(tmp_path, target, arch, activ
     wi = np.concatenate([cosine_directions(rng, 100_000), hwi]).astype(np.float32)
     wo = np.concatenate([cosine_directions(rng, 100_000), hwo]).astype(np.float32)
     material = 1  # the anisotropic one
-    got = run_shader(tmp_path, target, model, material, wi, wo)
+    got = run_shader(tmp_path, target, model, material, wi, wo, mlp_form=mlp_form)
     ref = _core.Model(str(path)).eval(wi, wo, material)
     assert np.isfinite(got).all()
     assert np.array_equal(got == 0, ref == 0)
@@ -126,15 +133,7 @@ def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target):
     rng = np.random.default_rng(12)
     wi = cosine_directions(rng, 50_000).astype(np.float32)
     wo = cosine_directions(rng, 50_000).astype(np.float32)
-    import hybridbrdf.codegen as cg
-
-    original = cg.generate
-    cg_generate = lambda m, t, mats=None, **kw: original(m, t, mats, precision="fp16", **kw)  # noqa: E731
-    globals()["generate"] = cg_generate
-    try:
-        got = run_shader(tmp_path, target, model, 1, wi, wo)
-    finally:
-        globals()["generate"] = original
+    got = run_shader(tmp_path, target, model, 1, wi, wo, precision="fp16")
     ref = _core.Model(str(tmp_path / "half.safetensors")).eval(wi, wo, 1)
     big = np.abs(ref) > 1e-6
     assert np.isfinite(got).all() and np.array_equal(got == 0, ref == 0)
