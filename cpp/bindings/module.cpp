@@ -192,6 +192,10 @@ PYBIND11_MODULE(_core, m) {
         }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_a of a hybrid material for (N,3) wi, wo.");
 
     m.def("simd_path", &hbrdf::simd_path, "Instruction set the batched kernels use on this CPU.");
+    m.def("model_simd_path", &hbrdf::model_simd_path,
+          "Kernel the batched model evaluation (Model.eval) uses on this CPU: avx512, avx2+fma or baseline.");
+    m.def("limit_model_simd", &hbrdf::limit_model_simd, py::arg("path"),
+          "Cap the kernel of Model.eval: avx512 (no cap), avx2+fma or baseline; for tests and benchmarks.");
     m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),
           "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
 }

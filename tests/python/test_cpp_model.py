@@ -88,3 +88,41 @@ def test_cpp_loader_on_truncated_files(tmp_path):
             _core.Model(str(p))
     with pytest.raises(ValueError, match="no such file"):
         _core.Model(str(tmp_path / "missing.safetensors"))
+
+
+def _kernels():
+    """The batched kernels this CPU can run, best first."""
+    best = _core.model_simd_path()
+    order = ["avx512", "avx2+fma", "baseline"]
+    return order[order.index(best):]
+
+
+@pytest.mark.parametrize("arch,width,depth", [("hybrid", 64, 3), ("hybrid", 16, 2), ("neural", 32, 2)])
+def test_every_batched_kernel_agrees_with_float64_torch(tmp_path, arch, width, depth):
+    """The register-blocked AVX-512 / AVX2 layers and the portable loop, each against torch
+    float64: widths 16..64 and outputs 3 and 6 exercise full blocks and the remainders."""
+    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
+                          isotropic=[True, False, True])
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    py = hb.load_model(path)
+    cpp = _core.Model(str(path))
+    rng = np.random.default_rng(5)
+    n = 5003  # not a multiple of the 64-pair chunk
+    wi = cosine_directions(rng, n).astype(np.float32).astype(np.float64)
+    wo = cosine_directions(rng, n).astype(np.float32).astype(np.float64)
+    kernels = _kernels()
+    try:
+        for kernel in kernels:
+            _core.limit_model_simd(kernel)
+            assert _core.model_simd_path() == kernel
+            for m in range(3):
+                ref = py.eval(wi, wo, m, dtype=torch.float64)
+                got = cpp.eval(wi, wo, m).astype(np.float64)
+                rel = np.abs(got - ref) / np.maximum(np.abs(ref), 1e-7)
+                assert rel.max() < 1e-5, (kernel, m, rel.max())
+    finally:
+        _core.limit_model_simd("avx512")
+    assert _core.model_simd_path() == kernels[0]
+    with pytest.raises(ValueError, match="expected avx512"):
+        _core.limit_model_simd("sse9")

@@ -18,6 +18,15 @@
 
 namespace hbrdf {
 
+/// Kernel HybridModel::eval_batch uses on this CPU: "avx512", "avx2+fma" or "baseline"
+/// (force_baseline_simd(true) selects "baseline").
+const char* model_simd_path();
+
+/// Caps the kernel model_simd_path() may pick ("avx512" = no cap, "avx2+fma", "baseline"),
+/// so that tests and benchmarks can run every kernel on one machine. Throws
+/// std::invalid_argument for any other name.
+void limit_model_simd(const std::string& path);
+
 /// A model file that is missing, truncated, malformed or inconsistent.
 /// what() is "<path>: <problem>", one line.
 class ModelFileError : public std::runtime_error {
