@@ -41,8 +41,11 @@ __attribute__((target("avx2,fma"))) void fma_avx2() {
     __m256 acc[kChains];
     for (int c = 0; c < kChains; ++c) acc[c] = _mm256_set1_ps(float(c) * 1e-3f);
     const __m256 a = _mm256_set1_ps(0.999999f), b = _mm256_set1_ps(1e-7f);
-    for (long i = 0; i < kIters; ++i)
+    for (long i = 0; i < kIters; ++i) {
+        // Fully unrolled so that the accumulators live in registers, not memory.
+#pragma GCC unroll 12
         for (int c = 0; c < kChains; ++c) acc[c] = _mm256_fmadd_ps(acc[c], a, b);
+    }
     __m256 s = acc[0];
     for (int c = 1; c < kChains; ++c) s = _mm256_add_ps(s, acc[c]);
     g_sink = _mm256_cvtss_f32(s);
@@ -52,8 +55,10 @@ __attribute__((target("avx512f"))) void fma_avx512() {
     __m512 acc[kChains];
     for (int c = 0; c < kChains; ++c) acc[c] = _mm512_set1_ps(float(c) * 1e-3f);
     const __m512 a = _mm512_set1_ps(0.999999f), b = _mm512_set1_ps(1e-7f);
-    for (long i = 0; i < kIters; ++i)
+    for (long i = 0; i < kIters; ++i) {
+#pragma GCC unroll 12
         for (int c = 0; c < kChains; ++c) acc[c] = _mm512_fmadd_ps(acc[c], a, b);
+    }
     __m512 s = acc[0];
     for (int c = 1; c < kChains; ++c) s = _mm512_add_ps(s, acc[c]);
     g_sink = _mm512_reduce_add_ps(s);

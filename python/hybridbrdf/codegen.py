@@ -135,13 +135,16 @@ DIALECTS: Dict[str, Dict[str, object]] = {
 }
 
 
-def unrolled_layer(layer: Dict[str, object], index: int, last: bool) -> List[str]:
+def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool = False) -> List[str]:
     """Statements of one fully connected layer with its weights as literals:
     ``float h<index>_<j> = hbrdf_activation(b + w * x + ...);`` (``o[j] = ...`` for the
     output layer). Inputs are ``x[k]`` for the first layer and the previous layer's
-    ``h`` otherwise; exactly-zero weights are left out (the inputs are finite)."""
+    ``h`` otherwise; exactly-zero weights are left out (the inputs are finite).
+    ``fp16`` rounds the weights (not the bias) to binary16 first."""
     n_in, n_out = layer["n_in"], layer["n_out"]
     w = np.asarray(layer["weight"], dtype=np.float32).reshape(n_out, n_in)
+    if fp16:
+        w = w.astype(np.float16).astype(np.float32)
     b = np.asarray(layer["bias"], dtype=np.float32)
     inputs = [f"x[{k}]" for k in range(n_in)] if index == 0 else [f"h{index - 1}_{k}" for k in range(n_in)]
     lines = []
@@ -212,9 +215,10 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
 
     ``mlp_form`` is "unrolled" (straight-line code, weights as literals), "loops"
     (weights in constant arrays, loops over them) or "auto": unrolled for GLSL and HLSL
-    at fp32 (shader compilers turn constant arrays indexed in loops into memory loads;
-    see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops) and for
-    fp16 (the packed half-precision arrays are what fp16 is for)."""
+    (shader compilers turn constant arrays indexed in loops into per-invocation memory;
+    see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops).
+    With ``precision="fp16"`` the layer weights are rounded to IEEE binary16: unrolled
+    code prints the rounded values (exactly), loops store them packed two per 32-bit word."""
     if target == "brdfexplorer":
         return _generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
@@ -223,9 +227,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         raise ValueError(f"unknown precision {precision!r}; expected fp32 or fp16")
     if mlp_form not in MLP_FORMS:
         raise ValueError(f"unknown MLP form {mlp_form!r}; expected one of {', '.join(MLP_FORMS)}")
-    if mlp_form == "unrolled" and precision == "fp16":
-        raise ValueError("--mlp-form unrolled prints the weights as float32 literals; fp16 storage needs --mlp-form loops")
-    unrolled = mlp_form == "unrolled" or (mlp_form == "auto" and target != "cpp" and precision == "fp32")
+    unrolled = mlp_form == "unrolled" or (mlp_form == "auto" and target != "cpp")
     import jinja2
 
     names = list(materials) if materials else model.materials
@@ -266,7 +268,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         n_in, latent_in = n_in - latent, 0
     for i, layer in enumerate(layers):
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
-        layer["unrolled"] = unrolled_layer(layer, i, i == len(layers) - 1) if unrolled else []
+        layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1, precision == "fp16")
+                             if unrolled else [])
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
@@ -385,10 +388,11 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", help="scene JSON naming the materials it uses; specialises the code (isotropic-only "
                                     "GGX, no network for analytic-only scenes, latent folded for one material)")
     ap.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
-                    help="storage of the layer weights: fp32 (exact) or fp16 (IEEE half, two per 32-bit word)")
+                    help="layer weights: fp32 (exact) or fp16 (rounded to IEEE half: exact half values as literals "
+                         "in unrolled code, two per 32-bit word in loops)")
     ap.add_argument("--mlp-form", choices=MLP_FORMS, default="auto",
-                    help="network code: unrolled (weights as literals; default for GLSL/HLSL at fp32), loops "
-                         "(weights in constant arrays; default for C++ and fp16) or auto")
+                    help="network code: unrolled (weights as literals), loops (weights in constant arrays) or auto "
+                         "(default: unrolled for GLSL/HLSL, loops for C++)")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:

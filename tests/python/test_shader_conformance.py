@@ -123,8 +123,9 @@ def test_shader_matches_the_library_under_lavapipe(tmp_path, case, target, mlp_f
         assert rel.max() < 1e-4, f"max relative error {rel.max():.3g}"
 
 
-@pytest.mark.parametrize("target", ["glsl", "hlsl"])
-def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target):
+@pytest.mark.parametrize("target,mlp_form", [("glsl", "unrolled"), ("hlsl", "unrolled"), ("glsl", "loops"),
+                                             ("hlsl", "loops")])
+def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target, mlp_form):
     from test_codegen import _half_rounded_copy
 
     _, model = make_model("hybrid", width=32, depth=2, isotropic=[True, False, True])
@@ -133,7 +134,7 @@ def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target):
     rng = np.random.default_rng(12)
     wi = cosine_directions(rng, 50_000).astype(np.float32)
     wo = cosine_directions(rng, 50_000).astype(np.float32)
-    got = run_shader(tmp_path, target, model, 1, wi, wo, precision="fp16")
+    got = run_shader(tmp_path, target, model, 1, wi, wo, precision="fp16", mlp_form=mlp_form)
     ref = _core.Model(str(tmp_path / "half.safetensors")).eval(wi, wo, 1)
     big = np.abs(ref) > 1e-6
     assert np.isfinite(got).all() and np.array_equal(got == 0, ref == 0)
