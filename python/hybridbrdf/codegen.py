@@ -231,16 +231,21 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     import jinja2
 
     names = list(materials) if materials else model.materials
-    analytic_only = isotropic_only = fold_latent = False
+    analytic_only = isotropic_only = fold_latent = mixed = False
+    flags = {}
     if scene is not None:
         # Simulate only what the scene calls for (docs/CODEGEN.md, "Specialisation").
         names = [m["name"] for m in scene["materials"]]
         analytic_only = all(m["evaluate"] == "analytic" for m in scene["materials"])
-        if analytic_only and model.kind == "neural":
+        # Some materials full, others analytic-only: the network stays, and a per-material
+        # flag makes hbrdf_eval skip it (a branch that is uniform across a draw call).
+        mixed = not analytic_only and any(m["evaluate"] == "analytic" for m in scene["materials"])
+        if any(m["evaluate"] == "analytic" for m in scene["materials"]) and model.kind == "neural":
             raise ValueError("the scene asks for analytic-only evaluation but the model is the neural baseline")
         isotropic_only = model.kind != "neural" and all(
             model.material_info[model.index(n)].get("isotropic", True) for n in names)
         fold_latent = len(names) == 1 and not analytic_only
+        flags = {m["name"]: m["evaluate"] == "analytic" for m in scene["materials"]}
     for n in names:
         model.index(n)  # KeyError naming the material if absent
     consts = [material_constant(n) for n in names]
@@ -279,7 +284,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         else:
             kd, eta, alpha = t["materials.kd"][i], t["materials.eta"][i], t["materials.alpha"][i]
         mats.append({"const_name": c, "kd": [float_literal(v) for v in kd], "eta": [float_literal(v) for v in eta],
-                     "alpha": [float_literal(v) for v in alpha], "z": z})
+                     "alpha": [float_literal(v) for v in alpha], "z": z,
+                     "analytic_only": "true" if flags.get(n, False) else "false"})
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(_template_dir())), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True)
     d = DIALECTS[target]
@@ -289,6 +295,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
         specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
         isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
+        mixed=mixed,
         material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
         pre_exp_max=float_literal(a.get("pre_exp_max", 16.0)),
         frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],

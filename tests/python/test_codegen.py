@@ -253,6 +253,41 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
             _core.force_baseline_simd(False)
 
 
+@pytest.mark.parametrize("target", ["cpp", "glsl", "hlsl"])
+def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
+    """A scene with one full and one analytic-only material keeps the network, and the
+    analytic-only material's hbrdf_eval is exactly its hbrdf_eval_analytic."""
+    _, model = make_model("hybrid", width=16, depth=2, isotropic=[True, False, True])
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    model = hb.load_model(path)
+    scene = {"name": "mixed.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
+                                                  {"name": "mat-1", "evaluate": "full"}]}
+    text = generate(model, target, scene=scene)
+    assert "analytic_only" in text and "hbrdf_mlp" in text
+    if target != "cpp":  # compiles and validates (the values are the C++ case's, same template)
+        (tmp_path / f"model.{target}").write_text(text)
+        src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
+        src.write_text((GLSL_WRAPPER if target == "glsl" else HLSL_WRAPPER).replace("MAT", material_constant("mat-0")))
+        args = ["-V"] if target == "glsl" else ["-D", "-V", "-e", "main", "-S", "comp"]
+        r = subprocess.run(["glslangValidator", *args, "--target-env", "vulkan1.1", "-I" + str(tmp_path), str(src),
+                            "-o", str(tmp_path / "m.spv")], capture_output=True, text=True)
+        assert r.returncode == 0, r.stdout[-2000:]
+        assert subprocess.run(["spirv-val", str(tmp_path / "m.spv")]).returncode == 0
+        return
+    rng = np.random.default_rng(6)
+    wi = cosine_directions(rng, 3000).astype(np.float32)
+    wo = cosine_directions(rng, 3000).astype(np.float32)
+    u = rng.random((3000, 2)).astype(np.float32)
+    got = _run_driver(_build_driver(tmp_path, text, ["mat-0", "mat-1"]), wi, wo, u, 2)
+    assert np.array_equal(got[0, :, :3], got[0, :, 3:6])  # f == f_a for the analytic-only material
+    assert not np.allclose(got[1, :, :3], got[1, :, 3:6])
+    assert np.allclose(got[1, :, :3], _core.Model(str(path)).eval_scalar(wi, wo, 1), rtol=1e-5, atol=1e-9)
+    _, neural = make_model("neural", latent=12, width=16, depth=2)
+    with pytest.raises(ValueError, match="neural baseline"):
+        generate(neural, "cpp", scene=scene)
+
+
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
 def test_specialisation_shrinks_spirv(tmp_path):
     from hybridbrdf.codegen import spirv_size
