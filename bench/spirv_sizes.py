@@ -5,7 +5,8 @@
 
 Prints the optimised (-Os) SPIR-V bytes of a compute shader evaluating
 hbrdf_eval for MATERIAL: generic (all materials), a one-material scene
-(latent folded, isotropic-only when the material is), an analytic-only scene.
+(latent folded, isotropic-only when the material is), an analytic-only scene;
+for the network in both code forms (unrolled, the shader default, and loops).
 """
 
 import sys
@@ -23,16 +24,18 @@ def main() -> int:
     mat = sys.argv[2]
     const = material_constant(mat)
     with tempfile.TemporaryDirectory() as d:
-        rows = [("generic, all materials", generate(model, "glsl")),
-                ("scene: one material, full model", generate(model, "glsl", scene={
-                    "name": "one", "materials": [{"name": mat, "evaluate": "full"}]}))]
+        rows = []
+        for form in ("unrolled", "loops"):
+            rows += [(f"{form}: generic, all materials", generate(model, "glsl", mlp_form=form)),
+                     (f"{form}: scene, one material, full model", generate(model, "glsl", mlp_form=form, scene={
+                         "name": "one", "materials": [{"name": mat, "evaluate": "full"}]}))]
         if model.kind != "neural":
             rows.append(("scene: one material, analytic only", generate(model, "glsl", scene={
                 "name": "flat", "materials": [{"name": mat, "evaluate": "analytic"}]})))
         print(f"{sys.argv[1]}: {model.kind} {model.arch['width']}x{model.arch['depth']}, "
               f"{len(model.materials)} materials; material {mat}")
         for label, code in rows:
-            print(f"{label:38s} {spirv_size(code, const, d):8d} bytes of SPIR-V")
+            print(f"{label:48s} {spirv_size(code, const, d):8d} bytes of SPIR-V")
     return 0
 
 
