@@ -15,6 +15,7 @@ apt_packages=(
   mesa-vulkan-drivers libvulkan-dev vulkan-validationlayers   # lavapipe + loader + validation layer
   doctest-dev                      # C++ unit tests
   nlohmann-json3-dev               # model-file header parsing in libhybridbrdf
+  libassimp-dev libtinyexr-dev libstb-dev   # the path tracer: OBJ/PLY meshes, EXR and HDR/PNG images
 )
 missing=()
 for p in "${apt_packages[@]}"; do

@@ -55,6 +55,11 @@ FloatArray hbrdf_eval_analytic_rows(const hbrdf::AnalyticParams& p, const FloatA
 
 }  // namespace
 
+// Defined in tabulated.cpp: hybridbrdf._core.TabulatedSampler.
+void bind_tabulated(pybind11::module_& m);
+
+void bind_render(py::module_& m);  // cpp/bindings/render.cpp
+
 PYBIND11_MODULE(_core, m) {
     m.doc() = "libhybridbrdf bindings: analytic BRDF evaluation and importance sampling (float32).";
     m.attr("__version__") = hbrdf::kVersion;
@@ -198,4 +203,7 @@ PYBIND11_MODULE(_core, m) {
           "Cap the kernel of Model.eval: avx512 (no cap), avx2+fma or baseline; for tests and benchmarks.");
     m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),
           "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
+
+    bind_tabulated(m);  // after Model, which TabulatedSampler.build_model takes
+    bind_render(m);     // the path tracer (cpp/bindings/render.cpp)
 }

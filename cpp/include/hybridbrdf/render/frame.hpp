@@ -7,6 +7,8 @@
 
 #include <cmath>
 
+#include <glm/geometric.hpp>
+
 #include "hybridbrdf/math.hpp"
 
 namespace hbrdf::render {

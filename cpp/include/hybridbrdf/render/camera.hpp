@@ -1,0 +1,53 @@
+// hybridbrdf renderer — the pinhole camera.
+#pragma once
+
+#include <cmath>
+#include <stdexcept>
+
+#include "hybridbrdf/render/frame.hpp"
+
+namespace hbrdf::render {
+
+struct Ray {
+    Vec3f origin;
+    Vec3f dir;  ///< unit
+};
+
+/// A pinhole at `position` looking at `look_at`; `fov_deg` is the full
+/// vertical field of view; pixel (0, 0) is the top-left corner of the image.
+class PinholeCamera {
+public:
+    PinholeCamera() = default;
+    PinholeCamera(const Vec3f& position, const Vec3f& look_at, const Vec3f& up, float fov_deg, int width, int height)
+        : position_(position), width_(width), height_(height) {
+        if (width < 1 || height < 1) throw std::invalid_argument("camera width and height must be >= 1");
+        if (!(fov_deg > 0.0f && fov_deg < 180.0f)) throw std::invalid_argument("camera fov_deg must be in (0, 180)");
+        const Vec3f f = look_at - position;
+        if (!(dot(f, f) > 0.0f)) throw std::invalid_argument("camera look_at equals position");
+        forward_ = glm::normalize(f);
+        const Vec3f r = glm::cross(forward_, up);
+        if (!(dot(r, r) > 1e-12f)) throw std::invalid_argument("camera up is parallel to the viewing direction");
+        right_ = glm::normalize(r);
+        up_ = glm::cross(right_, forward_);
+        tan_half_ = std::tan(0.5f * fov_deg * 3.14159265358979323846f / 180.0f);
+        aspect_ = float(width) / float(height);
+    }
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+
+    /// The ray through image point (px, py) in pixel units (px in [0, width),
+    /// py in [0, height), y down).
+    Ray generate(float px, float py) const {
+        const float sx = (2.0f * px / float(width_) - 1.0f) * tan_half_ * aspect_;
+        const float sy = (1.0f - 2.0f * py / float(height_)) * tan_half_;
+        return Ray{position_, glm::normalize(forward_ + right_ * sx + up_ * sy)};
+    }
+
+private:
+    Vec3f position_{0, 0, 0}, forward_{0, 0, -1}, right_{1, 0, 0}, up_{0, 1, 0};
+    float tan_half_ = 1, aspect_ = 1;
+    int width_ = 1, height_ = 1;
+};
+
+}  // namespace hbrdf::render

@@ -1,0 +1,144 @@
+// hybridbrdf renderer — materials: one batched evaluation interface over the
+// analytic BRDF, fitted hybrid/neural models and measured references, plus the
+// importance sampler each material was given.
+//
+// Evaluation is batched on purpose: the wavefront integrator hands a material
+// every pair its paths need at one bounce, so a model material runs the
+// vectorised HybridModel::eval_batch (64-pair SIMD chunks) and a measured
+// reference implemented in Python is called once per batch, not per ray.
+//
+// Sampling never evaluates the network (paper Sec. 5.2): cosine, GGX VNDF and
+// their MIS mixture come from an *analytic proxy* (the model's own f_a
+// parameters, the analytic material itself, or "sampling_params" given for a
+// measured one); the tabulated sampler is built once, at scene load, from the
+// material's full evaluation.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "hybridbrdf/model.hpp"
+#include "hybridbrdf/render/frame.hpp"
+#include "hybridbrdf/sampling.hpp"
+#include "hybridbrdf/tabulated.hpp"
+
+namespace hbrdf::render {
+
+/// What a material evaluates for a batch. The integrator's selective-evaluation
+/// policy picks it per path (see integrator.hpp).
+enum class EvalMode {
+    Full,      ///< the material as specified (hybrid f_t, neural, measured, analytic)
+    Analytic,  ///< the analytic part f_a only; materials without one evaluate Full
+};
+
+/// How directions are importance-sampled.
+enum class SamplerKind { Cosine, Ggx, Mis, Tabulated };
+
+/// Parses "cosine" | "ggx" | "mis" | "tabulated"; throws std::invalid_argument.
+SamplerKind parse_sampler(const std::string& name);
+const char* sampler_name(SamplerKind kind);
+
+class Material {
+public:
+    virtual ~Material() = default;
+
+    /// f(wi, wo) for n pairs: wi, wo (n, 3) row-major unit directions in the
+    /// local frame of docs/CONVENTIONS.md (+z normal, +x tangent; wi toward the
+    /// light, wo toward the viewer), f (n, 3) RGB without the cosine. Thread-safe.
+    virtual void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const = 0;
+
+    /// True when eval(..., Analytic) differs from Full, i.e. the material has a
+    /// network the integrator may skip (hybrid model materials).
+    virtual bool has_analytic_part() const { return false; }
+    /// True when eval(..., mode) runs a network (for the render statistics).
+    virtual bool uses_network(EvalMode) const { return false; }
+    virtual bool isotropic() const { return true; }
+    /// "analytic", "model" or "measured".
+    virtual const char* type() const = 0;
+
+    const std::string& name() const { return name_; }
+
+    /// Chooses the sampler. Analytic kinds use `proxy`; with no proxy the
+    /// material falls back to cosine sampling (documented in docs/RENDERING.md).
+    /// Tabulated builds the table now through eval(..., Full), which can take
+    /// seconds; `tabulated_resolution_deg` is passed to TabulatedSampler::build.
+    void set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg = 1);
+
+    /// A direction wi for wo (both local) from u in [0, 1)^2 and its
+    /// whole-sphere solid-angle pdf; pdf == 0 means no sample. The weight of
+    /// the returned BrdfSample is *not* the material's (it is the proxy's or 0):
+    /// the integrator evaluates the material itself, in a batch.
+    BrdfSample sample(const Vec3f& wo, const Vec2<float>& u) const;
+    /// Density with which sample() draws wi given wo.
+    float pdf(const Vec3f& wi, const Vec3f& wo) const;
+
+    SamplerKind sampler_kind() const { return sampler_; }
+    /// Bytes the sampler keeps for this material (the analytic proxy: its parameters).
+    std::size_t sampler_memory_bytes() const;
+
+protected:
+    explicit Material(std::string name) : name_(std::move(name)) {}
+
+private:
+    std::string name_;
+    SamplerKind sampler_ = SamplerKind::Cosine;
+    Strategy strategy_ = Strategy::Cosine;
+    AnalyticBrdf proxy_{AnalyticParams{}};
+    std::shared_ptr<const TabulatedSampler> tabulated_;
+};
+
+/// f_a with fixed parameters ({"type": "analytic"}).
+class AnalyticMaterial final : public Material {
+public:
+    AnalyticMaterial(std::string name, const AnalyticParams& params) : Material(std::move(name)), params_(params) {}
+    void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    bool isotropic() const override { return params_.isotropic(); }
+    const char* type() const override { return "analytic"; }
+    const AnalyticParams& params() const { return params_; }
+
+private:
+    AnalyticParams params_;
+};
+
+/// One material of a fitted model file ({"type": "model"}). With
+/// `analytic_only` the material always evaluates its f_a ("evaluate": "analytic").
+class ModelMaterial final : public Material {
+public:
+    /// Throws std::invalid_argument when `index` is out of range, or when
+    /// analytic_only is asked of the neural baseline (it has no f_a).
+    ModelMaterial(std::string name, std::shared_ptr<const HybridModel> model, int index, bool analytic_only);
+    void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    bool has_analytic_part() const override { return has_analytic_ && !analytic_only_; }
+    bool uses_network(EvalMode mode) const override {
+        return !(has_analytic_ && (analytic_only_ || mode == EvalMode::Analytic));
+    }
+    bool isotropic() const override { return model_->materials()[std::size_t(index_)].isotropic; }
+    const char* type() const override { return "model"; }
+    /// The analytic parameters (nullopt for the neural baseline).
+    std::optional<AnalyticParams> analytic_params() const;
+
+private:
+    std::shared_ptr<const HybridModel> model_;
+    int index_;
+    bool analytic_only_, has_analytic_;
+};
+
+/// A measured reference behind a batched callback ({"type": "measured"}; the
+/// Python front end passes hybridbrdf.open_source(...).eval).
+class CallbackMaterial final : public Material {
+public:
+    CallbackMaterial(std::string name, BatchEval eval, bool isotropic) : Material(std::move(name)), eval_(std::move(eval)), isotropic_(isotropic) {}
+    /// Calls the callback; negative and non-finite values (measurement noise)
+    /// become 0, since a renderer cannot use negative reflectance.
+    void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    bool isotropic() const override { return isotropic_; }
+    const char* type() const override { return "measured"; }
+
+private:
+    BatchEval eval_;
+    bool isotropic_;
+};
+
+}  // namespace hbrdf::render

@@ -1,0 +1,47 @@
+// hybridbrdf renderer — triangle meshes: read from OBJ/PLY (and whatever else
+// assimp reads), or built for a plane.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/mat3x3.hpp>
+
+#include "hybridbrdf/render/frame.hpp"
+
+namespace hbrdf::render {
+
+struct TriangleMesh {
+    std::vector<Vec3f> positions;
+    std::vector<Vec3f> normals;   ///< per vertex shading normals; empty = use the geometric normal
+    std::vector<Vec3f> tangents;  ///< per vertex tangents (from UVs); empty = arbitrary frame
+    std::vector<std::uint32_t> indices;  ///< 3 per triangle
+
+    std::size_t triangle_count() const { return indices.size() / 3; }
+};
+
+/// A 3x3 linear map plus a translation, applied to positions (normals use
+/// the inverse transpose, tangents the linear part).
+struct Transform {
+    glm::mat3 linear{1.0f};
+    Vec3f translation{0.0f};
+
+    Vec3f point(const Vec3f& p) const { return linear * p + translation; }
+};
+
+/// Applies `xf` to every vertex, normal and tangent (renormalised).
+void transform_mesh(TriangleMesh& mesh, const Transform& xf);
+
+/// Reads every mesh of a model file through assimp (triangulated, vertices
+/// joined). With smooth_normals, missing normals are generated smooth;
+/// otherwise vertex normals are dropped and the geometric normal shades.
+/// Tangents are taken when the file has UVs. Throws FileError("<path>: ...").
+TriangleMesh load_mesh(const std::string& path, bool smooth_normals = true);
+
+/// A square-cornered rectangle of size (sx, sy) centred at `center`, facing
+/// `normal`, its first side along `tangent` (any direction not parallel to
+/// the normal; the shading frame's +x).
+TriangleMesh make_plane(const Vec3f& center, const Vec3f& normal, const Vec3f& tangent, float sx, float sy);
+
+}  // namespace hbrdf::render

@@ -1,0 +1,316 @@
+// hybridbrdf renderer — the wavefront path tracer of integrator.hpp.
+#include "hybridbrdf/render/integrator.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "hybridbrdf/render/progress.hpp"
+#include "hybridbrdf/render/rng.hpp"
+
+namespace hbrdf::render {
+
+namespace {
+
+// Power heuristic (beta = 2) weight of strategy a against b. In double:
+// GGX densities at alpha = 1e-4 reach 1e15 and their square overflows float.
+float power_heuristic(float pdf_a, float pdf_b) {
+    const double a = double(pdf_a) * double(pdf_a), b = double(pdf_b) * double(pdf_b);
+    return a + b > 0.0 ? float(a / (a + b)) : 0.0f;
+}
+
+float max_component(const Vec3f& v) { return std::max(v.x, std::max(v.y, v.z)); }
+
+bool finite3(const Vec3f& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
+
+struct Path {
+    Vec3f origin, dir, throughput;
+    float prev_pdf;  // density of the BSDF sample that made `dir`
+    int local_pixel; // index in the tile
+    int sample;      // sample index in [0, spp)
+    std::uint64_t pixel;
+};
+
+// What one path needs from its material at this bounce.
+struct Shading {
+    SurfaceHit hit;
+    Vec3f wo;                 // local
+    Vec3f wi_light, light_radiance;
+    float light_pdf = 0;
+    bool light_ok = false;    // NEE sample unoccluded and above both horizons
+    Vec3f wi_bsdf, wi_bsdf_world;
+    float bsdf_pdf = 0;
+    bool bsdf_ok = false;
+    bool network = false;
+    Vec3f f_light{0.0f}, f_bsdf{0.0f};
+};
+
+struct Counters {
+    std::uint64_t rays = 0, shadow_rays = 0, brdf_evals = 0, network_evals = 0;
+};
+
+// Per-thread renderer: buffers reused from tile to tile.
+class TileRenderer {
+public:
+    TileRenderer(const Scene& scene, const RenderOptions& options) : scene_(scene), opt_(options) {}
+
+    void render_tile(int x0, int y0, int x1, int y1, Image& image, Counters& counters) {
+        const int tw = x1 - x0, th = y1 - y0, n_pixels = tw * th;
+        accum_.assign(std::size_t(n_pixels) * 3, 0.0f);
+        const int per_wave = std::max(1, opt_.max_paths_per_wave / n_pixels);
+        for (int s0 = 0; s0 < opt_.spp; s0 += per_wave) {
+            const int s1 = std::min(opt_.spp, s0 + per_wave);
+            paths_.clear();
+            for (int s = s0; s < s1; ++s)
+                for (int ly = 0; ly < th; ++ly)
+                    for (int lx = 0; lx < tw; ++lx) {
+                        const std::uint64_t pixel = std::uint64_t(y0 + ly) * std::uint64_t(image.width) + std::uint64_t(x0 + lx);
+                        const PathRandom rng{opt_.seed, pixel, std::uint64_t(s)};
+                        const Ray ray = scene_.camera.generate(float(x0 + lx) + rng.camera(0), float(y0 + ly) + rng.camera(1));
+                        paths_.push_back(Path{ray.origin, ray.dir, Vec3f(1.0f), 0.0f, ly * tw + lx, s, pixel});
+                    }
+            trace_wave(counters);
+        }
+        const float inv_spp = 1.0f / float(opt_.spp);
+        for (int ly = 0; ly < th; ++ly)
+            for (int lx = 0; lx < tw; ++lx) {
+                float* out = image.at(x0 + lx, y0 + ly);
+                const float* a = &accum_[std::size_t(ly * tw + lx) * 3];
+                for (int c = 0; c < 3; ++c) out[c] = a[c] * inv_spp;
+            }
+    }
+
+private:
+    void add(const Path& path, const Vec3f& L) {
+        if (!finite3(L)) return;  // a single non-finite sample must not poison the pixel
+        float* a = &accum_[std::size_t(path.local_pixel) * 3];
+        a[0] += L.x;
+        a[1] += L.y;
+        a[2] += L.z;
+    }
+
+    void trace_wave(Counters& counters) {
+        const EnvironmentLight& env = scene_.environment;
+        for (int depth = 0; !paths_.empty(); ++depth) {
+            // 1. Extension rays. Escaped paths see the environment: weight 1 for
+            // camera rays and without NEE, else the MIS weight of BSDF sampling.
+            shading_.resize(paths_.size());
+            hit_.assign(paths_.size(), 0);
+            for (std::size_t k = 0; k < paths_.size(); ++k) {
+                Path& p = paths_[k];
+                ++counters.rays;
+                if (scene_.intersect(p.origin, p.dir, &shading_[k].hit)) {
+                    hit_[k] = 1;
+                    continue;
+                }
+                const float w = (depth == 0 || !opt_.nee) ? 1.0f : power_heuristic(p.prev_pdf, env.pdf(p.dir));
+                add(p, p.throughput * env.eval(p.dir) * w);
+            }
+            if (depth >= opt_.max_depth) break;
+
+            // 2. Light and BSDF directions; shadow rays.
+            for (std::size_t k = 0; k < paths_.size(); ++k) {
+                if (!hit_[k]) continue;
+                const Path& p = paths_[k];
+                Shading& s = shading_[k];
+                const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
+                const PathRandom rng{opt_.seed, p.pixel, std::uint64_t(p.sample)};
+                s.wo = s.hit.shading.to_local(-p.dir);
+                s.network = use_network(opt_, depth, p.throughput);
+                s.light_ok = s.bsdf_ok = false;
+                s.f_light = s.f_bsdf = Vec3f(0.0f);
+                if (!(s.wo.z > 0.0f)) continue;  // shading normal turned away from the viewer: black
+                if (opt_.nee) {
+                    const LightSample ls = env.sample(Vec2<float>(rng.bounce(depth, kDimLight0), rng.bounce(depth, kDimLight1)));
+                    s.wi_light = s.hit.shading.to_local(ls.wi);
+                    s.light_pdf = ls.pdf;
+                    s.light_radiance = ls.radiance;
+                    if (ls.pdf > 0.0f && s.wi_light.z > 0.0f && dot(s.hit.ng, ls.wi) > 0.0f && max_component(ls.radiance) > 0.0f) {
+                        ++counters.shadow_rays;
+                        s.light_ok = !scene_.occluded(Scene::offset_origin(s.hit, ls.wi), ls.wi);
+                    }
+                }
+                const BrdfSample bs = mat.sample(s.wo, Vec2<float>(rng.bounce(depth, kDimBsdf0), rng.bounce(depth, kDimBsdf1)));
+                s.wi_bsdf = bs.wi;
+                s.bsdf_pdf = bs.pdf;
+                s.wi_bsdf_world = s.hit.shading.to_world(bs.wi);
+                // Directions below the geometric surface would leak light through it.
+                s.bsdf_ok = bs.pdf > 0.0f && bs.wi.z > 0.0f && dot(s.hit.ng, s.wi_bsdf_world) > 0.0f;
+            }
+
+            // 3. Batched evaluation, one call per (material, mode), pairs in path order.
+            evaluate(counters);
+
+            // 4. NEE contributions and the next rays.
+            std::size_t alive = 0;
+            for (std::size_t k = 0; k < paths_.size(); ++k) {
+                if (!hit_[k]) continue;
+                Path p = paths_[k];
+                const Shading& s = shading_[k];
+                const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
+                if (s.light_ok) {
+                    const float w = power_heuristic(s.light_pdf, mat.pdf(s.wi_light, s.wo));
+                    add(p, p.throughput * s.f_light * s.light_radiance * (s.wi_light.z * w / s.light_pdf));
+                }
+                if (!s.bsdf_ok) continue;
+                p.throughput *= s.f_bsdf * (s.wi_bsdf.z / s.bsdf_pdf);
+                if (!(max_component(p.throughput) > 0.0f) || !finite3(p.throughput)) continue;
+                if (opt_.rr_depth >= 0 && depth >= opt_.rr_depth) {
+                    const float q = std::min(0.95f, max_component(p.throughput));
+                    const PathRandom rng{opt_.seed, p.pixel, std::uint64_t(p.sample)};
+                    if (rng.bounce(depth, kDimRoulette) >= q) continue;
+                    p.throughput /= q;
+                }
+                p.origin = Scene::offset_origin(s.hit, s.wi_bsdf_world);
+                p.dir = s.wi_bsdf_world;
+                p.prev_pdf = s.bsdf_pdf;
+                paths_[alive++] = p;  // alive <= k: compaction in place keeps the order
+            }
+            paths_.resize(alive);
+        }
+    }
+
+    void evaluate(Counters& counters) {
+        const std::size_t n_mat = scene_.materials.size();
+        for (std::size_t m = 0; m < n_mat; ++m) {
+            const Material& mat = *scene_.materials[m];
+            for (int mode_i = 0; mode_i < 2; ++mode_i) {
+                const EvalMode mode = mode_i == 0 ? EvalMode::Full : EvalMode::Analytic;
+                wi_.clear();
+                wo_.clear();
+                slots_.clear();
+                auto push = [&](const Vec3f& wi, const Vec3f& wo, Vec3f* slot) {
+                    wi_.insert(wi_.end(), {wi.x, wi.y, wi.z});
+                    wo_.insert(wo_.end(), {wo.x, wo.y, wo.z});
+                    slots_.push_back(slot);
+                };
+                for (std::size_t k = 0; k < paths_.size(); ++k) {
+                    Shading& s = shading_[k];
+                    if (!hit_[k] || std::size_t(s.hit.material) != m || (s.network != (mode == EvalMode::Full))) continue;
+                    if (s.light_ok) push(s.wi_light, s.wo, &s.f_light);
+                    if (s.bsdf_ok) push(s.wi_bsdf, s.wo, &s.f_bsdf);
+                }
+                if (slots_.empty()) continue;
+                f_.resize(wi_.size());
+                mat.eval(slots_.size(), wi_.data(), wo_.data(), f_.data(), mode);
+                counters.brdf_evals += slots_.size();
+                if (mat.uses_network(mode)) counters.network_evals += slots_.size();
+                for (std::size_t i = 0; i < slots_.size(); ++i) {
+                    const float* f = &f_[3 * i];
+                    // Measured data can be negative (noise) or not finite: no negative light.
+                    *slots_[i] = Vec3f(max0(f[0]), max0(f[1]), max0(f[2]));
+                }
+            }
+        }
+    }
+
+    const Scene& scene_;
+    const RenderOptions& opt_;
+    std::vector<float> accum_;
+    std::vector<Path> paths_;
+    std::vector<Shading> shading_;
+    std::vector<char> hit_;
+    std::vector<float> wi_, wo_, f_;
+    std::vector<Vec3f*> slots_;
+};
+
+}  // namespace
+
+RenderOptions RenderOptions::from_scene(const SceneSettings& s) {
+    RenderOptions o;
+    o.spp = s.spp;
+    o.max_depth = s.max_depth;
+    o.neural_max_depth = s.neural_max_depth;
+    o.neural_min_throughput = s.neural_min_throughput;
+    o.rr_depth = s.rr_depth;
+    o.nee = s.nee;
+    o.seed = s.seed;
+    o.threads = s.threads;
+    return o;
+}
+
+void RenderOptions::validate() const {
+    auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
+    if (spp < 1) fail("spp must be >= 1, got " + std::to_string(spp));
+    if (max_depth < 0) fail("max_depth must be >= 0, got " + std::to_string(max_depth));
+    if (neural_max_depth < -1) fail("neural_max_depth must be >= 0 (or -1 = max_depth), got " + std::to_string(neural_max_depth));
+    if (!(neural_min_throughput >= 0.0f)) fail("neural_min_throughput must be >= 0");
+    if (rr_depth < -1) fail("rr_depth must be >= 0 (or -1 = off), got " + std::to_string(rr_depth));
+    if (threads < 0) fail("threads must be >= 0 (0 = all cores), got " + std::to_string(threads));
+    if (tile_size < 1) fail("tile_size must be >= 1");
+    if (max_paths_per_wave < 1) fail("max_paths_per_wave must be >= 1");
+}
+
+bool use_network(const RenderOptions& options, int depth, const Vec3f& throughput) {
+    const int max_d = options.neural_max_depth < 0 ? options.max_depth : options.neural_max_depth;
+    return depth < max_d && max_component(throughput) >= options.neural_min_throughput;
+}
+
+Image render(const Scene& scene, const RenderOptions& options, RenderStats* stats) {
+    options.validate();
+    if (scene.materials.empty()) throw std::invalid_argument("the scene has no materials");
+    const auto start = std::chrono::steady_clock::now();
+    const int W = scene.camera.width(), H = scene.camera.height(), T = options.tile_size;
+    Image image(W, H);
+    const int tiles_x = (W + T - 1) / T, tiles_y = (H + T - 1) / T, n_tiles = tiles_x * tiles_y;
+    int n_threads = options.threads > 0 ? options.threads : int(std::thread::hardware_concurrency());
+    n_threads = std::max(1, std::min(n_threads, n_tiles));
+
+    std::atomic<int> next_tile{0};
+    std::atomic<bool> abort{false};
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    Counters total;
+    std::mutex total_mutex;
+    ProgressBar progress(n_tiles, options.quiet);
+
+    auto worker = [&]() {
+        TileRenderer tr(scene, options);
+        Counters local;
+        try {
+            for (int t; !abort.load(std::memory_order_relaxed) && (t = next_tile.fetch_add(1)) < n_tiles;) {
+                const int x0 = (t % tiles_x) * T, y0 = (t / tiles_x) * T;
+                tr.render_tile(x0, y0, std::min(W, x0 + T), std::min(H, y0 + T), image, local);
+                progress.tick();
+            }
+        } catch (...) {
+            std::lock_guard<std::mutex> lock(error_mutex);
+            if (!error) error = std::current_exception();
+            abort = true;
+        }
+        std::lock_guard<std::mutex> lock(total_mutex);
+        total.rays += local.rays;
+        total.shadow_rays += local.shadow_rays;
+        total.brdf_evals += local.brdf_evals;
+        total.network_evals += local.network_evals;
+    };
+    if (n_threads == 1) {
+        worker();  // on the caller's thread: no thread start-up for tiny renders
+    } else {
+        std::vector<std::thread> pool;
+        for (int i = 0; i < n_threads; ++i) pool.emplace_back(worker);
+        for (auto& th : pool) th.join();
+    }
+    if (error) std::rethrow_exception(error);
+    progress.finish();
+
+    if (stats) {
+        stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        stats->samples_per_second = double(W) * double(H) * double(options.spp) / std::max(stats->seconds, 1e-9);
+        stats->rays = total.rays;
+        stats->shadow_rays = total.shadow_rays;
+        stats->brdf_evals = total.brdf_evals;
+        stats->network_evals = total.network_evals;
+        stats->threads = n_threads;
+        stats->tiles = n_tiles;
+    }
+    return image;
+}
+
+}  // namespace hbrdf::render

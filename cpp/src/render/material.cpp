@@ -1,0 +1,109 @@
+// hybridbrdf renderer — materials and their samplers.
+#include "hybridbrdf/render/material.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <stdexcept>
+
+#include "hybridbrdf/batch.hpp"
+
+namespace hbrdf::render {
+
+SamplerKind parse_sampler(const std::string& name) {
+    if (name == "cosine") return SamplerKind::Cosine;
+    if (name == "ggx") return SamplerKind::Ggx;
+    if (name == "mis") return SamplerKind::Mis;
+    if (name == "tabulated") return SamplerKind::Tabulated;
+    throw std::invalid_argument("unknown sampler '" + name + "'; expected cosine, ggx, mis or tabulated");
+}
+
+const char* sampler_name(SamplerKind kind) {
+    switch (kind) {
+        case SamplerKind::Cosine: return "cosine";
+        case SamplerKind::Ggx: return "ggx";
+        case SamplerKind::Mis: return "mis";
+        default: return "tabulated";
+    }
+}
+
+void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg) {
+    tabulated_.reset();
+    if (kind == SamplerKind::Tabulated) {
+        // TabulatedSampler::sample() evaluates the BRDF once per call for a
+        // weight this integrator never uses (it evaluates in batches itself).
+        // A scalar call into a network, or into Python for a measured material,
+        // per sample would dominate the render, so the evaluator handed to the
+        // sampler is switched off once the table is built: sample() then
+        // returns the right wi and pdf with a zero weight.
+        auto building = std::make_shared<std::atomic<bool>>(true);
+        const Material* self = this;
+        BatchEval eval = [self, building](std::size_t n, const float* wi, const float* wo, float* f) {
+            if (building->load(std::memory_order_relaxed)) {
+                self->eval(n, wi, wo, f, EvalMode::Full);
+            } else {
+                std::fill(f, f + 3 * n, 0.0f);
+            }
+        };
+        tabulated_ = std::make_shared<const TabulatedSampler>(
+            TabulatedSampler::build(eval, isotropic(), tabulated_resolution_deg));
+        building->store(false);
+        sampler_ = kind;
+        return;
+    }
+    if (!proxy) {
+        sampler_ = SamplerKind::Cosine;
+        strategy_ = Strategy::Cosine;
+        return;
+    }
+    sampler_ = kind;
+    proxy_ = AnalyticBrdf(*proxy);
+    strategy_ = kind == SamplerKind::Ggx ? Strategy::Ggx : kind == SamplerKind::Mis ? Strategy::Mis : Strategy::Cosine;
+}
+
+BrdfSample Material::sample(const Vec3f& wo, const Vec2<float>& u) const {
+    if (tabulated_) return tabulated_->sample(wo, u);
+    return hbrdf::sample(strategy_, proxy_, wo, u);
+}
+
+float Material::pdf(const Vec3f& wi, const Vec3f& wo) const {
+    if (tabulated_) return tabulated_->pdf(wi, wo);
+    return hbrdf::pdf(strategy_, proxy_, wi, wo);
+}
+
+std::size_t Material::sampler_memory_bytes() const {
+    if (tabulated_) return tabulated_->memory_bytes();
+    return sampler_ == SamplerKind::Cosine ? 0 : sizeof(AnalyticParams);
+}
+
+void AnalyticMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode) const {
+    eval_analytic_aos(params_, n, wi, wo, f);
+}
+
+ModelMaterial::ModelMaterial(std::string name, std::shared_ptr<const HybridModel> model, int index, bool analytic_only)
+    : Material(std::move(name)), model_(std::move(model)), index_(index), analytic_only_(analytic_only) {
+    if (index_ < 0 || std::size_t(index_) >= model_->materials().size())
+        throw std::invalid_argument("material index out of range");
+    has_analytic_ = model_->kind() != ModelKind::Neural;
+    if (analytic_only_ && !has_analytic_)
+        throw std::invalid_argument("\"evaluate\": \"analytic\" is not possible: the neural baseline has no analytic part");
+}
+
+std::optional<AnalyticParams> ModelMaterial::analytic_params() const {
+    if (!has_analytic_) return std::nullopt;
+    return model_->materials()[std::size_t(index_)].params;
+}
+
+void ModelMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const {
+    if (has_analytic_ && (analytic_only_ || mode == EvalMode::Analytic)) {
+        eval_analytic_aos(model_->materials()[std::size_t(index_)].params, n, wi, wo, f);
+    } else {
+        model_->eval_batch(index_, n, wi, wo, f);
+    }
+}
+
+void CallbackMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode) const {
+    eval_(n, wi, wo, f);
+    for (std::size_t i = 0; i < 3 * n; ++i) f[i] = (f[i] > 0.0f && is_finite(f[i])) ? f[i] : 0.0f;
+}
+
+}  // namespace hbrdf::render

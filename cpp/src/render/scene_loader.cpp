@@ -1,0 +1,407 @@
+// hybridbrdf renderer — the JSON scene format (docs/RENDERING.md).
+#include "hybridbrdf/render/scene_loader.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "hybridbrdf/render/integrator.hpp"
+#include "hybridbrdf/render/sky.hpp"
+
+namespace hbrdf::render {
+
+namespace {
+
+using json = nlohmann::json;
+
+// Reads values out of the JSON tree; every failure names the origin and the
+// JSON path of the offending value.
+class Reader {
+public:
+    Reader(std::string origin, std::string base_dir) : origin_(std::move(origin)), base_dir_(std::move(base_dir)) {}
+
+    [[noreturn]] void fail(const std::string& where, const std::string& problem) const {
+        throw FileError(origin_, where.empty() ? problem : where + ": " + problem);
+    }
+
+    // Rejects keys outside `allowed` (typos would otherwise be silently ignored).
+    // Keys starting with '_' and "comment" are free text.
+    void check_keys(const json& obj, const std::string& where, std::initializer_list<const char*> allowed) const {
+        if (!obj.is_object()) fail(where, "expected an object");
+        const std::set<std::string> ok(allowed.begin(), allowed.end());
+        for (const auto& item : obj.items()) {
+            const std::string& k = item.key();
+            if (k.empty() || k[0] == '_' || k == "comment" || ok.count(k)) continue;
+            std::string list;
+            for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+            fail(join(where, k), "unknown key '" + k + "' (expected one of: " + list + ")");
+        }
+    }
+
+    static std::string join(const std::string& where, const std::string& key) {
+        return where.empty() ? key : where + "." + key;
+    }
+
+    const json& require(const json& obj, const std::string& where, const char* key) const {
+        if (!obj.contains(key)) fail(where, std::string("missing key '") + key + "'");
+        return obj.at(key);
+    }
+
+    float number(const json& v, const std::string& where) const {
+        if (!v.is_number()) fail(where, "expected a number, got " + std::string(v.type_name()));
+        const double d = v.get<double>();
+        if (!std::isfinite(d)) fail(where, "expected a finite number");
+        return float(d);
+    }
+    float number(const json& obj, const std::string& where, const char* key, float def) const {
+        return obj.contains(key) ? number(obj.at(key), join(where, key)) : def;
+    }
+    int integer(const json& obj, const std::string& where, const char* key, int def) const {
+        if (!obj.contains(key)) return def;
+        const json& v = obj.at(key);
+        if (!v.is_number_integer()) fail(join(where, key), "expected an integer, got " + std::string(v.type_name()));
+        return v.get<int>();
+    }
+    bool boolean(const json& obj, const std::string& where, const char* key, bool def) const {
+        if (!obj.contains(key)) return def;
+        if (!obj.at(key).is_boolean()) fail(join(where, key), "expected true or false");
+        return obj.at(key).get<bool>();
+    }
+    std::string string(const json& v, const std::string& where) const {
+        if (!v.is_string()) fail(where, "expected a string, got " + std::string(v.type_name()));
+        return v.get<std::string>();
+    }
+    // Fixed-length number array; a single number is broadcast when allowed.
+    template <int N> glm::vec<N, float> vec(const json& v, const std::string& where, bool broadcast = false) const {
+        glm::vec<N, float> out(0.0f);
+        if (broadcast && v.is_number()) return glm::vec<N, float>(number(v, where));
+        if (!v.is_array() || v.size() != std::size_t(N))
+            fail(where, "expected an array of " + std::to_string(N) + " numbers" + (broadcast ? " or a number" : ""));
+        for (int i = 0; i < N; ++i) out[i] = number(v[std::size_t(i)], where + "[" + std::to_string(i) + "]");
+        return out;
+    }
+    template <int N>
+    glm::vec<N, float> vec(const json& obj, const std::string& where, const char* key, const glm::vec<N, float>& def,
+                           bool broadcast = false) const {
+        return obj.contains(key) ? vec<N>(obj.at(key), join(where, key), broadcast) : def;
+    }
+
+    // Paths in the scene are relative to its folder; "synthetic:..." is not a path.
+    std::string resolve(const std::string& p) const {
+        if (p.empty() || p[0] == '/' || p.rfind("synthetic:", 0) == 0 || base_dir_.empty()) return p;
+        return base_dir_ + "/" + p;
+    }
+
+    const std::string& origin() const { return origin_; }
+
+private:
+    std::string origin_, base_dir_;
+};
+
+AnalyticParams read_params(const Reader& r, const json& obj, const std::string& where) {
+    AnalyticParams p;
+    p.kd = r.vec<3>(obj, where, "kd", Vec3f(0.5f), true);
+    p.eta = r.vec<3>(obj, where, "eta", Vec3f(1.5f), true);
+    p.alpha = r.vec<2>(obj, where, "alpha", Vec2<float>(0.3f), true);
+    try {
+        validate(p);
+    } catch (const std::invalid_argument& e) {
+        r.fail(where, e.what());
+    }
+    return p;
+}
+
+class Loader {
+public:
+    Loader(const Reader& r, const SceneLoadOptions& options) : r_(r), options_(options) {}
+
+    Scene load(const json& root) {
+        r_.check_keys(root, "", {"camera", "environment", "materials", "objects", "spp", "max_depth", "neural_max_depth",
+                                 "neural_min_throughput", "rr_depth", "nee", "seed", "threads", "sampler",
+                                 "tabulated_resolution_deg", "description"});
+        Scene scene;
+        read_settings(root, scene);
+        scene.camera = read_camera(r_.require(root, "", "camera"));
+        scene.environment = read_environment(root.contains("environment") ? root.at("environment") : json::object());
+        if (root.contains("materials")) {
+            const json& mats = root.at("materials");
+            if (!mats.is_object()) r_.fail("materials", "expected an object mapping names to materials");
+            for (const auto& item : mats.items()) {
+                named_[item.key()] = scene.add_material(read_material(item.value(), "materials." + item.key(), item.key()));
+            }
+        }
+        const json& objects = r_.require(root, "", "objects");
+        if (!objects.is_array() || objects.empty()) r_.fail("objects", "expected a non-empty array");
+        for (std::size_t i = 0; i < objects.size(); ++i) read_object(objects[i], "objects[" + std::to_string(i) + "]", scene);
+        // Samplers last: a tabulated one evaluates its material millions of times.
+        for (std::size_t m = 0; m < scene.materials.size(); ++m) {
+            try {
+                scene.materials[m]->set_sampler(scene.sampler, proxies_[m], tabulated_resolution_);
+            } catch (const std::invalid_argument& e) {
+                r_.fail("materials." + scene.materials[m]->name(), e.what());
+            }
+        }
+        scene.commit();
+        return scene;
+    }
+
+private:
+    void read_settings(const json& root, Scene& scene) {
+        SceneSettings& s = scene.settings;
+        s.spp = r_.integer(root, "", "spp", s.spp);
+        s.max_depth = r_.integer(root, "", "max_depth", s.max_depth);
+        s.neural_max_depth = r_.integer(root, "", "neural_max_depth", s.neural_max_depth);
+        s.neural_min_throughput = r_.number(root, "", "neural_min_throughput", s.neural_min_throughput);
+        s.rr_depth = r_.integer(root, "", "rr_depth", s.rr_depth);
+        s.nee = r_.boolean(root, "", "nee", s.nee);
+        s.seed = std::uint64_t(r_.integer(root, "", "seed", int(s.seed)));
+        s.threads = r_.integer(root, "", "threads", s.threads);
+        tabulated_resolution_ = r_.integer(root, "", "tabulated_resolution_deg", 1);
+        if (root.contains("sampler")) {
+            try {
+                scene.sampler = parse_sampler(r_.string(root.at("sampler"), "sampler"));
+            } catch (const std::invalid_argument& e) {
+                r_.fail("sampler", e.what());
+            }
+        }
+        RenderOptions o = RenderOptions::from_scene(s);
+        try {
+            o.validate();
+        } catch (const std::invalid_argument& e) {
+            r_.fail("", e.what());
+        }
+    }
+
+    PinholeCamera read_camera(const json& c) {
+        const std::string w = "camera";
+        r_.check_keys(c, w, {"position", "look_at", "up", "fov_deg", "width", "height"});
+        try {
+            return PinholeCamera(r_.vec<3>(r_.require(c, w, "position"), w + ".position"),
+                                 r_.vec<3>(r_.require(c, w, "look_at"), w + ".look_at"),
+                                 r_.vec<3>(c, w, "up", Vec3f(0, 1, 0)), r_.number(c, w, "fov_deg", 40.0f),
+                                 r_.integer(c, w, "width", 256), r_.integer(c, w, "height", 256));
+        } catch (const std::invalid_argument& e) {
+            r_.fail(w, e.what());
+        }
+    }
+
+    EnvironmentLight read_environment(const json& e) {
+        const std::string w = "environment";
+        if (!e.is_object()) r_.fail(w, "expected an object");
+        const std::string type = e.contains("type") ? r_.string(e.at("type"), w + ".type") : "sky";
+        const float scale = r_.number(e, w, "scale", 1.0f);
+        const float rotation = r_.number(e, w, "rotation_deg", 0.0f);
+        if (type == "sky") {
+            r_.check_keys(e, w, {"type", "scale", "rotation_deg", "sun_elevation_deg", "sun_azimuth_deg", "sun_irradiance",
+                                 "sun_size_deg", "sky_intensity", "turbidity", "ground_albedo", "resolution"});
+            SkyParams p;
+            p.sun_elevation_deg = r_.number(e, w, "sun_elevation_deg", p.sun_elevation_deg);
+            p.sun_azimuth_deg = r_.number(e, w, "sun_azimuth_deg", p.sun_azimuth_deg);
+            p.sun_irradiance = r_.vec<3>(e, w, "sun_irradiance", p.sun_irradiance, true);
+            p.sun_size_deg = r_.number(e, w, "sun_size_deg", p.sun_size_deg);
+            p.sky_intensity = r_.number(e, w, "sky_intensity", p.sky_intensity);
+            p.turbidity = r_.number(e, w, "turbidity", p.turbidity);
+            p.ground_albedo = r_.vec<3>(e, w, "ground_albedo", p.ground_albedo, true);
+            const Vec2<float> res = r_.vec<2>(e, w, "resolution", Vec2<float>(float(p.width), float(p.height)));
+            p.width = int(res.x);
+            p.height = int(res.y);
+            try {
+                return EnvironmentLight(make_sky_image(p), scale, rotation);
+            } catch (const std::invalid_argument& ex) {
+                r_.fail(w, ex.what());
+            }
+        }
+        if (type == "constant") {
+            r_.check_keys(e, w, {"type", "scale", "rotation_deg", "radiance"});
+            const Vec3f L = r_.vec<3>(e, w, "radiance", Vec3f(1.0f), true);
+            Image img(8, 4);  // a small image: the same sampling code, sin(theta)-weighted rows
+            for (std::size_t i = 0; i < img.rgb.size(); i += 3) {
+                img.rgb[i] = L.x;
+                img.rgb[i + 1] = L.y;
+                img.rgb[i + 2] = L.z;
+            }
+            return EnvironmentLight(std::move(img), scale, rotation);
+        }
+        if (type == "file") {
+            r_.check_keys(e, w, {"type", "scale", "rotation_deg", "file"});
+            const std::string file = r_.resolve(r_.string(r_.require(e, w, "file"), w + ".file"));
+            try {
+                return EnvironmentLight(read_image(file), scale, rotation);
+            } catch (const FileError& ex) {
+                r_.fail(w + ".file", ex.what());
+            }
+        }
+        r_.fail(w + ".type", "unknown environment type '" + type + "'; expected sky, file or constant");
+    }
+
+    std::unique_ptr<Material> read_material(const json& m, const std::string& w, const std::string& name) {
+        if (!m.is_object()) r_.fail(w, "expected an object");
+        const std::string type = r_.string(r_.require(m, w, "type"), w + ".type");
+        if (type == "analytic") {
+            r_.check_keys(m, w, {"type", "kd", "eta", "alpha"});
+            const AnalyticParams p = read_params(r_, m, w);
+            proxies_.push_back(p);
+            return std::make_unique<AnalyticMaterial>(name, p);
+        }
+        if (type == "model") {
+            r_.check_keys(m, w, {"type", "file", "material", "evaluate"});
+            const std::string file = r_.resolve(r_.string(r_.require(m, w, "file"), w + ".file"));
+            const std::string mat_name = r_.string(r_.require(m, w, "material"), w + ".material");
+            const std::string evaluate = m.contains("evaluate") ? r_.string(m.at("evaluate"), w + ".evaluate") : "full";
+            if (evaluate != "full" && evaluate != "analytic")
+                r_.fail(w + ".evaluate", "expected 'full' or 'analytic', got '" + evaluate + "'");
+            std::shared_ptr<const HybridModel>& model = models_[file];
+            if (!model) {
+                try {
+                    model = std::make_shared<const HybridModel>(HybridModel::load(file));
+                } catch (const std::exception& e) {
+                    r_.fail(w + ".file", e.what());
+                }
+            }
+            const int index = model->find(mat_name);
+            if (index < 0) {
+                std::string names;
+                for (std::size_t i = 0; i < model->materials().size() && i < 8; ++i)
+                    names += (i ? ", " : "") + model->materials()[i].name;
+                r_.fail(w + ".material", "no material '" + mat_name + "' in " + file + " (it has " +
+                                             std::to_string(model->materials().size()) + ": " + names +
+                                             (model->materials().size() > 8 ? ", ..." : "") + ")");
+            }
+            try {
+                auto mm = std::make_unique<ModelMaterial>(name, model, index, evaluate == "analytic");
+                proxies_.push_back(mm->analytic_params());
+                return mm;
+            } catch (const std::invalid_argument& e) {
+                r_.fail(w, e.what());
+            }
+        }
+        if (type == "measured") {
+            r_.check_keys(m, w, {"type", "source", "sampling_params", "isotropic"});
+            const std::string source = r_.resolve(r_.string(r_.require(m, w, "source"), w + ".source"));
+            if (!options_.measured)
+                r_.fail(w, "measured materials ('" + source +
+                               "') are evaluated by Python readers: render this scene with hybridbrdf.render "
+                               "or 'hbrdf render'");
+            BatchEval eval;
+            try {
+                eval = options_.measured(source);
+            } catch (const std::exception& e) {
+                r_.fail(w + ".source", e.what());
+            }
+            std::optional<AnalyticParams> proxy;
+            if (m.contains("sampling_params")) {
+                const json& sp = m.at("sampling_params");
+                r_.check_keys(sp, w + ".sampling_params", {"kd", "eta", "alpha"});
+                proxy = read_params(r_, sp, w + ".sampling_params");
+            }
+            proxies_.push_back(proxy);
+            return std::make_unique<CallbackMaterial>(name, std::move(eval), r_.boolean(m, w, "isotropic", true));
+        }
+        r_.fail(w + ".type", "unknown material type '" + type + "'; expected analytic, model or measured");
+    }
+
+    int material_of(const json& obj, const std::string& w, Scene& scene) {
+        const json& m = r_.require(obj, w, "material");
+        if (m.is_string()) {
+            const auto it = named_.find(m.get<std::string>());
+            if (it == named_.end()) r_.fail(w + ".material", "no material named '" + m.get<std::string>() + "' in 'materials'");
+            return it->second;
+        }
+        // Inline material, named after the object.
+        return scene.add_material(read_material(m, w + ".material", w));
+    }
+
+    void read_object(const json& o, const std::string& w, Scene& scene) {
+        if (!o.is_object()) r_.fail(w, "expected an object");
+        const std::string type = r_.string(r_.require(o, w, "type"), w + ".type");
+        if (type == "sphere") {
+            r_.check_keys(o, w, {"type", "material", "center", "radius"});
+            Sphere s;
+            s.center = r_.vec<3>(o, w, "center", Vec3f(0.0f));
+            s.radius = r_.number(o, w, "radius", 1.0f);
+            if (!(s.radius > 0.0f)) r_.fail(w + ".radius", "must be > 0");
+            scene.add_sphere(s, material_of(o, w, scene));
+        } else if (type == "plane") {
+            r_.check_keys(o, w, {"type", "material", "center", "normal", "tangent", "size"});
+            const Vec3f n = r_.vec<3>(o, w, "normal", Vec3f(0, 1, 0));
+            if (!(dot(n, n) > 0.0f)) r_.fail(w + ".normal", "must not be zero");
+            const Vec3f t = r_.vec<3>(o, w, "tangent", Frame::from_normal(glm::normalize(n)).t);
+            const Vec2<float> size = r_.vec<2>(o, w, "size", Vec2<float>(10.0f), true);
+            if (!(size.x > 0.0f && size.y > 0.0f)) r_.fail(w + ".size", "must be > 0");
+            scene.add_mesh(make_plane(r_.vec<3>(o, w, "center", Vec3f(0.0f)), n, t, size.x, size.y), material_of(o, w, scene));
+        } else if (type == "mesh") {
+            r_.check_keys(o, w, {"type", "material", "file", "transform", "smooth_normals"});
+            const std::string file = r_.resolve(r_.string(r_.require(o, w, "file"), w + ".file"));
+            TriangleMesh mesh;
+            try {
+                mesh = load_mesh(file, r_.boolean(o, w, "smooth_normals", true));
+            } catch (const FileError& e) {
+                r_.fail(w + ".file", e.what());
+            }
+            if (o.contains("transform")) transform_mesh(mesh, read_transform(o.at("transform"), w + ".transform"));
+            scene.add_mesh(std::move(mesh), material_of(o, w, scene));
+        } else {
+            r_.fail(w + ".type", "unknown object type '" + type + "'; expected sphere, plane or mesh");
+        }
+    }
+
+    // scale (number or [3]), then rotate (degrees about x, then y, then z), then translate.
+    Transform read_transform(const json& t, const std::string& w) {
+        r_.check_keys(t, w, {"translate", "scale", "rotate_deg"});
+        const Vec3f s = r_.vec<3>(t, w, "scale", Vec3f(1.0f), true);
+        const Vec3f rdeg = r_.vec<3>(t, w, "rotate_deg", Vec3f(0.0f));
+        if (s.x == 0.0f || s.y == 0.0f || s.z == 0.0f) r_.fail(w + ".scale", "must not be zero");
+        auto rot = [](int axis, float deg) {
+            const float a = deg * 3.14159265358979323846f / 180.0f, c = std::cos(a), sn = std::sin(a);
+            glm::mat3 m(1.0f);  // column-major: m[col][row]
+            const int i = (axis + 1) % 3, j = (axis + 2) % 3;
+            m[i][i] = c;
+            m[j][j] = c;
+            m[i][j] = sn;
+            m[j][i] = -sn;
+            return m;
+        };
+        Transform xf;
+        xf.linear = rot(2, rdeg.z) * rot(1, rdeg.y) * rot(0, rdeg.x) * glm::mat3(glm::vec3(s.x, 0, 0), glm::vec3(0, s.y, 0), glm::vec3(0, 0, s.z));
+        xf.translation = r_.vec<3>(t, w, "translate", Vec3f(0.0f));
+        return xf;
+    }
+
+    const Reader& r_;
+    const SceneLoadOptions& options_;
+    std::map<std::string, int> named_;
+    std::map<std::string, std::shared_ptr<const HybridModel>> models_;
+    std::vector<std::optional<AnalyticParams>> proxies_;  // by material index
+    int tabulated_resolution_ = 1;
+};
+
+}  // namespace
+
+Scene load_scene_json(const std::string& json_text, const std::string& base_dir, const std::string& origin,
+                      const SceneLoadOptions& options) {
+    json root;
+    try {
+        root = json::parse(json_text);
+    } catch (const json::parse_error& e) {
+        throw FileError(origin, std::string("invalid JSON: ") + e.what());
+    }
+    if (!root.is_object()) throw FileError(origin, "expected a JSON object at the top level");
+    const Reader reader(origin, base_dir);
+    return Loader(reader, options).load(root);
+}
+
+Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
+    std::ifstream in(path);
+    if (!in) throw FileError(path, "cannot open the scene file");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const auto slash = path.find_last_of('/');
+    const std::string base = slash == std::string::npos ? "." : path.substr(0, slash);
+    return load_scene_json(ss.str(), base, path, options);
+}
+
+}  // namespace hbrdf::render

@@ -1,0 +1,352 @@
+// hybridbrdf — tabulated importance sampling (see hybridbrdf/tabulated.hpp and
+// docs/SAMPLING.md for the design and its numbers).
+#include "hybridbrdf/tabulated.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace hbrdf {
+
+namespace {
+
+constexpr double kHalfPi = 0.5 * kPi<double>;
+constexpr double kTwoPi = 2.0 * kPi<double>;
+/// Largest double below 1: remainders are clamped to [0, kOneMinusEpsD].
+constexpr double kOneMinusEpsD = kOneMinusEps<double>;
+
+/// Jittered wo per stratum of the outgoing bin: a pool of kWoStrata x
+/// kWoJitters directions per table, from which every (cell, sub-sample) picks
+/// one by hash. Precomputing them keeps trigonometry out of the 11.7 M (420 M
+/// anisotropic) evaluation loop while still giving each cell its own wo.
+constexpr int kWoStrata = kTabulatedSubsamples;  // theta_o strata
+constexpr int kWoJitters = 16;                   // jittered wo per stratum (phi_o strata, anisotropic)
+
+/// 32-bit integer hash (a multiply-xorshift finaliser in the style of
+/// MurmurHash3's fmix32): decorrelates consecutive indices for the jitter.
+inline std::uint32_t hash32(std::uint32_t x) {
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
+}
+
+/// Deterministic jitter in [0, 1) for a (stream, index) pair: the build must be
+/// reproducible, so no global random state.
+inline double jitter(std::uint32_t stream, std::uint32_t index) {
+    return double(hash32(index ^ hash32(stream + 0x9e3779b9U)) >> 8) * (1.0 / 16777216.0);
+}
+
+/// Unit direction from the cosine of its polar angle and its azimuth; sin
+/// theta from (1 - z)(1 + z), which keeps its precision near the pole.
+inline Vec3<double> direction(double cos_theta, double phi) {
+    const double sin_theta = std::sqrt(std::max(0.0, (1.0 - cos_theta) * (1.0 + cos_theta)));
+    return Vec3<double>(sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta);
+}
+
+/// Normalises a float direction in double; returns false (and leaves `out`
+/// unspecified) when it cannot be normalised (CONVENTIONS: invalid directions).
+inline bool normalized(const Vec3<float>& v, Vec3<double>& out) {
+    const float inv_len = inverse_length_or_zero(v);
+    if (!(inv_len > 0.0f)) return false;
+    out = Vec3<double>(v) * (1.0 / std::sqrt(dot(Vec3<double>(v), Vec3<double>(v))));
+    return true;
+}
+
+/// Azimuth in [0, 2 pi); 0 on the pole, where atan2(+-0, +-0) would give 0, pi
+/// or -pi depending on the signs of the zeros.
+inline double azimuth(double x, double y) {
+    if (x == 0.0 && y == 0.0) return 0.0;
+    const double phi = std::atan2(y, x);
+    return phi < 0.0 ? phi + kTwoPi : phi;
+}
+
+/// Index of the equal-width bin of [0, n width) holding x, clamped to [0, n - 1]
+/// (x may round onto the upper end).
+inline int bin_index(double x, double width, int n) {
+    const double b = std::floor(x / width);
+    return b <= 0.0 ? 0 : (b >= double(n - 1) ? n - 1 : int(b));
+}
+
+/// Inverts an inclusive CDF of n entries (last = 1) at u in [0, 1): the first
+/// entry above u, i.e. the cell whose [cdf[k-1], cdf[k]) holds u. Cells of zero
+/// probability (equal neighbours) are never returned. `remainder` is u's
+/// position inside that cell, rescaled to [0, 1) for reuse.
+inline int invert_cdf(const float* cdf, int n, double u, double& remainder) {
+    const int k = int(std::upper_bound(cdf, cdf + n, u) - cdf);
+    const int idx = std::min(k, n - 1);  // only reached if u >= 1, which callers rule out
+    const double lo = idx > 0 ? double(cdf[idx - 1]) : 0.0;
+    const double hi = double(cdf[idx]);
+    const double r = hi > lo ? (u - lo) / (hi - lo) : 0.0;
+    remainder = clamp_nan_lo(r, 0.0, kOneMinusEpsD);
+    return idx;
+}
+
+/// Writes the inclusive CDF of `mass` (n non-negative values, positive sum) to
+/// `cdf` in float, with the last entry exactly 1. Accumulated in double;
+/// rounding to float is monotone, so the CDF stays non-decreasing.
+inline void write_cdf(const double* mass, int n, double total, float* cdf) {
+    double acc = 0.0;
+    for (int k = 0; k < n; ++k) {
+        acc += mass[k];
+        cdf[k] = float(std::min(acc / total, 1.0));
+    }
+    cdf[n - 1] = 1.0f;
+}
+
+}  // namespace
+
+TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, int resolution_deg) {
+    if (!eval) throw std::invalid_argument("TabulatedSampler::build: empty BatchEval");
+    if (resolution_deg < 1 || resolution_deg > 90 || 90 % resolution_deg != 0)
+        throw std::invalid_argument("TabulatedSampler::build: resolution_deg = " + std::to_string(resolution_deg) +
+                                    " must divide 90 (1, 2, 3, 5, 6, 9, 10, 15, 18, 30, 45 or 90)");
+
+    TabulatedSampler s;
+    s.isotropic_ = isotropic;
+    s.resolution_deg_ = resolution_deg;
+    s.n_theta_ = 90 / resolution_deg;
+    s.n_phi_ = 360 / resolution_deg;
+    // Anisotropic: phi_o every ~10 x resolution_deg (36 bins at 1 degree). The
+    // exact step is 360 / n_phi_o_, so the bins tile the circle.
+    s.n_phi_o_ = isotropic ? 1 : std::max(1, int(std::lround(36.0 / resolution_deg)));
+    s.dtheta_ = kHalfPi / s.n_theta_;
+    s.dphi_ = kTwoPi / s.n_phi_;
+    s.dphi_o_ = kTwoPi / s.n_phi_o_;
+    s.eval_ = eval;
+
+    const int n_theta = s.n_theta_, n_phi = s.n_phi_;
+    s.cos_bound_.resize(std::size_t(n_theta) + 1);
+    for (int r = 0; r <= n_theta; ++r) s.cos_bound_[std::size_t(r)] = std::cos(r * s.dtheta_);
+    s.cos_bound_[std::size_t(n_theta)] = 0.0;  // cos(pi/2) exactly: the table ends at the horizon
+    s.inv_cell_solid_angle_.resize(std::size_t(n_theta));
+    std::vector<double> cell_solid_angle(static_cast<std::size_t>(n_theta));
+    for (int r = 0; r < n_theta; ++r) {
+        // cos a - cos b = 2 sin((a+b)/2) sin((b-a)/2): no cancellation near the pole.
+        const double a = r * s.dtheta_, b = (r + 1) * s.dtheta_;
+        cell_solid_angle[std::size_t(r)] = 2.0 * std::sin(0.5 * (a + b)) * std::sin(0.5 * (b - a)) * s.dphi_;
+        s.inv_cell_solid_angle_[std::size_t(r)] = float(1.0 / cell_solid_angle[std::size_t(r)]);
+    }
+
+    // Sub-sample positions of wi, shared by every table: per cell a 2 x 2
+    // stratified grid in (cos theta, phi), jittered, i.e. stratified uniform in
+    // solid angle, so that mean(g) * |cell| estimates the cell's integral of g.
+    const int n_cells = n_theta * n_phi;
+    const std::size_t n_pairs = std::size_t(n_cells) * kTabulatedSubsamples;
+    std::vector<float> wi_sub(3 * n_pairs), cos_i_sub(n_pairs);
+    for (int r = 0; r < n_theta; ++r) {
+        const double c0 = s.cos_bound_[std::size_t(r)], c1 = s.cos_bound_[std::size_t(r) + 1];
+        for (int c = 0; c < n_phi; ++c)
+            for (int k = 0; k < kTabulatedSubsamples; ++k) {
+                const std::size_t p = (std::size_t(r) * n_phi + c) * kTabulatedSubsamples + k;
+                const double tc = ((k & 1) + jitter(1, std::uint32_t(p))) * 0.5;
+                const double tp = ((k >> 1) + jitter(2, std::uint32_t(p))) * 0.5;
+                const Vec3<double> w = direction(c0 - tc * (c0 - c1), (c + tp) * s.dphi_);
+                wi_sub[3 * p] = float(w.x), wi_sub[3 * p + 1] = float(w.y), wi_sub[3 * p + 2] = float(w.z);
+                cos_i_sub[p] = float(w.z);
+            }
+    }
+
+    const int n_tables = s.table_count();
+    s.marginal_cdf_.resize(std::size_t(n_tables) * n_theta);
+    s.conditional_cdf_.resize(std::size_t(n_tables) * n_theta * n_phi);
+
+    const std::size_t batch = std::min(kTabulatedBuildBatch, n_pairs);
+    std::vector<float> wo_buf(3 * batch), f_buf(3 * batch);
+    std::vector<float> wo_pool(3 * kWoStrata * kWoJitters);
+    std::vector<double> mean_g(static_cast<std::size_t>(n_cells)), row_mass(static_cast<std::size_t>(n_theta));
+
+    for (int t = 0; t < n_tables; ++t) {
+        const int bin_theta_o = t / s.n_phi_o_, bin_phi_o = t % s.n_phi_o_;
+        // wo pool: theta_o stratified in kWoStrata strata over the bin, phi_o
+        // (anisotropic) stratified in kWoJitters strata; isotropic tables put wo
+        // in the xz-plane, so phi_i of a sub-sample is its azimuth relative to wo.
+        for (int k = 0; k < kWoStrata; ++k)
+            for (int m = 0; m < kWoJitters; ++m) {
+                const std::uint32_t id = std::uint32_t((t * kWoStrata + k) * kWoJitters + m);
+                const double theta_o = (bin_theta_o + (k + jitter(3, id)) / kWoStrata) * s.dtheta_;
+                const double phi_o = isotropic ? 0.0 : (bin_phi_o + (m + jitter(4, id)) / kWoJitters) * s.dphi_o_;
+                const Vec3<double> w = direction(std::cos(theta_o), phi_o);
+                float* o = &wo_pool[3 * std::size_t(k * kWoJitters + m)];
+                o[0] = float(w.x), o[1] = float(w.y), o[2] = float(w.z);
+            }
+
+        std::fill(mean_g.begin(), mean_g.end(), 0.0);
+        for (std::size_t start = 0; start < n_pairs; start += batch) {
+            const std::size_t nb = std::min(batch, n_pairs - start);
+            for (std::size_t q = 0; q < nb; ++q) {
+                const std::size_t p = start + q;
+                // Sub-sample k of a cell takes theta_o stratum (k + 1) mod 4: the
+                // pairing is a Latin square over (wi stratum, wo stratum), so no
+                // wi stratum always sees the same end of the wo bin.
+                const int k = int(p % kTabulatedSubsamples);
+                const int stratum = (k + 1) % kWoStrata;
+                const int m = int(hash32(std::uint32_t(p) ^ hash32(std::uint32_t(t) + 0x632be5abU)) >> 28);
+                const float* o = &wo_pool[3 * std::size_t(stratum * kWoJitters + m)];
+                wo_buf[3 * q] = o[0], wo_buf[3 * q + 1] = o[1], wo_buf[3 * q + 2] = o[2];
+            }
+            eval(nb, &wi_sub[3 * start], wo_buf.data(), f_buf.data());
+            for (std::size_t q = 0; q < nb; ++q) {
+                const std::size_t p = start + q;
+                const double f_mean = (double(f_buf[3 * q]) + f_buf[3 * q + 1] + f_buf[3 * q + 2]) * (1.0 / 3.0);
+                const double g = f_mean * cos_i_sub[p];
+                // Measured data can be negative (noise) and a model may return
+                // NaN/Inf: neither is a probability. Written so that NaN fails.
+                const bool usable = g > 0.0 && g <= double(std::numeric_limits<float>::max());
+                mean_g[p / kTabulatedSubsamples] += usable ? g * (1.0 / kTabulatedSubsamples) : 0.0;
+            }
+        }
+
+        // Cell integral = mean(g) x cell solid angle; all cells of a row share
+        // the solid angle, so it only enters the marginal.
+        double total = 0.0;
+        for (int r = 0; r < n_theta; ++r) {
+            double sum = 0.0;
+            for (int c = 0; c < n_phi; ++c) sum += mean_g[std::size_t(r) * n_phi + c];
+            row_mass[std::size_t(r)] = sum * cell_solid_angle[std::size_t(r)];
+            total += row_mass[std::size_t(r)];
+        }
+        if (!(total > 0.0) || !std::isfinite(total)) {
+            // f = 0 everywhere for this bin (a black material) or overflow: fall
+            // back to the cosine distribution, so the table part is still a
+            // valid density. Cell integral of cos: (c0^2 - c1^2) / 2 dphi.
+            total = 0.0;
+            for (int r = 0; r < n_theta; ++r) {
+                const double c0 = s.cos_bound_[std::size_t(r)], c1 = s.cos_bound_[std::size_t(r) + 1];
+                row_mass[std::size_t(r)] = 0.5 * (c0 - c1) * (c0 + c1) * s.dphi_ * n_phi;
+                total += row_mass[std::size_t(r)];
+                for (int c = 0; c < n_phi; ++c) mean_g[std::size_t(r) * n_phi + c] = 1.0;
+            }
+        }
+        write_cdf(row_mass.data(), n_theta, total, &s.marginal_cdf_[std::size_t(t) * n_theta]);
+        for (int r = 0; r < n_theta; ++r) {
+            const double* row = &mean_g[std::size_t(r) * n_phi];
+            float* cdf = &s.conditional_cdf_[(std::size_t(t) * n_theta + r) * n_phi];
+            double sum = 0.0;
+            for (int c = 0; c < n_phi; ++c) sum += row[c];
+            if (sum > 0.0) {
+                write_cdf(row, n_phi, sum, cdf);
+            } else {
+                // A row the marginal never picks (probability 0): any valid CDF.
+                for (int c = 0; c < n_phi; ++c) cdf[c] = float(double(c + 1) / n_phi);
+                cdf[n_phi - 1] = 1.0f;
+            }
+        }
+    }
+    return s;
+}
+
+int TabulatedSampler::table_index(const Vec3<double>& wo) const {
+    const int bin_theta = bin_index(std::acos(std::min(wo.z, 1.0)), dtheta_, n_theta_);
+    if (isotropic_) return bin_theta;
+    const int bin_phi = bin_index(azimuth(wo.x, wo.y), dphi_o_, n_phi_o_);
+    return bin_theta * n_phi_o_ + bin_phi;
+}
+
+double TabulatedSampler::cell_probability(int t, int row, int col) const {
+    const float* m = &marginal_cdf_[std::size_t(t) * n_theta_];
+    const float* c = &conditional_cdf_[(std::size_t(t) * n_theta_ + row) * n_phi_];
+    const double p_row = double(m[row]) - (row > 0 ? double(m[row - 1]) : 0.0);
+    const double p_col = double(c[col]) - (col > 0 ? double(c[col - 1]) : 0.0);
+    return p_row * p_col;
+}
+
+void TabulatedSampler::sample_cell(int t, double ux, double uy, int& row, int& col, double& rx,
+                                   double& ry) const {
+    row = invert_cdf(&marginal_cdf_[std::size_t(t) * n_theta_], n_theta_, ux, rx);
+    col = invert_cdf(&conditional_cdf_[(std::size_t(t) * n_theta_ + row) * n_phi_], n_phi_, uy, ry);
+}
+
+namespace {
+
+/// Cosine and sine of wo's azimuth, (1, 0) on the pole: isotropic tables are
+/// in the frame rotated so that wo lies in the xz-plane.
+inline void azimuth_frame(const Vec3<double>& wo, double& c, double& s) {
+    const double r = std::sqrt(wo.x * wo.x + wo.y * wo.y);
+    if (r > 0.0) {
+        c = wo.x / r, s = wo.y / r;
+    } else {
+        c = 1.0, s = 0.0;
+    }
+}
+
+}  // namespace
+
+float TabulatedSampler::pdf(const Vec3<float>& wi_in, const Vec3<float>& wo_in) const {
+    Vec3<double> wi, wo;
+    if (marginal_cdf_.empty() || !normalized(wi_in, wi) || !normalized(wo_in, wo)) return 0.0f;
+    if (!(wi.z > 0.0) || !(wo.z > 0.0)) return 0.0f;
+
+    const int t = table_index(wo);
+    double x = wi.x, y = wi.y;
+    if (isotropic_) {
+        double c, s;
+        azimuth_frame(wo, c, s);
+        x = c * wi.x + s * wi.y;
+        y = -s * wi.x + c * wi.y;
+    }
+    const int row = bin_index(std::acos(std::min(wi.z, 1.0)), dtheta_, n_theta_);
+    const int col = bin_index(azimuth(x, y), dphi_, n_phi_);
+    const double p_table = cell_probability(t, row, col) * inv_cell_solid_angle_[std::size_t(row)];
+    const double p_cos = wi.z * kInvPi<double>;
+    return float(kTabulatedDefensiveFraction * p_cos + (1.0 - kTabulatedDefensiveFraction) * p_table);
+}
+
+BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>& u_in) const {
+    BrdfSample no_sample;
+    no_sample.wi = Vec3<float>(0.0f, 0.0f, 1.0f);
+    no_sample.pdf = 0.0f;
+    no_sample.weight = Vec3<float>(0.0f);
+
+    Vec3<double> wo;
+    if (marginal_cdf_.empty() || !normalized(wo_in, wo) || !(wo.z > 0.0)) return no_sample;
+    const Vec2<float> u = clamp_unit_square(u_in);
+
+    Vec3<double> wi;
+    const double c_def = kTabulatedDefensiveFraction;
+    if (double(u.x) < c_def) {
+        // Defensive lobe: u.x rescaled to [0, 1) for the cosine warp.
+        const float ux = clamp_nan_lo(float(double(u.x) / c_def), 0.0f, kOneMinusEps<float>);
+        wi = Vec3<double>(square_to_cosine_hemisphere(Vec2<float>(ux, u.y)));
+    } else {
+        const double ux = clamp_nan_lo((double(u.x) - c_def) / (1.0 - c_def), 0.0, kOneMinusEpsD);
+        int row, col;
+        double rx, ry;
+        sample_cell(table_index(wo), ux, double(u.y), row, col, rx, ry);
+        // Uniform in cos theta and phi inside the cell = uniform in solid angle.
+        const double c0 = cos_bound_[std::size_t(row)], c1 = cos_bound_[std::size_t(row) + 1];
+        const Vec3<double> local = direction(c0 - rx * (c0 - c1), (col + ry) * dphi_);
+        wi = local;
+        if (isotropic_) {
+            double c, s;
+            azimuth_frame(wo, c, s);
+            wi.x = c * local.x - s * local.y;
+            wi.y = s * local.x + c * local.y;
+        }
+    }
+
+    BrdfSample out;
+    out.wi = Vec3<float>(wi);
+    // The reported pdf is pdf() of the returned direction, so that a renderer's
+    // MIS weights see one density whichever way they obtain it.
+    out.pdf = pdf(out.wi, wo_in);
+    if (!(out.pdf > 0.0f)) return no_sample;  // wi rounded onto the horizon
+    const float wi_a[3] = {out.wi.x, out.wi.y, out.wi.z};
+    const float wo_a[3] = {float(wo.x), float(wo.y), float(wo.z)};
+    float f[3] = {0.0f, 0.0f, 0.0f};
+    eval_(1, wi_a, wo_a, f);
+    const float cos_i = max0(out.wi.z);
+    out.weight = Vec3<float>(f[0], f[1], f[2]) * (cos_i / out.pdf);
+    return out;
+}
+
+std::size_t TabulatedSampler::memory_bytes() const {
+    return cos_bound_.size() * sizeof(double) + inv_cell_solid_angle_.size() * sizeof(float) +
+           marginal_cdf_.size() * sizeof(float) + conditional_cdf_.size() * sizeof(float);
+}
+
+}  // namespace hbrdf

@@ -1,0 +1,106 @@
+"""The reference path tracer from Python (docs/RENDERING.md).
+
+    img, stats = hybridbrdf.render.render("scenes/sphere_env.json", out="out/sphere.exr", spp=64)
+
+The scene is a JSON file (or a dict in the same schema); keyword overrides replace its top-level
+settings (``spp``, ``max_depth``, ``neural_max_depth``, ``neural_min_throughput``, ``sampler``,
+``seed``, ``threads``, ``rr_depth``, ``nee``) and the camera's ``width``/``height``. Rendering runs in
+libhybridbrdf (Embree, wavefront, multi-threaded, GIL released). Measured materials
+(``{"type": "measured", "source": ...}``) are evaluated here, by :func:`hybridbrdf.sources.open_source`
+readers, called once per batch of direction pairs.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+from typing import Any, Dict, Optional, Tuple, Union
+
+import numpy as np
+
+from hybridbrdf import _core
+
+SETTINGS = ("spp", "max_depth", "neural_max_depth", "neural_min_throughput", "sampler", "seed", "threads",
+            "rr_depth", "nee", "tabulated_resolution_deg")
+
+
+def _measured_factory(source: str):
+    """f(wi, wo) -> (N, 3) float32 for a measured source (a path or synthetic:NAME)."""
+    from hybridbrdf.sources import open_source
+
+    src = open_source(source)
+
+    def evaluate(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(src.eval(wi, wo), dtype=np.float32)
+
+    return evaluate
+
+
+def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dict[str, Any], str, str]:
+    """(scene dict, base folder for relative paths, name used in errors)."""
+    if isinstance(scene, dict):
+        return copy.deepcopy(scene), os.getcwd(), "<scene dict>"
+    path = os.fspath(scene)
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot open the scene file ({exc.strerror})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: invalid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object at the top level")
+    return data, os.path.dirname(os.path.abspath(path)), path
+
+
+def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = None, png: Optional[str] = None, *,
+           quiet: bool = True, exposure: float = 0.0, tonemap: str = "clamp", width: Optional[int] = None,
+           height: Optional[int] = None, measured_factory=None, **overrides) -> Tuple[np.ndarray, Dict[str, Any]]:
+    """Render a scene; returns (image (H, W, 3) float32 linear RGB, stats).
+
+    out: OpenEXR file to write (linear float32); png: 8-bit sRGB PNG (``exposure`` in stops, ``tonemap``
+    "clamp" or "aces"). Both are written atomically. Overrides (``spp=``, ``threads=``, ...) replace the
+    scene's settings; None values are ignored. ``measured_factory(source) -> f(wi, wo)`` replaces the
+    default (:func:`hybridbrdf.sources.open_source`) for measured materials. stats: seconds, samples_per_second, rays, shadow_rays,
+    brdf_evals, network_evals, threads, tiles, spp, sampler, sampler_memory_bytes.
+    Raises ValueError "<scene>: <where>: <problem>" for bad scenes.
+    """
+    if not getattr(_core, "HAVE_RENDERER", False):
+        raise RuntimeError("this build of hybridbrdf has no renderer (HBRDF_BUILD_RENDERER=OFF)")
+    data, base_dir, origin = load_scene_dict(scene)
+    for key, value in overrides.items():
+        if key not in SETTINGS:
+            raise TypeError(f"render() got an unexpected setting {key!r}; expected one of {', '.join(SETTINGS)}")
+        if value is not None:
+            data[key] = value
+    for key, value in (("width", width), ("height", height)):
+        if value is not None:
+            data.setdefault("camera", {})[key] = int(value)
+    for path in (out, png):
+        if path:
+            parent = os.path.dirname(os.path.abspath(path))
+            os.makedirs(parent, exist_ok=True)
+    image, stats = _core.render_scene(json.dumps(data), base_dir, origin, measured=measured_factory or _measured_factory, quiet=quiet,
+                                      exr=os.fspath(out) if out else "", png=os.fspath(png) if png else "",
+                                      exposure=float(exposure), tonemap=tonemap)
+    stats = dict(stats)
+    stats["sampler_memory_bytes"] = dict(stats["sampler_memory_bytes"])
+    return image, stats
+
+
+def write_exr(image: np.ndarray, path: str) -> None:
+    """Write (H, W, 3) linear RGB as float32 OpenEXR (atomically)."""
+    _core.render_write_exr(np.asarray(image, dtype=np.float32), os.fspath(path))
+
+
+def write_png(image: np.ndarray, path: str, exposure: float = 0.0, tonemap: str = "clamp") -> None:
+    """Write (H, W, 3) linear RGB as an 8-bit sRGB PNG (atomically)."""
+    _core.render_write_png(np.asarray(image, dtype=np.float32), os.fspath(path), exposure, tonemap)
+
+
+def read_image(path: str) -> np.ndarray:
+    """Read an .exr or .hdr file as (H, W, 3) float32."""
+    return _core.render_read_image(os.fspath(path))

@@ -1,0 +1,321 @@
+// Tests of the reference path tracer (docs/RENDERING.md). Independent
+// references: the white furnace (a closed-form answer), the env-map pdf
+// integrated by quadrature and checked against sample histograms, agreement
+// between estimators that share nothing but the scene, and bit-exact
+// determinism across thread counts.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "hybridbrdf/render/render.hpp"
+
+
+using namespace hbrdf::render;
+using hbrdf::Vec2;
+using hbrdf::dot;
+
+namespace {
+
+const std::string kSourceDir = HBRDF_SOURCE_DIR;
+
+// A sphere of radius 1 at the origin, seen whole by a 24x24 camera; `extra`
+// adds top-level keys, `more_objects` objects (a leading comma each).
+std::string sphere_scene(const std::string& material, const std::string& environment, const std::string& extra = "",
+                         const std::string& more_objects = "") {
+    return R"({"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0], "fov_deg": 32, "width": 24, "height": 24},
+              "environment": )" + environment + R"(,
+              "materials": {"m": )" + material + R"(},
+              "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"})" +
+           more_objects + "]" + extra + "}";
+}
+
+// A floor under the sphere, so that paths bounce more than once.
+const std::string kFloor = R"(, {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 8, "material": "m"})";
+
+Scene load(const std::string& text) { return load_scene_json(text, kSourceDir, "<test>"); }
+
+double image_mean(const Image& img) {
+    double s = 0;
+    for (float v : img.rgb) s += v;
+    return s / double(img.rgb.size());
+}
+
+// Mean and standard error of the image mean over `k` independent seeds.
+std::pair<double, double> mean_and_error(const Scene& scene, RenderOptions o, int k) {
+    std::vector<double> means;
+    for (int i = 0; i < k; ++i) {
+        o.seed = 1000 + std::uint64_t(i);
+        means.push_back(image_mean(render(scene, o)));
+    }
+    double m = 0, v = 0;
+    for (double x : means) m += x;
+    m /= k;
+    for (double x : means) v += (x - m) * (x - m);
+    v /= (k - 1);
+    return {m, std::sqrt(v / k)};
+}
+
+RenderOptions quick(int spp, int max_depth = 4) {
+    RenderOptions o;
+    o.spp = spp;
+    o.max_depth = max_depth;
+    o.quiet = true;
+    o.threads = 2;
+    return o;
+}
+
+}  // namespace
+
+TEST_CASE("Distribution2D: pdf integrates to 1 and matches sampled frequencies") {
+    const int w = 7, h = 5;
+    std::vector<float> weights(w * h);
+    for (int i = 0; i < w * h; ++i) weights[std::size_t(i)] = float((i * 37) % 11);  // includes zeros
+    const Distribution2D d(weights, w, h);
+    double integral = 0, total_w = 0;
+    for (float x : weights) total_w += x;
+    std::vector<double> counts(std::size_t(w * h), 0.0);
+    const int n = 200000;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) integral += d.pdf({(x + 0.5f) / w, (y + 0.5f) / h}) / double(w * h);
+    CHECK(integral == doctest::Approx(1.0).epsilon(1e-5));
+    for (int i = 0; i < n; ++i) {
+        float pdf;
+        const Vec2<float> uv = d.sample({random_float(1, 0, i, 0), random_float(1, 0, i, 1)}, &pdf);
+        CHECK(pdf == doctest::Approx(d.pdf(uv)).epsilon(1e-5));
+        counts[std::size_t(int(uv.y * h) * w + int(uv.x * w))] += 1;
+    }
+    for (int i = 0; i < w * h; ++i) {
+        const double expected = n * weights[std::size_t(i)] / total_w;
+        if (expected == 0) CHECK(counts[std::size_t(i)] == 0);
+        else CHECK(std::fabs(counts[std::size_t(i)] - expected) < 5 * std::sqrt(expected) + 1);
+    }
+}
+
+TEST_CASE("environment light: pdf integrates to 1 over the sphere and matches a sample histogram") {
+    SkyParams sky;
+    sky.width = 64;
+    sky.height = 32;
+    sky.sun_size_deg = 8;  // a few texels, so the test resolves it
+    // Rotated by 45 degrees = 8 texels, so that the quadrature grid below
+    // (16 x 16 points per texel) never straddles a texel edge.
+    const EnvironmentLight env(make_sky_image(sky), 1.0f, 45.0f);
+    // Midpoint quadrature in (theta, phi), d omega = sin(theta) d theta d phi:
+    // the sin(theta) cancels the 1/sin(theta) of the equirect density, so the
+    // integrand is bounded (a grid in cos(theta) would sample a singularity).
+    const int nt = 32 * 16, np = 64 * 16;
+    auto dir = [](double th, double ph) {
+        return Vec3f(float(std::sin(th) * std::cos(ph)), float(std::cos(th)), float(std::sin(th) * std::sin(ph)));
+    };
+    double integral = 0;
+    for (int i = 0; i < nt; ++i)
+        for (int j = 0; j < np; ++j) {
+            const double th = M_PI * (i + 0.5) / nt, ph = 2 * M_PI * (j + 0.5) / np;
+            integral += env.pdf(dir(th, ph)) * std::sin(th) * (M_PI / nt) * (2 * M_PI / np);
+        }
+    CHECK(integral == doctest::Approx(1.0).epsilon(2e-3));
+
+    // Binned test: 8 x 4 bins in (phi, cos theta) of the world direction;
+    // expected counts from the quadrature of pdf over each bin.
+    const int bp = 8, bt = 4, n = 400000;
+    std::vector<double> expected(bp * bt, 0.0), observed(bp * bt, 0.0);
+    for (int i = 0; i < nt; ++i)
+        for (int j = 0; j < np; ++j) {
+            const double th = M_PI * (i + 0.5) / nt, ph = 2 * M_PI * (j + 0.5) / np;
+            expected[std::size_t((i * bt / nt) * bp + j * bp / np)] +=
+                n * env.pdf(dir(th, ph)) * std::sin(th) * (M_PI / nt) * (2 * M_PI / np);
+        }
+    for (int k = 0; k < n; ++k) {
+        const LightSample s = env.sample({random_float(7, 0, k, 0), random_float(7, 0, k, 1)});
+        REQUIRE(s.pdf > 0);
+        CHECK(std::fabs(dot(s.wi, s.wi) - 1.0f) < 1e-4f);
+        CHECK(s.pdf == doctest::Approx(env.pdf(s.wi)).epsilon(1e-3));
+        double ph = std::atan2(double(s.wi.z), double(s.wi.x));
+        if (ph < 0) ph += 2 * M_PI;
+        const int i = std::min(bt - 1, int(std::acos(std::clamp(double(s.wi.y), -1.0, 1.0)) / M_PI * bt)), j = std::min(bp - 1, int(ph / (2 * M_PI) * bp));
+        observed[std::size_t(i * bp + j)] += 1;
+    }
+    double chi2 = 0;
+    for (int b = 0; b < bp * bt; ++b)
+        if (expected[std::size_t(b)] > 5) chi2 += (observed[std::size_t(b)] - expected[std::size_t(b)]) * (observed[std::size_t(b)] - expected[std::size_t(b)]) / expected[std::size_t(b)];
+    // 31 degrees of freedom: the 1e-4 quantile is about 70. The quadrature
+    // error of `expected` (5e-3 relative) adds ~ (5e-3)^2 n = 10.
+    CHECK(chi2 < 80);
+}
+
+TEST_CASE("procedural sky: the sun disk delivers the irradiance it was given") {
+    SkyParams sky;
+    sky.sky_intensity = 0;  // sun only
+    sky.sun_irradiance = Vec3f(10.0f);
+    const Image img = make_sky_image(sky);
+    // Irradiance on a surface facing the sun: integral of L cos over texels.
+    const EnvironmentLight env(img);
+    const Vec3f sun = sky.sun_direction();
+    double E = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const float L = img.at(x, y)[0];
+            if (L == 0) continue;
+            const Vec3f d = env.uv_to_direction({(x + 0.5f) / img.width, (y + 0.5f) / img.height});
+            const double omega = 2 * M_PI * M_PI * std::sin(M_PI * (y + 0.5) / img.height) / (img.width * img.height);
+            E += L * std::max(0.0f, dot(d, sun)) * omega;
+        }
+    CHECK(E == doctest::Approx(10.0).epsilon(0.01));
+}
+
+TEST_CASE("white furnace: a Lambert kd=1 sphere under a constant environment is invisible") {
+    const Scene scene = load(sphere_scene(R"({"type": "analytic", "kd": 1, "eta": 1, "alpha": 0.5})",
+                                          R"({"type": "constant", "radiance": [1, 1, 1]})", R"(, "sampler": "cosine")"));
+    for (bool nee : {true, false}) {
+        RenderOptions o = quick(64, 3);
+        o.nee = nee;
+        const Image img = render(scene, o);
+        double worst = 0;
+        for (float v : img.rgb) worst = std::max(worst, std::fabs(double(v) - 1.0));
+        CAPTURE(nee);
+        CAPTURE(worst);
+        // Without NEE every sample is exactly 1 (cosine-sampled Lambert, kd = 1:
+        // f cos / pdf = 1, times L = 1): only rounding remains. With NEE the MIS
+        // combination is 1 in expectation only.
+        if (!nee) CHECK(worst < 1e-5);
+        CHECK(image_mean(img) == doctest::Approx(1.0).epsilon(5e-3));
+    }
+}
+
+TEST_CASE("furnace with albedo: a convex Lambert sphere under L reflects L * kd") {
+    const Scene scene = load(sphere_scene(R"({"type": "analytic", "kd": [0.25, 0.5, 0.75], "eta": 1})",
+                                          R"({"type": "constant", "radiance": 2})"));
+    RenderOptions o = quick(32, 2);
+    o.tile_size = 8;
+    const Image img = render(scene, o);
+    // Pixels that see the sphere (the centre 6x6) are 2 * kd in expectation;
+    // their mean over 36 x 32 samples has a standard error of about 1%.
+    double m[3] = {0, 0, 0};
+    for (int y = 9; y < 15; ++y)
+        for (int x = 9; x < 15; ++x)
+            for (int c = 0; c < 3; ++c) m[c] += img.at(x, y)[c] / 36.0;
+    CHECK(m[0] == doctest::Approx(0.5).epsilon(0.04));
+    CHECK(m[1] == doctest::Approx(1.0).epsilon(0.04));
+    CHECK(m[2] == doctest::Approx(1.5).epsilon(0.04));
+    CHECK(img.at(0, 0)[1] == doctest::Approx(2.0).epsilon(1e-6));
+}
+
+TEST_CASE("every sampler and NEE on/off converge to the same image mean") {
+    const std::string mat = R"({"type": "analytic", "kd": [0.3, 0.2, 0.1], "eta": [1.5, 1.6, 1.7], "alpha": [0.15, 0.3]})";
+    const std::string env = R"({"type": "sky", "resolution": [128, 64], "sun_size_deg": 6, "sun_irradiance": 5})";
+    std::vector<std::pair<std::string, std::pair<double, double>>> results;
+    for (const char* sampler : {"cosine", "ggx", "mis", "tabulated"}) {
+        const Scene scene = load(sphere_scene(mat, env, std::string(R"(, "sampler": ")") + sampler + R"(", "tabulated_resolution_deg": 5)", kFloor));
+        results.push_back({sampler, mean_and_error(scene, quick(16, 3), 4)});
+    }
+    {
+        const Scene scene = load(sphere_scene(mat, env, R"(, "sampler": "mis")", kFloor));
+        RenderOptions o = quick(16, 3);
+        o.nee = false;
+        results.push_back({"mis, no NEE", mean_and_error(scene, o, 4)});
+    }
+    const auto& ref = results[2].second;  // mis with NEE
+    for (const auto& r : results) {
+        CAPTURE(r.first);
+        CAPTURE(r.second.first);
+        CAPTURE(r.second.second);
+        const double tol = 4.0 * std::sqrt(r.second.second * r.second.second + ref.second * ref.second) + 2e-3 * ref.first;
+        CHECK(std::fabs(r.second.first - ref.first) < tol);
+    }
+}
+
+TEST_CASE("images are bit-identical for any thread count and tile schedule") {
+    const Scene scene = load(sphere_scene(R"({"type": "analytic", "kd": 0.4, "eta": 1.5, "alpha": 0.2})",
+                                          R"({"type": "sky", "resolution": [64, 32]})", "", kFloor));
+    RenderOptions o = quick(4, 4);
+    o.threads = 1;
+    const Image a = render(scene, o);
+    o.threads = 2;
+    o.tile_size = 16;
+    const Image b = render(scene, o);
+    o.threads = 3;
+    const Image c = render(scene, o);
+    CHECK(a.rgb == b.rgb);
+    CHECK(a.rgb == c.rgb);
+}
+
+TEST_CASE("model materials: neural_max_depth = 0 renders exactly the analytic part") {
+    const std::string model = kSourceDir + "/results/rgl54_hybrid_32x2.safetensors";
+    if (!std::ifstream(model).good()) return;  // the fitted model is part of the repository
+    const std::string full = R"({"type": "model", "file": "results/rgl54_hybrid_32x2.safetensors", "material": "paper_white_rgb.rgl"})";
+    const std::string analytic = R"({"type": "model", "file": "results/rgl54_hybrid_32x2.safetensors", "material": "paper_white_rgb.rgl", "evaluate": "analytic"})";
+    const std::string env = R"({"type": "sky", "resolution": [64, 32]})";
+    const Scene s_full = load(sphere_scene(full, env, "", kFloor)), s_analytic = load(sphere_scene(analytic, env, "", kFloor));
+    RenderOptions o = quick(2, 3);
+    RenderStats st_full, st_off, st_analytic;
+    const Image img_full = render(s_full, o, &st_full);
+    o.neural_max_depth = 0;
+    const Image img_off = render(s_full, o, &st_off);
+    const Image img_analytic = render(s_analytic, o, &st_analytic);
+    CHECK(img_off.rgb == img_analytic.rgb);
+    CHECK(img_full.rgb != img_off.rgb);
+    CHECK(st_full.network_evals == st_full.brdf_evals);
+    CHECK(st_off.network_evals == 0);
+    // Rule 2: camera paths start with throughput 1, so a threshold above 1
+    // switches the network off everywhere, and one below it keeps it for
+    // depth 0 and drops it for paths the floor and the sphere have dimmed.
+    o.neural_max_depth = -1;
+    o.neural_min_throughput = 1.5f;
+    RenderStats st_thr;
+    CHECK(render(s_full, o, &st_thr).rgb == img_analytic.rgb);
+    CHECK(st_thr.network_evals == 0);
+    o.neural_min_throughput = 0.5f;
+    render(s_full, o, &st_thr);
+    CHECK(st_thr.network_evals > 0);
+    CHECK(st_thr.network_evals < st_thr.brdf_evals);
+}
+
+TEST_CASE("scene errors name the file and the problem") {
+    auto message = [](const std::string& text) -> std::string {
+        try {
+            load_scene_json(text, ".", "bad.json");
+        } catch (const FileError& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    CHECK(message("{ not json").rfind("bad.json: invalid JSON", 0) == 0);
+    CHECK(message(R"({"objects": []})") == "bad.json: missing key 'camera'");
+    const std::string cam = R"("camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]})";
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "cube", "material": "x"}]})") ==
+          "bad.json: objects[0].type: unknown object type 'cube'; expected sphere, plane or mesh");
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "radius": "big", "material": "x"}]})") ==
+          "bad.json: objects[0].radius: expected a number, got string");
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": "x"}]})") ==
+          "bad.json: objects[0].material: no material named 'x' in 'materials'");
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "mesh", "file": "nope.obj", "material": {"type": "analytic"}}]})") ==
+          "bad.json: objects[0].file: ./nope.obj: cannot open the mesh file");
+    CHECK(message("{" + cam + R"(, "environment": {"type": "file", "file": "sky.exr"}, "objects": [{"type": "sphere", "material": {"type": "analytic"}}]})")
+              .rfind("bad.json: environment.file: ./sky.exr: ", 0) == 0);
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": {"type": "measured", "source": "synthetic:gold"}}]})")
+              .find("measured materials") != std::string::npos);
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "raduis": 2, "material": {"type": "analytic"}}]})")
+              .rfind("bad.json: objects[0].raduis: unknown key 'raduis'", 0) == 0);
+    CHECK(message("{" + cam + R"(, "sampler": "magic", "objects": [{"type": "sphere", "material": {"type": "analytic"}}]})")
+              .rfind("bad.json: sampler: unknown sampler 'magic'", 0) == 0);
+    CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": {"type": "analytic", "eta": 0.5}}]})") ==
+          "bad.json: objects[0].material: eta[0] = 0.500000 is outside [1.000000, 10.000000]");
+}
+
+TEST_CASE("EXR written atomically and read back") {
+    Image img(5, 3);
+    for (std::size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) * 0.37f - 1.0f + 1e4f * float(i == 7);
+    const std::string path = "hbrdf_render_test_roundtrip.exr";
+    write_exr(img, path);
+    const Image back = read_image(path);
+    CHECK(back.width == 5);
+    CHECK(back.height == 3);
+    CHECK(back.rgb == img.rgb);  // float32 channels: exact
+    std::remove(path.c_str());
+    CHECK_THROWS_AS(write_exr(img, "/nonexistent-dir/x.exr"), FileError);
+    CHECK(!std::ifstream("/nonexistent-dir/x.exr.tmp").good());
+}
