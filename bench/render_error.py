@@ -5,10 +5,10 @@ neural baseline fitted to it; MAE and PSNR of each against the reference.
 
 All renders of one material use the same seed and the cosine sampler (plus next-event
 estimation toward the sky), so every render traces the same directions and the difference
-between images is the BRDF, not Monte Carlo noise; the table states the residual noise (MAE
-between two reference renders with different seeds). MAE: mean over the sphere's pixels and
-RGB of |image - reference|; PSNR: 10 log10(peak^2 / MSE) with the reference's 99.9th
-percentile as the peak (the sun's highlight would otherwise set it).
+between images is mostly the BRDF (the noise that remains scales with the BRDF error); the
+table also states the noise level (MAE between two reference renders with different seeds).
+MAE: mean over the sphere's pixels and RGB of |image - reference| on the linear HDR images;
+PSNR: on the displayed images (linear clipped to [0, 1], then the sRGB curve), peak 1.
 
     python bench/render_error.py --hybrid out/compare_rgl/hybrid_32x3_l4.safetensors \\
         --neural out/compare_rgl/neural_32x3_l12.safetensors SOURCE... [--size 128] [--spp 64]
@@ -37,6 +37,11 @@ def scene(material, size, spp, seed):
         "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
         "spp": spp, "max_depth": 3, "sampler": "cosine", "seed": seed, "threads": 0,
     }
+
+
+def srgb(x):
+    """The sRGB transfer curve (IEC 61966-2-1) of linear values in [0, 1]."""
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 def model_name(model, src):
@@ -68,14 +73,14 @@ def main() -> int:
         ref, _ = render(scene(measured, args.size, args.spp, 1))
         ref2, _ = render(scene(measured, args.size, args.spp, 2))
         mask = render(scene(measured, args.size, 1, 1), max_depth=0)[0].sum(-1) == 0  # the sphere's pixels
-        peak = float(np.percentile(ref[mask], 99.9))
+        shown = lambda img: srgb(np.clip(img[mask], 0.0, 1.0))  # noqa: E731
         h, n = model_name(hyb, src), model_name(neu, src)
         imgs = {"analytic": render(scene({"type": "model", "file": args.hybrid, "material": h, "evaluate": "analytic"},
                                          args.size, args.spp, 1))[0],
                 "hybrid": render(scene({"type": "model", "file": args.hybrid, "material": h}, args.size, args.spp, 1))[0],
                 "neural": render(scene({"type": "model", "file": args.neural, "material": n}, args.size, args.spp, 1))[0]}
         mae = {k: float(np.abs(v[mask] - ref[mask]).mean()) for k, v in imgs.items()}
-        psnr = {k: float(10 * np.log10(peak ** 2 / np.mean((v[mask] - ref[mask]) ** 2))) for k, v in imgs.items()}
+        psnr = {k: float(-10 * np.log10(np.mean((shown(v) - shown(ref)) ** 2))) for k, v in imgs.items()}
         noise = float(np.abs(ref2[mask] - ref[mask]).mean())
         for k in totals:
             totals[k].append(mae[k])
