@@ -11,7 +11,7 @@ seeds; the table gives the mean over runs of the image MAE (sphere pixels, RGB) 
 reference, and the mean time. Next-event estimation is off (``--nee`` turns it on) so that
 the BSDF sampler alone carries the lighting, as in the paper's variance figure.
 
-    python bench/render_sampling.py [--model results/rgl54_hybrid_32x2.safetensors]
+    python bench/render_sampling.py [--model results/rgl54_hybrid_32x3_10k.safetensors]
         [--material cc_ibiza_sunset_rgb.rgl] [--size 96] [--spp 16] [--ref-spp 1024] [--runs 3]
 """
 
@@ -28,6 +28,7 @@ import numpy as np
 from hybridbrdf.render import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+THREADS = [0]  # set from --threads
 
 
 def scene(model, material, size, spp, sampler, seed, nee):
@@ -37,20 +38,22 @@ def scene(model, material, size, spp, sampler, seed, nee):
                         "sun_size_deg": 4},
         "materials": {"m": {"type": "model", "file": model, "material": material}},
         "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
-        "spp": spp, "max_depth": 3, "sampler": sampler, "seed": seed, "threads": 0, "nee": nee,
+        "spp": spp, "max_depth": 3, "sampler": sampler, "seed": seed, "threads": THREADS[0], "nee": nee,
     }
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_hybrid_32x2.safetensors"))
+    ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_hybrid_32x3_10k.safetensors"))
     ap.add_argument("--material", default="cc_ibiza_sunset_rgb.rgl")
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=1024)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--nee", action="store_true", help="keep next-event estimation on")
+    ap.add_argument("--threads", type=int, default=0, help="render threads (default 0: all cores)")
     args = ap.parse_args()
+    THREADS[0] = args.threads
     model = os.path.abspath(args.model)
     ref, rs = render(scene(model, args.material, args.size, args.ref_spp, "mis", 1000, args.nee))
     mask = render(scene(model, args.material, args.size, 1, "mis", 0, args.nee), max_depth=0)[0].sum(-1) == 0

@@ -8,7 +8,7 @@ the analytic-only render, and the MAE against the full evaluation, all with the 
 only while the path throughput is at least the threshold) at a few thresholds, and samples
 per second with 1 and 2 threads.
 
-    python bench/render_selective.py [--model results/rgl54_hybrid_32x2.safetensors]
+    python bench/render_selective.py [--model results/rgl54_hybrid_32x3_10k.safetensors]
         [--sphere cc_ibiza_sunset_rgb.rgl] [--floor paper_white_rgb.rgl] [--size 128] [--spp 16]
 """
 
@@ -45,14 +45,16 @@ def best_of(n, fn):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_hybrid_32x2.safetensors"))
+    ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_hybrid_32x3_10k.safetensors"))
     ap.add_argument("--sphere", default="cc_ibiza_sunset_rgb.rgl")
     ap.add_argument("--floor", default="paper_white_rgb.rgl")
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--repeats", type=int, default=3, help="renders per setting; the fastest counts (default 3)")
+    ap.add_argument("--threads", type=int, default=0, help="render threads (default 0: all cores)")
     args = ap.parse_args()
     sc = scene(os.path.abspath(args.model), args.sphere, args.floor, args.size, args.spp)
+    sc["threads"] = args.threads
     full, fs = best_of(args.repeats, lambda: render(sc, neural_max_depth=7))
     analytic, an = best_of(args.repeats, lambda: render(sc, neural_max_depth=0))
     print(f"sphere {args.sphere} on floor {args.floor} ({args.model}), {args.size}x{args.size}, {args.spp} spp, "
@@ -74,11 +76,12 @@ def main() -> int:
         row(f"neural_min_throughput {t}", img, st)
     print()
     rates = {}
-    for threads in (1, 2):
+    for threads in (1, 2) if args.threads == 0 else ():
         _, st = best_of(args.repeats, lambda: render(sc, neural_max_depth=7, threads=threads))
         rates[threads] = st["samples_per_second"]
         print(f"{threads} thread(s): {st['samples_per_second'] / 1e3:8.1f} k samples/s (full network)")
-    print(f"scaling 1 -> 2 threads: {rates[2] / rates[1]:.2f}x")
+    if rates:
+        print(f"scaling 1 -> 2 threads: {rates[2] / rates[1]:.2f}x")
     return 0
 
 
