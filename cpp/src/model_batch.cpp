@@ -64,6 +64,12 @@ struct DensePortable {
 };
 
 #if HBRDF_MB_X86
+// GCC 12's own AVX-512 intrinsics (_mm512_undefined_ps) trip -Wmaybe-uninitialized when
+// inlined (GCC bug 105593, fixed in GCC 13); the warning is about the header, not this code.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 // The activations on 8 / 16 lanes; max(x, 0) returns 0 for NaN like clamp_nan_lo.
 #define HBRDF_ACT_BODY(PS, SET1, MAX, MIN, MUL, FMA)                                            \
     if (last) return x;                                                                   \
@@ -136,6 +142,9 @@ struct DenseAvx512 {
     }
 };
 #undef HBRDF_ACT_BODY
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #endif
 
 HBRDF_KERNEL_INLINE float exp_clamped(float x) { return std::exp(x < kPreExpMax ? x : kPreExpMax); }
