@@ -103,10 +103,14 @@ def campaign_smape(models_dir):
         if not p.exists():
             continue
         lines = p.read_text().splitlines()
-        header = header or lines[0]
+        header = header or lines[0].split(": ", 1)[-1]  # drop the "# WxD: " prefix
         mean = [ln for ln in lines if ln.startswith("mean ")][0].split()
         out[(w, d)] = (float(mean[1]), float(mean[2]), float(mean[3]))
     return out, header
+
+
+def models_dir_label(models_dir):
+    return models_dir or "none"
 
 
 def model_for(arch, width, depth, models_dir, d):
@@ -129,7 +133,7 @@ def plot(rows, path_png, title):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "cpp", "C++ batched, 1 core"), (axes[1], "vk", "GLSL under lavapipe, 2 cores")):
         for arch, marker in (("analytic", "s"), ("hybrid", "o"), ("neural", "^")):
-            pts = [(1e3 / r[key], r["smape"], r["name"]) for r in rows
+            pts = [(1e9 / r[key], r["smape"], r["name"]) for r in rows
                    if r["arch"] == arch and r.get(key) and r.get("smape") is not None]
             if not pts:
                 continue
@@ -179,7 +183,8 @@ def main() -> int:
     lines = [f"{n} cosine-weighted pairs; C++ batched on 1 core (kernel {_core.model_simd_path()}, one-core FMA "
              f"peak {peak:.1f} GFLOP/s measured by hbrdf_fma_peak); GLSL under lavapipe, 64 invocations per "
              f"workgroup, {len(all_cores)} cores",
-             f"SMAPE: {campaign or 'no fitting campaign found (random weights timed)'}",
+             f"SMAPE (mean over the campaign's materials, {models_dir_label(args.models_dir)}): "
+             f"{campaign or 'no fitting campaign found (random weights timed)'}",
              f"{'model':22s} {'FLOP/eval':>9s} {'C++ M/s':>8s} {'GFLOP/s':>8s} {'% peak':>7s} {'lavapipe M/s':>13s} "
              f"{'SMAPE':>7s}"]
     rows = []
