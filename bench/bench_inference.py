@@ -30,16 +30,17 @@ import re
 import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf import _core  # noqa: E402
-from hybridbrdf.codegen import generate, material_constant  # noqa: E402
+from hybridbrdf.codegen import eval_compute_shader, generate, material_constant  # noqa: E402
+from bench_analytic import best_rate  # noqa: E402
 from test_model_file import make_model  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"
@@ -47,37 +48,11 @@ FMA_PEAK = ROOT / "build" / "hbrdf_fma_peak"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
 SIZES = [(16, 2), (16, 3), (32, 2), (32, 3), (64, 2), (64, 3)]
 
-WRAP = """#version 450
-#extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-#include "model.glsl"
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    vec3 f = FN(wi, wo, MAT);
-    data_out[3 * i] = f.x; data_out[3 * i + 1] = f.y; data_out[3 * i + 2] = f.z;
-}
-"""
-
-
-def best_rate(fn, n, repeats=7):
-    fn()
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return n / best
-
-
 def lavapipe_rate(model, fn, n, wi, wo, d, **generate_options):
     """Evaluations per second of the generated GLSL ``fn`` for the model's first material."""
     (pathlib.Path(d) / "model.glsl").write_text(generate(model, "glsl", [model.materials[0]], **generate_options))
     src = pathlib.Path(d) / "w.comp"
-    src.write_text(WRAP.replace("FN", fn).replace("MAT", material_constant(model.materials[0])))
+    src.write_text(eval_compute_shader(fn, material_constant(model.materials[0]), "model.glsl"))
     spv = pathlib.Path(d) / "w.spv"
     subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
                    check=True, capture_output=True)
@@ -192,7 +167,7 @@ def main() -> int:
         path, _ = model_for("hybrid", 32, 3, args.models_dir, d)
         any_model = hb.load_model(path)
         p = any_model.analytic_params(0)
-        row = {"arch": "analytic", "name": "analytic (f_a)", "cpp": best_rate(lambda: hb.analytic_eval(wi, wo, p), n),
+        row = {"arch": "analytic", "name": "analytic (f_a)", "cpp": best_rate(lambda: hb.analytic_eval(wi, wo, p), n, 7),
                "vk": vk_rate(any_model, "hbrdf_eval_analytic", n, wi, wo, d) if use_vk else None,
                "smape": smapes.get((32, 3), (None,))[0], "flops": None}
         rows.append(row)
@@ -202,7 +177,7 @@ def main() -> int:
                 cpp = _core.Model(path)
                 s = smapes.get((width, depth))
                 rows.append({"arch": arch, "name": f"{arch} {width}x{depth}", "flops": cpp.flops_per_eval,
-                             "cpp": best_rate(lambda: cpp.eval(wi, wo, 0), n),
+                             "cpp": best_rate(lambda: cpp.eval(wi, wo, 0), n, 7),
                              "vk": vk_rate(hb.load_model(path), "hbrdf_eval", n, wi, wo, d) if use_vk else None,
                              "smape": (s[1] if arch == "hybrid" else s[2]) if s else None})
         if use_vk:  # the other code forms of the hybrid 32x2

@@ -7,13 +7,14 @@
 // x86 the layers themselves use register-blocked intrinsics (AVX2: 2 outputs x
 // 32 pairs, AVX-512: 4 outputs x 64 pairs in accumulators), which load each
 // input vector once per block of outputs instead of once per output: the
-// portable loop does one load per FMA and tops out near half the FMA peak.
+// portable loop does one load per FMA.
 // The kernel is chosen at run time (model_simd_path()).
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "hybridbrdf/batch.hpp"
@@ -263,14 +264,20 @@ namespace {
 std::atomic<int> g_model_simd_limit{2};  // 0 baseline, 1 avx2+fma, 2 avx512 (the best the CPU has)
 }
 
-const char* model_simd_path() {
-    const std::string base = simd_path();  // "baseline" when forced or without AVX2+FMA
-    const int limit = g_model_simd_limit.load(std::memory_order_relaxed);
+namespace {
+// 2 avx512, 1 avx2+fma, 0 baseline: the best kernel the CPU runs, capped by the limit.
+int model_kernel_level() {
+    int level = 0;
 #if HBRDF_MB_X86
-    if (base == "avx2+fma" && limit >= 1) return cpu_has_avx512() && limit >= 2 ? "avx512" : "avx2+fma";
+    if (std::string_view(simd_path()) == "avx2+fma") level = cpu_has_avx512() ? 2 : 1;  // "baseline" when forced
 #endif
-    (void)limit;
-    return "baseline";
+    return std::min(level, g_model_simd_limit.load(std::memory_order_relaxed));
+}
+}  // namespace
+
+const char* model_simd_path() {
+    static const char* const kNames[] = {"baseline", "avx2+fma", "avx512"};
+    return kNames[model_kernel_level()];
 }
 
 void limit_model_simd(const std::string& path) {
@@ -287,9 +294,11 @@ void limit_model_simd(const std::string& path) {
 void HybridModel::eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const {
     check_material(m);
 #if HBRDF_MB_X86
-    const std::string path = model_simd_path();
-    if (path == "avx512") return run_avx512(*this, m, n, wi, wo, f);
-    if (path == "avx2+fma") return run_avx2(*this, m, n, wi, wo, f);
+    switch (model_kernel_level()) {
+        case 2: return run_avx512(*this, m, n, wi, wo, f);
+        case 1: return run_avx2(*this, m, n, wi, wo, f);
+        default: break;
+    }
 #endif
     run_baseline(*this, m, n, wi, wo, f);
 }

@@ -296,7 +296,7 @@ float TabulatedSampler::pdf(const Vec3<float>& wi_in, const Vec3<float>& wo_in) 
     return float(kTabulatedDefensiveFraction * p_cos + (1.0 - kTabulatedDefensiveFraction) * p_table);
 }
 
-BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>& u_in) const {
+BrdfSample TabulatedSampler::sample_direction(const Vec3<float>& wo_in, const Vec2<float>& u_in) const {
     BrdfSample no_sample;
     no_sample.wi = Vec3<float>(0.0f, 0.0f, 1.0f);
     no_sample.pdf = 0.0f;
@@ -335,6 +335,15 @@ BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>&
     // MIS weights see one density whichever way they obtain it.
     out.pdf = pdf(out.wi, wo_in);
     if (!(out.pdf > 0.0f)) return no_sample;  // wi rounded onto the horizon
+    out.weight = Vec3<float>(0.0f);
+    return out;
+}
+
+BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>& u_in) const {
+    BrdfSample out = sample_direction(wo_in, u_in);
+    if (!(out.pdf > 0.0f)) return out;
+    Vec3<double> wo(0.0, 0.0, 1.0);
+    if (!normalized(wo_in, wo)) return out;  // unreachable: sample_direction gave pdf > 0
     const float wi_a[3] = {out.wi.x, out.wi.y, out.wi.z};
     const float wo_a[3] = {float(wo.x), float(wo.y), float(wo.z)};
     float f[3] = {0.0f, 0.0f, 0.0f};

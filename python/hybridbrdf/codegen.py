@@ -352,21 +352,26 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
         z_len=max(latent, 1), z_args=z_args)
 
 
-SPIRV_PROBE = """#version 450
+def eval_compute_shader(function: str, material_constant_name: str, include: str) -> str:
+    """A GLSL compute shader (64 invocations per workgroup) that includes the generated file
+    ``include`` and writes ``function(wi, wo, MATERIAL)`` (hbrdf_eval or hbrdf_eval_analytic)
+    for pairs read from binding 0 (6 floats each) to binding 1 (3 floats each): the probe of
+    spirv_size and the kernel of bench/bench_inference.py."""
+    return f"""#version 450
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-#include "probe_model.glsl"
-void main() {
+layout(std430, binding = 0) readonly buffer In {{ float data_in[]; }};
+layout(std430, binding = 1) writeonly buffer Out {{ float data_out[]; }};
+#include "{include}"
+void main() {{
     uint i = gl_GlobalInvocationID.x;
     vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
     vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    vec3 f = hbrdf_eval(wi, wo, MATERIAL);
+    vec3 f = {function}(wi, wo, {material_constant_name});
     data_out[3 * i] = f.x;
     data_out[3 * i + 1] = f.y;
     data_out[3 * i + 2] = f.z;
-}
+}}
 """
 
 
@@ -378,7 +383,7 @@ def spirv_size(glsl_code: str, material_constant_name: str, workdir) -> int:
     workdir = pathlib.Path(workdir)
     (workdir / "probe_model.glsl").write_text(glsl_code)
     src = workdir / "probe.comp"
-    src.write_text(SPIRV_PROBE.replace("MATERIAL", material_constant_name))
+    src.write_text(eval_compute_shader("hbrdf_eval", material_constant_name, "probe_model.glsl"))
     spv = workdir / "probe.spv"
     r = subprocess.run(["glslangValidator", "-V", "-Os", "--target-env", "vulkan1.1", "-I" + str(workdir), str(src),
                         "-o", str(spv)], capture_output=True, text=True)

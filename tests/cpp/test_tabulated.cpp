@@ -299,6 +299,34 @@ TEST_CASE("tabulated: sample() reports pdf() of its direction and weight = f cos
     }
 }
 
+TEST_CASE("tabulated: sample_direction() is sample() without the BRDF call") {
+    int calls = 0;
+    const AnalyticBrdf brdf(glossy(0.2f, 0.2f));
+    const TabulatedSampler s = TabulatedSampler::build(
+        [&](std::size_t n, const float* wi, const float* wo, float* f) {
+            ++calls;
+            for (std::size_t i = 0; i < n; ++i) {
+                const Vec3<float> v = brdf.eval(Vec3<float>(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),
+                                                Vec3<float>(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]));
+                f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
+            }
+        },
+        true, 3);
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<float> uni(0.0f, 1.0f);
+    const int after_build = calls;
+    for (int k = 0; k < 2000; ++k) {
+        const Vec3<float> wo(spherical(std::acos(double(uni(rng))), 2 * M_PI * uni(rng)));
+        const Vec2<float> u(uni(rng), uni(rng));
+        const BrdfSample d = s.sample_direction(wo, u);
+        const BrdfSample b = s.sample(wo, u);
+        CHECK(d.wi == b.wi);
+        CHECK(d.pdf == b.pdf);
+        CHECK(d.weight == Vec3<float>(0.0f));
+    }
+    CHECK(calls == after_build + 2000);  // only sample() evaluated
+}
+
 TEST_CASE("tabulated: lower variance than cosine sampling on a glossy GGX lobe, unbiased albedo") {
     const AnalyticParams p = glossy(0.1f, 0.1f);
     const AnalyticBrdf brdf(p);

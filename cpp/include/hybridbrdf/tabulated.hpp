@@ -89,6 +89,12 @@ public:
     /// weight = 0, the contract of hbrdf::sample().
     BrdfSample sample(const Vec3<float>& wo, const Vec2<float>& u) const;
 
+    /// sample() without the weight: the same wi and pdf, weight = 0, and no
+    /// call into the BRDF. For callers that evaluate f themselves (in batches,
+    /// like the path tracer), where one scalar evaluation per sample through a
+    /// network or a Python reader would cost more than the sampling.
+    BrdfSample sample_direction(const Vec3<float>& wo, const Vec2<float>& u) const;
+
     /// Solid-angle density with which sample() draws wi given wo, over the
     /// whole sphere. Directions are normalised; 0 when either is invalid (zero
     /// length, NaN/Inf), wo.z <= 0 or wi.z <= 0.

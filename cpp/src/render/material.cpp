@@ -2,7 +2,6 @@
 #include "hybridbrdf/render/material.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <stdexcept>
 
 #include "hybridbrdf/batch.hpp"
@@ -29,24 +28,14 @@ const char* sampler_name(SamplerKind kind) {
 void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg) {
     tabulated_.reset();
     if (kind == SamplerKind::Tabulated) {
-        // TabulatedSampler::sample() evaluates the BRDF once per call for a
-        // weight this integrator never uses (it evaluates in batches itself).
-        // A scalar call into a network, or into Python for a measured material,
-        // per sample would dominate the render, so the evaluator handed to the
-        // sampler is switched off once the table is built: sample() then
-        // returns the right wi and pdf with a zero weight.
-        auto building = std::make_shared<std::atomic<bool>>(true);
+        // The table is built through the material's own (batched) evaluation;
+        // sampling uses sample_direction(), which never calls it again.
         const Material* self = this;
-        BatchEval eval = [self, building](std::size_t n, const float* wi, const float* wo, float* f) {
-            if (building->load(std::memory_order_relaxed)) {
-                self->eval(n, wi, wo, f, EvalMode::Full);
-            } else {
-                std::fill(f, f + 3 * n, 0.0f);
-            }
+        const BatchEval eval = [self](std::size_t n, const float* wi, const float* wo, float* f) {
+            self->eval(n, wi, wo, f, EvalMode::Full);
         };
         tabulated_ = std::make_shared<const TabulatedSampler>(
             TabulatedSampler::build(eval, isotropic(), tabulated_resolution_deg));
-        building->store(false);
         sampler_ = kind;
         return;
     }
@@ -61,7 +50,7 @@ void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>
 }
 
 BrdfSample Material::sample(const Vec3f& wo, const Vec2<float>& u) const {
-    if (tabulated_) return tabulated_->sample(wo, u);
+    if (tabulated_) return tabulated_->sample_direction(wo, u);
     return hbrdf::sample(strategy_, proxy_, wo, u);
 }
 
