@@ -7,7 +7,7 @@
 3. Print their CONVENTIONS metrics next to the paper authors' released model
    (which saw all 62 RGL materials while training its network).
 
-    python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01]
+    python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01] [--specular 0.1]
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ def main() -> int:
     ap.add_argument("--sparse-steps", type=int, default=5000)
     ap.add_argument("--mlp", default="32x2")
     ap.add_argument("--loss-eps", type=float, default=0.01)
+    ap.add_argument("--specular", type=float, default=0.0,
+                    help="fraction of specular training pairs (FitSettings.specular), both fits")
     ap.add_argument("--pairs", type=int, default=1_000_000)
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     ap.add_argument("--out-dir", default="out/sparse")
@@ -43,7 +45,7 @@ def main() -> int:
     base = [hb.open_source(p) for p in base_specs]
     raw = [hb.open_source(os.path.join(args.shared, "rgl", f"{n}.bsdf")) for n in PAPER]
     os.makedirs(args.out_dir, exist_ok=True)
-    common = dict(width=width, depth=depth, latent=4, loss_eps=args.loss_eps, eval_pairs=10_000)
+    common = dict(width=width, depth=depth, latent=4, loss_eps=args.loss_eps, specular=args.specular, eval_pairs=10_000)
     net = fit(base, FitSettings(steps=args.steps, sources=base_specs, **common), progress=False)
     net_path = os.path.join(args.out_dir, f"base{len(base)}_{args.mlp}.safetensors")
     net.save(net_path)

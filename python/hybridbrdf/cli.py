@@ -2,7 +2,7 @@
 
     hbrdf fit SOURCE... --out MODEL [--arch hybrid|neural|additive|logmul|analytic-input]
               [--mlp 32x3] [--latent 4] [--activation hardgelu|relu] [--steps N] [--batch 1024]
-              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--fc-init -4]
+              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--specular 0] [--specular-alpha 0.1] [--fc-init -4]
               [--device cpu|cuda]
               [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
     hbrdf eval MODEL SOURCE... [--pairs N] [--all-metrics]
@@ -41,6 +41,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=latent, activation=args.activation,
                            steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, pool=args.pool,
                            eval_pairs=args.eval_pairs, loss_eps=args.loss_eps, fc_init=args.fc_init,
+                           specular=args.specular, specular_alpha=args.specular_alpha,
                            device=args.device or default_device(),
                            sources=list(args.sources), frozen_from=args.frozen)
     settings.check()
@@ -159,6 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--loss-eps", type=float, default=1.0,
                      help="epsilon of the loss log(eps + cos f); 1 = the paper's log(1 + cos f), smaller values weigh "
                           "relative errors in dark regions (default: %(default)s)")
+    fit.add_argument("--specular", type=float, default=0.0,
+                     help="fraction of the training pool drawn around the mirror direction instead of cosine-weighted; "
+                          "weighs the specular peaks that dominate cMAE (default: %(default)s, the paper's sampling)")
+    fit.add_argument("--specular-alpha", type=float, default=0.1,
+                     help="GGX roughness of the half-vector distribution of --specular pairs (default: %(default)s)")
     fit.add_argument("--fc-init", type=float, default=-4.0,
                      help="initial pre-exp bias of the hybrid correction f_c = exp(o) (default: %(default)s)")
     fit.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")

@@ -25,7 +25,7 @@ import math
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import torch
@@ -58,6 +58,11 @@ class FitSettings:
     #: epsilon of the loss log(eps + cos f); 1 is the paper's log(1 + cos f). Smaller values make the
     #: loss relative in dark regions (see docs/FITTING.md, "Dark regions").
     loss_eps: float = 1.0
+    #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
+    #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
+    #: sampling. See docs/FITTING.md, "Specular pairs".
+    specular: float = 0.0
+    specular_alpha: float = 0.1
     #: initial pre-exp bias of the hybrid correction f_c (f_c starts at exp(fc_init)).
     fc_init: float = -4.0
     device: str = "cpu"
@@ -74,20 +79,61 @@ class FitSettings:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if not (self.loss_eps > 0 and math.isfinite(self.loss_eps)):
             raise ValueError(f"loss_eps must be positive, got {self.loss_eps}")
+        if not 0.0 <= self.specular <= 1.0:
+            raise ValueError(f"specular must be in [0, 1], got {self.specular}")
+        if not (0.0 < self.specular_alpha <= 1.0):
+            raise ValueError(f"specular_alpha must be in (0, 1], got {self.specular_alpha}")
 
 
 def default_device() -> str:
     return "cuda" if torch.cuda.is_available() else "cpu"
 
 
+def specular_pairs(rng: np.random.Generator, n: int, alpha: float) -> Tuple[np.ndarray, np.ndarray]:
+    """n direction pairs (wi, wo) near the mirror configuration: wo cosine-weighted, a half vector
+    h drawn from the GGX distribution D(h) cos(theta_h) of roughness ``alpha`` (Walter et al. 2007,
+    Eq. 35-36: tan^2 theta_h = alpha^2 u / (1 - u)), wi = reflect(wo, h). Pairs whose wi falls
+    below the horizon are redrawn; wi and wo swap roles at random so that the set is symmetric
+    under reciprocity. float64 (n,3) each."""
+    wi_out = np.empty((0, 3))
+    wo_out = np.empty((0, 3))
+    while len(wi_out) < n:
+        m = 2 * (n - len(wi_out)) + 64  # ~half survive at grazing wo; draw extra
+        wo = cosine_hemisphere(rng, m)
+        u1, u2 = rng.random(m), rng.random(m)
+        tan2 = alpha * alpha * u1 / np.maximum(1.0 - u1, 1e-12)
+        cos_h = 1.0 / np.sqrt(1.0 + tan2)
+        sin_h = np.sqrt(np.maximum(0.0, 1.0 - cos_h * cos_h))
+        phi = 2.0 * np.pi * u2
+        h = np.stack([sin_h * np.cos(phi), sin_h * np.sin(phi), cos_h], axis=1)
+        wi = 2.0 * np.sum(wo * h, axis=1, keepdims=True) * h - wo
+        keep = wi[:, 2] > 1e-4
+        wi_out = np.concatenate([wi_out, wi[keep]])
+        wo_out = np.concatenate([wo_out, wo[keep]])
+    wi_out, wo_out = wi_out[:n], wo_out[:n]
+    wi_out /= np.linalg.norm(wi_out, axis=1, keepdims=True)
+    swap = rng.random(n) < 0.5
+    wi_out[swap], wo_out[swap] = wo_out[swap].copy(), wi_out[swap].copy()
+    return wi_out, wo_out
+
+
 class TrainingPool:
-    """Direction pairs and every source's reference values on them (float32)."""
+    """Direction pairs and every source's reference values on them (float32).
+
+    A fraction ``specular`` of the pairs comes from :func:`specular_pairs` (half vectors
+    concentrated around the normal, where glossy materials put their energy), the rest is
+    cosine-weighted as in the paper."""
 
     def __init__(self, sources: Sequence[BRDFSource], n_pairs: int, seed: int,
-                 progress: Optional[Callable[[str], None]] = None):
+                 progress: Optional[Callable[[str], None]] = None,
+                 specular: float = 0.0, specular_alpha: float = 0.1):
         rng = np.random.default_rng(seed + 1_000_003)
         wi = cosine_hemisphere(rng, n_pairs)
         wo = cosine_hemisphere(rng, n_pairs)
+        n_spec = int(round(specular * n_pairs))
+        if n_spec > 0:
+            # The cosine pairs come first and are unchanged, so specular = 0 reproduces earlier pools.
+            wi[n_pairs - n_spec:], wo[n_pairs - n_spec:] = specular_pairs(rng, n_spec, specular_alpha)
         ref = np.empty((len(sources), n_pairs, 3), dtype=np.float32)
         for m, src in enumerate(sources):
             if progress:
@@ -198,7 +244,8 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
         module.load_state_dict(state, strict=False)
 
-    pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None).to(settings.device)
+    pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None,
+                        settings.specular, settings.specular_alpha).to(settings.device)
     module.to(settings.device)
     opt, sched = _optimizer(module, settings, frozen is not None)
     start = 0
@@ -206,7 +253,9 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         state = torch.load(checkpoint, map_location=settings.device, weights_only=True)
         if state["names"] != names:
             raise InputFileError(checkpoint, "checkpoint was written for other materials; refusing to resume")
-        saved = {k: v for k, v in state["settings"].items() if k not in ("sources", "device", "eval_pairs")}
+        defaults = dataclasses.asdict(FitSettings())  # settings added after the checkpoint was written
+        saved = {k: v for k, v in {**defaults, **state["settings"]}.items()
+                 if k not in ("sources", "device", "eval_pairs")}
         mine = {k: v for k, v in dataclasses.asdict(settings).items() if k not in ("sources", "device", "eval_pairs")}
         if saved != mine:
             diff = ", ".join(f"{k}: {saved.get(k)!r} -> {mine.get(k)!r}" for k in mine if saved.get(k) != mine.get(k))
