@@ -7,12 +7,14 @@ For every ``--mlp`` size, fits ``--arch hybrid`` (latent --latent) and
 count) and prints, per material, SMAPE and cMAE of the analytic part, the hybrid
 and the neural model, then how often the hybrid beats its analytic part and the
 neural model. Fitted models go to ``--out-dir`` and are reused when present
-(delete them to refit), so an interrupted campaign resumes where it stopped;
+(delete them to refit), and each fit checkpoints every 1000 steps, so an
+interrupted campaign resumes where it stopped (``--only`` fits one of the two,
+for running them as parallel jobs);
 each table is also written to ``<out-dir>/compare_<mlp>.txt``. A CPU run on a
 full collection takes hours: run it as a background job.
 
     python bench/compare_models.py SOURCE... [--mlp 16x3,32x3] [--latent 4] [--steps 10000]
-        [--loss-eps 0.01] [--threads 1] [--out-dir out/compare]
+        [--loss-eps 0.01] [--specular 0] [--only hybrid|neural] [--threads 1] [--out-dir out/compare]
 """
 
 from __future__ import annotations
@@ -38,10 +40,14 @@ def fitted_model(sources, args, arch: str, mlp: str, latent: int) -> hb.HybridMo
         return model
     width, depth = parse_mlp(mlp)
     settings = FitSettings(arch=arch, width=width, depth=depth, latent=latent, steps=args.steps,
-                           eval_pairs=1000, loss_eps=args.loss_eps, seed=args.seed, sources=list(args.sources))
+                           eval_pairs=1000, loss_eps=args.loss_eps, specular=args.specular, seed=args.seed,
+                           sources=list(args.sources))
     t0 = time.perf_counter()
-    model = fit(sources, settings, progress=False)
+    checkpoint = path + ".ckpt"  # an interrupted fit continues from its last checkpoint
+    model = fit(sources, settings, progress=False, checkpoint=checkpoint, checkpoint_every=1000, resume=True)
     model.save(path)
+    if os.path.exists(checkpoint):
+        os.remove(checkpoint)
     print(f"fitted {arch} {mlp} latent {latent}: {args.steps} steps in {time.perf_counter() - t0:.0f} s -> {path}",
           flush=True)
     return model
@@ -55,6 +61,10 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=10000, help="optimiser steps per fit (default 10000)")
     ap.add_argument("--pairs", type=int, default=1_000_000, help="metric pairs per material (default 10^6)")
     ap.add_argument("--loss-eps", type=float, default=0.01, help="loss epsilon for both models (default 0.01)")
+    ap.add_argument("--specular", type=float, default=0.0,
+                    help="fraction of specular training pairs for both models (FitSettings.specular; default 0)")
+    ap.add_argument("--only", choices=("hybrid", "neural"),
+                    help="fit only this model and stop (run the two as parallel jobs, then once more for the table)")
     ap.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     ap.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: torch's choice)")
     ap.add_argument("--out-dir", default="out/compare", help="where models and tables go (default out/compare)")
@@ -66,6 +76,9 @@ def main() -> int:
     os.makedirs(args.out_dir, exist_ok=True)
     for mlp in args.mlp.split(","):
         results, steps = {}, {}
+        if args.only:
+            fitted_model(sources, args, args.only, mlp, args.latent + (8 if args.only == "neural" else 0))
+            continue
         for arch, latent in (("hybrid", args.latent), ("neural", args.latent + 8)):
             model = fitted_model(sources, args, arch, mlp, latent)
             steps[arch] = model.training["steps"]
