@@ -2,7 +2,8 @@
 
     hbrdf fit SOURCE... --out MODEL [--arch hybrid|neural|additive|logmul|analytic-input]
               [--mlp 32x3] [--latent 4] [--activation hardgelu|relu] [--steps N] [--batch 1024]
-              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--specular 0] [--specular-alpha 0.1] [--fc-init -4]
+              [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--loss-eps-relative]
+              [--specular 0] [--specular-alpha 0.1] [--fc-init -4]
               [--device cpu|cuda]
               [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
     hbrdf eval MODEL SOURCE... [--pairs N] [--all-metrics]
@@ -40,7 +41,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     latent = args.latent if args.latent is not None else (12 if args.arch == "neural" else 4)
     settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=latent, activation=args.activation,
                            steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, pool=args.pool,
-                           eval_pairs=args.eval_pairs, loss_eps=args.loss_eps, fc_init=args.fc_init,
+                           eval_pairs=args.eval_pairs, loss_eps=args.loss_eps, loss_eps_relative=args.loss_eps_relative,
+                           fc_init=args.fc_init,
                            specular=args.specular, specular_alpha=args.specular_alpha,
                            device=args.device or default_device(),
                            sources=list(args.sources), frozen_from=args.frozen)
@@ -160,6 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--loss-eps", type=float, default=1.0,
                      help="epsilon of the loss log(eps + cos f); 1 = the paper's log(1 + cos f), smaller values weigh "
                           "relative errors in dark regions (default: %(default)s)")
+    fit.add_argument("--loss-eps-relative", action="store_true",
+                     help="scale --loss-eps per material by its mean cos f (brightness-invariant loss; "
+                          "for collections with very dark materials)")
     fit.add_argument("--specular", type=float, default=0.0,
                      help="fraction of the training pool drawn around the mirror direction instead of cosine-weighted; "
                           "weighs the specular peaks that dominate cMAE (default: %(default)s, the paper's sampling)")

@@ -58,6 +58,10 @@ class FitSettings:
     #: epsilon of the loss log(eps + cos f); 1 is the paper's log(1 + cos f). Smaller values make the
     #: loss relative in dark regions (see docs/FITTING.md, "Dark regions").
     loss_eps: float = 1.0
+    #: scale the loss epsilon per material by its mean cos f_ref over the cosine-weighted pool pairs
+    #: (eps_m = loss_eps * mean cos f_ref), which makes the loss invariant to a material's brightness.
+    #: See docs/FITTING.md, "Dark materials".
+    loss_eps_relative: bool = False
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
     #: sampling. See docs/FITTING.md, "Specular pairs".
@@ -142,12 +146,18 @@ class TrainingPool:
             if not np.isfinite(values).all():
                 raise InputFileError(src.path or src.name, "source returned NaN or Inf values")
             ref[m] = np.maximum(values, 0.0)
+        n_cos = n_pairs - n_spec if n_spec < n_pairs else n_pairs  # all-specular pool: best available
+        #: mean cos(theta_i) f_ref over the cosine-weighted pairs and RGB, per material (M,): an
+        #: unbiased estimate of the material's mean albedo-like brightness.
+        self.brightness = torch.from_numpy(
+            (ref[:, :n_cos] * wi[None, :n_cos, 2:3].astype(np.float32)).mean(axis=(1, 2)).astype(np.float32))
         self.wi = torch.from_numpy(wi.astype(np.float32))
         self.wo = torch.from_numpy(wo.astype(np.float32))
         self.ref = torch.from_numpy(ref)
 
     def to(self, device: str) -> "TrainingPool":
         self.wi, self.wo, self.ref = self.wi.to(device), self.wo.to(device), self.ref.to(device)
+        self.brightness = self.brightness.to(device)
         return self
 
 
@@ -175,11 +185,15 @@ def material_names(sources: Sequence[BRDFSource]) -> List[str]:
     return out
 
 
-def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps: float = 1.0) -> torch.Tensor:
+def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps=1.0) -> torch.Tensor:
     """Per-material L: mean over the batch of the squared RGB norm of
-    log(eps + cos f_ref) - log(eps + cos f). (M,). eps = 1 is the paper's loss."""
+    log(eps + cos f_ref) - log(eps + cos f). (M,). eps = 1 is the paper's loss; a tensor of
+    shape (M,) gives every material its own epsilon."""
     c = cos_i[None, :, None]
-    if eps == 1.0:
+    if isinstance(eps, torch.Tensor):
+        e = eps[:, None, None]
+        d = torch.log(e + c * f_ref) - torch.log(e + c * f)
+    elif eps == 1.0:
         d = torch.log1p(c * f_ref) - torch.log1p(c * f)
     else:
         d = torch.log(eps + c * f_ref) - torch.log(eps + c * f)
@@ -278,14 +292,18 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
                    unit="step", dynamic_ncols=True, mininterval=0.5)
     module.train()
     has_analytic = settings.arch != "neural"
+    # A black material (brightness 0) falls back to the smallest epsilon float32 keeps well above
+    # the cos f values it is compared with (1e-6 of a typical 0.1-1 brightness).
+    eps = (settings.loss_eps * torch.clamp(pool.brightness, min=1e-6) if settings.loss_eps_relative
+           else settings.loss_eps)
     t0 = time.perf_counter()
     for step in range(start, settings.steps):
         idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
         wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
         f_t, f_a = module(wi, wo)
-        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2], settings.loss_eps)
+        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2], eps)
         if has_analytic:
-            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2], settings.loss_eps)
+            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2], eps)
         loss = loss_per_material.sum()
         if not torch.isfinite(loss):
             raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")

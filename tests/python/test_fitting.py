@@ -35,6 +35,35 @@ def test_log_cos_loss_matches_its_definition():
     assert np.allclose(got, want, rtol=1e-12)
 
 
+def test_per_material_epsilon_makes_the_loss_brightness_invariant():
+    from hybridbrdf.fitting import TrainingPool
+
+    rng = np.random.default_rng(1)
+    ref, f = torch.tensor(rng.random((2, 64, 3))), torch.tensor(rng.random((2, 64, 3)))
+    cos = torch.tensor(rng.random(64))
+    eps = torch.tensor([0.5, 0.02], dtype=torch.float64)
+    per_material = log_cos_loss(ref, f, cos, eps)
+    for m in range(2):  # a tensor epsilon is the scalar loss, material by material
+        assert torch.allclose(per_material[m], log_cos_loss(ref[m:m + 1], f[m:m + 1], cos, float(eps[m]))[0])
+    # a material 1000x darker, with its epsilon scaled alike, costs exactly the same
+    dark = log_cos_loss(ref * 1e-3, f * 1e-3, cos, eps * 1e-3)
+    assert torch.allclose(dark, per_material, rtol=1e-10)
+    # the pool's brightness is mean(cos f_ref) over its cosine-weighted pairs, not the specular ones
+    src = sources()
+    pool = TrainingPool(src, 8000, seed=2, specular=0.5)
+    wi, wo = pool.wi[:4000].double().numpy(), pool.wo[:4000].double().numpy()
+    for m, s in enumerate(src):
+        want = (np.maximum(s.eval(wi, wo), 0) * wi[:, 2:3]).mean()
+        assert abs(float(pool.brightness[m]) - want) < 1e-5 * want
+
+
+def test_relative_epsilon_trains():
+    model = fit(sources(), quick(steps=200, loss_eps=0.05, loss_eps_relative=True), progress=False)
+    assert model.training["loss_eps_relative"] is True
+    for info in model.material_info:  # 200 steps already put the network well ahead of its analytic part
+        assert info["metrics"]["smape"] < 0.9 * info["metrics"]["smape_analytic"]
+
+
 @pytest.fixture(scope="module")
 def fitted():
     return fit(sources(), quick(steps=1500), progress=False)
