@@ -352,12 +352,16 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
         z_len=max(latent, 1), z_args=z_args)
 
 
-def eval_compute_shader(function: str, material_constant_name: str, include: str) -> str:
-    """A GLSL compute shader (64 invocations per workgroup) that includes the generated file
-    ``include`` and writes ``function(wi, wo, MATERIAL)`` (hbrdf_eval or hbrdf_eval_analytic)
-    for pairs read from binding 0 (6 floats each) to binding 1 (3 floats each): the probe of
-    spirv_size and the kernel of bench/bench_inference.py."""
-    return f"""#version 450
+def eval_compute_shader(function: str, material_constant_name: str, include: str, target: str = "glsl",
+                        n: Optional[int] = None) -> str:
+    """A compute shader (64 invocations per workgroup, GLSL or HLSL for glslang's HLSL front end)
+    that includes the generated file ``include`` and writes ``function(wi, wo, MATERIAL)``
+    (hbrdf_eval or hbrdf_eval_analytic) for pairs read from binding 0 (6 floats each) to
+    binding 1 (3 floats each); with ``n`` set, invocations past the n-th pair return early.
+    The kernel of spirv_size, bench/bench_inference.py and the shader conformance tests."""
+    guard = f"    if (i >= {n}u) return;\n" if n is not None else ""
+    if target == "glsl":
+        return f"""#version 450
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer In {{ float data_in[]; }};
@@ -365,7 +369,7 @@ layout(std430, binding = 1) writeonly buffer Out {{ float data_out[]; }};
 #include "{include}"
 void main() {{
     uint i = gl_GlobalInvocationID.x;
-    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
+{guard}    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
     vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
     vec3 f = {function}(wi, wo, {material_constant_name});
     data_out[3 * i] = f.x;
@@ -373,6 +377,22 @@ void main() {{
     data_out[3 * i + 2] = f.z;
 }}
 """
+    if target == "hlsl":
+        return f"""#include "{include}"
+RWStructuredBuffer<float> data_in : register(u0);
+RWStructuredBuffer<float> data_out : register(u1);
+[numthreads(64, 1, 1)]
+void main(uint3 id : SV_DispatchThreadID) {{
+    uint i = id.x;
+{guard}    float3 wi = float3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
+    float3 wo = float3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
+    float3 f = {function}(wi, wo, {material_constant_name});
+    data_out[3 * i] = f.x;
+    data_out[3 * i + 1] = f.y;
+    data_out[3 * i + 2] = f.z;
+}}
+"""
+    raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")
 
 
 def spirv_size(glsl_code: str, material_constant_name: str, workdir) -> int:

@@ -15,7 +15,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf.codegen import generate, material_constant
+from hybridbrdf.codegen import eval_compute_shader, generate, material_constant
 
 from conftest import cosine_directions, hard_pairs
 from test_model_file import make_model
@@ -30,48 +30,13 @@ if not (RUNNER.exists() and os.path.exists(LVP_ICD)):
         raise RuntimeError(f"shader conformance needs {RUNNER} (cmake --build build) and lavapipe ({LVP_ICD})")
     pytest.skip("hbrdf_vk_runner or lavapipe not available", allow_module_level=True)
 
-GLSL = """#version 450
-#extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-#include "model.glsl"
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= N) return;
-    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    vec3 f = hbrdf_eval(wi, wo, MAT);
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
-"""
-
-HLSL = """#include "model.hlsl"
-RWStructuredBuffer<float> data_in : register(u0);
-RWStructuredBuffer<float> data_out : register(u1);
-[numthreads(64, 1, 1)]
-void main(uint3 id : SV_DispatchThreadID) {
-    uint i = id.x;
-    if (i >= N) return;
-    float3 wi = float3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    float3 wo = float3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    float3 f = hbrdf_eval(wi, wo, MAT);
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
-"""
-
-
 def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
     n = len(wi)
     (tmp_path / f"model.{target}").write_text(generate(model, target, [model.materials[material]],
                                                        **generate_options))
     const = material_constant(model.materials[material])
     src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
-    src.write_text((GLSL if target == "glsl" else HLSL).replace("MAT", const).replace("N)", f"{n}u)"))
+    src.write_text(eval_compute_shader("hbrdf_eval", const, f"model.{target}", target, n=n))
     spv = tmp_path / "shader.spv"
     args = ["-V"] if target == "glsl" else ["-D", "-V", "-e", "main", "-S", "comp"]
     r = subprocess.run(["glslangValidator", *args, "--target-env", "vulkan1.1", "-I" + str(tmp_path), str(src),
