@@ -41,14 +41,19 @@ def _clamped(f_ref, f_hat):
     return a, b
 
 
+def smape_terms(f_ref, f_hat) -> np.ndarray:
+    """The per-value terms of SMAPE, 2 |f - f^| / (|f| + |f^|) (0 where both are 0), same shape as
+    the inputs; their mean is :func:`smape`."""
+    a, b = _clamped(f_ref, f_hat)
+    den = a + b
+    return 2.0 * np.divide(np.abs(a - b), den, out=np.zeros_like(den), where=den > 0)
+
+
 def smape(f_ref, f_hat) -> float:
     """Symmetric mean absolute percentage error (paper Sec. 4.1):
     2/N sum |f - f^| / (|f| + |f^|), averaged over RGB; a term where both are 0 counts 0.
     Ranges over [0, 2]."""
-    a, b = _clamped(f_ref, f_hat)
-    den = a + b
-    terms = np.divide(np.abs(a - b), den, out=np.zeros_like(den), where=den > 0)
-    return float(2.0 * terms.mean())
+    return float(smape_terms(f_ref, f_hat).mean())
 
 
 def cmae(f_ref, f_hat, cos_theta_i) -> float:
