@@ -14,7 +14,8 @@ each table is also written to ``<out-dir>/compare_<mlp>.txt``. A CPU run on a
 full collection takes hours: run it as a background job.
 
     python bench/compare_models.py SOURCE... [--mlp 16x3,32x3] [--latent 4] [--steps 10000]
-        [--loss-eps 0.01] [--loss-eps-relative] [--specular 0] [--only hybrid|neural] [--threads 1] [--out-dir out/compare]
+        [--loss-eps 0.01] [--loss-eps-relative] [--loss-no-cos] [--analytic-loss-eps E] [--specular 0]
+        [--only hybrid|neural] [--threads 1] [--out-dir out/compare]
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ def fitted_model(sources, args, arch: str, mlp: str, latent: int) -> hb.HybridMo
     width, depth = parse_mlp(mlp)
     settings = FitSettings(arch=arch, width=width, depth=depth, latent=latent, steps=args.steps,
                            eval_pairs=1000, loss_eps=args.loss_eps, loss_eps_relative=args.loss_eps_relative,
+                           analytic_loss_eps=args.analytic_loss_eps, loss_cos=not args.loss_no_cos,
                            specular=args.specular, seed=args.seed,
                            sources=list(args.sources))
     t0 = time.perf_counter()
@@ -64,6 +66,10 @@ def main() -> int:
     ap.add_argument("--loss-eps", type=float, default=0.01, help="loss epsilon for both models (default 0.01)")
     ap.add_argument("--loss-eps-relative", action="store_true",
                     help="per-material loss epsilon, --loss-eps times the material's mean cos f (both models)")
+    ap.add_argument("--loss-no-cos", action="store_true",
+                    help="fit log(eps + f) instead of log(eps + cos f) (FitSettings.loss_cos = False; both models)")
+    ap.add_argument("--analytic-loss-eps", type=float, default=None,
+                    help="epsilon of the hybrid's analytic loss term (FitSettings.analytic_loss_eps; default --loss-eps)")
     ap.add_argument("--specular", type=float, default=0.0,
                     help="fraction of specular training pairs for both models (FitSettings.specular; default 0)")
     ap.add_argument("--only", choices=("hybrid", "neural"),
@@ -88,7 +94,10 @@ def main() -> int:
             results[arch] = {r["material"]: r for r in evaluate(model, sources, n_pairs=args.pairs, names=names)}
         lines = [f"# {mlp}: hybrid latent {args.latent} ({steps['hybrid']} steps) vs neural latent "
                  f"{args.latent + 8} ({steps['neural']} steps), loss eps {args.loss_eps}"
-                 f"{' x mean cos f per material' if args.loss_eps_relative else ''}, "
+                 f"{(' x mean f' if args.loss_no_cos else ' x mean cos f') + ' per material' if args.loss_eps_relative else ''}"
+                 f"{f', analytic term eps {args.analytic_loss_eps}' if args.analytic_loss_eps else ''}"
+                 f"{f', specular {args.specular}' if args.specular else ''}"
+                 f"{', loss without cos' if args.loss_no_cos else ''}, "
                  f"metrics on {args.pairs} pairs (seed 7)",
                  f"{'material':36s} {'SMAPE analytic':>14s} {'hybrid':>9s} {'neural':>9s} "
                  f"{'cMAE analytic':>13s} {'hybrid':>9s} {'neural':>9s}"]

@@ -62,6 +62,15 @@ class FitSettings:
     #: (eps_m = loss_eps * mean cos f_ref), which makes the loss invariant to a material's brightness.
     #: See docs/FITTING.md, "Dark materials".
     loss_eps_relative: bool = False
+    #: epsilon of the analytic term L(f_ref, f_a) of the loss; None uses ``loss_eps``. A larger value
+    #: fits the analytic part in absolute terms, so its lobe carries the bright peaks that the gate
+    #: f_g in (0, 1) can dim but the correction exp(o) can hardly build (docs/FITTING.md, "The
+    #: analytic term's epsilon"). Scaled per material like ``loss_eps`` when ``loss_eps_relative``.
+    analytic_loss_eps: Optional[float] = None
+    #: weigh f by cos(theta_i) inside the loss, log(eps + cos f), as the paper does. False fits
+    #: log(eps + f): grazing pairs, whose cos f falls below eps, then keep their relative weight
+    #: (docs/FITTING.md, "Grazing angles"); with ``loss_eps_relative`` eps then scales with mean f.
+    loss_cos: bool = True
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
     #: sampling. See docs/FITTING.md, "Specular pairs".
@@ -83,6 +92,9 @@ class FitSettings:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if not (self.loss_eps > 0 and math.isfinite(self.loss_eps)):
             raise ValueError(f"loss_eps must be positive, got {self.loss_eps}")
+        if self.analytic_loss_eps is not None and not (self.analytic_loss_eps > 0
+                                                       and math.isfinite(self.analytic_loss_eps)):
+            raise ValueError(f"analytic_loss_eps must be positive, got {self.analytic_loss_eps}")
         if not 0.0 <= self.specular <= 1.0:
             raise ValueError(f"specular must be in [0, 1], got {self.specular}")
         if not (0.0 < self.specular_alpha <= 1.0):
@@ -151,13 +163,15 @@ class TrainingPool:
         #: unbiased estimate of the material's mean albedo-like brightness.
         self.brightness = torch.from_numpy(
             (ref[:, :n_cos] * wi[None, :n_cos, 2:3].astype(np.float32)).mean(axis=(1, 2)).astype(np.float32))
+        #: mean f_ref over the same pairs (M,): the scale of a loss that does not weigh by cos(theta_i).
+        self.mean_f = torch.from_numpy(ref[:, :n_cos].mean(axis=(1, 2), dtype=np.float64).astype(np.float32))
         self.wi = torch.from_numpy(wi.astype(np.float32))
         self.wo = torch.from_numpy(wo.astype(np.float32))
         self.ref = torch.from_numpy(ref)
 
     def to(self, device: str) -> "TrainingPool":
         self.wi, self.wo, self.ref = self.wi.to(device), self.wo.to(device), self.ref.to(device)
-        self.brightness = self.brightness.to(device)
+        self.brightness, self.mean_f = self.brightness.to(device), self.mean_f.to(device)
         return self
 
 
@@ -198,6 +212,19 @@ def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps=
     else:
         d = torch.log(eps + c * f_ref) - torch.log(eps + c * f)
     return (d * d).sum(-1).mean(-1)
+
+
+def training_loss(ref: torch.Tensor, f_t: torch.Tensor, f_a: Optional[torch.Tensor], cos_i: torch.Tensor,
+                  eps, eps_analytic=None, loss_cos: bool = True) -> torch.Tensor:
+    """Per-material loss of one batch (M,): L(f_ref, f_t) + L(f_ref, f_a) (CONVENTIONS, paper
+    Sec. 3.3), the analytic term left out when ``f_a`` is None (the neural baseline).
+    ``eps_analytic`` (default ``eps``) is the analytic term's epsilon; ``loss_cos=False`` drops
+    the cos(theta_i) weight inside the logarithm (FitSettings.loss_cos)."""
+    weight = cos_i if loss_cos else torch.ones_like(cos_i)
+    loss = log_cos_loss(ref, f_t, weight, eps)
+    if f_a is not None:
+        loss = loss + log_cos_loss(ref, f_a, weight, eps if eps_analytic is None else eps_analytic)
+    return loss
 
 
 def _optimizer(module, settings: FitSettings, frozen: bool):
@@ -294,17 +321,17 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     has_analytic = settings.arch != "neural"
     # A black material (brightness 0) falls back to the smallest epsilon float32 keeps well above
     # the cos f values it is compared with (1e-6 of a typical 0.1-1 brightness).
-    eps = (settings.loss_eps * torch.clamp(pool.brightness, min=1e-6) if settings.loss_eps_relative
-           else settings.loss_eps)
+    scale = (torch.clamp(pool.brightness if settings.loss_cos else pool.mean_f, min=1e-6)
+             if settings.loss_eps_relative else 1.0)
+    eps = settings.loss_eps * scale
+    eps_analytic = (settings.loss_eps if settings.analytic_loss_eps is None else settings.analytic_loss_eps) * scale
     t0 = time.perf_counter()
     for step in range(start, settings.steps):
         idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
         wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
         f_t, f_a = module(wi, wo)
-        loss_per_material = log_cos_loss(ref, f_t, wi[:, 2], eps)
-        if has_analytic:
-            loss_per_material = loss_per_material + log_cos_loss(ref, f_a, wi[:, 2], eps)
-        loss = loss_per_material.sum()
+        loss = training_loss(ref, f_t, f_a if has_analytic else None, wi[:, 2], eps, eps_analytic,
+                             settings.loss_cos).sum()
         if not torch.isfinite(loss):
             raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
         opt.zero_grad(set_to_none=True)

@@ -55,6 +55,8 @@ def test_per_material_epsilon_makes_the_loss_brightness_invariant():
     for m, s in enumerate(src):
         want = (np.maximum(s.eval(wi, wo), 0) * wi[:, 2:3]).mean()
         assert abs(float(pool.brightness[m]) - want) < 1e-5 * want
+        want = np.maximum(s.eval(wi, wo), 0).mean()  # the loss_cos=False scale: mean f, no cosine
+        assert abs(float(pool.mean_f[m]) - want) < 1e-5 * want
 
 
 def test_relative_epsilon_trains():
@@ -62,6 +64,54 @@ def test_relative_epsilon_trains():
     assert model.training["loss_eps_relative"] is True
     for info in model.material_info:  # 200 steps already put the network well ahead of its analytic part
         assert info["metrics"]["smape"] < 0.9 * info["metrics"]["smape_analytic"]
+
+
+def test_analytic_term_epsilon_changes_only_the_analytic_term():
+    """FitSettings.analytic_loss_eps: spelling out the default is bit-identical; a much larger
+    epsilon makes the analytic term nearly linear and small beside the hybrid term, so it stops
+    steering f_a and the analytic part drifts to a worse fit on both metrics (docs/FITTING.md,
+    "The analytic term's epsilon")."""
+    src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
+    base = dict(steps=300, loss_eps=0.01)
+    default = fit(src, quick(**base), progress=False)
+    spelled = fit(src, quick(**base, analytic_loss_eps=0.01), progress=False)
+    for key, value in default.tensors.items():
+        assert np.array_equal(value, spelled.tensors[key]), key
+    loose = fit(src, quick(**base, analytic_loss_eps=10.0), progress=False)
+    assert loose.training["analytic_loss_eps"] == 10.0
+    tight, drift = default.material_info[0]["metrics"], loose.material_info[0]["metrics"]
+    assert drift["cmae_analytic"] > tight["cmae_analytic"]
+    assert drift["smape_analytic"] > tight["smape_analytic"]
+
+
+def test_loss_without_cos_weighs_grazing_pairs_like_the_others():
+    """With the paper's log(eps + cos f), a pair's gradient shrinks with cos(theta_i): at grazing
+    incidence cos f falls below eps and the loss stops looking. loss_cos=False weighs a relative
+    error the same at every angle."""
+    from hybridbrdf.fitting import training_loss
+
+    cos = torch.tensor([1.0, 0.02], dtype=torch.float64)
+    ref = torch.full((1, 2, 3), 0.5, dtype=torch.float64)
+    for loss_cos, lo, hi in ((True, 0.0, 0.1), (False, 0.999999, 1.000001)):
+        f_t = (ref * 1.2).requires_grad_(True)  # the same 20% error at both angles
+        training_loss(ref, f_t, None, cos, 0.05, loss_cos=loss_cos).sum().backward()
+        g = f_t.grad[0, :, 0].abs()
+        assert lo <= float(g[1] / g[0]) <= hi, loss_cos
+
+
+def test_loss_without_cos_fits_grazing_angles_better():
+    from hybridbrdf.metrics import smape_terms
+
+    src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
+    wi, wo = metric_directions(50_000, seed=7)
+    grazing = wi[:, 2] < np.cos(np.radians(80.0))
+    ref = src[0].eval(wi, wo)
+    errors = {}
+    for loss_cos in (True, False):
+        model = fit(src, quick(steps=400, loss_eps=0.1, loss_eps_relative=True, loss_cos=loss_cos), progress=False)
+        assert model.training["loss_cos"] is loss_cos
+        errors[loss_cos] = smape_terms(model.eval(wi, wo, "retro"), ref)[grazing].mean()
+    assert errors[False] < errors[True]
 
 
 @pytest.fixture(scope="module")
@@ -191,6 +241,8 @@ def test_bad_settings_and_inputs():
         fit(sources(), quick(steps=0), progress=False)
     with pytest.raises(ValueError, match="specular must be in"):
         fit(sources(), quick(specular=1.5), progress=False)
+    with pytest.raises(ValueError, match="analytic_loss_eps must be positive"):
+        fit(sources(), quick(analytic_loss_eps=0.0), progress=False)
     with pytest.raises(ValueError, match="share the material name"):
         fit([AnalyticTestSource("x", P_PLAIN), AnalyticTestSource("x", P_RETRO)], quick(), progress=False)
 
