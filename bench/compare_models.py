@@ -14,7 +14,8 @@ each table is also written to ``<out-dir>/compare_<mlp>.txt``. A CPU run on a
 full collection takes hours: run it as a background job.
 
     python bench/compare_models.py SOURCE... [--mlp 16x3,32x3] [--latent 4] [--steps 10000]
-        [--loss-eps 0.01] [--loss-eps-relative] [--loss-no-cos] [--analytic-loss-eps E] [--specular 0]
+        [--loss-eps 0.01] [--loss-eps-relative] [--loss-no-cos] [--analytic-loss-eps E] [--analytic-expectile 0.5]
+        [--specular 0]
         [--only hybrid|neural] [--threads 1] [--out-dir out/compare]
 """
 
@@ -43,7 +44,7 @@ def fitted_model(sources, args, arch: str, mlp: str, latent: int) -> hb.HybridMo
     settings = FitSettings(arch=arch, width=width, depth=depth, latent=latent, steps=args.steps,
                            eval_pairs=1000, loss_eps=args.loss_eps, loss_eps_relative=args.loss_eps_relative,
                            analytic_loss_eps=args.analytic_loss_eps, loss_cos=not args.loss_no_cos,
-                           specular=args.specular, seed=args.seed,
+                           analytic_expectile=args.analytic_expectile, specular=args.specular, seed=args.seed,
                            sources=list(args.sources))
     t0 = time.perf_counter()
     checkpoint = path + ".ckpt"  # an interrupted fit continues from its last checkpoint
@@ -70,6 +71,8 @@ def main() -> int:
                     help="fit log(eps + f) instead of log(eps + cos f) (FitSettings.loss_cos = False; both models)")
     ap.add_argument("--analytic-loss-eps", type=float, default=None,
                     help="epsilon of the hybrid's analytic loss term (FitSettings.analytic_loss_eps; default --loss-eps)")
+    ap.add_argument("--analytic-expectile", type=float, default=0.5,
+                    help="expectile of the hybrid's analytic loss term (FitSettings.analytic_expectile; default 0.5)")
     ap.add_argument("--specular", type=float, default=0.0,
                     help="fraction of specular training pairs for both models (FitSettings.specular; default 0)")
     ap.add_argument("--only", choices=("hybrid", "neural"),
@@ -97,7 +100,8 @@ def main() -> int:
                  f"{(' x mean f' if args.loss_no_cos else ' x mean cos f') + ' per material' if args.loss_eps_relative else ''}"
                  f"{f', analytic term eps {args.analytic_loss_eps}' if args.analytic_loss_eps else ''}"
                  f"{f', specular {args.specular}' if args.specular else ''}"
-                 f"{', loss without cos' if args.loss_no_cos else ''}, "
+                 f"{', loss without cos' if args.loss_no_cos else ''}"
+                 f"{f', analytic expectile {args.analytic_expectile}' if args.analytic_expectile != 0.5 else ''}, "
                  f"metrics on {args.pairs} pairs (seed 7)",
                  f"{'material':36s} {'SMAPE analytic':>14s} {'hybrid':>9s} {'neural':>9s} "
                  f"{'cMAE analytic':>13s} {'hybrid':>9s} {'neural':>9s}"]

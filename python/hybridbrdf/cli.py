@@ -3,7 +3,7 @@
     hbrdf fit SOURCE... --out MODEL [--arch hybrid|neural|additive|logmul|analytic-input]
               [--mlp 32x3] [--latent 4] [--activation hardgelu|relu] [--steps N] [--batch 1024]
               [--lr 5e-3] [--seed 0] [--pool N] [--eval-pairs N] [--loss-eps 1] [--loss-eps-relative]
-              [--loss-no-cos] [--analytic-loss-eps E]
+              [--loss-no-cos] [--analytic-loss-eps E] [--analytic-expectile 0.5]
               [--specular 0] [--specular-alpha 0.1] [--fc-init -4]
               [--device cpu|cuda]
               [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
@@ -43,7 +43,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=latent, activation=args.activation,
                            steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, pool=args.pool,
                            eval_pairs=args.eval_pairs, loss_eps=args.loss_eps, loss_eps_relative=args.loss_eps_relative,
-                           analytic_loss_eps=args.analytic_loss_eps, loss_cos=not args.loss_no_cos, fc_init=args.fc_init,
+                           analytic_loss_eps=args.analytic_loss_eps, loss_cos=not args.loss_no_cos,
+                           analytic_expectile=args.analytic_expectile, fc_init=args.fc_init,
                            specular=args.specular, specular_alpha=args.specular_alpha,
                            device=args.device or default_device(),
                            sources=list(args.sources), frozen_from=args.frozen)
@@ -172,6 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--analytic-loss-eps", type=float, default=None,
                      help="epsilon of the analytic term L(f_ref, f_a) of the loss (default: --loss-eps); a larger value "
                           "lets the analytic lobe carry the bright peaks, which the gate can dim (docs/FITTING.md)")
+    fit.add_argument("--analytic-expectile", type=float, default=0.5,
+                     help="expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data "
+                          "more, fitting an upper envelope the gate can dim (default: %(default)s, the paper's loss)")
     fit.add_argument("--specular", type=float, default=0.0,
                      help="fraction of the training pool drawn around the mirror direction instead of cosine-weighted; "
                           "weighs the specular peaks that dominate cMAE (default: %(default)s, the paper's sampling)")

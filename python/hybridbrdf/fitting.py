@@ -71,6 +71,12 @@ class FitSettings:
     #: log(eps + f): grazing pairs, whose cos f falls below eps, then keep their relative weight
     #: (docs/FITTING.md, "Grazing angles"); with ``loss_eps_relative`` eps then scales with mean f.
     loss_cos: bool = True
+    #: expectile tau of the analytic term (Newey & Powell 1987, asymmetric least squares): errors
+    #: where f_a falls *below* f_ref weigh 2 tau, errors above weigh 2 (1 - tau). 0.5 is the paper's
+    #: symmetric loss; tau > 0.5 fits f_a as an upper envelope of the data, which the gate
+    #: f_g in (0, 1) can dim where f_a overshoots, instead of a compromise whose peak the
+    #: correction exp(o) must build (docs/FITTING.md, "An upper envelope for the analytic part").
+    analytic_expectile: float = 0.5
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
     #: sampling. See docs/FITTING.md, "Specular pairs".
@@ -95,6 +101,8 @@ class FitSettings:
         if self.analytic_loss_eps is not None and not (self.analytic_loss_eps > 0
                                                        and math.isfinite(self.analytic_loss_eps)):
             raise ValueError(f"analytic_loss_eps must be positive, got {self.analytic_loss_eps}")
+        if not 0.5 <= self.analytic_expectile < 1.0:
+            raise ValueError(f"analytic_expectile must be in [0.5, 1), got {self.analytic_expectile}")
         if not 0.0 <= self.specular <= 1.0:
             raise ValueError(f"specular must be in [0, 1], got {self.specular}")
         if not (0.0 < self.specular_alpha <= 1.0):
@@ -199,10 +207,12 @@ def material_names(sources: Sequence[BRDFSource]) -> List[str]:
     return out
 
 
-def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps=1.0) -> torch.Tensor:
+def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps=1.0,
+                 expectile: float = 0.5) -> torch.Tensor:
     """Per-material L: mean over the batch of the squared RGB norm of
-    log(eps + cos f_ref) - log(eps + cos f). (M,). eps = 1 is the paper's loss; a tensor of
-    shape (M,) gives every material its own epsilon."""
+    d = log(eps + cos f_ref) - log(eps + cos f). (M,). eps = 1 is the paper's loss; a tensor of
+    shape (M,) gives every material its own epsilon. ``expectile`` tau != 0.5 weighs each squared
+    channel difference by 2 tau where f is below f_ref (d > 0) and 2 (1 - tau) where it is above."""
     c = cos_i[None, :, None]
     if isinstance(eps, torch.Tensor):
         e = eps[:, None, None]
@@ -211,19 +221,24 @@ def log_cos_loss(f_ref: torch.Tensor, f: torch.Tensor, cos_i: torch.Tensor, eps=
         d = torch.log1p(c * f_ref) - torch.log1p(c * f)
     else:
         d = torch.log(eps + c * f_ref) - torch.log(eps + c * f)
-    return (d * d).sum(-1).mean(-1)
+    if expectile == 0.5:
+        return (d * d).sum(-1).mean(-1)
+    w = torch.where(d > 0, d.new_tensor(2.0 * expectile), d.new_tensor(2.0 * (1.0 - expectile)))
+    return (w * d * d).sum(-1).mean(-1)
 
 
 def training_loss(ref: torch.Tensor, f_t: torch.Tensor, f_a: Optional[torch.Tensor], cos_i: torch.Tensor,
-                  eps, eps_analytic=None, loss_cos: bool = True) -> torch.Tensor:
+                  eps, eps_analytic=None, loss_cos: bool = True, analytic_expectile: float = 0.5) -> torch.Tensor:
     """Per-material loss of one batch (M,): L(f_ref, f_t) + L(f_ref, f_a) (CONVENTIONS, paper
     Sec. 3.3), the analytic term left out when ``f_a`` is None (the neural baseline).
     ``eps_analytic`` (default ``eps``) is the analytic term's epsilon; ``loss_cos=False`` drops
-    the cos(theta_i) weight inside the logarithm (FitSettings.loss_cos)."""
+    the cos(theta_i) weight inside the logarithm (FitSettings.loss_cos); ``analytic_expectile`` makes
+    the analytic term asymmetric (FitSettings.analytic_expectile)."""
     weight = cos_i if loss_cos else torch.ones_like(cos_i)
     loss = log_cos_loss(ref, f_t, weight, eps)
     if f_a is not None:
-        loss = loss + log_cos_loss(ref, f_a, weight, eps if eps_analytic is None else eps_analytic)
+        loss = loss + log_cos_loss(ref, f_a, weight, eps if eps_analytic is None else eps_analytic,
+                                   analytic_expectile)
     return loss
 
 
@@ -331,7 +346,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
         f_t, f_a = module(wi, wo)
         loss = training_loss(ref, f_t, f_a if has_analytic else None, wi[:, 2], eps, eps_analytic,
-                             settings.loss_cos).sum()
+                             settings.loss_cos, settings.analytic_expectile).sum()
         if not torch.isfinite(loss):
             raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
         opt.zero_grad(set_to_none=True)

@@ -35,6 +35,37 @@ def test_log_cos_loss_matches_its_definition():
     assert np.allclose(got, want, rtol=1e-12)
 
 
+def test_expectile_loss_matches_its_definition():
+    rng = np.random.default_rng(4)
+    ref, f = rng.random((2, 7, 3)), rng.random((2, 7, 3))
+    cos = rng.random(7)
+    d = np.log(0.05 + cos[None, :, None] * ref) - np.log(0.05 + cos[None, :, None] * f)
+    for tau in (0.5, 0.8):
+        w = np.where(d > 0, 2 * tau, 2 * (1 - tau))  # f below f_ref weighs 2 tau
+        want = (w * d * d).sum(-1).mean(-1)
+        got = log_cos_loss(torch.tensor(ref), torch.tensor(f), torch.tensor(cos), 0.05, expectile=tau).numpy()
+        assert np.allclose(got, want, rtol=1e-12), tau
+
+
+def test_analytic_expectile_fits_an_upper_envelope():
+    """tau > 0.5 lifts f_a above the data (mean log ratio and share of values above both grow with
+    tau), which the gate can dim: the hybrid stays close to the symmetric fit."""
+    src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
+    wi, wo = metric_directions(50_000, seed=7)
+    ref, cos = src[0].eval(wi, wo), wi[:, 2:3]
+    lift, above, hybrid = [], [], []
+    for tau in (0.5, 0.75, 0.9):
+        model = fit(src, quick(steps=400, loss_eps=0.05, analytic_expectile=tau), progress=False)
+        assert model.training["analytic_expectile"] == tau
+        f_a = model.eval_analytic(wi, wo, "retro")
+        lift.append(np.mean(np.log((0.05 + cos * f_a) / (0.05 + cos * ref))))
+        above.append((f_a >= ref).mean())
+        hybrid.append(model.material_info[0]["metrics"]["smape"])
+    assert lift[0] < lift[1] < lift[2] and lift[2] - lift[0] > 0.15
+    assert above[0] < above[1] < above[2]
+    assert hybrid[2] < 1.25 * hybrid[0]
+
+
 def test_per_material_epsilon_makes_the_loss_brightness_invariant():
     from hybridbrdf.fitting import TrainingPool
 
@@ -241,6 +272,8 @@ def test_bad_settings_and_inputs():
         fit(sources(), quick(steps=0), progress=False)
     with pytest.raises(ValueError, match="specular must be in"):
         fit(sources(), quick(specular=1.5), progress=False)
+    with pytest.raises(ValueError, match="analytic_expectile must be in"):
+        fit(sources(), quick(analytic_expectile=0.3), progress=False)
     with pytest.raises(ValueError, match="analytic_loss_eps must be positive"):
         fit(sources(), quick(analytic_loss_eps=0.0), progress=False)
     with pytest.raises(ValueError, match="share the material name"):
