@@ -171,8 +171,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="fit log(eps + f) instead of the paper's log(eps + cos f), so grazing angles keep their "
                           "relative weight (docs/FITTING.md, \"Grazing angles\")")
     fit.add_argument("--analytic-loss-eps", type=float, default=None,
-                     help="epsilon of the analytic term L(f_ref, f_a) of the loss (default: --loss-eps); a larger value "
-                          "lets the analytic lobe carry the bright peaks, which the gate can dim (docs/FITTING.md)")
+                     help="epsilon of the analytic term L(f_ref, f_a) of the loss (default: --loss-eps); an ablation "
+                          "knob: a larger value lets f_a drift and costs the hybrid too (docs/FITTING.md)")
     fit.add_argument("--analytic-expectile", type=float, default=0.5,
                      help="expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data "
                           "more, fitting an upper envelope the gate can dim (default: %(default)s, the paper's loss)")

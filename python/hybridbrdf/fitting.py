@@ -62,10 +62,10 @@ class FitSettings:
     #: (eps_m = loss_eps * mean cos f_ref), which makes the loss invariant to a material's brightness.
     #: See docs/FITTING.md, "Dark materials".
     loss_eps_relative: bool = False
-    #: epsilon of the analytic term L(f_ref, f_a) of the loss; None uses ``loss_eps``. A larger value
-    #: fits the analytic part in absolute terms, so its lobe carries the bright peaks that the gate
-    #: f_g in (0, 1) can dim but the correction exp(o) can hardly build (docs/FITTING.md, "The
-    #: analytic term's epsilon"). Scaled per material like ``loss_eps`` when ``loss_eps_relative``.
+    #: epsilon of the analytic term L(f_ref, f_a) of the loss; None uses ``loss_eps``. Scaled per
+    #: material like ``loss_eps`` when ``loss_eps_relative``. An ablation knob: a larger value makes
+    #: the analytic term nearly linear and small beside the hybrid term, f_a then drifts and the
+    #: hybrid loses too (measured in docs/FITTING.md, "The analytic term's epsilon").
     analytic_loss_eps: Optional[float] = None
     #: weigh f by cos(theta_i) inside the loss, log(eps + cos f), as the paper does. False fits
     #: log(eps + f): grazing pairs, whose cos f falls below eps, then keep their relative weight
