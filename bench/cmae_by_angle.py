@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import format_tag
+from hybridbrdf.fitting import source_material
 from hybridbrdf.metrics import metric_directions, smape_terms
 
 
@@ -52,7 +52,7 @@ def main() -> int:
     print(f"{'(fraction of pairs)':28s} {'':9s} {'':8s} " + " ".join(f"{m.mean():8.1%}" for m in in_bin))
     for spec in hb.expand_sources(args.sources):
         src = hb.open_source(spec)
-        name = next((c for c in (src.name, f"{src.name}.{format_tag(src)}") if c in model.materials), None)
+        name = source_material(model, src)
         if name is None:
             print(f"{src.name}: not in the model, skipped", file=sys.stderr)
             continue

@@ -19,7 +19,7 @@ import tempfile
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import format_tag
+from hybridbrdf.fitting import source_material
 from hybridbrdf.metrics import cmae, metric_directions, smape
 
 
@@ -44,7 +44,7 @@ def main() -> int:
         d_smape, d_cmae = [], []
         for spec in hb.expand_sources(args.sources):
             src = hb.open_source(spec)
-            name = next((n for n in (src.name, f"{src.name}.{format_tag(src)}") if n in model.materials), None)
+            name = source_material(model, src)
             if name is None:
                 continue
             ref = src.eval(wi, wo)

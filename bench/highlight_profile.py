@@ -21,7 +21,7 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import format_tag
+from hybridbrdf.fitting import source_material
 
 
 def main() -> int:
@@ -34,10 +34,9 @@ def main() -> int:
     args = ap.parse_args()
     model = hb.load_model(args.model)
     src = hb.open_source(args.source)
-    candidates = [f"{src.name}.{format_tag(src)}", src.name]
-    name = next((c for c in candidates if c in model.materials), None)
+    name = source_material(model, src)
     if name is None:
-        print(f"error: {args.source}: none of {candidates} is a material of {args.model}", file=sys.stderr)
+        print(f"error: {args.source}: {src.name} is not a material of {args.model}", file=sys.stderr)
         return 2
     t_o = np.radians(args.theta_o)
     wo = np.array([[np.sin(t_o), 0.0, np.cos(t_o)]])

@@ -25,7 +25,7 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import format_tag
+from hybridbrdf.fitting import format_tag, source_material
 from hybridbrdf.render import render
 
 
@@ -45,10 +45,10 @@ def srgb(x):
 
 
 def model_name(model, src):
-    for cand in (f"{src.name}.{format_tag(src)}", src.name):
-        if cand in model.materials:
-            return cand
-    raise KeyError(f"{src.name} is not in {model.path}")
+    name = source_material(model, src)
+    if name is None:
+        raise KeyError(f"{src.name} is not in {model.path}")
+    return name
 
 
 def main() -> int:

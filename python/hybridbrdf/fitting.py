@@ -381,6 +381,12 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     return model
 
 
+def source_material(model, src: BRDFSource) -> Optional[str]:
+    """The model material a source was fitted as: ``<name>`` or, where a collection held the same
+    name in two formats, ``<name>.<format>`` (see material_names); None if the model lacks both."""
+    return next((c for c in (src.name, f"{src.name}.{format_tag(src)}") if c in model.materials), None)
+
+
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
              seed: int = 7, names: Optional[Sequence[str]] = None, extended: bool = False) -> List[Dict[str, object]]:
     """Per-material metrics of CONVENTIONS on ``n_pairs`` seeded cosine-weighted pairs:
@@ -397,11 +403,9 @@ def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1
         if names is not None:
             name = names[i]
         else:
-            candidates = [src.name, f"{src.name}.{format_tag(src)}"]
-            found = [c for c in candidates if c in model.materials]
-            if not found:
+            name = source_material(model, src)
+            if name is None:
                 raise KeyError(f"material {src.name!r} is not in the model (it has {', '.join(model.materials)})")
-            name = found[0]
         ref = src.eval(wi, wo)
         f, fa = model._eval(wi, wo, name, torch.float32)
         row: Dict[str, object] = {"material": name, "origin": src.origin,
