@@ -5,9 +5,12 @@ Fits M materials (analytic sources with random parameters: the reference values
 do not change the cost of a step) for a fixed number of steps at each MLP size
 and prints pairs x materials / s measured over the optimisation loop only (the
 pool evaluation and the final metrics are excluded). Uses all cores torch is
-given (``--threads``, default: all).
+given (``--threads``, default: all). With ``--compile`` each size is also fitted
+with compiled steps (``fit(..., compile_step=True)``, ``hbrdf fit --compile``) in
+the same run, and the speed-up and the one-time compilation are printed.
 
     python bench/bench_training.py [--materials 50] [--steps 200] [--batch 1024] [--sizes 16x3,32x3,64x3]
+                                   [--archs hybrid,neural] [--threads N] [--compile]
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ def main() -> int:
     ap.add_argument("--sizes", default="16x3,32x3,64x3")
     ap.add_argument("--archs", default="hybrid,neural")
     ap.add_argument("--threads", type=int, default=os.cpu_count())
+    ap.add_argument("--compile", action="store_true", help="also time compiled steps (torch.compile) at each size")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     rng = np.random.default_rng(0)
@@ -47,17 +51,25 @@ def main() -> int:
                for i in range(args.materials)]
     print(f"machine: {cpu_name()}, {args.threads} torch threads, torch {torch.__version__}; "
           f"{args.materials} materials, batch {args.batch}, {args.steps} steps per size")
-    print(f"{'arch':8s} {'MLP':6s} {'latent':>6s} {'ms/step':>8s} {'pairs x materials / s':>22s}")
+    header = f"{'arch':8s} {'MLP':6s} {'latent':>6s} {'ms/step':>8s} {'pairs x materials / s':>22s}"
+    if args.compile:
+        header += f" {'compiled ms/step':>16s} {'pairs x materials / s':>22s} {'speed-up':>8s} {'compile s':>9s}"
+    print(header)
     for arch in args.archs.split(","):
         for size in args.sizes.split(","):
             width, depth = parse_mlp(size)
             latent = 12 if arch == "neural" else 4
             s = FitSettings(arch=arch, width=width, depth=depth, latent=latent, steps=args.steps, batch=args.batch,
                             pool=1 << 14, eval_pairs=1000)
-            model = fit(sources, s, progress=False)
-            secs = model.training["train_seconds"]
-            rate = model.training["pairs_x_materials_per_second"]
-            print(f"{arch:8s} {size:6s} {latent:6d} {1000 * secs / args.steps:8.1f} {rate:22,.0f}")
+            rate = fit(sources, s, progress=False).training["pairs_x_materials_per_second"]
+            ms = 1000 * args.batch * args.materials / rate
+            line = f"{arch:8s} {size:6s} {latent:6d} {ms:8.1f} {rate:22,.0f}"
+            if args.compile:
+                t = fit(sources, s, progress=False, compile_step=True).training
+                c_rate = t["pairs_x_materials_per_second"]  # over the steps after the compiling one
+                c_ms = 1000 * args.batch * args.materials / c_rate
+                line += f" {c_ms:16.1f} {c_rate:22,.0f} {c_rate / rate:7.2f}x {t['compile_seconds']:9.0f}"
+            print(line, flush=True)
     return 0
 
 

@@ -96,6 +96,8 @@ class FitSettings:
             raise ValueError(f"latent must be >= 0, got {self.latent}")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise ValueError(f"lr must be positive, got {self.lr}")
+        if not (self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
+            raise ValueError(f"weight_decay must be >= 0, got {self.weight_decay}")
         if not (self.loss_eps > 0 and math.isfinite(self.loss_eps)):
             raise ValueError(f"loss_eps must be positive, got {self.loss_eps}")
         if self.analytic_loss_eps is not None and not (self.analytic_loss_eps > 0
@@ -269,7 +271,7 @@ def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSett
 def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel] = None,
         checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
         progress: bool = True, log: Callable[[str], None] = print,
-        stop_after: Optional[int] = None) -> Optional[HybridModel]:
+        stop_after: Optional[int] = None, compile_step: bool = False) -> Optional[HybridModel]:
     """Fit ``sources`` jointly; returns the fitted :class:`HybridModel` (with per-material metrics).
 
     ``checkpoint``: file written every ``checkpoint_every`` steps (atomically);
@@ -277,6 +279,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     uninterrupted run exactly (same batches, optimiser state and RNG).
     ``stop_after``: write the checkpoint after that many steps and return None
     (splits a long fit into bounded jobs; requires ``checkpoint``).
+    ``compile_step``: run the model and the loss of each step through ``torch.compile``
+    (TorchInductor fuses the element-wise GGX, gate and loss arithmetic of the forward
+    and backward passes; docs/FITTING.md, "Training speed"). The first step then takes
+    the compilation time (recorded as ``compile_seconds``); the result differs from an
+    eager fit only by float rounding, and a checkpoint resumes either way.
     """
     if stop_after is not None and not checkpoint:
         raise ValueError("stop_after needs a checkpoint file to stop into")
@@ -340,13 +347,21 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
              if settings.loss_eps_relative else 1.0)
     eps = settings.loss_eps * scale
     eps_analytic = (settings.loss_eps if settings.analytic_loss_eps is None else settings.analytic_loss_eps) * scale
+
+    def batch_loss(wi: torch.Tensor, wo: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
+        f_t, f_a = module(wi, wo)
+        return training_loss(ref, f_t, f_a if has_analytic else None, wi[:, 2], eps, eps_analytic,
+                             settings.loss_cos, settings.analytic_expectile).sum()
+
+    if compile_step:
+        # Every batch has the same shapes, so one static graph serves the whole fit.
+        batch_loss = torch.compile(batch_loss, dynamic=False)
+    compile_seconds = None
     t0 = time.perf_counter()
     for step in range(start, settings.steps):
         idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
         wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
-        f_t, f_a = module(wi, wo)
-        loss = training_loss(ref, f_t, f_a if has_analytic else None, wi[:, 2], eps, eps_analytic,
-                             settings.loss_cos, settings.analytic_expectile).sum()
+        loss = batch_loss(wi, wo, ref)
         if not torch.isfinite(loss):
             raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
         opt.zero_grad(set_to_none=True)
@@ -354,6 +369,9 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         torch.nn.utils.clip_grad_norm_([p for p in module.parameters() if p.requires_grad], settings.clip)
         opt.step()
         sched.step()
+        if compile_step and compile_seconds is None:
+            # The first compiled step builds the graphs; the throughput counts the steps after it.
+            compile_seconds = time.perf_counter() - t0
         if bar is not None:
             bar.update(1)
             if step % 20 == 0:
@@ -372,8 +390,12 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
 
     training = dataclasses.asdict(settings)
     training["train_seconds"] = round(elapsed, 3)
+    timed_steps, timed_seconds = settings.steps - start, elapsed
+    if compile_seconds is not None:
+        training["compile_seconds"] = round(compile_seconds, 3)
+        timed_steps, timed_seconds = timed_steps - 1, elapsed - compile_seconds
     training["pairs_x_materials_per_second"] = (
-        round((settings.steps - start) * settings.batch * len(sources) / elapsed) if elapsed > 0 else None)
+        round(timed_steps * settings.batch * len(sources) / timed_seconds) if timed_seconds > 0 else None)
     model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
     metrics = evaluate(model, sources, n_pairs=settings.eval_pairs, names=names)
     for info, row in zip(model.material_info, metrics):

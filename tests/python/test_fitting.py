@@ -210,6 +210,20 @@ def test_resume_reproduces_an_uninterrupted_run(tmp_path):
         assert np.array_equal(full.tensors[k], resumed.tensors[k]), k
 
 
+def test_compiled_steps_fit_the_same_model_as_eager_ones():
+    # torch.compile fuses the step's arithmetic; only float rounding may differ. The loss
+    # options go through the compiled graph too (a per-material epsilon, the expectile term).
+    s = dict(steps=60, pool=1 << 12, loss_eps=0.05, loss_eps_relative=True, analytic_expectile=0.8)
+    eager = fit(sources(), quick(**s), progress=False)
+    compiled = fit(sources(), quick(**s), progress=False, compile_step=True)
+    assert compiled.training["compile_seconds"] > 0 and "compile_seconds" not in eager.training
+    untrained = fit(sources(), quick(**{**s, "steps": 1}), progress=False)
+    for k in eager.tensors:
+        moved = np.abs(eager.tensors[k] - untrained.tensors[k]).max()
+        drift = np.abs(eager.tensors[k] - compiled.tensors[k]).max()
+        assert drift <= 1e-3 * max(moved, 1.0), (k, drift, moved)
+
+
 def test_resume_refuses_a_checkpoint_from_other_settings(tmp_path):
     ck = str(tmp_path / "ck.pt")
     fit(sources(), quick(steps=60, pool=1 << 12), checkpoint=ck, progress=False, stop_after=30)
@@ -276,6 +290,8 @@ def test_bad_settings_and_inputs():
         fit(sources(), quick(analytic_expectile=0.3), progress=False)
     with pytest.raises(ValueError, match="analytic_loss_eps must be positive"):
         fit(sources(), quick(analytic_loss_eps=0.0), progress=False)
+    with pytest.raises(ValueError, match="weight_decay must be >= 0"):
+        fit(sources(), quick(weight_decay=-0.1), progress=False)
     with pytest.raises(ValueError, match="share the material name"):
         fit([AnalyticTestSource("x", P_PLAIN), AnalyticTestSource("x", P_RETRO)], quick(), progress=False)
 
