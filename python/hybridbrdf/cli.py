@@ -189,8 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="initial pre-exp bias of the hybrid correction f_c = exp(o) (default: %(default)s)")
     fit.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")
     fit.add_argument("--compile", action="store_true",
-                     help="compile each training step with torch.compile: about 1.5x the steps per second on a CPU "
-                          "after a one-time compilation of a minute or two (needs a C++ compiler; docs/FITTING.md)")
+                     help="compile each training step with torch.compile: 1.1-1.6x the steps per second on a CPU "
+                          "(most at 32x2/32x3) after a one-time compilation of a minute or two (needs a C++ compiler; "
+                          "docs/FITTING.md)")
     fit.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
     fit.add_argument("--checkpoint-every", type=_positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
     fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
