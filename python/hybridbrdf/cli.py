@@ -91,7 +91,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
     t = model.training
     if t:
-        keys = ("steps", "batch", "lr", "seed", "pool", "device", "train_seconds", "frozen_from")
+        keys = ("steps", "batch", "lr", "seed", "pool", "device", "train_seconds", "compile_seconds", "frozen_from")
         print("training: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None))
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
