@@ -9,7 +9,11 @@
    (which saw all 62 RGL materials while training its network).
 
     python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01] [--specular 0.1]
-        [--with-reconstructions]
+        [--analytic-expectile 0.9] [--sparse-init nearest|neutral] [--with-reconstructions] [--compile]
+        [--checkpoint PATH] [--base-model MODEL]
+
+--base-model skips step 1 and freezes an existing network (its own training settings then
+apply to step 2's loss only through the flags given here).
 """
 
 from __future__ import annotations
@@ -36,6 +40,13 @@ def main() -> int:
     ap.add_argument("--loss-eps", type=float, default=0.01)
     ap.add_argument("--specular", type=float, default=0.0,
                     help="fraction of specular training pairs (FitSettings.specular), both fits")
+    ap.add_argument("--analytic-expectile", type=float, default=0.5,
+                    help="expectile tau of the analytic loss term (FitSettings.analytic_expectile), both fits")
+    ap.add_argument("--sparse-init", default="nearest", choices=("nearest", "neutral"),
+                    help="where the sparse fit starts each file's (p, z) (FitSettings.sparse_init)")
+    ap.add_argument("--compile", action="store_true", help="torch.compile the training steps of both fits")
+    ap.add_argument("--checkpoint", help="checkpoint file of the network fit (resumed if it exists)")
+    ap.add_argument("--base-model", help="freeze this network instead of fitting one (skips step 1)")
     ap.add_argument("--with-reconstructions", action="store_true",
                     help="train the network on all 49 NBRDF-RGL networks, including the reconstructions of the "
                          "five files (the raw measurements are still added only by sparse fitting)")
@@ -50,19 +61,27 @@ def main() -> int:
     base = [hb.open_source(p) for p in base_specs]
     raw = [hb.open_source(os.path.join(args.shared, "rgl", f"{n}.bsdf")) for n in PAPER]
     os.makedirs(args.out_dir, exist_ok=True)
-    common = dict(width=width, depth=depth, latent=4, loss_eps=args.loss_eps, specular=args.specular, eval_pairs=10_000)
-    net = fit(base, FitSettings(steps=args.steps, sources=base_specs, **common), progress=False)
-    net_path = os.path.join(args.out_dir, f"base{len(base)}_{args.mlp}.safetensors")
-    net.save(net_path)
-    print(f"network: {len(base)} NBRDF-RGL materials (held out: {', '.join(sorted(held_out)) or 'none'}), {args.mlp}, "
-          f"{args.steps} steps, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
+    common = dict(width=width, depth=depth, latent=4, loss_eps=args.loss_eps, specular=args.specular,
+                  analytic_expectile=args.analytic_expectile, eval_pairs=10_000)
+    if args.base_model:
+        net_path = args.base_model
+        print(f"network: {net_path} (given)", flush=True)
+    else:
+        net = fit(base, FitSettings(steps=args.steps, sources=base_specs, **common), progress=False,
+                  checkpoint=args.checkpoint, resume=args.checkpoint is not None, compile_step=args.compile)
+        net_path = os.path.join(args.out_dir, f"base{len(base)}_{args.mlp}.safetensors")
+        net.save(net_path)
+        print(f"network: {len(base)} NBRDF-RGL materials (held out: {', '.join(sorted(held_out)) or 'none'}), "
+              f"{args.mlp}, {args.steps} steps, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
     frozen = hb.load_model(net_path)
     sparse = fit(raw, FitSettings(steps=args.sparse_steps, sources=[s.path for s in raw], frozen_from=net_path,
-                                  **common), frozen=frozen, progress=False)
-    sparse_path = os.path.join(args.out_dir, f"sparse_rgl5_{args.mlp}.safetensors")
+                                  sparse_init=args.sparse_init, **common), frozen=frozen, progress=False,
+                 compile_step=args.compile)
+    sparse_path = os.path.join(args.out_dir, f"sparse_rgl5_{args.mlp}_{args.sparse_init}.safetensors")
     sparse.save(sparse_path)
     rows = evaluate(sparse, raw, n_pairs=args.pairs)
-    print(f"sparse fit of the 5 raw RGL files on the frozen network: {args.sparse_steps} steps -> {sparse_path}")
+    print(f"sparse fit of the 5 raw RGL files on the frozen network: {args.sparse_steps} steps, "
+          f"start {args.sparse_init} -> {sparse_path}")
     print(f"metrics on {args.pairs} pairs, seed 7, negatives clamped; paper = authors' released model")
     print(f"{'material':24s} {'SMAPE':>8s} {'paper':>7s} {'cMAE':>9s} {'paper':>8s} {'SMAPE(a)':>9s} {'cMAE(a)':>9s}  verdict")
     wins = 0

@@ -6,7 +6,7 @@
               [--loss-eps 1] [--loss-eps-relative] [--loss-no-cos] [--analytic-loss-eps E] [--analytic-expectile 0.5]
               [--specular 0] [--specular-alpha 0.1] [--fc-init -4]
               [--device cpu|cuda] [--compile]
-              [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL] [--quiet]
+              [--checkpoint PATH [--checkpoint-every N] [--resume]] [--frozen MODEL [--sparse-init nearest|neutral]] [--quiet]
     hbrdf eval MODEL SOURCE... [--pairs N] [--all-metrics]
     hbrdf info MODEL
     hbrdf demo [--out PATH] [--samples N]
@@ -48,7 +48,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
                            analytic_expectile=args.analytic_expectile, fc_init=args.fc_init,
                            specular=args.specular, specular_alpha=args.specular_alpha,
                            device=args.device or default_device(),
-                           sources=list(args.sources), frozen_from=args.frozen)
+                           sparse_init=args.sparse_init, sources=list(args.sources), frozen_from=args.frozen)
     settings.check()
     frozen = load_model(args.frozen) if args.frozen else None
     sources = _open_all(args.sources)
@@ -196,6 +196,9 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--checkpoint-every", type=_positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
     fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
     fit.add_argument("--frozen", metavar="MODEL", help="sparse fitting: keep MODEL's network, fit only (p, z) of the sources")
+    fit.add_argument("--sparse-init", choices=("nearest", "neutral"), default="nearest",
+                     help="with --frozen: start each source's (p, z) from MODEL's best-fitting material (nearest) or "
+                          "from the neutral grey rough lobe with z ~ 0 (neutral) (default: %(default)s)")
     fit.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     fit.set_defaults(func=_cmd_fit)
 

@@ -14,7 +14,8 @@ rate 5e-3 with cosine decay to 0 over the run, gradient-norm clipping at 0.01.
 The neural baseline has no analytic term in its loss.
 
 Sparse fitting (paper Sec. 4.2): ``frozen=<HybridModel>`` keeps that model's
-network and fits only (p, z) of the given materials.
+network and fits only (p, z) of the given materials, each started from the frozen
+model's best-fitting material (FitSettings.sparse_init).
 """
 
 from __future__ import annotations
@@ -36,6 +37,10 @@ from hybridbrdf.model_file import HybridModel
 from hybridbrdf.models import build_model
 from hybridbrdf.sources.base import BRDFSource
 from hybridbrdf.util import atomic_write_bytes
+
+
+#: Starting points of sparse fitting (FitSettings.sparse_init).
+SPARSE_INITS = ("nearest", "neutral")
 
 
 @dataclass
@@ -84,6 +89,11 @@ class FitSettings:
     specular_alpha: float = 0.1
     #: initial pre-exp bias of the hybrid correction f_c (f_c starts at exp(fc_init)).
     fc_init: float = -4.0
+    #: where sparse fitting (``frozen=``) starts each new material's (p, z): "nearest" copies the
+    #: frozen model's material whose (p, z) has the lowest training loss on the new material's
+    #: pool; "neutral" starts from the joint fit's grey rough dielectric with z ~ 0. See
+    #: docs/FITTING.md, "Sparse fitting".
+    sparse_init: str = "nearest"
     device: str = "cpu"
     sources: List[str] = field(default_factory=list)
     frozen_from: Optional[str] = None
@@ -109,6 +119,8 @@ class FitSettings:
             raise ValueError(f"specular must be in [0, 1], got {self.specular}")
         if not (0.0 < self.specular_alpha <= 1.0):
             raise ValueError(f"specular_alpha must be in (0, 1], got {self.specular_alpha}")
+        if self.sparse_init not in SPARSE_INITS:
+            raise ValueError(f"sparse_init must be one of {', '.join(SPARSE_INITS)}, got {self.sparse_init!r}")
 
 
 def default_device() -> str:
@@ -260,6 +272,48 @@ def _optimizer(module, settings: FitSettings, frozen: bool):
     return opt, sched
 
 
+def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, eps_analytic,
+                       settings: FitSettings, n_pairs: int = 8192, chunk: int = 64) -> List[int]:
+    """Sparse fitting's starting point (FitSettings.sparse_init = "nearest"): give every new
+    material the (p, z) of the frozen model's material with the lowest training loss on the
+    new material's pool values, and return those materials' indices.
+
+    Only (p, z) move in a sparse fit, and the loss over them is far from convex: a glossy
+    measurement started from the neutral grey rough lobe must first narrow alpha by orders of
+    magnitude while z wanders through codes the network never saw. A collection that holds a
+    similar material already knows a (p, z) the network decodes well. Scoring all of them
+    costs one forward pass per candidate on ``n_pairs`` pool pairs (spread over the cosine and
+    specular parts of the pool), far less than a training step over the whole run."""
+    step = max(1, pool.wi.shape[0] // n_pairs)
+    idx = torch.arange(0, pool.wi.shape[0], step, device=pool.wi.device)[:n_pairs]
+    wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
+    dev = pool.wi.device
+    cand = {k[len("materials."):]: torch.from_numpy(v).to(dev) for k, v in frozen.tensors.items()
+            if k.startswith("materials.")}
+    n_new, n_cand = ref.shape[0], cand["z"].shape[0]
+    per_material = isinstance(eps, torch.Tensor)
+    losses = torch.empty(n_new, n_cand, device=dev)
+    with torch.no_grad():
+        for lo in range(0, n_cand, chunk):
+            c = {k: v[lo:lo + chunk] for k, v in cand.items()}
+            if "kd" in c:
+                f_t, f_a = module.evaluate(wi, wo, c["kd"], c["eta"], c["alpha"], c["z"])
+            else:
+                f_t, f_a = module.evaluate(wi, wo, c["z"])
+            k = f_t.shape[0]
+            for m in range(n_new):  # the new material's epsilon for every candidate
+                e = eps[m].expand(k) if per_material else eps
+                e_a = eps_analytic[m].expand(k) if isinstance(eps_analytic, torch.Tensor) else eps_analytic
+                losses[m, lo:lo + chunk] = training_loss(
+                    ref[m].expand_as(f_t), f_t, f_a, wi[:, 2], e, e_a, settings.loss_cos, settings.analytic_expectile)
+        best = [int(k) for k in losses.argmin(dim=1)]
+        for m, k in enumerate(best):
+            if "kd" in cand:
+                module.set_analytic(m, cand["kd"][k], cand["eta"][k], cand["alpha"][k])
+            module.z[m] = cand["z"][k]
+    return best
+
+
 def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSettings, names: List[str]) -> None:
     buf = io.BytesIO()
     torch.save({"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
@@ -347,6 +401,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
              if settings.loss_eps_relative else 1.0)
     eps = settings.loss_eps * scale
     eps_analytic = (settings.loss_eps if settings.analytic_loss_eps is None else settings.analytic_loss_eps) * scale
+
+    if frozen is not None and start == 0 and settings.sparse_init == "nearest":
+        chosen = start_from_nearest(module, frozen, pool, eps, eps_analytic, settings)
+        log("sparse fit starts from " + ", ".join(f"{n} <- {frozen.materials[k]}" for n, k in zip(names, chosen)))
 
     def batch_loss(wi: torch.Tensor, wo: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
         f_t, f_a = module(wi, wo)

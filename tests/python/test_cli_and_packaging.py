@@ -74,6 +74,15 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
     r = run_cli("info", str(out))
     assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
+    for init in ("nearest", "neutral"):  # sparse fitting: the network stays, the start is recorded
+        sparse = tmp_path / f"sparse_{init}.safetensors"
+        r = run_cli("fit", "--frozen", str(out), "synthetic:gold", "--steps", "20", "--pool", "4096",
+                    "--eval-pairs", "5000", "--sparse-init", init, "--out", str(sparse), "--quiet")
+        assert r.returncode == 0, r.stderr
+        added = hb.load_model(sparse)
+        assert added.training["sparse_init"] == init and added.training["frozen_from"] == str(out)
+        assert all(np.array_equal(v, added.tensors[k]) for k, v in model.tensors.items()
+                   if not k.startswith("materials."))
 
 
 def test_cli_errors_are_one_line(tmp_path):

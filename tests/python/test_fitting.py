@@ -199,6 +199,29 @@ def test_sparse_fitting_keeps_the_network_bit_exact(fitted, tmp_path):
     assert met["cmae"] < met["cmae_analytic"] * 1.05  # the frozen prior does not hurt
 
 
+def test_sparse_fitting_starts_from_the_best_fitting_frozen_material(fitted, tmp_path):
+    """sparse_init="nearest": a new measurement of a material the frozen collection holds picks
+    that material out of the collection and starts from its (p, z), so that one step already
+    scores what the joint fit reached; the neutral start after one step is far off."""
+    base = tmp_path / "base.safetensors"
+    fitted.save(base)
+    frozen = hb.load_model(base)
+    for twin_of, params, retro in (("retro", P_RETRO, 0.6), ("plain", P_PLAIN, 0.0)):
+        twin = [AnalyticTestSource(f"{twin_of}_again", params, retro=retro)]
+        said = []
+        near = fit(twin, quick(steps=1), frozen=frozen, progress=False, log=said.append)
+        assert said == [f"sparse fit starts from {twin_of}_again <- {twin_of}"]
+        for key in ("kd", "eta", "alpha", "z"):  # one Adam step of lr 5e-3 moves a raw parameter by ~5e-3
+            assert np.allclose(near.tensors[f"materials.{key}"][0], frozen.tensors[f"materials.{key}"][
+                frozen.index(twin_of)], rtol=0.02, atol=0.02), key
+        joint = fitted.material_info[fitted.index(twin_of)]["metrics"]
+        got = near.material_info[0]["metrics"]
+        assert got["smape"] < 1.1 * joint["smape"] + 0.005, (got, joint)
+        neutral = fit(twin, quick(steps=1, sparse_init="neutral"), frozen=frozen, progress=False, log=said.append)
+        assert len(said) == 1  # the neutral start chooses nothing
+        assert neutral.material_info[0]["metrics"]["smape"] > 2 * got["smape"]
+
+
 def test_resume_reproduces_an_uninterrupted_run(tmp_path):
     s = quick(steps=120, pool=1 << 12)
     full = fit(sources(), quick(steps=120, pool=1 << 12), progress=False)
