@@ -45,7 +45,8 @@ def main() -> int:
     rows = evaluate(model, sources, n_pairs=args.pairs)
     t = model.training
     print(f"model {args.model}: {model.kind} {model.arch['width']}x{model.arch['depth']}, latent {model.arch['latent']}, "
-          f"{len(model.materials)} materials, {t.get('steps')} steps, loss eps {t.get('loss_eps', 1.0)}")
+          f"{len(model.materials)} materials, {t.get('steps')} steps, loss eps {t.get('loss_eps', 1.0)}"
+          + (f"; (p, z) sparse-fitted on the frozen network of {t['frozen_from']}" if t.get("frozen_from") else ""))
     print(f"reference: raw RGL .bsdf files; metrics on {args.pairs} pairs, seed 7, negatives clamped to 0")
     print(f"{'material':24s} {'SMAPE ours':>10s} {'paper':>7s} {'cMAE ours':>10s} {'paper':>8s}   "
           f"{'SMAPE ours(a)':>13s} {'paper(a)':>8s} {'cMAE ours(a)':>12s} {'paper(a)':>8s}  verdict")

@@ -10,7 +10,7 @@
 
     python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01] [--specular 0.1]
         [--analytic-expectile 0.9] [--sparse-init nearest|neutral] [--with-reconstructions] [--compile]
-        [--checkpoint PATH] [--base-model MODEL]
+        [--checkpoint PATH] [--base-model MODEL] [--sparse-loss-eps E]
 
 --base-model skips step 1 and freezes an existing network (its own training settings then
 apply to step 2's loss only through the flags given here).
@@ -44,6 +44,8 @@ def main() -> int:
                     help="expectile tau of the analytic loss term (FitSettings.analytic_expectile), both fits")
     ap.add_argument("--sparse-init", default="nearest", choices=("nearest", "neutral"),
                     help="where the sparse fit starts each file's (p, z) (FitSettings.sparse_init)")
+    ap.add_argument("--sparse-loss-eps", type=float, default=None,
+                    help="loss epsilon of the sparse fit (default: --loss-eps); docs/FITTING.md, 'Re-balancing'")
     ap.add_argument("--compile", action="store_true", help="torch.compile the training steps of both fits")
     ap.add_argument("--checkpoint", help="checkpoint file of the network fit (resumed if it exists)")
     ap.add_argument("--base-model", help="freeze this network instead of fitting one (skips step 1)")
@@ -74,14 +76,15 @@ def main() -> int:
         print(f"network: {len(base)} NBRDF-RGL materials (held out: {', '.join(sorted(held_out)) or 'none'}), "
               f"{args.mlp}, {args.steps} steps, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
     frozen = hb.load_model(net_path)
+    sparse_settings = dict(common, loss_eps=args.loss_eps if args.sparse_loss_eps is None else args.sparse_loss_eps)
     sparse = fit(raw, FitSettings(steps=args.sparse_steps, sources=[s.path for s in raw], frozen_from=net_path,
-                                  sparse_init=args.sparse_init, **common), frozen=frozen, progress=False,
+                                  sparse_init=args.sparse_init, **sparse_settings), frozen=frozen, progress=False,
                  compile_step=args.compile)
     sparse_path = os.path.join(args.out_dir, f"sparse_rgl5_{args.mlp}_{args.sparse_init}.safetensors")
     sparse.save(sparse_path)
     rows = evaluate(sparse, raw, n_pairs=args.pairs)
     print(f"sparse fit of the 5 raw RGL files on the frozen network: {args.sparse_steps} steps, "
-          f"start {args.sparse_init} -> {sparse_path}")
+          f"start {args.sparse_init}, loss eps {sparse_settings['loss_eps']} -> {sparse_path}")
     print(f"metrics on {args.pairs} pairs, seed 7, negatives clamped; paper = authors' released model")
     print(f"{'material':24s} {'SMAPE':>8s} {'paper':>7s} {'cMAE':>9s} {'paper':>8s} {'SMAPE(a)':>9s} {'cMAE(a)':>9s}  verdict")
     wins = 0
