@@ -92,7 +92,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
     t = model.training
     if t:
         keys = ("steps", "batch", "lr", "seed", "pool", "device", "train_seconds", "compile_seconds", "frozen_from")
-        print("training: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None))
+        print("training: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None)
+              + (f", sparse_init {t.get('sparse_init', 'neutral')}" if t.get("frozen_from") else ""))
+        keys = ("loss_eps", "loss_eps_relative", "loss_cos", "analytic_loss_eps", "analytic_expectile", "specular")
+        print("loss: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None))
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
         line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {m.get('origin', '')}"

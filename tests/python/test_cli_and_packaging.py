@@ -83,6 +83,8 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
         assert added.training["sparse_init"] == init and added.training["frozen_from"] == str(out)
         assert all(np.array_equal(v, added.tensors[k]) for k, v in model.tensors.items()
                    if not k.startswith("materials."))
+        r = run_cli("info", str(sparse))
+        assert f"frozen_from {out}, sparse_init {init}" in r.stdout and "loss: loss_eps 1.0," in r.stdout, r.stdout
 
 
 def test_cli_errors_are_one_line(tmp_path):
