@@ -12,8 +12,8 @@
         [--analytic-expectile 0.9] [--sparse-init nearest|neutral] [--with-reconstructions] [--compile]
         [--checkpoint PATH] [--base-model MODEL] [--sparse-loss-eps E]
 
---base-model skips step 1 and freezes an existing network (its own training settings then
-apply to step 2's loss only through the flags given here).
+--base-model skips step 1 and freezes an existing network; the sparse fit's loss then comes
+from the flags given here, not from that network's recorded training settings.
 """
 
 from __future__ import annotations

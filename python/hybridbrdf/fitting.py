@@ -283,15 +283,19 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
     magnitude while z wanders through codes the network never saw. A collection that holds a
     similar material already knows a (p, z) the network decodes well. Scoring all of them
     costs one forward pass per candidate on ``n_pairs`` pool pairs (spread over the cosine and
-    specular parts of the pool), far less than a training step over the whole run."""
-    step = max(1, pool.wi.shape[0] // n_pairs)
-    idx = torch.arange(0, pool.wi.shape[0], step, device=pool.wi.device)[:n_pairs]
-    wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
+    specular parts of the pool), a few training steps' worth."""
     dev = pool.wi.device
+    step = max(1, pool.wi.shape[0] // n_pairs)
+    idx = torch.arange(0, pool.wi.shape[0], step, device=dev)[:n_pairs]
+    wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
     cand = {k[len("materials."):]: torch.from_numpy(v).to(dev) for k, v in frozen.tensors.items()
             if k.startswith("materials.")}
     n_new, n_cand = ref.shape[0], cand["z"].shape[0]
-    per_material = isinstance(eps, torch.Tensor)
+
+    def for_material(e, m: int, k: int):
+        """The new material m's epsilon (scalar or per material) for k candidates."""
+        return e[m].expand(k) if isinstance(e, torch.Tensor) else e
+
     losses = torch.empty(n_new, n_cand, device=dev)
     with torch.no_grad():
         for lo in range(0, n_cand, chunk):
@@ -301,11 +305,10 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
             else:
                 f_t, f_a = module.evaluate(wi, wo, c["z"])
             k = f_t.shape[0]
-            for m in range(n_new):  # the new material's epsilon for every candidate
-                e = eps[m].expand(k) if per_material else eps
-                e_a = eps_analytic[m].expand(k) if isinstance(eps_analytic, torch.Tensor) else eps_analytic
+            for m in range(n_new):
                 losses[m, lo:lo + chunk] = training_loss(
-                    ref[m].expand_as(f_t), f_t, f_a, wi[:, 2], e, e_a, settings.loss_cos, settings.analytic_expectile)
+                    ref[m].expand_as(f_t), f_t, f_a, wi[:, 2], for_material(eps, m, k),
+                    for_material(eps_analytic, m, k), settings.loss_cos, settings.analytic_expectile)
         best = [int(k) for k in losses.argmin(dim=1)]
         for m, k in enumerate(best):
             if "kd" in cand:
