@@ -106,6 +106,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         met = m.get("metrics") or {}
         if met:
             line += "\n      " + ", ".join(f"{k} {v:.4g}" for k, v in met.items() if isinstance(v, (int, float)))
+        st = m.get("sparse_start")
+        if isinstance(st, dict):
+            line += (f"\n      sparse fit started from {st.get('material')} "
+                     f"(smape {st.get('smape', float('nan')):.4g}, cmae {st.get('cmae', float('nan')):.4g})")
         print(line)
     return 0
 

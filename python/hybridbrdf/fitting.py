@@ -405,9 +405,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     eps = settings.loss_eps * scale
     eps_analytic = (settings.loss_eps if settings.analytic_loss_eps is None else settings.analytic_loss_eps) * scale
 
+    start_names: Optional[List[str]] = None
     if frozen is not None and start == 0 and settings.sparse_init == "nearest":
         chosen = start_from_nearest(module, frozen, pool, eps, eps_analytic, settings)
-        log("sparse fit starts from " + ", ".join(f"{n} <- {frozen.materials[k]}" for n, k in zip(names, chosen)))
+        start_names = [frozen.materials[k] for k in chosen]
+        log("sparse fit starts from " + ", ".join(f"{n} <- {s}" for n, s in zip(names, start_names)))
 
     def batch_loss(wi: torch.Tensor, wo: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
         f_t, f_a = module(wi, wo)
@@ -461,6 +463,13 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     metrics = evaluate(model, sources, n_pairs=settings.eval_pairs, names=names)
     for info, row in zip(model.material_info, metrics):
         info["metrics"] = {k: v for k, v in row.items() if k not in ("material", "origin")}
+    if start_names is not None:
+        # What the sparse fit started from and how far that start was off: the frozen network bounds
+        # what (p, z) can reach, so a fit that ends near its start says the network, not the
+        # optimiser, is the limit (docs/FITTING.md, "Sparse fitting").
+        start_metrics = evaluate(frozen, sources, n_pairs=settings.eval_pairs, names=start_names)
+        for info, name, row in zip(model.material_info, start_names, start_metrics):
+            info["sparse_start"] = {"material": name, "smape": row["smape"], "cmae": row["cmae"]}
     return model
 
 

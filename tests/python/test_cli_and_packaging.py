@@ -85,6 +85,7 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
                    if not k.startswith("materials."))
         r = run_cli("info", str(sparse))
         assert f"frozen_from {out}, sparse_init {init}" in r.stdout and "loss: loss_eps 1.0," in r.stdout, r.stdout
+        assert ("sparse fit started from gold (smape " in r.stdout) == (init == "nearest"), r.stdout
 
 
 def test_cli_errors_are_one_line(tmp_path):

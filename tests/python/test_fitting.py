@@ -217,8 +217,15 @@ def test_sparse_fitting_starts_from_the_best_fitting_frozen_material(fitted, tmp
         joint = fitted.material_info[fitted.index(twin_of)]["metrics"]
         got = near.material_info[0]["metrics"]
         assert got["smape"] < 1.1 * joint["smape"] + 0.005, (got, joint)
+        # The model records the start: the twin's own material, scoring what the joint fit did on it
+        # (same BRDF, so the same error up to the metric's sampling).
+        start = near.material_info[0]["sparse_start"]
+        assert start["material"] == twin_of
+        assert abs(start["smape"] - joint["smape"]) < 0.1 * joint["smape"] + 0.005, (start, joint)
+        assert abs(start["cmae"] - joint["cmae"]) < 0.1 * joint["cmae"] + 1e-4, (start, joint)
         neutral = fit(twin, quick(steps=1, sparse_init="neutral"), frozen=frozen, progress=False, log=said.append)
         assert len(said) == 1  # the neutral start chooses nothing
+        assert "sparse_start" not in neutral.material_info[0]
         assert neutral.material_info[0]["metrics"]["smape"] > 2 * got["smape"]
 
 
