@@ -33,6 +33,15 @@ sys.path.insert(0, str(ROOT / "bench"))
 from rgl_paper_comparison import PAPER  # noqa: E402
 
 
+def collection_means(model) -> str:
+    """Mean SMAPE and cMAE of a network's own collection, from the metrics its fit recorded."""
+    met = [m["metrics"] for m in model.material_info if m.get("metrics")]
+    if not met:
+        return "no recorded metrics"
+    return (f"mean SMAPE {sum(x['smape'] for x in met) / len(met):.4f}, "
+            f"mean cMAE {sum(x['cmae'] for x in met) / len(met):.5f} over its {len(met)} materials")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--steps", type=int, default=20000)
@@ -82,6 +91,7 @@ def main() -> int:
         print(f"network: {len(base)} NBRDF-RGL materials (held out: {', '.join(sorted(held_out)) or 'none'}), "
               f"{args.mlp}, {args.steps} steps, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
     frozen = hb.load_model(net_path)
+    print(f"network's own fit (its eval pairs): {collection_means(frozen)}", flush=True)
     sparse_settings = dict(common, loss_eps=args.loss_eps if args.sparse_loss_eps is None else args.sparse_loss_eps)
     sparse = fit(raw, FitSettings(steps=args.sparse_steps, sources=[s.path for s in raw], frozen_from=net_path,
                                   sparse_init=args.sparse_init, lr=args.sparse_lr, **sparse_settings),
