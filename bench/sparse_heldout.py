@@ -11,7 +11,7 @@
     python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01] [--specular 0.1]
         [--analytic-expectile 0.9] [--sparse-init nearest|neutral] [--with-reconstructions] [--compile]
         [--checkpoint PATH] [--base-model MODEL] [--sparse-loss-eps E] [--sparse-lr LR]
-        [--weight-decay W]
+        [--weight-decay W] [--seed S]
 
 --base-model skips step 1 and freezes an existing network; the sparse fit's loss then comes
 from the flags given here, not from that network's recorded training settings.
@@ -54,6 +54,8 @@ def main() -> int:
                     help="expectile tau of the analytic loss term (FitSettings.analytic_expectile), both fits")
     ap.add_argument("--weight-decay", type=float, default=FitSettings.weight_decay,
                     help="AdamW weight decay of the network fit (FitSettings.weight_decay)")
+    ap.add_argument("--seed", type=int, default=FitSettings.seed,
+                    help="seed of the network fit (initialisation and pairs); the sparse fit keeps the default")
     ap.add_argument("--sparse-init", default="nearest", choices=("nearest", "neutral"),
                     help="where the sparse fit starts each file's (p, z) (FitSettings.sparse_init)")
     ap.add_argument("--sparse-loss-eps", type=float, default=None,
@@ -83,13 +85,14 @@ def main() -> int:
         net_path = args.base_model
         print(f"network: {net_path} (given)", flush=True)
     else:
-        net = fit(base, FitSettings(steps=args.steps, sources=base_specs, weight_decay=args.weight_decay, **common),
+        net = fit(base, FitSettings(steps=args.steps, sources=base_specs, weight_decay=args.weight_decay,
+                                    seed=args.seed, **common),
                   progress=False,
                   checkpoint=args.checkpoint, resume=args.checkpoint is not None, compile_step=args.compile)
         net_path = os.path.join(args.out_dir, f"base{len(base)}_{args.mlp}.safetensors")
         net.save(net_path)
         print(f"network: {len(base)} NBRDF-RGL materials (held out: {', '.join(sorted(held_out)) or 'none'}), "
-              f"{args.mlp}, {args.steps} steps, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
+              f"{args.mlp}, {args.steps} steps, seed {args.seed}, {net.training['train_seconds']:.0f} s -> {net_path}", flush=True)
     frozen = hb.load_model(net_path)
     print(f"network's own fit (its eval pairs): {collection_means(frozen)}", flush=True)
     sparse_settings = dict(common, loss_eps=args.loss_eps if args.sparse_loss_eps is None else args.sparse_loss_eps)

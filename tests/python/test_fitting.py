@@ -240,6 +240,36 @@ def test_resume_reproduces_an_uninterrupted_run(tmp_path):
         assert np.array_equal(full.tensors[k], resumed.tensors[k]), k
 
 
+def test_a_resumed_fit_records_the_time_of_every_segment(tmp_path, monkeypatch):
+    # The first segment runs on a clock that jumps 1000 s per reading, so its recorded time is
+    # known to be >= 1000 s; the resumed fit must add it to its own (real, sub-second) time
+    # rather than report its last segment alone.
+    import types
+
+    from hybridbrdf import fitting as fitting_module
+
+    ticks = iter(range(0, 10 ** 9, 1000))
+    monkeypatch.setattr(fitting_module, "time", types.SimpleNamespace(perf_counter=lambda: float(next(ticks))))
+    ck = str(tmp_path / "ck.pt")
+    assert fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=ck, progress=False, stop_after=40) is None
+    state = torch.load(ck, weights_only=True)
+    first = state["train_seconds"]
+    assert first >= 1000
+    monkeypatch.undo()
+    # A checkpoint from before this record: the model file says its time starts at the resume.
+    legacy = str(tmp_path / "legacy.pt")
+    del state["train_seconds"]
+    torch.save(state, legacy)
+    old = fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=legacy, resume=True, progress=False,
+              log=lambda m: None)
+    assert old.training["train_seconds_from_step"] == 40 and old.training["train_seconds"] < 600
+    resumed = fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=ck, resume=True, progress=False,
+                  log=lambda m: None)
+    assert resumed.training["resumed_at_step"] == 40
+    assert first < resumed.training["train_seconds"] < first + 600
+    assert "train_seconds_from_step" not in resumed.training
+
+
 def test_compiled_steps_fit_the_same_model_as_eager_ones():
     # torch.compile fuses the step's arithmetic; only float rounding may differ. The loss
     # options go through the compiled graph too (a per-material epsilon, the expectile term).
