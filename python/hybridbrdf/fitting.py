@@ -318,13 +318,15 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
 
 
 def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSettings, names: List[str],
-                     train_seconds: float) -> None:
+                     train_seconds: float, timed_from_step: int) -> None:
     buf = io.BytesIO()
-    # train_seconds: training time of all steps so far (every segment), so that a resumed fit
-    # records the time of the whole fit, not of its last segment.
+    # train_seconds: training time of the steps from timed_from_step on (0 unless the fit once
+    # resumed a checkpoint that kept no time), so that a resumed fit records the time of the
+    # whole fit, not of its last segment.
     torch.save({"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                 "step": step, "settings": dataclasses.asdict(settings), "names": names,
-                "torch_rng": torch.get_rng_state(), "train_seconds": float(train_seconds)}, buf)
+                "torch_rng": torch.get_rng_state(), "train_seconds": float(train_seconds),
+                "timed_from_step": int(timed_from_step)}, buf)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -372,9 +374,9 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     module.to(settings.device)
     opt, sched = _optimizer(module, settings, frozen is not None)
     start = 0
-    # Training time of the steps before ``start`` (from the checkpoint); None where the checkpoint
-    # predates that record, in which case the model file says the time covers only this segment.
-    earlier_seconds: Optional[float] = 0.0
+    # Training time of the steps from ``timed_from`` to ``start`` (from the checkpoint). A
+    # checkpoint that predates that record kept no time: the clock then starts at the resume.
+    earlier_seconds, timed_from = 0.0, 0
     if resume and checkpoint and os.path.exists(checkpoint):
         state = torch.load(checkpoint, map_location=settings.device, weights_only=True)
         if state["names"] != names:
@@ -391,7 +393,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         sched.load_state_dict(state["scheduler"])
         torch.set_rng_state(state["torch_rng"])
         start = int(state["step"])
-        earlier_seconds = float(state["train_seconds"]) if "train_seconds" in state else None
+        if "train_seconds" in state:
+            earlier_seconds, timed_from = float(state["train_seconds"]), int(state["timed_from_step"])
+        else:
+            timed_from = start
         log(f"resuming from {checkpoint} at step {start}")
 
     gen = torch.Generator(device="cpu").manual_seed(settings.seed)
@@ -448,10 +453,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
                 bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
         if checkpoint and (step + 1) % checkpoint_every == 0 and step + 1 < settings.steps:
             _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
-                             (earlier_seconds or 0.0) + time.perf_counter() - t0)
+                             earlier_seconds + time.perf_counter() - t0, timed_from)
         if stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps:
             _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
-                             (earlier_seconds or 0.0) + time.perf_counter() - t0)
+                             earlier_seconds + time.perf_counter() - t0, timed_from)
             if bar is not None:
                 bar.close()
             return None
@@ -461,12 +466,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     module.eval().cpu()
 
     training = dataclasses.asdict(settings)
-    if earlier_seconds is None:
-        # A checkpoint written before checkpoints kept their time: only this segment is known.
-        training["train_seconds"] = round(elapsed, 3)
-        training["train_seconds_from_step"] = start
-    else:
-        training["train_seconds"] = round(earlier_seconds + elapsed, 3)
+    training["train_seconds"] = round(earlier_seconds + elapsed, 3)
+    if timed_from:
+        # Resumed (perhaps more than once) from a checkpoint that kept no time.
+        training["train_seconds_from_step"] = timed_from
     if start:
         training["resumed_at_step"] = start
     timed_steps, timed_seconds = settings.steps - start, elapsed

@@ -256,13 +256,17 @@ def test_a_resumed_fit_records_the_time_of_every_segment(tmp_path, monkeypatch):
     first = state["train_seconds"]
     assert first >= 1000
     monkeypatch.undo()
-    # A checkpoint from before this record: the model file says its time starts at the resume.
+    # A checkpoint from before this record: the model file says its time starts at the resume,
+    # also after a second segment.
     legacy = str(tmp_path / "legacy.pt")
-    del state["train_seconds"]
+    del state["train_seconds"], state["timed_from_step"]
     torch.save(state, legacy)
+    assert fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=legacy, resume=True, progress=False,
+               log=lambda m: None, stop_after=60) is None
     old = fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=legacy, resume=True, progress=False,
               log=lambda m: None)
-    assert old.training["train_seconds_from_step"] == 40 and old.training["train_seconds"] < 600
+    assert old.training["train_seconds_from_step"] == 40 and old.training["resumed_at_step"] == 60
+    assert old.training["train_seconds"] < 600
     resumed = fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=ck, resume=True, progress=False,
                   log=lambda m: None)
     assert resumed.training["resumed_at_step"] == 40
