@@ -91,7 +91,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
     t = model.training
     if t:
-        keys = ("steps", "batch", "lr", "seed", "pool", "device", "train_seconds", "compile_seconds", "frozen_from")
+        keys = ("steps", "batch", "lr", "weight_decay", "seed", "pool", "device", "train_seconds",
+                "train_seconds_from_step", "resumed_at_step", "compile_seconds", "frozen_from")
         print("training: " + ", ".join(f"{k} {t[k]}" for k in keys if t.get(k) is not None)
               + (f", sparse_init {t.get('sparse_init', 'neutral')}" if t.get("frozen_from") else ""))
         keys = ("loss_eps", "loss_eps_relative", "loss_cos", "analytic_loss_eps", "analytic_expectile", "specular")

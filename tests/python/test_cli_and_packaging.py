@@ -74,6 +74,7 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
     r = run_cli("info", str(out))
     assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
+    assert "lr 0.005, weight_decay 0.01, seed 0," in r.stdout, r.stdout
     for init in ("nearest", "neutral"):  # sparse fitting: the network stays, the start is recorded
         sparse = tmp_path / f"sparse_{init}.safetensors"
         r = run_cli("fit", "--frozen", str(out), "synthetic:gold", "--steps", "20", "--pool", "4096",
