@@ -451,12 +451,12 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
             bar.update(1)
             if step % 20 == 0:
                 bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
-        if checkpoint and (step + 1) % checkpoint_every == 0 and step + 1 < settings.steps:
+        stopping = stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps
+        if checkpoint and (stopping or ((step + 1) % checkpoint_every == 0 and step + 1 < settings.steps)):
+            # Once per step even where stop_after falls on a regular checkpoint.
             _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
                              earlier_seconds + time.perf_counter() - t0, timed_from)
-        if stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps:
-            _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
-                             earlier_seconds + time.perf_counter() - t0, timed_from)
+        if stopping:
             if bar is not None:
                 bar.close()
             return None

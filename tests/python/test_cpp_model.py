@@ -2,6 +2,8 @@
 float64 PyTorch model computes; its loader rejects every damaged file the
 Python loader rejects, with the same message."""
 
+import pathlib
+
 import numpy as np
 import pytest
 import torch
@@ -128,7 +130,7 @@ def test_every_batched_kernel_agrees_with_float64_torch(tmp_path, arch, width, d
         _core.limit_model_simd("sse9")
 
 
-RESULTS = sorted((__import__("pathlib").Path(__file__).resolve().parents[2] / "results").glob("*.safetensors"))
+RESULTS = sorted((pathlib.Path(__file__).resolve().parents[2] / "results").glob("*.safetensors"))
 
 
 @pytest.mark.parametrize("path", RESULTS, ids=[p.name for p in RESULTS])
