@@ -6,7 +6,7 @@ Paths, all measured in this one run on 2^20 cosine-weighted direction pairs:
     AoS evaluation, MIS sampling; AVX2+FMA and the baseline kernels
   * C++ through the Python bindings (what a Python user gets)
   * PyTorch float32 (hybridbrdf.torch_brdf), one thread
-  * NumPy float64 (the textbook transcription of tests/python/reference.py)
+  * NumPy float64 (the textbook transcription hybridbrdf.reference)
 
 The process is pinned to one core. Prints a table and the ratio of each path
 to NumPy; --json writes the figures. Usage:
@@ -26,17 +26,15 @@ import sys
 import time
 
 import numpy as np
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf import _core
+from hybridbrdf import torch_brdf
+from hybridbrdf.reference import sample_mis as numpy_sample_mis
+from hybridbrdf.reference import textbook_fa as numpy_fa
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "python"))
-
-import torch  # noqa: E402
-
-import hybridbrdf as hb  # noqa: E402
-from hybridbrdf import _core  # noqa: E402
-from hybridbrdf import torch_brdf  # noqa: E402
-from reference import sample_mis as numpy_sample_mis  # noqa: E402
-from reference import textbook_fa as numpy_fa  # noqa: E402
 
 TARGET_EVALS_PER_S = 50e6
 

@@ -34,14 +34,13 @@ import tempfile
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "python"))
 sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf import _core  # noqa: E402
 from hybridbrdf.codegen import eval_compute_shader, generate, material_constant  # noqa: E402
+from hybridbrdf.random_model import random_model  # noqa: E402
 from bench_analytic import best_rate  # noqa: E402
-from test_model_file import make_model  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"
 FMA_PEAK = ROOT / "build" / "hbrdf_fma_peak"
@@ -93,7 +92,7 @@ def model_for(arch, width, depth, models_dir, d):
     fitted = pathlib.Path(models_dir or "-") / f"{arch}_{width}x{depth}_l{latent}.safetensors"
     if fitted.exists():
         return str(fitted), True
-    _, model = make_model(arch, latent=latent, width=width, depth=depth)
+    _, model = random_model(arch, latent=latent, width=width, depth=depth)
     path = f"{d}/{arch}{width}x{depth}.safetensors"
     model.save(path)
     return path, False

@@ -15,11 +15,13 @@ using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>
 
 namespace {
 
+// hbrdf::parse_strategy, with its std::invalid_argument as a ValueError.
 hbrdf::Strategy parse_strategy(const std::string& name) {
-    if (name == "cosine") return hbrdf::Strategy::Cosine;
-    if (name == "ggx") return hbrdf::Strategy::Ggx;
-    if (name == "mis") return hbrdf::Strategy::Mis;
-    throw py::value_error("unknown sampling strategy '" + name + "'; expected 'cosine', 'ggx' or 'mis'");
+    try {
+        return hbrdf::parse_strategy(name);
+    } catch (const std::invalid_argument& e) {
+        throw py::value_error(e.what());
+    }
 }
 
 // Checks that `a` has shape (n, cols) (n taken from the first array checked
@@ -69,6 +71,11 @@ PYBIND11_MODULE(_core, m) {
     m.attr("ETA_MIN") = hbrdf::kEtaMin;
     m.attr("ETA_MAX") = hbrdf::kEtaMax;
     m.attr("MIS_MIN_LOBE_PROBABILITY") = hbrdf::kMisMinLobeProbability;
+    {
+        py::list names;
+        for (hbrdf::Strategy s : hbrdf::kStrategies) names.append(hbrdf::strategy_name(s));
+        m.attr("STRATEGIES") = py::tuple(names);  // the names sample() and pdf() accept
+    }
 
     py::class_<hbrdf::AnalyticParams>(m, "AnalyticParams",
                                       "Parameters of f_a as the C++ library stores them (float32, unchecked; "
@@ -187,6 +194,39 @@ PYBIND11_MODULE(_core, m) {
            "f_t through the scalar (tracer and shader twin) path, one pair at a time.")
         .def_property_readonly("flops_per_eval", &hbrdf::HybridModel::flops_per_eval,
                                "Network FLOPs of one batched evaluation (multiply-add = 2).")
+        .def_property_readonly("pre_exp_max", &hbrdf::HybridModel::pre_exp_max,
+                               "Bound on every value passed to exp(), as the file records it.")
+        .def("tensors", [](const hbrdf::HybridModel& md) {
+            // What the loader read, under the model file's tensor names: for tests that hold
+            // the C++ reader against the safetensors package bit for bit.
+            py::dict out;
+            auto array = [](const std::vector<float>& v, std::vector<py::ssize_t> shape) {
+                FloatArray a(shape);
+                std::copy(v.begin(), v.end(), a.mutable_data());
+                return a;
+            };
+            const auto& layers = md.layers();
+            for (std::size_t l = 0; l < layers.size(); ++l) {
+                const std::string name = l + 1 == layers.size() ? "mlp.out" : "mlp.hidden." + std::to_string(l);
+                out[py::str(name + ".weight")] = array(layers[l].weight, {layers[l].n_out, layers[l].n_in});
+                out[py::str(name + ".bias")] = array(layers[l].bias, {layers[l].n_out});
+            }
+            const auto& mats = md.materials();
+            const py::ssize_t n = py::ssize_t(mats.size()), l = md.latent_dim();
+            std::vector<float> z, kd, eta, alpha;
+            for (const auto& mat : mats) {
+                z.insert(z.end(), mat.latent.begin(), mat.latent.end());
+                for (int c = 0; c < 3; ++c) kd.push_back(mat.params.kd[c]), eta.push_back(mat.params.eta[c]);
+                for (int c = 0; c < 2; ++c) alpha.push_back(mat.params.alpha[c]);
+            }
+            out["materials.z"] = array(z, {n, l});
+            if (md.arch().analytic) {
+                out["materials.kd"] = array(kd, {n, 3});
+                out["materials.eta"] = array(eta, {n, 3});
+                out["materials.alpha"] = array(alpha, {n, 2});
+            }
+            return out;
+        }, "The network and per-material tensors as loaded (the neural baseline's frame layer excepted).")
         .def("eval_analytic", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
             const py::ssize_t n = check_rows(wi, "wi", 3, -1);
             check_rows(wo, "wo", 3, n);

@@ -1,11 +1,13 @@
 // hybridbrdf — model files (safetensors + JSON metadata) and their evaluation.
-// The format is specified in docs/FITTING.md; the Python writer is
-// python/hybridbrdf/model_file.py. Every check here mirrors the Python loader.
+// The format is specified in docs/FITTING.md and its contract (architectures,
+// fields, ranges) in spec/model.json; the Python writer and loader are
+// python/hybridbrdf/model_file.py.
 #include "hybridbrdf/model.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -16,14 +18,15 @@
 #include <nlohmann/json.hpp>
 
 #include "hybridbrdf/version.hpp"
+#include "model_math.hpp"
 
 namespace hbrdf {
 namespace {
 
 using json = nlohmann::json;
 
-constexpr int kFormatVersion = 1;
-constexpr std::uint64_t kMaxHeaderBytes = 64ull << 20;
+using spec::kMaxHeaderBytes;
+using detail::activate;
 
 struct Tensor {
     std::vector<std::int64_t> shape;
@@ -96,118 +99,136 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
     }
 }
 
-template <typename T> T get_field(const std::string& path, const json& obj, const char* key, const char* where) {
-    try {
-        return obj.at(key).get<T>();
-    } catch (const json::exception&) {
-        throw ModelFileError(path, std::string(where) + "." + key + " is missing or has the wrong type");
+// "%.9g": the number format of every value quoted in a message, the same in the Python loader.
+std::string num(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.9g", v);
+    return buf;
+}
+
+std::string json_type(const json& v) {
+    if (v.is_number_integer()) return "an integer";
+    if (v.is_number_float()) return "a number";
+    if (v.is_string()) return "a string";
+    if (v.is_boolean()) return "a boolean";
+    if (v.is_null()) return "null";
+    if (v.is_array()) return "an array";
+    return "an object";
+}
+
+// arch.<key> checked against its row of the contract's table (spec::kArchFields);
+// returns the value as a double (an Enum: its index). Integers are compared as
+// 64-bit (unsigned: the largest JSON integers) before any narrowing.
+double read_arch_field(const std::string& path, const json& arch, const spec::ArchField& f) {
+    const std::string where = std::string("arch.") + f.key;
+    if (!arch.contains(f.key)) {
+        if (f.has_default) return f.default_value;
+        throw ModelFileError(path, where + " is missing");
     }
+    const json& v = arch.at(f.key);
+    auto range_error = [&](const std::string& value) {
+        return ModelFileError(path, where + " = " + value + " is outside [" + num(f.min) + ", " + num(f.max) + "]");
+    };
+    switch (f.type) {
+        case spec::FieldType::Enum: {
+            if (!v.is_string()) throw ModelFileError(path, where + " must be a string, got " + json_type(v));
+            const std::string s = v.get<std::string>();
+            std::string names;
+            for (int i = 0; i < f.n_values; ++i) {
+                if (s == f.values[i]) return i;
+                names += std::string(i ? ", " : "") + f.values[i];
+            }
+            throw ModelFileError(path, where + " '" + s + "' is not one of " + names);
+        }
+        case spec::FieldType::Int: {
+            if (!v.is_number_integer()) throw ModelFileError(path, where + " must be an integer, got " + json_type(v));
+            if (v.is_number_unsigned()) {
+                const std::uint64_t u = v.get<std::uint64_t>();
+                if (double(u) > f.max) throw range_error(std::to_string(u));
+                return double(u);
+            }
+            const std::int64_t i = v.get<std::int64_t>();
+            if (double(i) < f.min || double(i) > f.max) throw range_error(std::to_string(i));
+            return double(i);
+        }
+        case spec::FieldType::Number: {
+            if (!v.is_number()) throw ModelFileError(path, where + " must be a number, got " + json_type(v));
+            const double d = v.get<double>();
+            if (!(d >= f.min && d <= f.max)) throw range_error(num(d));
+            return d;
+        }
+    }
+    return 0.0;
 }
 
-ModelKind parse_kind(const std::string& path, const std::string& s) {
-    if (s == "hybrid") return ModelKind::Hybrid;
-    if (s == "neural") return ModelKind::Neural;
-    if (s == "additive") return ModelKind::Additive;
-    if (s == "logmul") return ModelKind::LogMul;
-    if (s == "analytic-input") return ModelKind::AnalyticInput;
-    throw ModelFileError(path, "arch.kind '" + s + "' is not one of hybrid, neural, additive, logmul, analytic-input");
+const spec::ArchField& arch_field(const char* key) {
+    for (const auto& f : spec::kArchFields)
+        if (std::strcmp(f.key, key) == 0) return f;
+    throw std::logic_error(std::string("no arch field ") + key);  // the contract and this file disagree
 }
 
-Activation parse_activation(const std::string& path, const std::string& s) {
-    if (s == "relu") return Activation::Relu;
-    if (s == "hardgelu") return Activation::HardGelu;
-    throw ModelFileError(path, "arch.activation '" + s + "' is not one of relu, hardgelu");
-}
-
-const Tensor& expect(const std::string& path, const std::map<std::string, Tensor>& t, const std::string& name,
-                     std::vector<std::int64_t> shape) {
-    auto it = t.find(name);
-    if (it == t.end()) throw ModelFileError(path, "missing tensors: " + name);
-    if (it->second.shape != shape)
-        throw ModelFileError(path, "tensor " + name + " has shape " + shape_str(it->second.shape) + ", expected " +
-                                       shape_str(shape));
-    for (float v : it->second.data)
-        if (!std::isfinite(v)) throw ModelFileError(path, "tensor " + name + " holds NaN or Inf");
-    return it->second;
-}
-
-DenseLayer make_layer(const std::string& path, const std::map<std::string, Tensor>& t, const std::string& prefix,
-                      int n_in, int n_out) {
-    DenseLayer l;
-    l.n_in = n_in;
-    l.n_out = n_out;
-    l.weight = expect(path, t, prefix + ".weight", {n_out, n_in}).data;
-    l.bias = expect(path, t, prefix + ".bias", {n_out}).data;
-    return l;
-}
-
-HBRDF_INLINE float activate(Activation a, float x) {
-    // hardGeLU = x * clamp((x + 1.5) / 3, 0, 1): 0 below -1.5, x above 1.5, x (x + 1.5) / 3 between.
-    if (a == Activation::Relu) return x > 0.f ? x : 0.f;
-    return x * clamp_nan_lo((x + 1.5f) * (1.0f / 3.0f), 0.0f, 1.0f);
-}
-
-HBRDF_INLINE float exp_clamped(float x) { return std::exp(x < kPreExpMax ? x : kPreExpMax); }
-HBRDF_INLINE float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
-
-// torch.nn.functional.normalize(v, eps=1e-8): v / max(|v|, eps).
-HBRDF_INLINE Vec3<float> normalize_eps(const Vec3<float>& v) {
-    const float len = std::sqrt(dot(v, v));
-    return v / (len > 1e-8f ? len : 1e-8f);
+std::string join_names(const std::vector<std::string>& names) {
+    std::string s;
+    for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+    return s;
 }
 
 }  // namespace
 
+// The checks and their order follow the model contract (spec/model.json) and are
+// the same in the Python loader (model_file.py); tests/data/malformed_models.json
+// holds the shared table of broken files both must reject alike.
 HybridModel HybridModel::load(const std::string& path) {
     std::map<std::string, std::string> metadata;
     std::map<std::string, Tensor> tensors;
     read_safetensors(path, metadata, tensors);
-    auto meta = metadata.find("hybridbrdf");
+    const std::string key = spec::kMetadataKey;
+    auto meta = metadata.find(key);
     if (meta == metadata.end())
-        throw ModelFileError(path, "safetensors file without 'hybridbrdf' metadata: not a hybridbrdf model");
+        throw ModelFileError(path, "safetensors file without '" + key + "' metadata: not a hybridbrdf model");
     json doc;
     try {
         doc = json::parse(meta->second);
     } catch (const json::exception& e) {
-        throw ModelFileError(path, std::string("'hybridbrdf' metadata is not valid JSON (") + e.what() + ")");
+        throw ModelFileError(path, "'" + key + "' metadata is not valid JSON (" + e.what() + ")");
     }
-    if (!doc.is_object()) throw ModelFileError(path, "'hybridbrdf' metadata is not a JSON object");
+    if (!doc.is_object()) throw ModelFileError(path, "'" + key + "' metadata is not a JSON object");
 
     HybridModel model;
-    const int format = doc.contains("format_version") && doc["format_version"].is_number_integer()
-                           ? doc["format_version"].get<int>() : -1;
-    if (format != kFormatVersion)
-        throw ModelFileError(path, "format_version " + std::to_string(format) + " is not supported (this library reads " +
-                                       std::to_string(kFormatVersion) + ")");
-    model.conventions_version_ = get_field<int>(path, doc, "conventions_version", "metadata");
-    if (model.conventions_version_ != kConventionsVersion)
-        throw ModelFileError(path, "conventions_version " + std::to_string(model.conventions_version_) +
-                                       " differs from this library's " + std::to_string(kConventionsVersion));
+    for (const auto& [field, expected] : {std::pair<const char*, int>{"format_version", spec::kFormatVersion},
+                                          {"conventions_version", spec::kConventionsVersion}}) {
+        const json* v = doc.contains(field) ? &doc[field] : nullptr;
+        const bool ok = v && v->is_number_integer() && !v->is_number_unsigned() ? v->get<std::int64_t>() == expected
+                        : v && v->is_number_unsigned()                         ? v->get<std::uint64_t>() == std::uint64_t(expected)
+                                                                               : false;
+        if (!ok)
+            throw ModelFileError(path, std::string(field) + " " + (v ? v->dump() : "null") +
+                                           " is not supported (this library reads " + std::to_string(expected) + ")");
+    }
+    model.conventions_version_ = spec::kConventionsVersion;
     if (!doc.contains("arch") || !doc["arch"].is_object()) throw ModelFileError(path, "metadata has no 'arch' object");
     const json& arch = doc["arch"];
-    model.kind_ = parse_kind(path, get_field<std::string>(path, arch, "kind", "arch"));
-    model.activation_ = parse_activation(path, get_field<std::string>(path, arch, "activation", "arch"));
-    model.width_ = get_field<int>(path, arch, "width", "arch");
-    model.depth_ = get_field<int>(path, arch, "depth", "arch");
-    model.latent_ = get_field<int>(path, arch, "latent", "arch");
-    model.n_in_ = get_field<int>(path, arch, "n_in", "arch");
-    model.n_out_ = get_field<int>(path, arch, "n_out", "arch");
-    if (model.width_ < 1 || model.depth_ < 1 || model.latent_ < 0 || model.width_ > kMaxLayerWidth)
-        throw ModelFileError(path, "arch has width " + std::to_string(model.width_) + ", depth " +
-                                       std::to_string(model.depth_) + ", latent " + std::to_string(model.latent_) +
-                                       " (width must be 1.." + std::to_string(kMaxLayerWidth) + ")");
-    const bool hybrid_out = model.kind_ == ModelKind::Hybrid || model.kind_ == ModelKind::AnalyticInput;
-    const int expected_in = model.kind_ == ModelKind::Neural          ? 18 + model.latent_
-                            : model.kind_ == ModelKind::AnalyticInput ? 9 + model.latent_
-                                                                      : 6 + model.latent_;
-    const int expected_out = hybrid_out ? 6 : 3;
-    if (model.n_in_ != expected_in || model.n_out_ != expected_out || model.n_in_ > kMaxLayerWidth)
+    for (const auto& f : spec::kArchFields) read_arch_field(path, arch, f);  // every field, in the table's order
+    model.kind_ = static_cast<ModelKind>(int(read_arch_field(path, arch, arch_field("kind"))));
+    model.activation_ = static_cast<Activation>(int(read_arch_field(path, arch, arch_field("activation"))));
+    model.width_ = int(read_arch_field(path, arch, arch_field("width")));
+    model.depth_ = int(read_arch_field(path, arch, arch_field("depth")));
+    model.latent_ = int(read_arch_field(path, arch, arch_field("latent")));
+    model.n_in_ = int(read_arch_field(path, arch, arch_field("n_in")));
+    model.n_out_ = int(read_arch_field(path, arch, arch_field("n_out")));
+    model.pre_exp_max_ = float(read_arch_field(path, arch, arch_field("pre_exp_max")));
+    const spec::ArchSpec& as = model.arch();
+    const int expected_in = as.direction_count + model.latent_ + as.extra_count;
+    if (model.n_in_ != expected_in || model.n_out_ != as.n_out)
         throw ModelFileError(path, "arch n_in/n_out " + std::to_string(model.n_in_) + "/" + std::to_string(model.n_out_) +
-                                       " do not match its kind and latent (expected " + std::to_string(expected_in) +
-                                       "/" + std::to_string(expected_out) + ")");
+                                       " do not match kind " + as.name + " with latent " + std::to_string(model.latent_) +
+                                       " (expected " + std::to_string(expected_in) + "/" + std::to_string(as.n_out) + ")");
 
     if (!doc.contains("materials") || !doc["materials"].is_array() || doc["materials"].empty())
         throw ModelFileError(path, "metadata lists no materials");
+    if (doc["materials"].size() > std::size_t(spec::kMaxMaterials))
+        throw ModelFileError(path, "metadata lists " + std::to_string(doc["materials"].size()) +
+                                       " materials, more than " + std::to_string(spec::kMaxMaterials));
     std::set<std::string> seen;
     for (const auto& m : doc["materials"]) {
         ModelMaterial mat;
@@ -215,57 +236,90 @@ HybridModel HybridModel::load(const std::string& path) {
             throw ModelFileError(path, "material " + std::to_string(model.materials_.size()) + " has no name");
         mat.name = m["name"].get<std::string>();
         if (!seen.insert(mat.name).second) throw ModelFileError(path, "duplicate material names: " + mat.name);
-        mat.origin = m.contains("origin") && m["origin"].is_string() ? m["origin"].get<std::string>() : "";
-        mat.isotropic = !m.contains("isotropic") || !m["isotropic"].is_boolean() || m["isotropic"].get<bool>();
+        if (m.contains("origin") && !m["origin"].is_string())
+            throw ModelFileError(path, "material '" + mat.name + "': origin must be a string");
+        if (m.contains("isotropic") && !m["isotropic"].is_boolean())
+            throw ModelFileError(path, "material '" + mat.name + "': isotropic must be true or false");
+        mat.origin = m.contains("origin") ? m["origin"].get<std::string>() : "";
+        mat.isotropic = !m.contains("isotropic") || m["isotropic"].get<bool>();
         model.materials_.push_back(std::move(mat));
     }
 
-    // Shared network.
-    std::set<std::string> used;
-    int n_in = model.n_in_;
+    // The tensors the architecture needs, then their shapes in name order (as Python).
+    const std::int64_t n_mat = static_cast<std::int64_t>(model.materials_.size());
+    std::map<std::string, std::vector<std::int64_t>> expected;
+    std::int64_t n_in = model.n_in_;
     for (int i = 0; i < model.depth_; ++i) {
         const std::string prefix = "mlp.hidden." + std::to_string(i);
-        model.layers_.push_back(make_layer(path, tensors, prefix, n_in, model.width_));
-        used.insert(prefix + ".weight");
-        used.insert(prefix + ".bias");
+        expected[prefix + ".weight"] = {model.width_, n_in};
+        expected[prefix + ".bias"] = {model.width_};
         n_in = model.width_;
     }
-    model.layers_.push_back(make_layer(path, tensors, "mlp.out", model.width_, model.n_out_));
-    used.insert({"mlp.out.weight", "mlp.out.bias"});
-    if (model.kind_ == ModelKind::Neural) {
-        model.frames_ = make_layer(path, tensors, "frames", model.latent_, 18);
-        used.insert({"frames.weight", "frames.bias"});
+    expected["mlp.out.weight"] = {model.n_out_, model.width_};
+    expected["mlp.out.bias"] = {model.n_out_};
+    if (as.directions == spec::DirectionInputs::Frames) {
+        expected["frames.weight"] = {6 * spec::kNeuralFrames, model.latent_};
+        expected["frames.bias"] = {6 * spec::kNeuralFrames};
+    }
+    expected["materials.z"] = {n_mat, model.latent_};
+    if (as.analytic)
+        for (const auto& r : spec::kMaterialRanges) expected[std::string("materials.") + r.tensor] = {n_mat, r.components};
+    std::vector<std::string> missing, extra;
+    for (const auto& e : expected)
+        if (!tensors.count(e.first)) missing.push_back(e.first);
+    for (const auto& t : tensors)
+        if (!expected.count(t.first)) extra.push_back(t.first);
+    if (!missing.empty()) throw ModelFileError(path, "missing tensors: " + join_names(missing));
+    if (!extra.empty()) throw ModelFileError(path, "unexpected tensors: " + join_names(extra));
+    for (const auto& [name, shape] : expected) {
+        const Tensor& t = tensors.at(name);
+        if (t.shape != shape)
+            throw ModelFileError(path, "tensor " + name + " has shape " + shape_str(t.shape) + ", expected " +
+                                           shape_str(shape));
+        for (float v : t.data)
+            if (!std::isfinite(v)) throw ModelFileError(path, "tensor " + name + " holds NaN or Inf");
     }
 
+    // Shared network.
+    auto layer = [&](const std::string& prefix) {
+        DenseLayer l;
+        const Tensor& w = tensors.at(prefix + ".weight");
+        l.n_out = int(w.shape[0]);
+        l.n_in = int(w.shape[1]);
+        l.weight = w.data;
+        l.bias = tensors.at(prefix + ".bias").data;
+        return l;
+    };
+    for (int i = 0; i < model.depth_; ++i) model.layers_.push_back(layer("mlp.hidden." + std::to_string(i)));
+    model.layers_.push_back(layer("mlp.out"));
+    if (as.directions == spec::DirectionInputs::Frames) model.frames_ = layer("frames");
+
     // Per-material values.
-    const std::int64_t n_mat = static_cast<std::int64_t>(model.materials_.size());
-    const Tensor& z = expect(path, tensors, "materials.z", {n_mat, model.latent_});
-    used.insert("materials.z");
+    const Tensor& z = tensors.at("materials.z");
     for (std::int64_t i = 0; i < n_mat; ++i)
         model.materials_[i].latent.assign(z.data.begin() + i * model.latent_, z.data.begin() + (i + 1) * model.latent_);
-    if (model.kind_ != ModelKind::Neural) {
-        const Tensor& kd = expect(path, tensors, "materials.kd", {n_mat, 3});
-        const Tensor& eta = expect(path, tensors, "materials.eta", {n_mat, 3});
-        const Tensor& alpha = expect(path, tensors, "materials.alpha", {n_mat, 2});
-        used.insert({"materials.kd", "materials.eta", "materials.alpha"});
+    if (as.analytic) {
         for (std::int64_t i = 0; i < n_mat; ++i) {
-            AnalyticParams& p = model.materials_[i].params;
-            p.kd = Vec3<float>(kd.data[3 * i], kd.data[3 * i + 1], kd.data[3 * i + 2]);
-            p.eta = Vec3<float>(eta.data[3 * i], eta.data[3 * i + 1], eta.data[3 * i + 2]);
-            p.alpha = Vec2<float>(alpha.data[2 * i], alpha.data[2 * i + 1]);
-            try {
-                validate(p);  // in float32, as Python checks it
-            } catch (const std::invalid_argument& e) {
-                throw ModelFileError(path, "material '" + model.materials_[i].name + "': " + e.what());
+            ModelMaterial& mat = model.materials_[i];
+            for (const auto& r : spec::kMaterialRanges) {
+                const float* row = tensors.at(std::string("materials.") + r.tensor).data.data() + i * r.components;
+                for (int c = 0; c < r.components; ++c)
+                    if (!(row[c] >= float(r.min) && row[c] <= float(r.max)))  // in float32, as Python; NaN fails
+                        throw ModelFileError(path, "material '" + mat.name + "': " + r.tensor + "[" + std::to_string(c) +
+                                                       "] = " + num(row[c]) + " is outside [" + num(r.min) + ", " +
+                                                       num(r.max) + "]");
             }
-            if (model.materials_[i].isotropic && p.alpha.x != p.alpha.y)
-                throw ModelFileError(path, "material '" + model.materials_[i].name +
-                                               "' is marked isotropic but alpha_x != alpha_y");
-            model.analytic_.emplace_back(p);
+            const float* kd = tensors.at("materials.kd").data.data() + 3 * i;
+            const float* eta = tensors.at("materials.eta").data.data() + 3 * i;
+            const float* alpha = tensors.at("materials.alpha").data.data() + 2 * i;
+            mat.params.kd = Vec3<float>(kd[0], kd[1], kd[2]);
+            mat.params.eta = Vec3<float>(eta[0], eta[1], eta[2]);
+            mat.params.alpha = Vec2<float>(alpha[0], alpha[1]);
+            if (mat.isotropic && mat.params.alpha.x != mat.params.alpha.y)
+                throw ModelFileError(path, "material '" + mat.name + "' is marked isotropic but alpha_x != alpha_y");
+            model.analytic_.emplace_back(mat.params);
         }
     }
-    for (const auto& [name, t] : tensors)
-        if (!used.count(name)) throw ModelFileError(path, "unexpected tensors: " + name);
     model.prepare_batch();
     return model;
 }
@@ -313,54 +367,35 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
     const bool valid = wi.z > 0.f && wo.z > 0.f;  // false for invalid (zeroed or NaN) input
     if (!valid) return Vec3<float>(0.f);
     const ModelMaterial& mat = materials_[m];
+    const spec::ArchSpec& as = arch();
+    // Network input (spec/model.json): direction inputs, the latent code, extra inputs.
     float x[kMaxLayerWidth];
     float o[6];
-    if (kind_ == ModelKind::Neural) {
-        // Three shading frames from the latent code (docs/FITTING.md, NeuralBRDF).
-        float raw[18];
-        for (int j = 0; j < 18; ++j) {
-            float s = frames_.bias[j];
-            for (int k = 0; k < latent_; ++k) s += frames_.weight[j * latent_ + k] * mat.latent[k];
-            raw[j] = s;
-        }
-        for (int f = 0; f < 3; ++f) {
-            const Vec3<float> n = normalize_eps(Vec3<float>(raw[6 * f], raw[6 * f + 1], raw[6 * f + 2]));
-            const Vec3<float> t_raw(raw[6 * f + 3], raw[6 * f + 4], raw[6 * f + 5]);
-            const Vec3<float> t = normalize_eps(t_raw - dot(t_raw, n) * n);
-            const Vec3<float> b = glm::cross(n, t);
-            x[3 * f + 0] = dot(t, wi);
-            x[3 * f + 1] = dot(b, wi);
-            x[3 * f + 2] = dot(n, wi);
-            x[9 + 3 * f + 0] = dot(t, wo);
-            x[9 + 3 * f + 1] = dot(b, wo);
-            x[9 + 3 * f + 2] = dot(n, wo);
-        }
-        std::copy(mat.latent.begin(), mat.latent.end(), x + 18);
-        run_mlp(x, o);
-        return Vec3<float>(exp_clamped(o[0]), exp_clamped(o[1]), exp_clamped(o[2]));
+    if (as.directions == spec::DirectionInputs::Frames) {
+        // wi, then wo, in the material's shading frames (t, b, n each), prepared at load.
+        const float* fr = frame_cache_[m].data();
+        for (int side = 0; side < 2; ++side)
+            for (int k = 0; k < 3 * spec::kNeuralFrames; ++k)
+                x[9 * side + k] = dot(Vec3<float>(fr[3 * k], fr[3 * k + 1], fr[3 * k + 2]), side ? wo : wi);
+    } else {
+        x[0] = wi.x, x[1] = wi.y, x[2] = wi.z, x[3] = wo.x, x[4] = wo.y, x[5] = wo.z;
     }
-    const Vec3<float> fa = analytic_[m].eval(wi, wo);
-    x[0] = wi.x, x[1] = wi.y, x[2] = wi.z, x[3] = wo.x, x[4] = wo.y, x[5] = wo.z;
-    std::copy(mat.latent.begin(), mat.latent.end(), x + 6);
-    if (kind_ == ModelKind::AnalyticInput)
-        for (int c = 0; c < 3; ++c) x[6 + latent_ + c] = std::log1p(fa[c]);
+    std::copy(mat.latent.begin(), mat.latent.end(), x + as.direction_count);
+    const Vec3<float> fa = as.analytic ? analytic_[m].eval(wi, wo) : Vec3<float>(0.f);
+    if (as.extra == spec::ExtraInputs::Log1pFa)
+        for (int c = 0; c < 3; ++c) x[as.direction_count + latent_ + c] = std::log1p(fa[c]);
     run_mlp(x, o);
     Vec3<float> f;
-    for (int c = 0; c < 3; ++c) {
-        switch (kind_) {
-            case ModelKind::Additive: f[c] = max0(fa[c] + o[c]); break;
-            case ModelKind::LogMul: f[c] = fa[c] * exp_clamped(o[c]); break;
-            default: f[c] = exp_clamped(o[c]) + sigmoid(o[3 + c]) * fa[c]; break;
-        }
-    }
+    for (int c = 0; c < 3; ++c)
+        f[c] = detail::combine(as.combine, o[c], as.n_out == 6 ? o[3 + c] : 0.f, fa[c], pre_exp_max_);
     return f;
 }
 
 void HybridModel::prepare_batch() {
-    // Inputs that vary per pair: the directions (6), the 3 log1p(f_a) of analytic-input,
-    // or the 18 frame features of the neural baseline. The latent inputs are constant per
-    // material, so W0[:, z] z is added to the first bias once, here, in double.
-    const int z_start = kind_ == ModelKind::Neural ? 18 : 6;
+    // Inputs that vary per pair: the direction inputs and the extra inputs. The latent
+    // inputs are constant per material, so W0[:, z] z is added to the first bias once,
+    // here, in double.
+    const int z_start = arch().direction_count;
     n_dir_inputs_ = n_in_ - latent_;
     const DenseLayer& L0 = layers_[0];
     w0_dirs_.assign(static_cast<std::size_t>(width_) * n_dir_inputs_, 0.f);
@@ -379,25 +414,9 @@ void HybridModel::prepare_batch() {
             b[j] = float(acc);
         }
         bias0_.push_back(std::move(b));
-        if (kind_ == ModelKind::Neural) {
-            std::vector<float> fr(27);
-            for (int f = 0; f < 3; ++f) {
-                float raw[6];
-                for (int j = 0; j < 6; ++j) {
-                    float acc = frames_.bias[6 * f + j];
-                    for (int k = 0; k < latent_; ++k) acc += frames_.weight[(6 * f + j) * latent_ + k] * mat.latent[k];
-                    raw[j] = acc;
-                }
-                const Vec3<float> n = normalize_eps(Vec3<float>(raw[0], raw[1], raw[2]));
-                const Vec3<float> t_raw(raw[3], raw[4], raw[5]);
-                const Vec3<float> t = normalize_eps(t_raw - dot(t_raw, n) * n);
-                const Vec3<float> b3 = glm::cross(n, t);
-                for (int c = 0; c < 3; ++c) {
-                    fr[9 * f + c] = t[c];
-                    fr[9 * f + 3 + c] = b3[c];
-                    fr[9 * f + 6 + c] = n[c];
-                }
-            }
+        if (arch().directions == spec::DirectionInputs::Frames) {
+            std::vector<float> fr(9 * spec::kNeuralFrames);
+            detail::neural_frames(frames_, mat.latent.data(), fr.data());
             frame_cache_.push_back(std::move(fr));
         }
     }

@@ -19,6 +19,7 @@
 
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/model.hpp"
+#include "model_math.hpp"
 
 #if defined(__GNUC__)
 #define HBRDF_KERNEL_INLINE inline __attribute__((always_inline))
@@ -37,9 +38,7 @@ namespace hbrdf {
 namespace {
 constexpr int kChunk = 64;
 
-HBRDF_KERNEL_INLINE float act(Activation a, float x) {
-    return a == Activation::Relu ? (x > 0.f ? x : 0.f) : x * clamp_nan_lo((x + 1.5f) * (1.0f / 3.0f), 0.0f, 1.0f);
-}
+using detail::activate;
 
 // out[j][0..kChunk) = bias[j] + W (rows of n_in) * in; then the activation unless `last`.
 struct DensePortable {
@@ -59,7 +58,7 @@ struct DensePortable {
             else if (a == Activation::Relu)
                 for (int i = 0; i < kChunk; ++i) o[i] = acc[i] > 0.f ? acc[i] : 0.f;
             else
-                for (int i = 0; i < kChunk; ++i) o[i] = act(Activation::HardGelu, acc[i]);
+                for (int i = 0; i < kChunk; ++i) o[i] = activate(Activation::HardGelu, acc[i]);
         }
     }
 };
@@ -75,7 +74,8 @@ struct DensePortable {
 #define HBRDF_ACT_BODY(PS, SET1, MAX, MIN, MUL, FMA)                                            \
     if (last) return x;                                                                   \
     if (a == Activation::Relu) return MAX(x, SET1(0.0f));                                \
-    const auto t = FMA(x, SET1(1.0f / 3.0f), SET1(0.5f)); /* (x + 1.5) / 3 */             \
+    /* hardGeLU, detail::activate: (x + knee) / (2 knee) = x / (2 knee) + 1/2 */          \
+    const auto t = FMA(x, SET1(float(1.0 / (2.0 * spec::kHardgeluKnee))), SET1(0.5f));   \
     return MUL(x, MIN(MAX(t, SET1(0.0f)), SET1(1.0f)));
 
 __attribute__((target("avx2,fma"))) HBRDF_KERNEL_INLINE __m256 act8(__m256 x, Activation a, bool last) {
@@ -148,8 +148,6 @@ struct DenseAvx512 {
 #endif
 #endif
 
-HBRDF_KERNEL_INLINE float exp_clamped(float x) { return std::exp(x < kPreExpMax ? x : kPreExpMax); }
-
 }  // namespace
 
 struct ModelBatchKernels {
@@ -158,7 +156,7 @@ struct ModelBatchKernels {
                                         const float* wo_aos, float* f_aos) {
         const int width = md.width_;
         const int n_dir = md.n_dir_inputs_;
-        const ModelKind kind = md.kind_;
+        const spec::ArchSpec& as = md.arch();
         const Activation a = md.activation_;
         std::vector<float> scratch(static_cast<std::size_t>(kChunk) * (n_dir + 2 * width + 6 + 9 + 1));
         float* X = scratch.data();          // n_dir rows
@@ -168,8 +166,9 @@ struct ModelBatchKernels {
         float* D = O + 6 * kChunk;          // wi (3 rows), wo (3 rows), f_a (3 rows)
         float* V = D + 9 * kChunk;          // valid (1 row)
         const std::vector<float>& bias0 = md.bias0_[m];
-        const AnalyticBrdf* brdf = kind == ModelKind::Neural ? nullptr : &md.analytic_[m];
-        const float* frames = kind == ModelKind::Neural ? md.frame_cache_[m].data() : nullptr;
+        const float bound = md.pre_exp_max_;
+        const AnalyticBrdf* brdf = as.analytic ? &md.analytic_[m] : nullptr;
+        const float* frames = as.directions == spec::DirectionInputs::Frames ? md.frame_cache_[m].data() : nullptr;
 
         for (std::size_t start = 0; start < n; start += kChunk) {
             const int cnt = int(std::min<std::size_t>(kChunk, n - start));
@@ -197,7 +196,7 @@ struct ModelBatchKernels {
                     D[8 * kChunk + i] = fa.z;
                 }
                 std::copy(D, D + 6 * kChunk, X);
-                if (kind == ModelKind::AnalyticInput)
+                if (as.extra == spec::ExtraInputs::Log1pFa)
                     for (int c = 0; c < 3; ++c)
                         for (int i = 0; i < kChunk; ++i) X[(6 + c) * kChunk + i] = std::log1p(D[(6 + c) * kChunk + i]);
             } else {
@@ -221,20 +220,14 @@ struct ModelBatchKernels {
                 Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? O : B, a, last);
                 if (!last) std::swap(A, B);
             }
-            for (int i = 0; i < cnt; ++i) {
-                float out[3];
+            const spec::Combine rule = as.combine;
+            const bool gated = as.n_out == 6;
+            for (int i = 0; i < cnt; ++i)
                 for (int c = 0; c < 3; ++c) {
-                    const float o = O[c * kChunk + i];
-                    const float fa = D[(6 + c) * kChunk + i];
-                    switch (kind) {
-                        case ModelKind::Neural: out[c] = exp_clamped(o); break;
-                        case ModelKind::Additive: out[c] = max0(fa + o); break;
-                        case ModelKind::LogMul: out[c] = fa * exp_clamped(o); break;
-                        default: out[c] = exp_clamped(o) + fa / (1.0f + std::exp(-O[(3 + c) * kChunk + i])); break;
-                    }
-                    f_aos[3 * (start + i) + c] = V[i] > 0.f ? out[c] : 0.f;
+                    const float f = detail::combine(rule, O[c * kChunk + i], gated ? O[(3 + c) * kChunk + i] : 0.f,
+                                                    D[(6 + c) * kChunk + i], bound);
+                    f_aos[3 * (start + i) + c] = V[i] > 0.f ? f : 0.f;
                 }
-            }
         }
     }
 };

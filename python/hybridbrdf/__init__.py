@@ -14,6 +14,7 @@ from hybridbrdf._core import (
     ETA_MIN,
     MIS_MIN_LOBE_PROBABILITY,
 )
+from hybridbrdf import _core
 from hybridbrdf._core import __version__ as _core_version
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
@@ -24,7 +25,8 @@ __version__ = "0.1.0"
 if _core_version != __version__:  # a stale extension from an older build
     raise ImportError(f"hybridbrdf {__version__} found extension hybridbrdf._core {_core_version}; reinstall the package")
 
-STRATEGIES = ("cosine", "ggx", "mis")
+#: Names of the sampling strategies of sample() and pdf(), from the C++ library (sampling.hpp).
+STRATEGIES = tuple(_core.STRATEGIES)
 
 __all__ = [
     "ALPHA_MAX",

@@ -100,12 +100,6 @@ def _core_params(params) -> "_core.AnalyticParams":
     raise TypeError(f"params must be hybridbrdf.AnalyticParams, got {type(params).__name__}")
 
 
-def _check_strategy(strategy: str) -> str:
-    if strategy not in ("cosine", "ggx", "mis"):
-        raise ValueError(f"unknown sampling strategy {strategy!r}; expected 'cosine', 'ggx' or 'mis'")
-    return strategy
-
-
 def analytic_eval(wi, wo, params: AnalyticParams) -> np.ndarray:
     """f_a(wi, wo) for (N,3) direction arrays; returns (N,3) float32 RGB, no cosine."""
     wi_a, wo_a = _rows(wi, 3, "wi"), _rows(wo, 3, "wo")
@@ -117,7 +111,8 @@ def sample(wo, u, params: AnalyticParams, strategy: str = "mis") -> Tuple[np.nda
     """Importance-sample wi for each wo.
 
     ``u`` holds two uniform numbers per row, shape (N,2), in [0,1) (clamped).
-    ``strategy``: ``"cosine"`` (cosine-weighted hemisphere), ``"ggx"`` (GGX
+    ``strategy`` (one of :data:`hybridbrdf.STRATEGIES`, the library's names; others raise
+    ``ValueError``): ``"cosine"`` (cosine-weighted hemisphere), ``"ggx"`` (GGX
     visible normals, Dupuy & Benyoub 2023) or ``"mis"`` (one-sample mixture of
     both; the GGX lobe is picked with probability
     clamp(Fs / (Fs + Kd), 0.1, 0.9), Fs = mean Fresnel at wo, Kd = mean kd).
@@ -128,14 +123,14 @@ def sample(wo, u, params: AnalyticParams, strategy: str = "mis") -> Tuple[np.nda
     """
     wo_a, u_a = _rows(wo, 3, "wo"), _rows(u, 2, "u")
     _same_rows(wo_a, u_a, "wo", "u")
-    return _core.sample(wo_a, u_a, _core_params(params), _check_strategy(strategy))
+    return _core.sample(wo_a, u_a, _core_params(params), strategy)  # ValueError for unknown names
 
 
 def pdf(wi, wo, params: AnalyticParams, strategy: str = "mis") -> np.ndarray:
     """Solid-angle density with which ``sample(wo, ..., strategy)`` produces wi, (N,)."""
     wi_a, wo_a = _rows(wi, 3, "wi"), _rows(wo, 3, "wo")
     _same_rows(wi_a, wo_a, "wi", "wo")
-    return _core.pdf(wi_a, wo_a, _core_params(params), _check_strategy(strategy))
+    return _core.pdf(wi_a, wo_a, _core_params(params), strategy)
 
 
 def simd_path() -> str:

@@ -1,6 +1,6 @@
 """Code generation: a model file becomes self-contained GLSL, HLSL or C++ code.
 
-    hbrdf-codegen MODEL --target glsl|hlsl|cpp [--materials a,b] -o OUT
+    hbrdf-codegen MODEL --target glsl|hlsl|cpp [--materials a,b | --scene SCENE.json] -o OUT
 
 One Jinja2 template (``codegen/hbrdf.j2``) serves every target; a small
 dialect table (:data:`DIALECTS`) holds what differs between the languages.
@@ -9,7 +9,8 @@ The generated code defines, with the same names in every dialect:
 - ``struct HbrdfMaterial { kd, eta, alpha_x, alpha_y, z[] }`` and one constant
   ``HBRDF_MATERIAL_<NAME>`` per material (name upper-cased, other characters ``_``);
 - ``hbrdf_eval(wi, wo, m)`` (the full model, f without the cosine),
-  ``hbrdf_eval_analytic(wi, wo, m)``, ``hbrdf_pdf(wi, wo, m)`` and
+  ``hbrdf_eval_analytic(wi, wo, m)``, ``hbrdf_eval_depth(wi, wo, m, depth)`` (f_a from depth
+  ``HBRDF_NEURAL_MAX_DEPTH`` on, the scene's neural_max_depth), ``hbrdf_pdf(wi, wo, m)`` and
   ``hbrdf_sample(wo, u, m, out pdf)`` (MIS of cosine and GGX lobes, as the library);
 - in C++ everything lives in namespace ``hbrdf`` with its own ``hbrdf::float3``.
 
@@ -30,6 +31,7 @@ import numpy as np
 from hybridbrdf import _core
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.model_file import HybridModel, load_model
+from hybridbrdf.shaders import render_shader
 from hybridbrdf.util import atomic_write_bytes
 
 TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
@@ -117,11 +119,13 @@ inline float3 cross(const float3 a, const float3 b) {
 DIALECTS: Dict[str, Dict[str, object]] = {
     "glsl": {"name": "GLSL 4.50", "comment": "//", "prelude": "", "epilogue": "", "v3": "vec3", "v2": "vec2",
              "const": "const", "fn": "", "out_array": "out ", "out_float": lambda n: f"out float {n}",
+             "unused": lambda n: "",
              "array": _glsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "uint",
              "uint_array": lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
              "weight": lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]"},
     "hlsl": {"name": "HLSL (Shader Model 5+, glslang/DXC)", "comment": "//", "prelude": "", "epilogue": "",
              "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
+             "unused": lambda n: "",
              "out_float": lambda n: f"out float {n}", "array": _brace_array,
              "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
              "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
@@ -129,6 +133,7 @@ DIALECTS: Dict[str, Dict[str, object]] = {
     "cpp": {"name": "C++17, dependency-free", "comment": "//", "prelude": CPP_PRELUDE,
             "epilogue": "}  // namespace hbrdf", "v3": "float3", "v2": "float2", "const": "inline constexpr",
             "fn": "inline ", "out_array": "", "out_float": lambda n: f"float& {n}", "array": _brace_array,
+            "unused": lambda n: f"(void){n};  // -Wunused-parameter",
             "struct_open": lambda t: "{", "struct_close": "}", "uint": "unsigned",
             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
             "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))"},
@@ -178,32 +183,69 @@ def material_constant(name: str) -> str:
 _F_SUFFIX = re.compile(r"(?<=[0-9.])f\b")
 
 
-def load_scene(path) -> Dict[str, object]:
-    """Read a scene file: {"materials": ["name", {"name": "other", "evaluate": "analytic"}, ...]}.
-    ``evaluate`` is "full" (default) or "analytic" (the material renders with f_a only)."""
+NO_DEPTH_LIMIT = 2**31 - 1  # HBRDF_NEURAL_MAX_DEPTH without a scene: the network at every depth
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them missing: compare the paths
+        return os.path.normpath(os.path.abspath(a)) == os.path.normpath(os.path.abspath(b))
+
+
+def load_scene(scene, model: HybridModel, model_path=None) -> Dict[str, object]:
+    """The specialisation plan of a path-tracer scene (docs/RENDERING.md) for ``model``.
+
+    ``scene`` is a scene file, or a dict in its schema (relative paths then resolve against the
+    current folder). It is read and checked by the tracer's own reader (``_core.read_scene_decl``:
+    one schema, the same errors), which opens none of the files it names. The code is emitted for
+    the scene's materials of type "model" whose "file" is ``model_path`` (default ``model.path``):
+    each is the model material named by its "material", analytic-only with ``"evaluate": "analytic"``.
+    Analytic and measured materials and models of other files are not emitted (listed in
+    "not_emitted"). The scene's ``neural_max_depth`` (-1 = ``max_depth``) is the tracer's rule 1.
+
+    Returns ``{"name", "materials": [{"name", "evaluate"}], "neural_max_depth", "not_emitted"}``,
+    the ``scene`` argument of :func:`generate`. Raises ValueError "<scene>: <where>: <problem>"."""
     import json
 
-    path = os.fspath(path)
-    try:
-        with open(path) as fh:
-            doc = json.load(fh)
-    except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
-    except json.JSONDecodeError as exc:
-        raise InputFileError(path, f"not valid JSON ({exc})") from None
-    if not isinstance(doc, dict) or not isinstance(doc.get("materials"), list) or not doc["materials"]:
-        raise InputFileError(path, "a scene needs a non-empty 'materials' list")
-    entries = []
-    for i, m in enumerate(doc["materials"]):
-        if isinstance(m, str):
-            m = {"name": m}
-        if not isinstance(m, dict) or not isinstance(m.get("name"), str):
-            raise InputFileError(path, f"materials[{i}] must be a name or an object with a 'name'")
-        evaluate = m.get("evaluate", "full")
-        if evaluate not in ("full", "analytic"):
-            raise InputFileError(path, f"materials[{i}].evaluate must be 'full' or 'analytic', got {evaluate!r}")
-        entries.append({"name": m["name"], "evaluate": evaluate})
-    return {"name": os.path.basename(path), "materials": entries}
+    from hybridbrdf.render import load_scene_dict
+
+    data, base_dir, origin = load_scene_dict(scene)
+    if isinstance(data.get("materials"), list):
+        raise InputFileError(origin, "materials: the list form of hbrdf-codegen scenes was removed; --scene reads "
+                                     "the path tracer's scene files (docs/RENDERING.md): \"materials\": {\"name\": "
+                                     "{\"type\": \"model\", \"file\": \"MODEL.safetensors\", \"material\": \"...\"}}")
+    if not hasattr(_core, "read_scene_decl"):
+        raise InputFileError(origin, "--scene needs the renderer's scene reader, and this build of hybridbrdf has "
+                                     "no renderer (HBRDF_BUILD_RENDERER=OFF)")
+    decl = _core.read_scene_decl(json.dumps(data), base_dir, origin)
+    target = model_path if model_path is not None else model.path
+    if target is None:
+        raise ValueError("load_scene: the model has no file to match the scene's materials against; give model_path")
+    emitted: Dict[str, Dict[str, str]] = {}  # model material -> its first declaration
+    not_emitted = [f"{m['name']} ({m['type']})" for m in decl["other_materials"]]
+    for m in decl["model_materials"]:
+        if not _same_file(m["file"], os.fspath(target)):
+            not_emitted.append(f"{m['name']} (model {os.path.basename(m['file'])})")
+            continue
+        if m["material"] not in model.materials:
+            raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {target}")
+        if m["evaluate"] == "analytic" and model.kind == "neural":
+            raise InputFileError(origin, f"{m['where']}.evaluate: \"analytic\" is not possible: the neural baseline "
+                                         "has no analytic part")
+        first = emitted.setdefault(m["material"], m)
+        if first["evaluate"] != m["evaluate"]:
+            # One constant per model material, so it cannot be both.
+            raise InputFileError(origin, f"{m['where']}.evaluate: {m['material']!r} is also used by {first['where']} "
+                                         f"with \"evaluate\": \"{first['evaluate']}\"; the generated code has one "
+                                         "constant per model material")
+    if not emitted:
+        raise InputFileError(origin, f"materials: no material of type \"model\" uses {target}"
+                                     + (f" (the scene has: {', '.join(not_emitted)})" if not_emitted else ""))
+    settings = decl["settings"]
+    depth = settings["neural_max_depth"] if settings["neural_max_depth"] >= 0 else settings["max_depth"]
+    return {"name": os.path.basename(origin), "neural_max_depth": depth, "not_emitted": not_emitted,
+            "materials": [{"name": n, "evaluate": m["evaluate"]} for n, m in emitted.items()]}
 
 
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
@@ -233,10 +275,16 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     names = list(materials) if materials else model.materials
     analytic_only = isotropic_only = fold_latent = mixed = False
     flags = {}
+    neural_max_depth = NO_DEPTH_LIMIT
     if scene is not None:
         # Simulate only what the scene calls for (docs/CODEGEN.md, "Specialisation").
         names = [m["name"] for m in scene["materials"]]
-        analytic_only = all(m["evaluate"] == "analytic" for m in scene["materials"])
+        if scene.get("neural_max_depth") is not None:
+            neural_max_depth = int(scene["neural_max_depth"])
+        # neural_max_depth 0: the tracer renders f_a at every depth, so no network at all (the
+        # neural baseline has no f_a; the tracer, and so hbrdf_eval_depth, always runs its network).
+        analytic_only = all(m["evaluate"] == "analytic" for m in scene["materials"]) or (
+            neural_max_depth == 0 and model.kind != "neural")
         # Some materials full, others analytic-only: the network stays, and a per-material
         # flag makes hbrdf_eval skip it (a branch that is uniform across a draw call).
         mixed = not analytic_only and any(m["evaluate"] == "analytic" for m in scene["materials"])
@@ -294,10 +342,12 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         depth=a["depth"], activation=a["activation"], latent=latent, latent_in=latent_in, z_len=max(latent, 1),
         n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
         specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
+        not_emitted=(scene or {}).get("not_emitted", []), neural_max_depth=neural_max_depth,
+        depth_limited=neural_max_depth != NO_DEPTH_LIMIT,
         isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
         mixed=mixed,
         material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
-        pre_exp_max=float_literal(a.get("pre_exp_max", 16.0)),
+        pre_exp_max=float_literal(a["pre_exp_max"]),
         frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
         frames_bias=t["frames.bias"] if model.kind == "neural" else [])
@@ -358,41 +408,12 @@ def eval_compute_shader(function: str, material_constant_name: str, include: str
     that includes the generated file ``include`` and writes ``function(wi, wo, MATERIAL)``
     (hbrdf_eval or hbrdf_eval_analytic) for pairs read from binding 0 (6 floats each) to
     binding 1 (3 floats each); with ``n`` set, invocations past the n-th pair return early.
-    The kernel of spirv_size, bench/bench_inference.py and the shader conformance tests."""
-    guard = f"    if (i >= {n}u) return;\n" if n is not None else ""
-    if target == "glsl":
-        return f"""#version 450
-#extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In {{ float data_in[]; }};
-layout(std430, binding = 1) writeonly buffer Out {{ float data_out[]; }};
-#include "{include}"
-void main() {{
-    uint i = gl_GlobalInvocationID.x;
-{guard}    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    vec3 f = {function}(wi, wo, {material_constant_name});
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}}
-"""
-    if target == "hlsl":
-        return f"""#include "{include}"
-RWStructuredBuffer<float> data_in : register(u0);
-RWStructuredBuffer<float> data_out : register(u1);
-[numthreads(64, 1, 1)]
-void main(uint3 id : SV_DispatchThreadID) {{
-    uint i = id.x;
-{guard}    float3 wi = float3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    float3 wo = float3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    float3 f = {function}(wi, wo, {material_constant_name});
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}}
-"""
-    raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")
+    The kernel of spirv_size, bench/bench_inference.py and the shader conformance tests; its
+    source is glsl/eval.comp.glsl or glsl/eval.comp.hlsl."""
+    if target not in ("glsl", "hlsl"):
+        raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")
+    return render_shader(f"eval.comp.{target}", include=include, function=function,
+                         material=material_constant_name, n=n)
 
 
 def spirv_size(glsl_code: str, material_constant_name: str, workdir) -> int:
@@ -417,8 +438,10 @@ def main(argv=None) -> int:
     ap.add_argument("model", help="model file written by hbrdf fit")
     ap.add_argument("--target", required=True, choices=TARGETS, help="output language")
     ap.add_argument("--materials", help="comma-separated material names to include (default: all)")
-    ap.add_argument("--scene", help="scene JSON naming the materials it uses; specialises the code (isotropic-only "
-                                    "GGX, no network for analytic-only scenes, latent folded for one material)")
+    ap.add_argument("--scene", help="path-tracer scene file (docs/RENDERING.md): emit only its materials of type "
+                                    "\"model\" in MODEL and specialise the code (isotropic-only GGX, no network for "
+                                    "analytic-only scenes, latent folded for one material, neural_max_depth as "
+                                    "HBRDF_NEURAL_MAX_DEPTH and hbrdf_eval_depth)")
     ap.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
                     help="layer weights: fp32 (exact) or fp16 (rounded to IEEE half: exact half values as literals "
                          "in unrolled code, two per 32-bit word in loops)")
@@ -430,9 +453,9 @@ def main(argv=None) -> int:
     try:
         model = load_model(args.model)
         materials = [m for m in args.materials.split(",") if m] if args.materials else None
-        scene = load_scene(args.scene) if args.scene else None
-        if scene is not None and materials:
+        if args.scene and materials:
             raise ValueError("give either --materials or --scene, not both")
+        scene = load_scene(args.scene, model, args.model) if args.scene else None
         extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
         if args.precision != "fp32":
             extra += f" --precision {args.precision}"

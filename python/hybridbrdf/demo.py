@@ -1,4 +1,4 @@
-"""The README's main job, for now: look at the analytic BRDF f_a.
+"""``hbrdf demo``: look at the analytic BRDF f_a.
 
 Plots, for a few built-in materials, in-plane slices of f_a(wi, wo) cos(theta_i)
 (computed by the C++ library, with the float64 PyTorch implementation drawn
@@ -15,6 +15,7 @@ from typing import Dict
 
 import numpy as np
 
+from hybridbrdf._core import STRATEGIES
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, sample
 
 #: Built-in analytic materials (no measured data needed).
@@ -73,7 +74,7 @@ def run_demo(out: str, samples: int = 200_000) -> None:
     angles = (0.0, 30.0, 60.0, 75.0)
     fig, axes = plt.subplots(len(DEMO_MATERIALS), 2, figsize=(11, 3.1 * len(DEMO_MATERIALS)), squeeze=False)
     worst_rel = 0.0
-    print(f"{'material':24s} {'theta_o':>7s}  " + "  ".join(f"{s:>20s}" for s in ("cosine", "ggx", "mis")))
+    print(f"{'material':24s} {'theta_o':>7s}  " + "  ".join(f"{s:>20s}" for s in STRATEGIES))
     for row, (name, p) in enumerate(DEMO_MATERIALS.items()):
         ax = axes[row][0]
         for k, ti in enumerate(angles):
@@ -94,7 +95,7 @@ def run_demo(out: str, samples: int = 200_000) -> None:
 
         ax = axes[row][1]
         view = np.linspace(0.0, 85.0, 18)
-        for s_i, strategy in enumerate(("cosine", "ggx", "mis")):
+        for s_i, strategy in enumerate(STRATEGIES):
             a = np.array([directional_albedo(p, v, max(samples // 10, 1000), strategy).mean() for v in view])
             ax.plot(view, a, marker="os^"[s_i], ms=3, label=strategy)
         ax.set_ylim(bottom=0)
@@ -102,7 +103,7 @@ def run_demo(out: str, samples: int = 200_000) -> None:
         ax.set_xlabel("θo (degrees)")
         ax.legend(fontsize=7)
         for v in (0.0, 60.0):
-            est = [directional_albedo(p, v, samples, s).mean() for s in ("cosine", "ggx", "mis")]
+            est = [directional_albedo(p, v, samples, s).mean() for s in STRATEGIES]
             print(f"{name:24s} {v:6.0f}°  " + "  ".join(f"{e:20.5f}" for e in est))
     fig.suptitle("hybridbrdf analytic component f_a (lines: C++ float32; circles: PyTorch float64)")
     fig.tight_layout()

@@ -11,18 +11,12 @@ from typing import Tuple
 
 import numpy as np
 
+from hybridbrdf.directions import cosine_hemisphere  # fitting.py imports it from here too
+
 #: Seed of the metric directions: fixed so that numbers compare between runs and versions.
 METRIC_SEED = 7
 #: Number of direction pairs of a CONVENTIONS metric.
 METRIC_PAIRS = 1_000_000
-
-
-def cosine_hemisphere(rng: np.random.Generator, n: int) -> np.ndarray:
-    """n directions drawn cosine-weighted on the upper hemisphere (float64, (n,3))."""
-    u1, u2 = rng.random(n), rng.random(n)
-    r = np.sqrt(u1)
-    phi = 2.0 * np.pi * u2
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u1))], axis=1)
 
 
 def metric_directions(n: int = METRIC_PAIRS, seed: int = METRIC_SEED) -> Tuple[np.ndarray, np.ndarray]:

@@ -1,15 +1,15 @@
 """Model files: the single hand-off between fitting and everything else.
 
 Container: safetensors (a standard, safe format: an 8-byte little-endian header
-length, a JSON header, raw little-endian tensor bytes; readable from C++ with a
-small JSON parser). The JSON header's ``__metadata__`` holds one entry,
-``"hybridbrdf"``, a JSON document:
+length, a JSON header, raw little-endian tensor bytes), read and written here by the
+``safetensors`` package and read in C++ by libhybridbrdf's own reader. The JSON
+header's ``__metadata__`` holds one entry, ``"hybridbrdf"``, a JSON document:
 
     format_version       1
     conventions_version  docs/CONVENTIONS.md version the math follows
     library_version      hybridbrdf version that wrote the file
     arch                 {kind, width, depth, activation, latent, n_in, n_out, pre_exp_max,
-                          input: "wi.x wi.y wi.z wo.x wo.y wo.z z_0 .. z_{l-1}" (+ "log1p f_a" for analytic-input)}
+                          input: a description of the network input (informative)}
     materials            [{name, origin, isotropic, metrics: {...}}]  (order = row order of the tensors)
     training             settings of the fit (steps, batch, lr, seed, sources, ...)
 
@@ -19,8 +19,12 @@ per material ``materials.kd`` (M,3), ``materials.eta`` (M,3), ``materials.alpha`
 (hybrid kinds only) and ``materials.z`` (M,l). Values are evaluation-ready (not the
 optimiser's raw parameters), so saving then loading is bit-exact.
 
-Loading validates everything and raises :class:`hybridbrdf.errors.ModelFileError`
-naming the file and the first problem found.
+The contract (architectures, the fields of ``arch`` with their types and bounds, the
+parameter ranges) is declared once in ``spec/model.json`` (:mod:`hybridbrdf.spec`);
+loading checks it in the same order, with the same messages, as the C++ loader
+(``cpp/src/model.cpp``), and raises :class:`hybridbrdf.errors.ModelFileError` naming
+the file and the first problem found. ``tests/data/malformed_models.json`` is the
+shared table of broken files both loaders must reject alike.
 """
 
 from __future__ import annotations
@@ -31,16 +35,18 @@ import struct
 from typing import Any, Dict, List, Optional
 
 import numpy as np
+import safetensors
+import safetensors.numpy
 import torch
 
-from hybridbrdf import _core
+from hybridbrdf import _core, spec
 from hybridbrdf.errors import ModelFileError
-from hybridbrdf.models import ACTIVATIONS, ARCHS, PRE_EXP_MAX, build_model
+from hybridbrdf.models import build_model
 from hybridbrdf.util import atomic_write_bytes
 
-FORMAT_VERSION = 1
-METADATA_KEY = "hybridbrdf"
-MAX_HEADER_BYTES = 64 << 20
+FORMAT_VERSION = spec.FORMAT_VERSION
+METADATA_KEY = spec.METADATA_KEY
+MAX_HEADER_BYTES = spec.MAX_HEADER_BYTES
 
 
 def network_tensor_shapes(arch: Dict[str, Any]) -> Dict[str, tuple]:
@@ -52,76 +58,63 @@ def network_tensor_shapes(arch: Dict[str, Any]) -> Dict[str, tuple]:
         shapes[f"mlp.hidden.{i}.bias"] = (b,)
     shapes["mlp.out.weight"] = (arch["n_out"], arch["width"])
     shapes["mlp.out.bias"] = (arch["n_out"],)
-    if arch["kind"] == "neural":
-        shapes["frames.weight"] = (18, arch["latent"])
-        shapes["frames.bias"] = (18,)
+    if spec.ARCHS[arch["kind"]]["directions"] == "frames":
+        shapes["frames.weight"] = (6 * spec.NEURAL_FRAMES, arch["latent"])
+        shapes["frames.bias"] = (6 * spec.NEURAL_FRAMES,)
     return shapes
+
+
+def input_description(kind: str, latent: int) -> str:
+    """The network input of an architecture in words (recorded as ``arch.input``)."""
+    a = spec.ARCHS[kind]
+    directions = ("wi.x wi.y wi.z wo.x wo.y wo.z" if a["directions"] == "local"
+                  else "wi and wo in 3 predicted frames (t, b, n each; 18 values)")
+    extra = " log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)" if a["extra"] == "log1p_fa" else ""
+    return directions + "".join(f" z_{i}" for i in range(latent)) + extra
 
 
 def arch_description(module) -> Dict[str, Any]:
     kind = module.arch
     latent = module.latent_dim
-    n_in = module.mlp.hidden[0].in_features
-    n_out = module.mlp.out.out_features
-    inputs = "wi.x wi.y wi.z wo.x wo.y wo.z" + "".join(f" z_{i}" for i in range(latent))
-    if kind == "neural":
-        inputs = "wi and wo in 3 predicted frames (t, b, n each; 18 values)" + "".join(f" z_{i}" for i in range(latent))
-    if kind == "analytic-input":
-        inputs += " log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)"
     return {"kind": kind, "width": module.width, "depth": module.depth, "activation": module.activation,
-            "latent": latent, "n_in": n_in, "n_out": n_out, "pre_exp_max": PRE_EXP_MAX, "input": inputs}
+            "latent": latent, "n_in": module.mlp.hidden[0].in_features, "n_out": module.mlp.out.out_features,
+            "pre_exp_max": module.pre_exp_max, "input": input_description(kind, latent)}
 
 
-def _encode_safetensors(tensors: Dict[str, np.ndarray], metadata: Dict[str, str]) -> bytes:
-    """safetensors serialisation (done here so the byte layout is ours to document)."""
-    header: Dict[str, Any] = {"__metadata__": metadata}
-    offset = 0
-    blobs = []
-    for name in sorted(tensors):
-        arr = np.ascontiguousarray(tensors[name], dtype="<f4")
-        data = arr.tobytes()
-        header[name] = {"dtype": "F32", "shape": list(arr.shape), "data_offsets": [offset, offset + len(data)]}
-        offset += len(data)
-        blobs.append(data)
-    hbytes = json.dumps(header, separators=(",", ":")).encode("utf-8")
-    hbytes += b" " * ((8 - len(hbytes) % 8) % 8)  # align the data section to 8 bytes
-    return struct.pack("<Q", len(hbytes)) + hbytes + b"".join(blobs)
+def encode(tensors: Dict[str, np.ndarray], metadata: Dict[str, str]) -> bytes:
+    """A safetensors file's bytes (float32 tensors, string metadata), by the safetensors package."""
+    return safetensors.numpy.save({k: np.ascontiguousarray(v, dtype="<f4") for k, v in tensors.items()}, metadata)
 
 
-def _decode_safetensors(path: str):
+def decode(path: str):
+    """(metadata, tensors) of a safetensors file; ModelFileError for anything unreadable.
+
+    The two checks before the safetensors package runs are the C++ reader's first two, with
+    its messages (they catch the commonest damage: empty and cut-off files)."""
     try:
         with open(path, "rb") as fh:
-            raw = fh.read()
+            head = fh.read(8)
+            size = os.fstat(fh.fileno()).st_size
     except FileNotFoundError:
         raise ModelFileError(path, "no such file") from None
     except OSError as exc:
         raise ModelFileError(path, f"cannot read: {exc.strerror}") from None
-    if len(raw) < 8:
-        raise ModelFileError(path, f"truncated: {len(raw)} bytes, not even a safetensors header length")
-    (hlen,) = struct.unpack("<Q", raw[:8])
-    if hlen > MAX_HEADER_BYTES or 8 + hlen > len(raw):
-        raise ModelFileError(path, f"not a safetensors file or truncated (header length {hlen}, file {len(raw)} bytes)")
+    if size < 8:
+        raise ModelFileError(path, f"truncated: {size} bytes, not even a safetensors header length")
+    (hlen,) = struct.unpack("<Q", head)
+    if hlen > MAX_HEADER_BYTES or 8 + hlen > size:
+        raise ModelFileError(path, f"not a safetensors file or truncated (header length {hlen}, file {size} bytes)")
     try:
-        header = json.loads(raw[8:8 + hlen].decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(path, f"safetensors header is not valid JSON ({exc})") from None
-    if not isinstance(header, dict):
-        raise ModelFileError(path, "safetensors header is not a JSON object")
-    metadata = header.pop("__metadata__", None) or {}
-    data = memoryview(raw)[8 + hlen:]
-    tensors = {}
-    for name, info in header.items():
-        try:
-            dtype, shape, (start, end) = info["dtype"], tuple(int(s) for s in info["shape"]), info["data_offsets"]
-        except (KeyError, TypeError, ValueError):
-            raise ModelFileError(path, f"tensor {name!r}: malformed entry in the header") from None
-        if dtype != "F32":
-            raise ModelFileError(path, f"tensor {name!r}: dtype {dtype}, expected F32")
-        n = int(np.prod(shape)) if shape else 1
-        if not (0 <= start <= end <= len(data)) or end - start != 4 * n:
-            raise ModelFileError(path, f"tensor {name!r}: data range [{start}, {end}) does not fit shape {shape} "
-                                       f"in {len(data)} data bytes (truncated?)")
-        tensors[name] = np.frombuffer(data[start:end], dtype="<f4").reshape(shape).copy()
+        with safetensors.safe_open(path, framework="numpy") as f:
+            metadata = f.metadata() or {}
+            tensors = {}
+            for name in f.keys():
+                dtype = f.get_slice(name).get_dtype()
+                if dtype != spec.TENSOR_DTYPE:
+                    raise ModelFileError(path, f"tensor '{name}': dtype {dtype}, expected {spec.TENSOR_DTYPE}")
+                tensors[name] = np.array(f.get_tensor(name), dtype=np.float32)
+    except safetensors.SafetensorError as exc:
+        raise ModelFileError(path, f"not a valid safetensors file ({exc})") from None
     return metadata, tensors
 
 
@@ -149,6 +142,11 @@ class HybridModel:
         return self.arch["kind"]
 
     @property
+    def has_analytic(self) -> bool:
+        """Whether the architecture has an analytic part f_a (all but the neural baseline)."""
+        return spec.ARCHS[self.kind]["analytic"]
+
+    @property
     def materials(self) -> List[str]:
         return [m["name"] for m in self.material_info]
 
@@ -166,7 +164,7 @@ class HybridModel:
         """The analytic parameters of a material as :class:`hybridbrdf.AnalyticParams`."""
         from hybridbrdf.analytic import AnalyticParams
 
-        if self.kind == "neural":
+        if not self.has_analytic:
             raise ValueError("the neural baseline has no analytic part")
         i = self.index(material)
         return AnalyticParams(kd=self.tensors["materials.kd"][i].astype(np.float64),
@@ -180,7 +178,8 @@ class HybridModel:
     def _module(self, dtype: torch.dtype):
         if dtype not in self._modules:
             a = self.arch
-            mod = build_model(a["kind"], 1, a["width"], a["depth"], a["latent"], a["activation"])
+            mod = build_model(a["kind"], 1, a["width"], a["depth"], a["latent"], a["activation"],
+                              pre_exp_max=a["pre_exp_max"])
             state = {k: torch.from_numpy(v) for k, v in self.tensors.items() if not k.startswith("materials.")}
             missing = mod.load_state_dict(state, strict=False)
             unexpected = [k for k in missing.missing_keys if not k.startswith(("kd_raw", "eta_raw", "alpha_raw", "z", "isotropic"))]
@@ -207,7 +206,7 @@ class HybridModel:
 
     def eval_analytic(self, wi, wo, material, dtype: Optional[torch.dtype] = None) -> np.ndarray:
         """The analytic part f_a of a hybrid material (not available for the neural baseline)."""
-        if self.kind == "neural":
+        if not self.has_analytic:
             raise ValueError("the neural baseline has no analytic part")
         if dtype is None and self.path is not None:
             return self._cpp_model().eval_analytic(*self._rows(wi, wo), self.index(material)).astype(np.float64)
@@ -252,7 +251,7 @@ class HybridModel:
     def save(self, path) -> None:
         """Write the model file atomically (temporary file + rename)."""
         meta = {METADATA_KEY: json.dumps(self.header(), sort_keys=True)}
-        atomic_write_bytes(path, _encode_safetensors(self.tensors, meta))
+        atomic_write_bytes(path, encode(self.tensors, meta))
         self.path = os.fspath(path)
         self._cpp = None
 
@@ -270,85 +269,138 @@ class HybridModel:
         return cls(arch_description(module), materials, tensors, training)
 
 
-def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> None:
+def _num(v) -> str:
+    """The number format of every value quoted in a message ("%.9g"), as the C++ loader."""
+    return f"{float(v):.9g}"
+
+
+def _json_type(v) -> str:
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, int):
+        return "an integer"
+    if isinstance(v, float):
+        return "a number"
+    if isinstance(v, str):
+        return "a string"
+    if v is None:
+        return "null"
+    return "an array" if isinstance(v, list) else "an object"
+
+
+def _arch_field(fail, arch: Dict[str, Any], f: Dict[str, Any]):
+    """arch.<key> checked against its row of spec.ARCH_FIELDS; returns the value (or the default)."""
+    where = f"arch.{f['key']}"
+    if f["key"] not in arch:
+        if "default" in f:
+            return f["default"]
+        fail(f"{where} is missing")
+    v = arch[f["key"]]
+    if f["type"] == "enum":
+        if not isinstance(v, str):
+            fail(f"{where} must be a string, got {_json_type(v)}")
+        names = list(getattr(spec, f["values"].upper()))
+        if v not in names:
+            fail(f"{where} '{v}' is not one of {', '.join(names)}")
+        return v
+    if f["type"] == "int":
+        if not isinstance(v, int) or isinstance(v, bool):
+            fail(f"{where} must be an integer, got {_json_type(v)}")
+        if not f["min"] <= v <= f["max"]:
+            fail(f"{where} = {v} is outside [{_num(f['min'])}, {_num(f['max'])}]")
+        return v
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        fail(f"{where} must be a number, got {_json_type(v)}")
+    if not f["min"] <= v <= f["max"]:
+        fail(f"{where} = {_num(v)} is outside [{_num(f['min'])}, {_num(f['max'])}]")
+    return float(v)
+
+
+def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> Dict[str, Any]:
+    """Checks ``doc`` and ``tensors`` against the model contract (spec/model.json), in the C++
+    loader's order and words; returns the ``arch`` object with defaults filled in."""
     def fail(problem):
         raise ModelFileError(path, problem)
 
-    if doc.get("format_version") != FORMAT_VERSION:
-        fail(f"format_version {doc.get('format_version')!r} is not supported (this library reads {FORMAT_VERSION})")
-    if doc.get("conventions_version") != _core.CONVENTIONS_VERSION:
-        fail(f"conventions_version {doc.get('conventions_version')!r} differs from this library's "
-             f"{_core.CONVENTIONS_VERSION}")
+    for field, expected in (("format_version", spec.FORMAT_VERSION), ("conventions_version", spec.CONVENTIONS_VERSION)):
+        v = doc.get(field)
+        if not (isinstance(v, int) and not isinstance(v, bool) and v == expected):
+            fail(f"{field} {json.dumps(v)} is not supported (this library reads {expected})")
     arch = doc.get("arch")
     if not isinstance(arch, dict):
         fail("metadata has no 'arch' object")
-    for key, typ in (("kind", str), ("width", int), ("depth", int), ("activation", str), ("latent", int),
-                     ("n_in", int), ("n_out", int)):
-        if not isinstance(arch.get(key), typ) or isinstance(arch.get(key), bool):
-            fail(f"arch.{key} is missing or not a {typ.__name__}")
-    if arch["kind"] not in ARCHS:
-        fail(f"arch.kind {arch['kind']!r} is not one of {', '.join(ARCHS)}")
-    if arch["activation"] not in ACTIVATIONS:
-        fail(f"arch.activation {arch['activation']!r} is not one of {', '.join(ACTIVATIONS)}")
-    if arch["width"] < 1 or arch["depth"] < 1 or arch["latent"] < 0:
-        fail(f"arch has width {arch['width']}, depth {arch['depth']}, latent {arch['latent']}")
-    expected_in = {"neural": 18 + arch["latent"], "analytic-input": 9 + arch["latent"]}.get(arch["kind"], 6 + arch["latent"])
-    expected_out = 6 if arch["kind"] in ("hybrid", "analytic-input") else 3
-    if (arch["n_in"], arch["n_out"]) != (expected_in, expected_out):
+    arch = dict(arch)
+    for f in spec.ARCH_FIELDS:
+        arch[f["key"]] = _arch_field(fail, arch, f)
+    a = spec.ARCHS[arch["kind"]]
+    expected_in = a["direction_count"] + arch["latent"] + a["extra_count"]
+    if (arch["n_in"], arch["n_out"]) != (expected_in, a["n_out"]):
         fail(f"arch n_in/n_out {arch['n_in']}/{arch['n_out']} do not match kind {arch['kind']} with latent "
-             f"{arch['latent']} (expected {expected_in}/{expected_out})")
+             f"{arch['latent']} (expected {expected_in}/{a['n_out']})")
     materials = doc.get("materials")
     if not isinstance(materials, list) or not materials:
         fail("metadata lists no materials")
-    names = []
+    if len(materials) > spec.MAX_MATERIALS:
+        fail(f"metadata lists {len(materials)} materials, more than {spec.MAX_MATERIALS}")
+    names: List[str] = []
+    seen = set()
     for i, m in enumerate(materials):
         if not isinstance(m, dict) or not isinstance(m.get("name"), str) or not m["name"]:
             fail(f"material {i} has no name")
+        if m["name"] in seen:
+            fail(f"duplicate material names: {m['name']}")
+        seen.add(m["name"])
         names.append(m["name"])
-    dupes = sorted({n for n in names if names.count(n) > 1})
-    if dupes:
-        fail(f"duplicate material names: {', '.join(dupes)}")
+        if "origin" in m and not isinstance(m["origin"], str):
+            fail(f"material '{m['name']}': origin must be a string")
+        if "isotropic" in m and not isinstance(m["isotropic"], bool):
+            fail(f"material '{m['name']}': isotropic must be true or false")
     n_mat = len(materials)
     expected = dict(network_tensor_shapes(arch))
     expected["materials.z"] = (n_mat, arch["latent"])
-    if arch["kind"] != "neural":
-        expected.update({"materials.kd": (n_mat, 3), "materials.eta": (n_mat, 3), "materials.alpha": (n_mat, 2)})
+    if a["analytic"]:
+        expected.update({f"materials.{r['tensor']}": (n_mat, r["components"]) for r in spec.MATERIAL_RANGES})
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))
     if missing:
         fail(f"missing tensors: {', '.join(missing)}")
     if extra:
         fail(f"unexpected tensors: {', '.join(extra)}")
-    for name, shape in expected.items():
-        if tuple(tensors[name].shape) != shape:
-            fail(f"tensor {name} has shape {tuple(tensors[name].shape)}, expected {shape}")
+    for name in sorted(expected):
+        if tuple(tensors[name].shape) != expected[name]:
+            fail(f"tensor {name} has shape {tuple(tensors[name].shape)}, expected {expected[name]}")
         if not np.isfinite(tensors[name]).all():
             fail(f"tensor {name} holds NaN or Inf")
-    if arch["kind"] != "neural":
-        for name, lo, hi in (("kd", 0.0, 1.0), ("eta", _core.ETA_MIN, _core.ETA_MAX),
-                             ("alpha", np.float32(_core.ALPHA_MIN), _core.ALPHA_MAX)):
-            t = tensors[f"materials.{name}"]
-            bad = np.argwhere((t < lo) | (t > hi))
-            if len(bad):
-                r, c = bad[0]
-                fail(f"material {names[r]!r}: {name}[{c}] = {float(t[r, c])!r} is outside [{lo:g}, {hi:g}]")
-        alpha = tensors["materials.alpha"]
-        for i, m in enumerate(materials):
-            if m.get("isotropic", True) and alpha[i, 0] != alpha[i, 1]:
-                fail(f"material {names[i]!r} is marked isotropic but alpha_x != alpha_y")
+    if a["analytic"]:
+        for i, name in enumerate(names):
+            for r in spec.MATERIAL_RANGES:
+                row = tensors[f"materials.{r['tensor']}"][i]
+                lo, hi = np.float32(r["min"]), np.float32(r["max"])  # compared in float32, as C++
+                for c in range(r["components"]):
+                    if not lo <= row[c] <= hi:
+                        fail(f"material '{name}': {r['tensor']}[{c}] = {_num(row[c])} is outside "
+                             f"[{_num(r['min'])}, {_num(r['max'])}]")
+            alpha = tensors["materials.alpha"][i]
+            if materials[i].get("isotropic", True) and alpha[0] != alpha[1]:
+                fail(f"material '{name}' is marked isotropic but alpha_x != alpha_y")
+    return arch
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not JSON")  # NaN / Infinity: Python extensions C++ does not read
 
 
 def load_model(path) -> HybridModel:
     """Read and validate a model file; raises ModelFileError naming the file and the problem."""
     path = os.fspath(path)
-    metadata, tensors = _decode_safetensors(path)
+    metadata, tensors = decode(path)
     if METADATA_KEY not in metadata:
         raise ModelFileError(path, f"safetensors file without '{METADATA_KEY}' metadata: not a hybridbrdf model")
     try:
-        doc = json.loads(metadata[METADATA_KEY])
-    except (TypeError, json.JSONDecodeError) as exc:
+        doc = json.loads(metadata[METADATA_KEY], parse_constant=_reject_constant)
+    except (TypeError, ValueError) as exc:
         raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not valid JSON ({exc})") from None
     if not isinstance(doc, dict):
         raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not a JSON object")
-    _validate(path, doc, tensors)
-    return HybridModel(doc["arch"], doc["materials"], tensors, doc.get("training"), path)
+    arch = _validate(path, doc, tensors)
+    return HybridModel(arch, doc["materials"], tensors, doc.get("training"), path)

@@ -15,8 +15,12 @@ Isotropic materials use alpha_y = alpha_x (one raw value is ignored).
 
 Architectures (``arch``):
 
+The architectures, their input layout and combine rules are declared once in the model
+contract, ``spec/model.json`` (generated into :mod:`hybridbrdf.spec` and the C++ library):
+
 - ``hybrid``: network input (wi, wo, z) in that order; 6 outputs, f_c = exp(o[0:3]),
-  f_g = sigmoid(o[3:6]); the pre-exp value is clamped to ``PRE_EXP_MAX``.
+  f_g = sigmoid(o[3:6]); the pre-exp value is clamped to ``pre_exp_max`` (default
+  :data:`PRE_EXP_MAX`; a model file records its own).
 - ``additive`` (ablation): 3 outputs o, f_t = max(f_a + o, 0). The paper adds o
   unclamped; the clamp keeps the loss's log(1 + cos f) defined.
 - ``logmul`` (ablation): 3 outputs o, f_t = exp(log f_a + o) = f_a exp(o).
@@ -33,24 +37,27 @@ from typing import Dict, List, Optional, Sequence
 import torch
 from torch import nn
 
-from hybridbrdf import _core
+from hybridbrdf import spec
+from hybridbrdf.fit_settings import parse_mlp  # noqa: F401  (re-exported)
 from hybridbrdf.torch_brdf import _normalize, eval_analytic
 
-ARCHS = ("hybrid", "neural", "additive", "logmul", "analytic-input")
-ACTIVATIONS = ("relu", "hardgelu")
-#: Bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6 is far
-#: above any measured BRDF value and keeps float32 (and float16 products) from overflowing.
-PRE_EXP_MAX = 16.0
-ALPHA_MIN = _core.ALPHA_MIN
+ARCHS = tuple(spec.ARCHS)
+ACTIVATIONS = tuple(spec.ACTIVATIONS)
+#: Default bound on every value passed to exp() (spec.PRE_EXP_MAX: exp(16) = 8.9e6 is far above
+#: any measured BRDF value and keeps float32 and float16 products from overflowing).
+PRE_EXP_MAX = spec.PRE_EXP_MAX
+ALPHA_MIN = spec.ALPHA_MIN
 _LOG_ALPHA_MIN = math.log(ALPHA_MIN)
 
 
 def hardgelu(x: torch.Tensor) -> torch.Tensor:
     """The paper authors' "hardGeLU": 0 for x < -1.5, x for x > 1.5, x (x + 1.5) / 3 between.
 
-    Written as x * clamp((x + 1.5) / 3, 0, 1) (x times a hard sigmoid), which is the
-    same function in three branch-free operations, for shaders as for PyTorch."""
-    return x * torch.clamp((x + 1.5) * (1.0 / 3.0), 0.0, 1.0)
+    Written as x * clamp((x + knee) / (2 knee), 0, 1) with knee = spec.HARDGELU_KNEE = 1.5
+    (x times a hard sigmoid), the same function in three branch-free operations, for
+    shaders as for PyTorch."""
+    knee = spec.HARDGELU_KNEE
+    return x * torch.clamp((x + knee) * (1.0 / (2.0 * knee)), 0.0, 1.0)
 
 
 def activation_fn(name: str):
@@ -113,16 +120,20 @@ class HybridBRDF(nn.Module):
         latent: int = 4,
         activation: str = "hardgelu",
         isotropic: Optional[Sequence[bool]] = None,
+        pre_exp_max: float = PRE_EXP_MAX,
     ):
         super().__init__()
-        if arch not in ARCHS or arch == "neural":
+        if arch not in ARCHS or not spec.ARCHS[arch]["analytic"]:
             raise ValueError(f"HybridBRDF arch must be one of hybrid, additive, logmul, analytic-input; got {arch!r}")
         if latent < 0:
             raise ValueError(f"latent dimension must be >= 0, got {latent}")
         self.arch = arch
         self.width, self.depth, self.latent_dim, self.activation = width, depth, latent, activation
-        n_out = 6 if arch in ("hybrid", "analytic-input") else 3
-        n_in = 6 + latent + (3 if arch == "analytic-input" else 0)
+        self.pre_exp_max = float(pre_exp_max)
+        a = spec.ARCHS[arch]
+        self.combine_rule = a["combine"]
+        n_out = a["n_out"]
+        n_in = a["direction_count"] + latent + a["extra_count"]
         self.mlp = MLP(n_in, width, depth, n_out, activation)
         iso = torch.ones(n_materials, dtype=torch.bool) if isotropic is None else torch.as_tensor(list(isotropic))
         if iso.shape != (n_materials,):
@@ -182,22 +193,23 @@ class HybridBRDF(nn.Module):
         m, b = kd.shape[0], wi.shape[0]
         wi_n, wo_n, valid = _unit_pair(wi, wo)
         f_a = eval_analytic(wi_n[None], wo_n[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
+        # Input layout (spec/model.json): direction inputs, latent code, extra inputs.
         x = [wi_n[None].expand(m, b, 3), wo_n[None].expand(m, b, 3), z[:, None].expand(m, b, self.latent_dim)]
-        if self.arch == "analytic-input":
+        if spec.ARCHS[self.arch]["extra"] == "log1p_fa":
             x.append(torch.log1p(f_a))
         o = self.mlp(torch.cat(x, dim=-1))
         f_t = self.combine(o, f_a)
         return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
 
     def combine(self, o: torch.Tensor, f_a: torch.Tensor) -> torch.Tensor:
-        """The network output o and f_a -> f_t, per architecture."""
-        if self.arch in ("hybrid", "analytic-input"):
-            f_c = torch.exp(o[..., 0:3].clamp(max=PRE_EXP_MAX))
+        """The network output o and f_a -> f_t, by the architecture's combine rule (spec.COMBINES)."""
+        if self.combine_rule == "gated":
+            f_c = torch.exp(o[..., 0:3].clamp(max=self.pre_exp_max))
             f_g = torch.sigmoid(o[..., 3:6])
             return f_c + f_g * f_a
-        if self.arch == "additive":
+        if self.combine_rule == "additive":
             return torch.clamp(f_a + o, min=0.0)
-        return f_a * torch.exp(o.clamp(max=PRE_EXP_MAX))  # logmul
+        return f_a * torch.exp(o.clamp(max=self.pre_exp_max))  # logmul
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         """Evaluation-ready per-material values: kd, eta, alpha, z (float32, detached)."""
@@ -219,16 +231,18 @@ class NeuralBRDF(nn.Module):
     from the latent code, predicts 3 shading frames (a normal and a tangent each,
     Gram-Schmidt orthonormalised; initialised to the geometric frame). wi and wo are
     expressed in each frame (18 numbers) and, with the latent code, feed a shallow MLP
-    whose 3 outputs give f = exp(o) (o clamped to PRE_EXP_MAX).
+    whose 3 outputs give f = exp(o) (o clamped to ``pre_exp_max``).
     """
 
-    N_FRAMES = 3
+    N_FRAMES = spec.NEURAL_FRAMES
 
     def __init__(self, n_materials: int, width: int = 32, depth: int = 3, latent: int = 12,
-                 activation: str = "hardgelu", isotropic: Optional[Sequence[bool]] = None):
+                 activation: str = "hardgelu", isotropic: Optional[Sequence[bool]] = None,
+                 pre_exp_max: float = PRE_EXP_MAX):
         super().__init__()
         self.arch = "neural"
         self.width, self.depth, self.latent_dim, self.activation = width, depth, latent, activation
+        self.pre_exp_max = float(pre_exp_max)
         self.frames = nn.Linear(latent, self.N_FRAMES * 6)
         with torch.no_grad():
             self.frames.weight.mul_(0.1)
@@ -263,7 +277,7 @@ class NeuralBRDF(nn.Module):
         wi_f = torch.einsum("mfac,bc->mbfa", frames, wi_n).reshape(m, b, -1)
         wo_f = torch.einsum("mfac,bc->mbfa", frames, wo_n).reshape(m, b, -1)
         o = self.mlp(torch.cat([wi_f, wo_f, z[:, None].expand(m, b, self.latent_dim)], dim=-1))
-        f = torch.exp(o.clamp(max=PRE_EXP_MAX))
+        f = torch.exp(o.clamp(max=self.pre_exp_max))
         return torch.where(valid[None, :, None], f, torch.zeros_like(f)), None
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
@@ -271,20 +285,10 @@ class NeuralBRDF(nn.Module):
 
 
 def build_model(arch: str, n_materials: int, width: int, depth: int, latent: int, activation: str,
-                isotropic: Optional[Sequence[bool]] = None) -> nn.Module:
+                isotropic: Optional[Sequence[bool]] = None, pre_exp_max: float = PRE_EXP_MAX) -> nn.Module:
     """A fresh model of architecture ``arch`` for ``n_materials`` materials."""
-    if arch == "neural":
-        return NeuralBRDF(n_materials, width, depth, latent, activation, isotropic)
-    return HybridBRDF(n_materials, arch, width, depth, latent, activation, isotropic)
-
-
-def parse_mlp(spec: str):
-    """'32x3' -> (width 32, depth 3)."""
-    try:
-        w, d = spec.lower().split("x")
-        width, depth = int(w), int(d)
-    except ValueError:
-        raise ValueError(f"--mlp must look like WIDTHxDEPTH (e.g. 32x3), got {spec!r}") from None
-    if width < 1 or depth < 1:
-        raise ValueError(f"--mlp needs positive width and depth, got {spec!r}")
-    return width, depth
+    if arch not in ARCHS:
+        raise ValueError(f"unknown architecture {arch!r}; expected one of {', '.join(ARCHS)}")
+    if spec.ARCHS[arch]["directions"] == "frames":
+        return NeuralBRDF(n_materials, width, depth, latent, activation, isotropic, pre_exp_max)
+    return HybridBRDF(n_materials, arch, width, depth, latent, activation, isotropic, pre_exp_max)

@@ -3,8 +3,8 @@
     img, stats = hybridbrdf.render.render("scenes/sphere_env.json", out="out/sphere.exr", spp=64)
 
 The scene is a JSON file (or a dict in the same schema); keyword overrides replace its top-level
-settings (``spp``, ``max_depth``, ``neural_max_depth``, ``neural_min_throughput``, ``sampler``,
-``seed``, ``threads``, ``rr_depth``, ``nee``) and the camera's ``width``/``height``. Rendering runs in
+settings (:data:`SETTINGS`: ``spp``, ``max_depth``, ``neural_max_depth``, ``sampler``, ...; the table
+comes from the C++ library, :func:`settings`) and the camera's ``width``/``height``. Rendering runs in
 libhybridbrdf (Embree, wavefront, multi-threaded, GIL released). Measured materials
 (``{"type": "measured", "source": ...}``) are evaluated here, by :func:`hybridbrdf.sources.open_source`
 readers, called once per batch of direction pairs.
@@ -15,14 +15,24 @@ from __future__ import annotations
 import copy
 import json
 import os
-from typing import Any, Dict, Optional, Tuple, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
 from hybridbrdf import _core
 
-SETTINGS = ("spp", "max_depth", "neural_max_depth", "neural_min_throughput", "sampler", "seed", "threads",
-            "rr_depth", "nee", "tabulated_resolution_deg")
+
+
+def settings() -> List[Dict[str, Any]]:
+    """The scene settings as libhybridbrdf defines them (cpp/include/hybridbrdf/render/settings.hpp):
+    one dict per setting with name, type ("int", "float", "bool" or "str"), default, min and max
+    (inclusive; None = unbounded), choices (None or the accepted strings) and a one-line doc.
+    Empty for a build without the renderer."""
+    return list(_core.render_settings()) if getattr(_core, "HAVE_RENDERER", False) else []
+
+
+#: Names of the settings that :func:`render` accepts as overrides (and a scene file at its top level).
+SETTINGS = tuple(s["name"] for s in settings())
 
 
 def _measured_factory(source: str):
@@ -63,7 +73,7 @@ def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = 
 
     out: OpenEXR file to write (linear float32); png: 8-bit sRGB PNG (``exposure`` in stops, ``tonemap``
     "clamp" or "aces"). Both are written atomically. Overrides (``spp=``, ``threads=``, ...) replace the
-    scene's settings; None values are ignored. ``measured_factory(source) -> f(wi, wo)`` replaces the
+    scene's settings; None values are ignored, bad ones raise ValueError "<setting>: <problem>". ``measured_factory(source) -> f(wi, wo)`` replaces the
     default (:func:`hybridbrdf.sources.open_source`) for measured materials. stats: seconds, samples_per_second, rays, shadow_rays,
     brdf_evals, network_evals, threads, tiles, spp, sampler, sampler_memory_bytes.
     Raises ValueError "<scene>: <where>: <problem>" for bad scenes.
@@ -75,7 +85,8 @@ def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = 
         if key not in SETTINGS:
             raise TypeError(f"render() got an unexpected setting {key!r}; expected one of {', '.join(SETTINGS)}")
         if value is not None:
-            data[key] = value
+            # Checked here, by the loader's own rules, so that the error names the override, not the scene.
+            data[key] = _core.check_render_setting(key, value)
     for key, value in (("width", width), ("height", height)):
         if value is not None:
             data.setdefault("camera", {})[key] = int(value)

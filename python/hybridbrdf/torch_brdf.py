@@ -173,7 +173,7 @@ def _prepared(wo, kd, eta, alpha):
 
 
 def pdf(wi: torch.Tensor, wo: torch.Tensor, kd, eta, alpha, strategy: str = "mis") -> torch.Tensor:
-    """Solid-angle density of ``strategy`` ('cosine', 'ggx', 'mis'), as the C++ pdf()."""
+    """Solid-angle density of ``strategy`` (one of the library's STRATEGIES), as the C++ pdf()."""
     kd, eta, alpha = _prepared(wo, kd, eta, alpha)
     wi_n, ok_i = _normalize(wi.to(wo.dtype))
     wo_n, ok_o = _normalize(wo)
@@ -189,7 +189,7 @@ def pdf(wi: torch.Tensor, wo: torch.Tensor, kd, eta, alpha, strategy: str = "mis
             w = ggx_lobe_probability(wo_n, kd, eta)
             p = w * p_ggx + (1.0 - w) * p_cos
         else:
-            raise ValueError(f"unknown sampling strategy {strategy!r}; expected 'cosine', 'ggx' or 'mis'")
+            raise ValueError(f"unknown sampling strategy {strategy!r}; expected one of {', '.join(_core.STRATEGIES)}")
     return torch.where(valid, p, torch.zeros_like(p))
 
 
@@ -199,8 +199,8 @@ def sample(wo: torch.Tensor, u: torch.Tensor, kd, eta, alpha, strategy: str = "m
     The same mapping as the C++ sample(): a row with pdf 0 is "no sample"
     (wi = +z, weight 0). Not differentiable with respect to u.
     """
-    if strategy not in ("cosine", "ggx", "mis"):
-        raise ValueError(f"unknown sampling strategy {strategy!r}; expected 'cosine', 'ggx' or 'mis'")
+    if strategy not in _core.STRATEGIES:  # the library's names; the branches below implement each
+        raise ValueError(f"unknown sampling strategy {strategy!r}; expected one of {', '.join(_core.STRATEGIES)}")
     kd, eta, alpha = _prepared(wo, kd, eta, alpha)
     one_minus_eps = 1.0 - torch.finfo(wo.dtype).eps / 2
     u = _clamp_nan_lo(u.to(wo.dtype), 0.0, one_minus_eps)

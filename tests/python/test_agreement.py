@@ -5,10 +5,11 @@ import numpy as np
 import torch
 
 import hybridbrdf as hb
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.reference import textbook_fa
 from hybridbrdf.torch_brdf import eval_analytic as torch_fa
 
-from conftest import cosine_directions, hard_pairs, random_params, valid_upper, PARAM_CORNERS
-from reference import textbook_fa
+from helpers import PARAM_CORNERS, hard_directions, hard_pairs, random_params, valid_upper
 
 N_PAIRS = 100_000
 N_MATERIALS = 20
@@ -128,8 +129,6 @@ def test_torch_sampler_matches_cpp(rng):
 def test_torch_sampler_hard_cases():
     """The PyTorch sampler keeps the hard-case contract of the C++ one."""
     from hybridbrdf.torch_brdf import sample as torch_sample
-
-    from conftest import hard_directions
 
     d = hard_directions()
     us = np.array([[0, 0], [0.5, 0.5], [1, 1], [np.nan, 0.5], [-1, 2], [0.999999, 0.1]])

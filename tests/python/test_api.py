@@ -6,7 +6,7 @@ import pytest
 
 import hybridbrdf as hb
 
-from conftest import PARAM_CORNERS, hard_directions, hard_pairs, valid_upper
+from helpers import PARAM_CORNERS, hard_directions, hard_pairs, valid_upper
 
 
 def test_params_broadcast_and_isotropy():

@@ -2,20 +2,18 @@
 then the shader block compiled by glslang and run under lavapipe against
 libhybridbrdf (parameters at their defaults = the chosen material)."""
 
-import os
 import re
-import subprocess
 
 import numpy as np
 import pytest
 
-import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf.codegen import generate
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.random_model import random_model
+from hybridbrdf.shaders import render_shader
 
-from conftest import cosine_directions
-from test_model_file import make_model
-from test_shader_conformance import LVP_ICD, RUNNER
+from helpers import compile_spirv, run_on_lavapipe, saved_random_model, skip_without_vulkan
 
 PARAM = re.compile(r"^float ([A-Za-z_][A-Za-z0-9_]*) (\S+) (\S+) (\S+)$")
 FLOAT = re.compile(r"^-?(\d+\.\d*|\d*\.\d+)(e[-+]?\d+)?$|^-?\d+(\.\d*)?e[-+]?\d+$")
@@ -46,31 +44,9 @@ def parse_brdf_file(text):
     return params, shader
 
 
-WRAP = """#version 450
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-PARAMS
-SHADER
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= NU) return;
-    vec3 L = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
-    vec3 V = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
-    vec3 f = BRDF(L, V, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0));
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
-"""
-
-
 @pytest.mark.parametrize("arch", ["hybrid", "neural"])
 def test_brdfexplorer_file_parses_compiles_and_matches_the_library(tmp_path, arch):
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2, isotropic=[True, False, True])
-    path = tmp_path / "m.safetensors"
-    model.save(path)
-    model = hb.load_model(path)
+    path, model = saved_random_model(tmp_path, arch)
     text = generate(model, "brdfexplorer", ["mat-1"])
     params, shader = parse_brdf_file(text)
     expected = {"kd_r", "kd_g", "kd_b", "eta_r", "eta_g", "eta_b", "alpha_x", "alpha_y"}
@@ -78,23 +54,16 @@ def test_brdfexplorer_file_parses_compiles_and_matches_the_library(tmp_path, arc
     assert set(params) == expected
     if arch == "hybrid":
         assert params["alpha_y"][2] == pytest.approx(float(model.tensors["materials.alpha"][1, 1]), rel=1e-7)
-    if not (RUNNER.exists() and os.path.exists(LVP_ICD)):
-        pytest.skip("hbrdf_vk_runner or lavapipe not available")
+    skip_without_vulkan()
     n = 20000
     rng = np.random.default_rng(2)
     wi, wo = cosine_directions(rng, n).astype(np.float32), cosine_directions(rng, n).astype(np.float32)
     decl = "\n".join(f"const float {k} = {v[2]!r};" for k, v in params.items())
     src = tmp_path / "wrap.comp"
-    src.write_text(WRAP.replace("PARAMS", decl).replace("SHADER", shader).replace("NU", f"{n}u"))
+    src.write_text(render_shader("brdfexplorer.comp.glsl", params=decl, shader=shader, n=n))
     spv = tmp_path / "s.spv"
-    r = subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", str(src), "-o", str(spv)],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stdout[-2000:]
-    np.concatenate([wi, wo], axis=1).tofile(tmp_path / "in.bin")
-    r = subprocess.run([str(RUNNER), str(spv), str(tmp_path / "in.bin"), str(tmp_path / "out.bin"), str(n), "3",
-                        "--validation"], capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP_ICD))
-    assert r.returncode == 0, r.stderr[-2000:]
-    got = np.fromfile(tmp_path / "out.bin", dtype=np.float32).reshape(n, 3)
+    compile_spirv(src, spv)
+    got = run_on_lavapipe(spv, np.concatenate([wi, wo], axis=1))
     ref = _core.Model(str(path)).eval(wi, wo, 1)
     big = np.abs(ref) > 1e-6
     assert np.isfinite(got).all() and np.array_equal(got == 0, ref == 0)
@@ -102,7 +71,7 @@ def test_brdfexplorer_file_parses_compiles_and_matches_the_library(tmp_path, arc
 
 
 def test_parser_rejects_what_the_explorer_rejects():
-    _, model = make_model()
+    _, model = random_model()
     good = generate(model, "brdfexplorer")
     parse_brdf_file(good)
     for bad in (good.replace("analytic", "analytical", 1), good.replace("::begin shader", "#define X 1\n::begin shader"),

@@ -2,18 +2,12 @@
 
 import pathlib
 import re
-import subprocess
-import sys
 
 import numpy as np
 
 import hybridbrdf as hb
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-
-
-def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "hybridbrdf.cli", *args], capture_output=True, text=True)
+from helpers import ROOT, run_cli
 
 
 def test_demo_writes_a_png(tmp_path):
@@ -103,3 +97,52 @@ def test_cli_errors_are_one_line(tmp_path):
         assert r.returncode == 1, (args, r.stderr)
         assert needle in r.stderr and r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "o.st").exists()
+
+
+def test_readme_fit_synopsis_is_generated_from_fit_settings():
+    from hybridbrdf.cli import fit_synopsis
+
+    readme = (pathlib.Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = readme.split("<!-- fit-synopsis")[1].split("<!-- end fit-synopsis -->")[0]
+    shown = "\n".join(line[4:] for line in block.splitlines() if line.startswith("    "))
+    assert shown == fit_synopsis()
+
+
+def test_every_fit_setting_flag_reaches_fit_settings_and_hbrdf_info():
+    """Each FitSettings field with a flag: set to a non-default value on the command line, it
+    arrives in FitSettings; and hbrdf info prints every recorded setting of its section."""
+    import dataclasses
+
+    from hybridbrdf.cli import _settings_line, build_parser, settings_from_args
+    from hybridbrdf.fit_settings import FitSettings
+
+    fields = [f for f in dataclasses.fields(FitSettings) if f.metadata.get("flag")]
+    assert {f.name for f in fields} >= {"arch", "width", "steps", "loss_eps", "specular", "sparse_init", "frozen_from"}
+    argv = ["fit", "synthetic:gold", "--out", "x.safetensors"]
+    wanted = {}
+    for f in fields:
+        cli = f.metadata["cli"]
+        if cli.get("action") == "store_true":
+            argv.append(f.metadata["flag"]); wanted[f.name] = True
+        elif cli.get("action") == "store_false":
+            argv.append(f.metadata["flag"]); wanted[f.name] = False
+        elif "choices" in cli:
+            value = [c for c in cli["choices"] if c != f.default][0]
+            argv += [f.metadata["flag"], value]; wanted[f.name] = value
+        elif f.name == "width":
+            argv += ["--mlp", "8x5"]; wanted.update(width=8, depth=5)
+        elif f.name in ("device", "frozen_from"):
+            argv += [f.metadata["flag"], "elsewhere"]; wanted[f.name] = "elsewhere"
+        else:
+            argv += [f.metadata["flag"], "7"]; wanted[f.name] = 7
+    settings = settings_from_args(build_parser().parse_args(argv))
+    for name, value in wanted.items():
+        assert getattr(settings, name) == value, name
+    recorded = dataclasses.asdict(settings)
+    line = _settings_line("loss", recorded, ("loss",))
+    for f in dataclasses.fields(FitSettings):
+        if f.metadata["section"] == "loss":
+            assert f"{f.name} {recorded[f.name]}" in line, f.name
+    # Unset flags keep FitSettings' defaults (the parser holds no copy of them).
+    plain = settings_from_args(build_parser().parse_args(["fit", "synthetic:gold", "--out", "x"]))
+    assert dataclasses.replace(plain, device="cpu", sources=[]) == FitSettings()

@@ -12,9 +12,11 @@ import pytest
 import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf.codegen import float_literal, generate, main as codegen_main, material_constant
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.random_model import random_model
+from hybridbrdf.shaders import render_shader
 
-from conftest import cosine_directions, hard_pairs
-from test_model_file import make_model
+from helpers import compile_spirv, half_rounded_copy, hard_pairs, saved_random_model
 
 ARCHS = [("hybrid", "hardgelu"), ("hybrid", "relu"), ("neural", "hardgelu"), ("additive", "relu"),
          ("logmul", "hardgelu"), ("analytic-input", "hardgelu")]
@@ -57,6 +59,14 @@ def _build_driver(tmp_path, text, names):
     return exe
 
 
+def _run_driver(exe, wi, wo, u, n_mats):
+    """The driver's 11 outputs per pair (f, f_a, pdf, sampled wi, its pdf) for each material."""
+    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo, u], axis=1).astype(np.float32).tobytes()
+    r = subprocess.run([str(exe)], input=payload, capture_output=True)
+    assert r.returncode == 0
+    return np.frombuffer(r.stdout, dtype=np.float32).reshape(n_mats, len(wi), 11)
+
+
 def _rel(a, b):
     return np.abs(a - b) / np.maximum(np.abs(b), 1e-30)
 
@@ -64,12 +74,7 @@ def _rel(a, b):
 @pytest.mark.parametrize("arch,activation,mlp_form", [(a, act, "auto") for a, act in ARCHS] + [
     ("hybrid", "hardgelu", "unrolled"), ("neural", "relu", "unrolled")])
 def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form):
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2,
-                          isotropic=[True, False, True])
-    model.arch["activation"] = activation
-    path = tmp_path / "m.safetensors"
-    model.save(path)
-    model = hb.load_model(path)
+    path, model = saved_random_model(tmp_path, arch, activation)
     exe = _build_driver(tmp_path, generate(model, "cpp", mlp_form=mlp_form), model.materials)
     rng = np.random.default_rng(8)
     n = 20000
@@ -79,10 +84,7 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form)
     wi = np.concatenate([wi, hwi.astype(np.float32)])
     wo = np.concatenate([wo, hwo.astype(np.float32)])
     u = rng.random((len(wi), 2)).astype(np.float32)
-    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo, u], axis=1).astype(np.float32).tobytes()
-    r = subprocess.run([str(exe)], input=payload, capture_output=True)
-    assert r.returncode == 0
-    out = np.frombuffer(r.stdout, dtype=np.float32).reshape(len(model.materials), len(wi), 11)
+    out = _run_driver(exe, wi, wo, u, len(model.materials))
     cpp = _core.Model(str(path))
     for m in range(len(model.materials)):
         got = out[m]
@@ -109,62 +111,24 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form)
         assert np.allclose(got[:, 10], s_pdf, rtol=1e-5, atol=0)
 
 
-GLSL_WRAPPER = """#version 450
-#extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-#include "model.glsl"
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    vec3 wi = vec3(data_in[8 * i], data_in[8 * i + 1], data_in[8 * i + 2]);
-    vec3 wo = vec3(data_in[8 * i + 3], data_in[8 * i + 4], data_in[8 * i + 5]);
-    float pdf;
-    vec3 s = hbrdf_sample(wo, vec2(data_in[8 * i + 6], data_in[8 * i + 7]), MAT, pdf);
-    vec3 f = hbrdf_eval(wi, wo, MAT) + hbrdf_eval_analytic(wi, wo, MAT) + s;
-    data_out[3 * i] = f.x + pdf + hbrdf_pdf(wi, wo, MAT);
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
-"""
-
-HLSL_WRAPPER = """#include "model.hlsl"
-RWStructuredBuffer<float> data_in : register(u0);
-RWStructuredBuffer<float> data_out : register(u1);
-[numthreads(64, 1, 1)]
-void main(uint3 id : SV_DispatchThreadID) {
-    uint i = id.x;
-    float3 wi = float3(data_in[8 * i], data_in[8 * i + 1], data_in[8 * i + 2]);
-    float3 wo = float3(data_in[8 * i + 3], data_in[8 * i + 4], data_in[8 * i + 5]);
-    float pdf;
-    float3 s = hbrdf_sample(wo, float2(data_in[8 * i + 6], data_in[8 * i + 7]), MAT, pdf);
-    float3 f = hbrdf_eval(wi, wo, MAT) + hbrdf_eval_analytic(wi, wo, MAT) + s;
-    data_out[3 * i] = f.x + pdf + hbrdf_pdf(wi, wo, MAT);
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
-"""
+def every_function_shader(tmp_path, target, model_code, material):
+    """glsl/every_function.comp.<target> around the generated ``model_code``: compiling it
+    compiles every generated function."""
+    (tmp_path / f"model.{target}").write_text(model_code)
+    src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
+    src.write_text(render_shader(f"every_function.comp.{target}", include=f"model.{target}",
+                                 material=material_constant(material)))
+    return src
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
 @pytest.mark.parametrize("arch,activation", ARCHS)
 def test_generated_glsl_and_hlsl_compile_and_validate(tmp_path, arch, activation):
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
+    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
     model.arch["activation"] = activation
-    const = material_constant(model.materials[1])
-    for target, wrapper, args in (
-        ("glsl", GLSL_WRAPPER, ["-V", "--target-env", "vulkan1.1"]),
-        ("hlsl", HLSL_WRAPPER, ["-D", "-V", "-e", "main", "-S", "comp", "--target-env", "vulkan1.1"]),
-    ):
-        (tmp_path / f"model.{target}").write_text(generate(model, target))
-        src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
-        src.write_text(wrapper.replace("MAT", const))
-        spv = tmp_path / f"{target}.spv"
-        r = subprocess.run(["glslangValidator", *args, "-I" + str(tmp_path), str(src), "-o", str(spv)],
-                           capture_output=True, text=True)
-        assert r.returncode == 0, r.stdout[-3000:]
-        r = subprocess.run(["spirv-val", str(spv)], capture_output=True, text=True)
-        assert r.returncode == 0, r.stderr
+    for target in ("glsl", "hlsl"):
+        src = every_function_shader(tmp_path, target, generate(model, target), model.materials[1])
+        compile_spirv(src, tmp_path / f"{target}.spv", target, include_dir=tmp_path)
 
 
 def test_material_constant_names():
@@ -173,7 +137,7 @@ def test_material_constant_names():
 
 
 def test_codegen_cli(tmp_path, capsys):
-    _, model = make_model()
+    _, model = random_model()
     path = tmp_path / "m.safetensors"
     model.save(path)
     out = tmp_path / "x.glsl"
@@ -191,7 +155,7 @@ def test_codegen_cli(tmp_path, capsys):
 def test_mlp_forms(tmp_path):
     """Unrolled code holds the weights as literals and no weight arrays; loops the reverse;
     unrolled fp16 prints the half-rounded weights."""
-    _, model = make_model("neural", latent=12, width=16, depth=2)
+    _, model = random_model("neural", latent=12, width=16, depth=2)
     path = tmp_path / "m.safetensors"
     model.save(path)
     w = model.tensors["mlp.hidden.1.weight"]
@@ -212,22 +176,11 @@ def test_mlp_forms(tmp_path):
     assert "--mlp-form loops" in out.read_text()
 
 
-def _run_driver(exe, wi, wo, u, n_mats):
-    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo, u], axis=1).astype(np.float32).tobytes()
-    r = subprocess.run([str(exe)], input=payload, capture_output=True)
-    assert r.returncode == 0
-    return np.frombuffer(r.stdout, dtype=np.float32).reshape(n_mats, len(wi), 11)
-
-
 @pytest.mark.parametrize("arch", ["hybrid", "neural", "analytic-input"])
 def test_scene_specialisation_keeps_the_values(tmp_path, arch):
     """Folding one material's latent into the first layer and isotropic-only GGX change
     nothing but rounding; an analytic-only scene evaluates f_a exactly."""
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2,
-                          isotropic=[True, False, True])
-    path = tmp_path / "m.safetensors"
-    model.save(path)
-    model = hb.load_model(path)
+    path, model = saved_random_model(tmp_path, arch)
     rng = np.random.default_rng(5)
     wi = cosine_directions(rng, 5000).astype(np.float32)
     wo = cosine_directions(rng, 5000).astype(np.float32)
@@ -257,23 +210,14 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
 def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
     """A scene with one full and one analytic-only material keeps the network, and the
     analytic-only material's hbrdf_eval is exactly its hbrdf_eval_analytic."""
-    _, model = make_model("hybrid", width=16, depth=2, isotropic=[True, False, True])
-    path = tmp_path / "m.safetensors"
-    model.save(path)
-    model = hb.load_model(path)
+    path, model = saved_random_model(tmp_path, "hybrid")
     scene = {"name": "mixed.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
                                                   {"name": "mat-1", "evaluate": "full"}]}
     text = generate(model, target, scene=scene)
     assert "analytic_only" in text and "hbrdf_mlp" in text
     if target != "cpp":  # compiles and validates (the values are the C++ case's, same template)
-        (tmp_path / f"model.{target}").write_text(text)
-        src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
-        src.write_text((GLSL_WRAPPER if target == "glsl" else HLSL_WRAPPER).replace("MAT", material_constant("mat-0")))
-        args = ["-V"] if target == "glsl" else ["-D", "-V", "-e", "main", "-S", "comp"]
-        r = subprocess.run(["glslangValidator", *args, "--target-env", "vulkan1.1", "-I" + str(tmp_path), str(src),
-                            "-o", str(tmp_path / "m.spv")], capture_output=True, text=True)
-        assert r.returncode == 0, r.stdout[-2000:]
-        assert subprocess.run(["spirv-val", str(tmp_path / "m.spv")]).returncode == 0
+        src = every_function_shader(tmp_path, target, text, "mat-0")
+        compile_spirv(src, tmp_path / "m.spv", target, include_dir=tmp_path)
         return
     rng = np.random.default_rng(6)
     wi = cosine_directions(rng, 3000).astype(np.float32)
@@ -283,7 +227,7 @@ def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
     assert np.array_equal(got[0, :, :3], got[0, :, 3:6])  # f == f_a for the analytic-only material
     assert not np.allclose(got[1, :, :3], got[1, :, 3:6])
     assert np.allclose(got[1, :, :3], _core.Model(str(path)).eval_scalar(wi, wo, 1), rtol=1e-5, atol=1e-9)
-    _, neural = make_model("neural", latent=12, width=16, depth=2)
+    _, neural = random_model("neural", latent=12, width=16, depth=2)
     with pytest.raises(ValueError, match="neural baseline"):
         generate(neural, "cpp", scene=scene)
 
@@ -292,7 +236,7 @@ def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
 def test_specialisation_shrinks_spirv(tmp_path):
     from hybridbrdf.codegen import spirv_size
 
-    _, model = make_model("hybrid", width=32, depth=3)
+    _, model = random_model("hybrid", width=32, depth=3)
     generic = spirv_size(generate(model, "glsl"), material_constant("mat-0"), tmp_path)
     folded = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
                                                                                     "evaluate": "full"}]}),
@@ -303,23 +247,11 @@ def test_specialisation_shrinks_spirv(tmp_path):
     assert flat < folded < generic, (generic, folded, flat)
 
 
-def _half_rounded_copy(model, path):
-    """The same model with its layer weights rounded to binary16 (what --precision fp16 stores)."""
-    import copy
-
-    rounded = copy.deepcopy(model)
-    for k, v in rounded.tensors.items():
-        if k.startswith("mlp.") and k.endswith(".weight"):
-            rounded.tensors[k] = v.astype(np.float16).astype(np.float32)
-    rounded.save(path)
-    return hb.load_model(path)
-
-
 @pytest.mark.parametrize("arch", ["hybrid", "neural"])
 def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
+    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
     model.save(tmp_path / "m.safetensors")
-    half = _half_rounded_copy(model, tmp_path / "half.safetensors")
+    half = half_rounded_copy(model, tmp_path / "half.safetensors")
     text = generate(model, "cpp", precision="fp16")
     assert "half precision" in text
     rng = np.random.default_rng(6)

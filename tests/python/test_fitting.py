@@ -10,7 +10,7 @@ import hybridbrdf as hb
 from hybridbrdf.fitting import FitSettings, fit, log_cos_loss
 from hybridbrdf.metrics import metric_directions, smape
 
-from analytic_source import AnalyticTestSource
+from helpers import AnalyticTestSource
 
 P_PLAIN = hb.AnalyticParams(kd=[0.4, 0.3, 0.2], eta=1.6, alpha=0.25)
 P_RETRO = hb.AnalyticParams(kd=[0.1, 0.5, 0.2], eta=2.0, alpha=(0.15, 0.35))

@@ -10,23 +10,15 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.model_file import HybridModel, _decode_safetensors, _encode_safetensors
-from hybridbrdf.models import build_model
+from hybridbrdf.model_file import _decode_safetensors, _encode_safetensors
+from hybridbrdf.random_model import random_model
 
-
-def make_model(arch="hybrid", n=3, latent=4, width=16, depth=2, isotropic=None):
-    torch.manual_seed(0)
-    mod = build_model(arch, n, width, depth, latent, "hardgelu", isotropic)
-    with torch.no_grad():
-        for p in mod.parameters():
-            p.add_(torch.randn_like(p) * 0.3)
-    names = [f"mat-{i}" for i in range(n)]
-    return mod, HybridModel.from_module(mod, names, ["test"] * n, {"steps": 0})
+from helpers import hard_pairs, valid_upper
 
 
 @pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
 def test_save_then_load_is_bit_exact(tmp_path, arch):
-    mod, model = make_model(arch, latent=12 if arch == "neural" else 4, isotropic=[True, False, True])
+    mod, model = random_model(arch, latent=12 if arch == "neural" else 4, isotropic=[True, False, True])
     path = tmp_path / "m.safetensors"
     model.save(path)
     back = hb.load_model(path)
@@ -56,7 +48,7 @@ def test_save_then_load_is_bit_exact(tmp_path, arch):
 
 
 def test_isotropic_materials_store_equal_alphas_and_eval_analytic_matches_the_cpp_library(tmp_path):
-    _, model = make_model(isotropic=[True, False, True])
+    _, model = random_model(isotropic=[True, False, True])
     alpha = model.tensors["materials.alpha"]
     assert alpha[0, 0] == alpha[0, 1] and alpha[2, 0] == alpha[2, 1]
     rng = np.random.default_rng(1)
@@ -67,7 +59,7 @@ def test_isotropic_materials_store_equal_alphas_and_eval_analytic_matches_the_cp
 
 
 def test_save_is_atomic(tmp_path, monkeypatch):
-    _, model = make_model()
+    _, model = random_model()
     path = tmp_path / "m.safetensors"
     model.save(path)
     before = path.read_bytes()
@@ -82,56 +74,12 @@ def test_save_is_atomic(tmp_path, monkeypatch):
     assert sorted(os.listdir(tmp_path)) == ["m.safetensors"]
 
 
-def _rewrite(src, dst, edit_doc=None, edit_tensors=None):
-    meta, tensors = _decode_safetensors(str(src))
-    doc = json.loads(meta["hybridbrdf"])
-    if edit_doc:
-        edit_doc(doc)
-    if edit_tensors:
-        edit_tensors(tensors)
-    meta["hybridbrdf"] = json.dumps(doc)
-    dst.write_bytes(_encode_safetensors(tensors, meta))
-
-
-def _set(d, key, value):
-    d[key] = value
-
-
-DAMAGE = {
-    "format version": (lambda d: _set(d, "format_version", 99), None, "format_version 99"),
-    "conventions": (lambda d: _set(d, "conventions_version", 0), None, "conventions_version 0"),
-    "unknown kind": (lambda d: d["arch"].__setitem__("kind", "transformer"), None, "arch.kind 'transformer'"),
-    "bad activation": (lambda d: d["arch"].__setitem__("activation", "tanh"), None, "arch.activation"),
-    "width mismatch": (lambda d: d["arch"].__setitem__("width", 32), None, "shape"),
-    "latent mismatch": (lambda d: d["arch"].__setitem__("latent", 5), None, "n_in/n_out"),
-    "no materials": (lambda d: _set(d, "materials", []), None, "no materials"),
-    "duplicate names": (lambda d: d["materials"][1].__setitem__("name", "mat-0"), None, "duplicate material names: mat-0"),
-    "missing tensor": (None, lambda t: t.pop("mlp.out.bias"), "missing tensors: mlp.out.bias"),
-    "extra tensor": (None, lambda t: t.__setitem__("rogue", np.zeros(2, np.float32)), "unexpected tensors: rogue"),
-    "wrong shape": (None, lambda t: t.__setitem__("materials.z", np.zeros((3, 5), np.float32)), "materials.z has shape"),
-    "NaN weight": (None, lambda t: t["mlp.hidden.0.weight"].__setitem__((0, 0), np.nan), "NaN or Inf"),
-    "kd out of range": (None, lambda t: t["materials.kd"].__setitem__((1, 2), 1.5), "'mat-1': kd[2] = 1.5"),
-    "alpha zero": (None, lambda t: t["materials.alpha"].__setitem__((0, 0), 0.0), "alpha[0] = 0.0"),
-    "aniso alpha on iso": (None, lambda t: t["materials.alpha"].__setitem__((0, 1), 0.77), "marked isotropic"),
-}
-
-
-@pytest.mark.parametrize("case", list(DAMAGE))
-def test_damaged_model_files_are_rejected_by_name(tmp_path, case):
-    _, model = make_model(isotropic=[True, False, True])
-    good = tmp_path / "good.safetensors"
-    model.save(good)
-    edit_doc, edit_tensors, message = DAMAGE[case]
-    bad = tmp_path / "bad.safetensors"
-    _rewrite(good, bad, edit_doc, edit_tensors)
-    with pytest.raises(hb.ModelFileError) as err:
-        hb.load_model(bad)
-    assert str(err.value).startswith(str(bad) + ": ")
-    assert message in str(err.value), str(err.value)
+# Damaged files (every rule of the contract, both loaders alike): tests/data/malformed_models.json,
+# run by test_model_contract.py.
 
 
 def test_truncated_and_foreign_files(tmp_path):
-    _, model = make_model()
+    _, model = random_model()
     good = tmp_path / "good.safetensors"
     model.save(good)
     raw = good.read_bytes()
@@ -160,16 +108,14 @@ def test_truncated_and_foreign_files(tmp_path):
 
 
 def test_unknown_material_name():
-    _, model = make_model()
+    _, model = random_model()
     with pytest.raises(KeyError, match="no material 'nope'"):
         model.eval(np.zeros((1, 3)), np.zeros((1, 3)), "nope")
 
 
 @pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
 def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
-    from conftest import hard_pairs, valid_upper
-
-    _, model = make_model(arch, latent=12 if arch == "neural" else 4)
+    _, model = random_model(arch, latent=12 if arch == "neural" else 4)
     wi, wo = hard_pairs()
     for dtype in (torch.float32, torch.float64):
         f = model.eval(wi, wo, 0, dtype=dtype)
@@ -184,7 +130,7 @@ def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
 
 
 def test_saved_files_get_ordinary_permissions(tmp_path):
-    _, model = make_model()
+    _, model = random_model()
     path = tmp_path / "m.safetensors"
     old = os.umask(0o022)
     try:

@@ -10,8 +10,6 @@ import copy
 import json
 import os
 import pathlib
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -19,6 +17,8 @@ import pytest
 import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf import render as hr
+
+from helpers import run_cli
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
@@ -159,11 +159,6 @@ def test_example_scene_renders(tmp_path):
     img, stats = hr.render(str(ROOT / "scenes" / "sphere_env.json"), width=32, height=24, spp=2)
     assert img.shape == (24, 32, 3) and np.isfinite(img).all() and img.mean() > 0
     assert stats["network_evals"] > 0
-
-
-def run_cli(*args):
-    # The installed package (it has the compiled _core), as the other CLI tests use it.
-    return subprocess.run([sys.executable, "-m", "hybridbrdf.cli", *args], capture_output=True, text=True)
 
 
 def test_cli_render(tmp_path):

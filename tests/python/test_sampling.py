@@ -10,9 +10,10 @@ import torch
 from scipy import stats
 
 import hybridbrdf as hb
+from hybridbrdf.reference import ggx_lobe_probability, sample_mis
 from hybridbrdf.torch_brdf import eval_analytic as torch_fa
 
-from conftest import spherical
+from helpers import spherical
 
 STRATEGIES = ("cosine", "ggx", "mis")
 MATERIALS = {
@@ -148,8 +149,6 @@ def test_mis_has_lower_variance_than_either_lobe_on_a_two_lobe_material():
 def test_cpp_mis_sampler_is_the_papers_mapping():
     """Same u, same directions: the C++ MIS sampler against a float64 NumPy
     transcription of Shirley-Chiu, Dupuy-Benyoub and the lobe selection."""
-    from reference import sample_mis
-
     rng = np.random.default_rng(21)
     n = 50_000
     for params in MATERIALS.values():
@@ -163,8 +162,6 @@ def test_cpp_mis_sampler_is_the_papers_mapping():
         wi, pdf, w = hb.sample(wo, u, params, "mis")
         # Rows whose u.x lies within float32 rounding of the lobe boundary may
         # pick the other lobe; exclude those (a handful).
-        from reference import ggx_lobe_probability
-
         p_ggx = ggx_lobe_probability(wo, params.kd, params.eta)
         safe = np.abs(u[:, 0] - p_ggx) > 1e-5
         assert safe.mean() > 0.99

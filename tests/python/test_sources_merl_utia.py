@@ -19,7 +19,9 @@ from hybridbrdf.sources import BRDFFormatError, open_source
 from hybridbrdf.sources.merl import MERLSource, open_merl, write_merl
 from hybridbrdf.sources.utia import UTIASource, open_utia, read_utia_table, write_utia
 
-from conftest import cosine_directions
+from hybridbrdf.directions import cosine_directions
+
+from helpers import rot_y, rot_z
 
 MERL_SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 MERL_BYTES = 12 + 3 * 90 * 90 * 180 * 8
@@ -28,16 +30,6 @@ DEG = np.pi / 180.0
 
 
 # ---- independent geometry (matrices, not the module's formulas) ------------
-
-
-def rot_y(t):
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(t):
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def dirs_from_angles(theta_h, theta_d, phi_d, phi_h):

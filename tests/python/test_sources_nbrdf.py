@@ -23,7 +23,9 @@ from hybridbrdf.metrics import smape
 from hybridbrdf.sources import BRDFFormatError, open_source
 from hybridbrdf.sources.nbrdf import NBRDFSource, nbrdf_origin, open_nbrdf
 
-from conftest import cosine_directions
+from hybridbrdf.directions import cosine_directions
+
+from helpers import mitsuba_f, mitsuba_measured, rot_y, rot_z
 
 SHARED = pathlib.Path(__file__).resolve().parents[2].parent / "shared"
 NBRDF_DIR = SHARED / "data" / "nbrdf"
@@ -45,16 +47,6 @@ def shared_files():
 
 
 # ---- independent forward pass ---------------------------------------------------
-
-
-def rot_y(t):
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(t):
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def reference_input(wi, wo):
@@ -233,8 +225,6 @@ def test_direction_convention_against_raw_rgl(rng):
     available, Mitsuba 3's ``measured`` plugin (the project's RGL oracle:
     f(wi, wo) = eval(si.wi = wo, wi) / wi.z) tells which order the network was
     trained in: the stated one must fit the measurement better than the swap."""
-    mi = pytest.importorskip("mitsuba")
-    mi.set_variant("scalar_rgb")
     names = ["paper_white_rgb", "colodur_napoli_4f_rgb"]
     if not all((RGL_DIR / f"{n}.bsdf").exists() and (NBRDF_DIR / "rgl" / f"{n}.h5").exists() for n in names):
         pytest.skip("raw RGL files or their NBRDF networks not in the shared data")
@@ -242,15 +232,8 @@ def test_direction_convention_against_raw_rgl(rng):
     wi, wo = cosine_directions(rng, n), cosine_directions(rng, n)
     keep = (wi[:, 2] > 0.05) & (wo[:, 2] > 0.05)  # Mitsuba's value is divided by wi.z
     wi, wo = wi[keep], wo[keep]
-    ctx = mi.BSDFContext()
-    si = mi.SurfaceInteraction3f()
     for name in names:
-        bsdf = mi.load_dict({"type": "measured", "filename": str(RGL_DIR / f"{name}.bsdf")})
-        ref = np.empty((len(wi), 3))
-        for k in range(len(wi)):
-            si.wi = mi.Vector3f(*wo[k])
-            v = bsdf.eval(ctx, si, mi.Vector3f(*wi[k]))
-            ref[k] = [v[0] / wi[k, 2], v[1] / wi[k, 2], v[2] / wi[k, 2]]
+        ref = mitsuba_f(mitsuba_measured(RGL_DIR / f"{name}.bsdf"), wi, wo)
         src = open_nbrdf(NBRDF_DIR / "rgl" / f"{name}.h5")
         stated, swapped = smape(ref, src.eval(wi, wo)), smape(ref, src.eval(wo, wi))
         print(f"{name}: SMAPE to raw RGL {stated:.4f} (d from wi), {swapped:.4f} (d from wo)")

@@ -23,11 +23,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import cosine_directions, hard_pairs
-
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.metrics import smape
 from hybridbrdf.sources import open_source
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
 from hybridbrdf.sources.rgl import RGLSource, open_rgl
+
+from helpers import hard_pairs, mitsuba, mitsuba_f, mitsuba_measured
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "rgl"
 RGL_FILES = [
@@ -48,33 +50,6 @@ def data_file(stem: str) -> Path:
     if not path.is_file():
         pytest.skip(f"RGL file {path} is absent")
     return path
-
-
-def mitsuba():
-    mi = pytest.importorskip("mitsuba", reason="Mitsuba 3 is the oracle of these tests (test extras)")
-    mi.set_variant("scalar_rgb")
-    return mi
-
-
-def smape(f_ref, f_hat) -> float:
-    """CONVENTIONS SMAPE: negatives clamped to 0, terms with both values 0 count 0."""
-    a, b = np.maximum(f_ref, 0.0), np.maximum(f_hat, 0.0)
-    den = a + b
-    return float(2.0 * np.divide(np.abs(a - b), den, out=np.zeros_like(den), where=den > 0).mean())
-
-
-def mitsuba_f(path, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
-    """f(wi, wo) from Mitsuba 3's measured plugin: si.wi = wo, argument wi, / wi.z."""
-    mi = mitsuba()
-    bsdf = mi.load_dict({"type": "measured", "filename": str(path)})
-    ctx = mi.BSDFContext()
-    si = mi.SurfaceInteraction3f()
-    out = np.empty((len(wi), 3))
-    for k in range(len(wi)):
-        si.wi = mi.Vector3f(*wo[k])
-        v = bsdf.eval(ctx, si, mi.Vector3f(*wi[k]))
-        out[k] = (v[0], v[1], v[2])
-    return out / wi[:, 2:3]
 
 
 def metric_pairs(n: int = N_PAIRS, seed: int = SEED):
@@ -162,7 +137,7 @@ def test_real_file_matches_mitsuba_measured(stem, capsys):
     wi, wo = metric_pairs()
     src = open_rgl(path)
     got = src.eval(wi, wo)
-    ref = mitsuba_f(path, wi, wo)
+    ref = mitsuba_f(mitsuba_measured(path), wi, wo)
     err = smape(ref, got)
     with capsys.disabled():
         print(f"\n[rgl] {stem}: SMAPE vs Mitsuba measured = {err:.3e} ({N_PAIRS} pairs, seed {SEED})")
@@ -342,7 +317,7 @@ def test_synthetic_random_tables_match_mitsuba(tmp_path, phi_i):
     wi, wo = metric_pairs(4000, seed=12)
     keep = (wi[:, 2] > 1e-3) & (wo[:, 2] > 1e-3)  # Mitsuba's f * cos / cos is ill-conditioned at grazing
     wi, wo = wi[keep], wo[keep]
-    got, ref = src.eval(wi, wo), mitsuba_f(path, wi, wo)
+    got, ref = src.eval(wi, wo), mitsuba_f(mitsuba_measured(path), wi, wo)
     assert smape(ref, got) < 1e-4
     np.testing.assert_allclose(got, ref, rtol=2e-3, atol=1e-6 * np.abs(ref).max())
 

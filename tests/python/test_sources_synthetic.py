@@ -16,8 +16,10 @@ from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open
 from hybridbrdf.sources import synthetic as syn
 from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic
 
-from conftest import cosine_directions, hard_pairs, valid_upper
-from reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
+
+from helpers import hard_pairs, mitsuba_f, valid_upper
 
 import mitsuba as mi  # noqa: E402  (required: part of the test extras)
 
@@ -345,18 +347,6 @@ def test_conductor_fresnel_matches_mitsuba():
         ours = syn.fresnel_conductor(c, [eta], [k])[:, 0]
         ref = np.array([float(mi.fresnel_conductor(float(x), mi.Complex2f(eta, k))) for x in c])
         assert (np.abs(ours - ref) / ref).max() < 2e-6  # Mitsuba: float32, a different (Moeller) form
-
-
-def mitsuba_f(bsdf, wi, wo):
-    """Mitsuba's si.wi is our wo; its eval argument is our wi and it returns f * wi.z."""
-    ctx = mi.BSDFContext()
-    si = mi.SurfaceInteraction3f()
-    out = np.empty((len(wi), 3))
-    for j in range(len(wi)):
-        si.wi = mi.Vector3f(*wo[j])
-        v = bsdf.eval(ctx, si, mi.Vector3f(*wi[j]))
-        out[j] = (v[0], v[1], v[2])
-    return out / wi[:, 2:3]
 
 
 def mitsuba_roughconductor(m, swap_alpha=False):

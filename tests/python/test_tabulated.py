@@ -13,7 +13,7 @@ from scipy import stats
 import hybridbrdf as hb
 from hybridbrdf import _core
 
-from conftest import spherical
+from helpers import spherical
 
 MODEL = Path(__file__).resolve().parents[2] / "results" / "rgl54_hybrid_32x2.safetensors"
 GLOSSY = _core.AnalyticParams(kd=[0.1, 0.08, 0.06], eta=[1.5, 1.6, 1.7], alpha=[0.1, 0.1])

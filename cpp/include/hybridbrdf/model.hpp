@@ -15,6 +15,7 @@
 
 #include "hybridbrdf/analytic.hpp"
 #include "hybridbrdf/batch.hpp"
+#include "hybridbrdf/spec.hpp"
 
 namespace hbrdf {
 
@@ -40,14 +41,12 @@ private:
     std::string path_, problem_;
 };
 
-enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput };
-enum class Activation { Relu, HardGelu };
+/// Architectures and activations are declared once, in the model contract (spec/model.json).
+using ModelKind = spec::ModelKind;
+using Activation = spec::Activation;
 
 /// Widest layer and longest input the scalar path keeps on the stack.
-inline constexpr int kMaxLayerWidth = 256;
-
-/// Bound on every value passed to exp() (same constant as the Python PRE_EXP_MAX).
-inline constexpr float kPreExpMax = 16.0f;
+inline constexpr int kMaxLayerWidth = spec::kMaxWidth;
 
 /// One dense layer, y = W x + b, W row-major (n_out rows of n_in).
 struct DenseLayer {
@@ -74,6 +73,10 @@ public:
     int width() const { return width_; }
     int depth() const { return depth_; }
     int latent_dim() const { return latent_; }
+    /// Bound on every value passed to exp(), as the file records it (arch.pre_exp_max).
+    float pre_exp_max() const { return pre_exp_max_; }
+    /// The architecture's row of the model contract: input layout, output count, combine rule.
+    const spec::ArchSpec& arch() const { return spec::arch_spec(kind_); }
     int conventions_version() const { return conventions_version_; }
     const std::vector<ModelMaterial>& materials() const { return materials_; }
     const std::vector<DenseLayer>& layers() const { return layers_; }
@@ -102,6 +105,7 @@ private:
     ModelKind kind_ = ModelKind::Hybrid;
     Activation activation_ = Activation::HardGelu;
     int width_ = 0, depth_ = 0, latent_ = 0, n_in_ = 0, n_out_ = 0, conventions_version_ = 0;
+    float pre_exp_max_ = float(spec::kPreExpMax);
     std::vector<DenseLayer> layers_;  ///< hidden layers then the output layer
     DenseLayer frames_;               ///< neural baseline: latent -> 3 frames (18 values)
     std::vector<ModelMaterial> materials_;

@@ -9,18 +9,16 @@
 #include <string>
 
 #include "hybridbrdf/math.hpp"
+#include "hybridbrdf/spec.hpp"
 
 namespace hbrdf {
 
-/// Smallest GGX roughness. pbrt-v4 and Mitsuba 3 use the same bound: below it
-/// D(h) = 1/(pi ax ay) at h = n exceeds 3e7 and its float32 footprint becomes a
-/// few ULP of the half vector, so the lobe is a mirror in all but name.
-inline constexpr double kAlphaMin = 1e-4;
-inline constexpr double kAlphaMax = 1.0;
-/// Real index of refraction range. eta = 1 switches the specular lobe off
-/// (F = 0); 10 is the paper's upper bound (F(normal) = 0.67).
-inline constexpr double kEtaMin = 1.0;
-inline constexpr double kEtaMax = 10.0;
+// The ranges are part of the model contract (spec/model.json, docs there and in
+// docs/CONVENTIONS.md); these names keep the library's spelling.
+inline constexpr double kAlphaMin = spec::kAlphaMin;
+inline constexpr double kAlphaMax = spec::kAlphaMax;
+inline constexpr double kEtaMin = spec::kEtaMin;
+inline constexpr double kEtaMax = spec::kEtaMax;
 
 template <typename T> struct AnalyticParamsT {
     Vec3<T> kd{T(0.5)};    ///< Lambertian albedo per channel, [0, 1]

@@ -12,7 +12,13 @@
 // sphere for every strategy.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <iterator>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
 
 #include "hybridbrdf/analytic.hpp"
 #include "hybridbrdf/warp.hpp"
@@ -20,6 +26,38 @@
 namespace hbrdf {
 
 enum class Strategy : std::uint8_t { Cosine = 0, Ggx = 1, Mis = 2 };
+
+/// Every strategy, in enum order: the one list that parsers, error messages,
+/// the bindings (hybridbrdf.STRATEGIES) and the renderer's samplers build on.
+inline constexpr Strategy kStrategies[] = {Strategy::Cosine, Strategy::Ggx, Strategy::Mis};
+
+/// The strategy's name in scene files, the Python API and the command line:
+/// "cosine", "ggx" or "mis".
+constexpr const char* strategy_name(Strategy s) {
+    switch (s) {
+        case Strategy::Cosine: return "cosine";
+        case Strategy::Ggx: return "ggx";
+        default: return "mis";
+    }
+}
+
+/// The strategy called `name`; nullopt for any other name.
+inline std::optional<Strategy> find_strategy(std::string_view name) {
+    for (Strategy s : kStrategies)
+        if (name == strategy_name(s)) return s;
+    return std::nullopt;
+}
+
+/// Like find_strategy(), but an unknown name throws std::invalid_argument
+/// "unknown sampling strategy 'x'; expected cosine, ggx or mis".
+inline Strategy parse_strategy(std::string_view name) {
+    if (const std::optional<Strategy> s = find_strategy(name)) return *s;
+    std::string expected;
+    const std::size_t n = std::size(kStrategies);
+    for (std::size_t i = 0; i < n; ++i)
+        expected += std::string(i == 0 ? "" : i + 1 == n ? " or " : ", ") + strategy_name(kStrategies[i]);
+    throw std::invalid_argument("unknown sampling strategy '" + std::string(name) + "'; expected " + expected);
+}
 
 /// A sampled direction. pdf == 0 means "no sample" (wo below the horizon or
 /// invalid); then wi = +z and weight = 0.

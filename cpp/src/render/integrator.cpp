@@ -176,36 +176,49 @@ private:
         }
     }
 
+    // Batched evaluation. A counting sort of the hit paths by (material, mode)
+    // makes each batch one contiguous run of path indices, so no material
+    // rescans every path. The sort is stable: a batch holds its pairs in path
+    // order, the same batches as a scan in path order would build.
     void evaluate(Counters& counters) {
-        const std::size_t n_mat = scene_.materials.size();
-        for (std::size_t m = 0; m < n_mat; ++m) {
-            const Material& mat = *scene_.materials[m];
-            for (int mode_i = 0; mode_i < 2; ++mode_i) {
-                const EvalMode mode = mode_i == 0 ? EvalMode::Full : EvalMode::Analytic;
-                wi_.clear();
-                wo_.clear();
-                slots_.clear();
-                auto push = [&](const Vec3f& wi, const Vec3f& wo, Vec3f* slot) {
-                    wi_.insert(wi_.end(), {wi.x, wi.y, wi.z});
-                    wo_.insert(wo_.end(), {wo.x, wo.y, wo.z});
-                    slots_.push_back(slot);
-                };
-                for (std::size_t k = 0; k < paths_.size(); ++k) {
-                    Shading& s = shading_[k];
-                    if (!hit_[k] || std::size_t(s.hit.material) != m || (s.network != (mode == EvalMode::Full))) continue;
-                    if (s.light_ok) push(s.wi_light, s.wo, &s.f_light);
-                    if (s.bsdf_ok) push(s.wi_bsdf, s.wo, &s.f_bsdf);
-                }
-                if (slots_.empty()) continue;
-                f_.resize(wi_.size());
-                mat.eval(slots_.size(), wi_.data(), wo_.data(), f_.data(), mode);
-                counters.brdf_evals += slots_.size();
-                if (mat.uses_network(mode)) counters.network_evals += slots_.size();
-                for (std::size_t i = 0; i < slots_.size(); ++i) {
-                    const float* f = &f_[3 * i];
-                    // Measured data can be negative (noise) or not finite: no negative light.
-                    *slots_[i] = Vec3f(max0(f[0]), max0(f[1]), max0(f[2]));
-                }
+        const std::size_t n_keys = 2 * scene_.materials.size();
+        auto key = [&](std::size_t k) {
+            return 2 * std::size_t(shading_[k].hit.material) + (shading_[k].network ? 0 : 1);
+        };
+        bucket_.assign(n_keys + 1, 0);
+        for (std::size_t k = 0; k < paths_.size(); ++k)
+            if (hit_[k]) ++bucket_[key(k) + 1];
+        for (std::size_t b = 0; b < n_keys; ++b) bucket_[b + 1] += bucket_[b];  // bucket_[b]: start of key b
+        order_.resize(bucket_[n_keys]);
+        cursor_.assign(bucket_.begin(), bucket_.end() - 1);
+        for (std::size_t k = 0; k < paths_.size(); ++k)
+            if (hit_[k]) order_[cursor_[key(k)]++] = k;
+
+        for (std::size_t b = 0; b < n_keys; ++b) {
+            const Material& mat = *scene_.materials[b / 2];
+            const EvalMode mode = b % 2 == 0 ? EvalMode::Full : EvalMode::Analytic;
+            wi_.clear();
+            wo_.clear();
+            slots_.clear();
+            auto push = [&](const Vec3f& wi, const Vec3f& wo, Vec3f* slot) {
+                wi_.insert(wi_.end(), {wi.x, wi.y, wi.z});
+                wo_.insert(wo_.end(), {wo.x, wo.y, wo.z});
+                slots_.push_back(slot);
+            };
+            for (std::size_t i = bucket_[b]; i < bucket_[b + 1]; ++i) {
+                Shading& s = shading_[order_[i]];
+                if (s.light_ok) push(s.wi_light, s.wo, &s.f_light);
+                if (s.bsdf_ok) push(s.wi_bsdf, s.wo, &s.f_bsdf);
+            }
+            if (slots_.empty()) continue;
+            f_.resize(wi_.size());
+            mat.eval(slots_.size(), wi_.data(), wo_.data(), f_.data(), mode);
+            counters.brdf_evals += slots_.size();
+            if (mat.uses_network(mode)) counters.network_evals += slots_.size();
+            for (std::size_t i = 0; i < slots_.size(); ++i) {
+                const float* f = &f_[3 * i];
+                // Measured data can be negative (noise) or not finite: no negative light.
+                *slots_[i] = Vec3f(max0(f[0]), max0(f[1]), max0(f[2]));
             }
         }
     }
@@ -218,33 +231,22 @@ private:
     std::vector<char> hit_;
     std::vector<float> wi_, wo_, f_;
     std::vector<Vec3f*> slots_;
+    std::vector<std::size_t> bucket_, cursor_, order_;  // the counting sort of evaluate()
 };
 
 }  // namespace
 
-RenderOptions RenderOptions::from_scene(const SceneSettings& s) {
+RenderOptions RenderOptions::from_scene(const RenderSettings& s) {
     RenderOptions o;
-    o.spp = s.spp;
-    o.max_depth = s.max_depth;
-    o.neural_max_depth = s.neural_max_depth;
-    o.neural_min_throughput = s.neural_min_throughput;
-    o.rr_depth = s.rr_depth;
-    o.nee = s.nee;
-    o.seed = s.seed;
-    o.threads = s.threads;
+    static_cast<RenderSettings&>(o) = s;
     return o;
 }
 
 void RenderOptions::validate() const {
-    auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
-    if (spp < 1) fail("spp must be >= 1, got " + std::to_string(spp));
-    if (max_depth < 0) fail("max_depth must be >= 0, got " + std::to_string(max_depth));
-    if (neural_max_depth < -1) fail("neural_max_depth must be >= 0 (or -1 = max_depth), got " + std::to_string(neural_max_depth));
-    if (!(neural_min_throughput >= 0.0f)) fail("neural_min_throughput must be >= 0");
-    if (rr_depth < -1) fail("rr_depth must be >= 0 (or -1 = off), got " + std::to_string(rr_depth));
-    if (threads < 0) fail("threads must be >= 0 (0 = all cores), got " + std::to_string(threads));
-    if (tile_size < 1) fail("tile_size must be >= 1");
-    if (max_paths_per_wave < 1) fail("max_paths_per_wave must be >= 1");
+    check_settings(*this);
+    if (tile_size < 1) throw std::invalid_argument("tile_size: must be >= 1, got " + std::to_string(tile_size));
+    if (max_paths_per_wave < 1)
+        throw std::invalid_argument("max_paths_per_wave: must be >= 1, got " + std::to_string(max_paths_per_wave));
 }
 
 bool use_network(const RenderOptions& options, int depth, const Vec3f& throughput) {

@@ -8,23 +8,6 @@
 
 namespace hbrdf::render {
 
-SamplerKind parse_sampler(const std::string& name) {
-    if (name == "cosine") return SamplerKind::Cosine;
-    if (name == "ggx") return SamplerKind::Ggx;
-    if (name == "mis") return SamplerKind::Mis;
-    if (name == "tabulated") return SamplerKind::Tabulated;
-    throw std::invalid_argument("unknown sampler '" + name + "'; expected cosine, ggx, mis or tabulated");
-}
-
-const char* sampler_name(SamplerKind kind) {
-    switch (kind) {
-        case SamplerKind::Cosine: return "cosine";
-        case SamplerKind::Ggx: return "ggx";
-        case SamplerKind::Mis: return "mis";
-        default: return "tabulated";
-    }
-}
-
 void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg) {
     tabulated_.reset();
     if (kind == SamplerKind::Tabulated) {
@@ -46,7 +29,7 @@ void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>
     }
     sampler_ = kind;
     proxy_ = AnalyticBrdf(*proxy);
-    strategy_ = kind == SamplerKind::Ggx ? Strategy::Ggx : kind == SamplerKind::Mis ? Strategy::Mis : Strategy::Cosine;
+    strategy_ = *sampler_strategy(kind);  // not Tabulated: handled above
 }
 
 BrdfSample Material::sample(const Vec3f& wo, const Vec2<float>& u) const {

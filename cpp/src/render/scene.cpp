@@ -141,7 +141,6 @@ Scene& Scene::operator=(Scene&& o) noexcept {
         std::swap(environment, o.environment);
         std::swap(camera, o.camera);
         std::swap(settings, o.settings);
-        std::swap(sampler, o.sampler);
     }
     return *this;
 }

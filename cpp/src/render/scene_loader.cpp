@@ -3,9 +3,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <climits>
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -30,16 +32,19 @@ public:
 
     // Rejects keys outside `allowed` (typos would otherwise be silently ignored).
     // Keys starting with '_' and "comment" are free text.
-    void check_keys(const json& obj, const std::string& where, std::initializer_list<const char*> allowed) const {
+    void check_keys(const json& obj, const std::string& where, const std::vector<std::string>& allowed) const {
         if (!obj.is_object()) fail(where, "expected an object");
         const std::set<std::string> ok(allowed.begin(), allowed.end());
         for (const auto& item : obj.items()) {
             const std::string& k = item.key();
             if (k.empty() || k[0] == '_' || k == "comment" || ok.count(k)) continue;
             std::string list;
-            for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+            for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
             fail(join(where, k), "unknown key '" + k + "' (expected one of: " + list + ")");
         }
+    }
+    void check_keys(const json& obj, const std::string& where, std::initializer_list<const char*> allowed) const {
+        check_keys(obj, where, std::vector<std::string>(allowed.begin(), allowed.end()));
     }
 
     static std::string join(const std::string& where, const std::string& key) {
@@ -64,7 +69,11 @@ public:
         if (!obj.contains(key)) return def;
         const json& v = obj.at(key);
         if (!v.is_number_integer()) fail(join(where, key), "expected an integer, got " + std::string(v.type_name()));
-        return v.get<int>();
+        // Range-checked before the conversion: get<int>() would wrap 3000000000.
+        const bool fits = v.is_number_unsigned() ? v.get<std::uint64_t>() <= std::uint64_t(INT_MAX)
+                                                 : v.get<std::int64_t>() >= INT_MIN && v.get<std::int64_t>() <= INT_MAX;
+        if (!fits) fail(join(where, key), "out of range for an integer setting: " + v.dump());
+        return int(v.get<std::int64_t>());
     }
     bool boolean(const json& obj, const std::string& where, const char* key, bool def) const {
         if (!obj.contains(key)) return def;
@@ -115,16 +124,99 @@ AnalyticParams read_params(const Reader& r, const json& obj, const std::string& 
     return p;
 }
 
+// The top-level keys: the scene's parts and every setting of settings.hpp.
+void check_top_level(const Reader& r, const json& root) {
+    std::vector<std::string> allowed = {"camera", "environment", "materials", "objects"};
+    for (const SettingInfo& info : kRenderSettings) allowed.push_back(info.name);
+    allowed.push_back("description");
+    r.check_keys(root, "", allowed);
+}
+
+// Every row of the settings table, checked by set_setting (no narrowing:
+// JSON integers arrive as int64/uint64 and are bounded before conversion).
+RenderSettings read_settings(const Reader& r, const json& root) {
+    RenderSettings s;
+    for (const SettingInfo& info : kRenderSettings) {
+        if (!root.contains(info.name)) continue;
+        const json& v = root.at(info.name);
+        SettingValue value = OtherValue{v.type_name()};
+        if (v.is_boolean()) value = v.get<bool>();
+        else if (v.is_number_unsigned()) value = v.get<std::uint64_t>();
+        else if (v.is_number_integer()) value = v.get<std::int64_t>();
+        else if (v.is_number_float()) value = v.get<double>();
+        else if (v.is_string()) value = v.get<std::string>();
+        const std::string problem = set_setting(s, info, value);
+        if (!problem.empty()) r.fail(info.name, problem);
+    }
+    return s;
+}
+
+std::string material_type(const Reader& r, const json& m, const std::string& w) {
+    if (!m.is_object()) r.fail(w, "expected an object");
+    return r.string(r.require(m, w, "type"), w + ".type");
+}
+
+[[noreturn]] void unknown_material_type(const Reader& r, const std::string& w, const std::string& type) {
+    r.fail(w + ".type", "unknown material type '" + type + "'; expected analytic, model or measured");
+}
+
+AnalyticParams read_analytic(const Reader& r, const json& m, const std::string& w) {
+    r.check_keys(m, w, {"type", "kd", "eta", "alpha"});
+    return read_params(r, m, w);
+}
+
+ModelMaterialDecl read_model_decl(const Reader& r, const json& m, const std::string& w, const std::string& name) {
+    r.check_keys(m, w, {"type", "file", "material", "evaluate"});
+    ModelMaterialDecl d;
+    d.where = w;
+    d.name = name;
+    d.file = r.resolve(r.string(r.require(m, w, "file"), w + ".file"));
+    d.material = r.string(r.require(m, w, "material"), w + ".material");
+    const std::string evaluate = m.contains("evaluate") ? r.string(m.at("evaluate"), w + ".evaluate") : "full";
+    if (evaluate != "full" && evaluate != "analytic")
+        r.fail(w + ".evaluate", "expected 'full' or 'analytic', got '" + evaluate + "'");
+    d.analytic_only = evaluate == "analytic";
+    return d;
+}
+
+struct MeasuredDecl {
+    std::string source;                  // resolved against the scene's folder
+    std::optional<AnalyticParams> proxy;  // "sampling_params"
+    bool isotropic = true;
+};
+
+MeasuredDecl read_measured_decl(const Reader& r, const json& m, const std::string& w) {
+    r.check_keys(m, w, {"type", "source", "sampling_params", "isotropic"});
+    MeasuredDecl d;
+    d.source = r.resolve(r.string(r.require(m, w, "source"), w + ".source"));
+    if (m.contains("sampling_params")) {
+        const json& sp = m.at("sampling_params");
+        r.check_keys(sp, w + ".sampling_params", {"kd", "eta", "alpha"});
+        d.proxy = read_params(r, sp, w + ".sampling_params");
+    }
+    d.isotropic = r.boolean(m, w, "isotropic", true);
+    return d;
+}
+
+json parse_scene_text(const std::string& json_text, const std::string& origin) {
+    json root;
+    try {
+        root = json::parse(json_text);
+    } catch (const json::parse_error& e) {
+        throw FileError(origin, std::string("invalid JSON: ") + e.what());
+    }
+    if (!root.is_object()) throw FileError(origin, "expected a JSON object at the top level");
+    return root;
+}
+
 class Loader {
 public:
     Loader(const Reader& r, const SceneLoadOptions& options) : r_(r), options_(options) {}
 
     Scene load(const json& root) {
-        r_.check_keys(root, "", {"camera", "environment", "materials", "objects", "spp", "max_depth", "neural_max_depth",
-                                 "neural_min_throughput", "rr_depth", "nee", "seed", "threads", "sampler",
-                                 "tabulated_resolution_deg", "description"});
+        check_top_level(r_, root);
         Scene scene;
-        read_settings(root, scene);
+        scene.settings = read_settings(r_, root);
         scene.camera = read_camera(r_.require(root, "", "camera"));
         scene.environment = read_environment(root.contains("environment") ? root.at("environment") : json::object());
         if (root.contains("materials")) {
@@ -140,7 +232,8 @@ public:
         // Samplers last: a tabulated one evaluates its material millions of times.
         for (std::size_t m = 0; m < scene.materials.size(); ++m) {
             try {
-                scene.materials[m]->set_sampler(scene.sampler, proxies_[m], tabulated_resolution_);
+                scene.materials[m]->set_sampler(scene.settings.sampler, proxies_[m],
+                                                scene.settings.tabulated_resolution_deg);
             } catch (const std::invalid_argument& e) {
                 r_.fail("materials." + scene.materials[m]->name(), e.what());
             }
@@ -150,32 +243,6 @@ public:
     }
 
 private:
-    void read_settings(const json& root, Scene& scene) {
-        SceneSettings& s = scene.settings;
-        s.spp = r_.integer(root, "", "spp", s.spp);
-        s.max_depth = r_.integer(root, "", "max_depth", s.max_depth);
-        s.neural_max_depth = r_.integer(root, "", "neural_max_depth", s.neural_max_depth);
-        s.neural_min_throughput = r_.number(root, "", "neural_min_throughput", s.neural_min_throughput);
-        s.rr_depth = r_.integer(root, "", "rr_depth", s.rr_depth);
-        s.nee = r_.boolean(root, "", "nee", s.nee);
-        s.seed = std::uint64_t(r_.integer(root, "", "seed", int(s.seed)));
-        s.threads = r_.integer(root, "", "threads", s.threads);
-        tabulated_resolution_ = r_.integer(root, "", "tabulated_resolution_deg", 1);
-        if (root.contains("sampler")) {
-            try {
-                scene.sampler = parse_sampler(r_.string(root.at("sampler"), "sampler"));
-            } catch (const std::invalid_argument& e) {
-                r_.fail("sampler", e.what());
-            }
-        }
-        RenderOptions o = RenderOptions::from_scene(s);
-        try {
-            o.validate();
-        } catch (const std::invalid_argument& e) {
-            r_.fail("", e.what());
-        }
-    }
-
     PinholeCamera read_camera(const json& c) {
         const std::string w = "camera";
         r_.check_keys(c, w, {"position", "look_at", "up", "fov_deg", "width", "height"});
@@ -239,40 +306,33 @@ private:
     }
 
     std::unique_ptr<Material> read_material(const json& m, const std::string& w, const std::string& name) {
-        if (!m.is_object()) r_.fail(w, "expected an object");
-        const std::string type = r_.string(r_.require(m, w, "type"), w + ".type");
+        const std::string type = material_type(r_, m, w);
         if (type == "analytic") {
-            r_.check_keys(m, w, {"type", "kd", "eta", "alpha"});
-            const AnalyticParams p = read_params(r_, m, w);
+            const AnalyticParams p = read_analytic(r_, m, w);
             proxies_.push_back(p);
             return std::make_unique<AnalyticMaterial>(name, p);
         }
         if (type == "model") {
-            r_.check_keys(m, w, {"type", "file", "material", "evaluate"});
-            const std::string file = r_.resolve(r_.string(r_.require(m, w, "file"), w + ".file"));
-            const std::string mat_name = r_.string(r_.require(m, w, "material"), w + ".material");
-            const std::string evaluate = m.contains("evaluate") ? r_.string(m.at("evaluate"), w + ".evaluate") : "full";
-            if (evaluate != "full" && evaluate != "analytic")
-                r_.fail(w + ".evaluate", "expected 'full' or 'analytic', got '" + evaluate + "'");
-            std::shared_ptr<const HybridModel>& model = models_[file];
+            const ModelMaterialDecl d = read_model_decl(r_, m, w, name);
+            std::shared_ptr<const HybridModel>& model = models_[d.file];
             if (!model) {
                 try {
-                    model = std::make_shared<const HybridModel>(HybridModel::load(file));
+                    model = std::make_shared<const HybridModel>(HybridModel::load(d.file));
                 } catch (const std::exception& e) {
                     r_.fail(w + ".file", e.what());
                 }
             }
-            const int index = model->find(mat_name);
+            const int index = model->find(d.material);
             if (index < 0) {
                 std::string names;
                 for (std::size_t i = 0; i < model->materials().size() && i < 8; ++i)
                     names += (i ? ", " : "") + model->materials()[i].name;
-                r_.fail(w + ".material", "no material '" + mat_name + "' in " + file + " (it has " +
+                r_.fail(w + ".material", "no material '" + d.material + "' in " + d.file + " (it has " +
                                              std::to_string(model->materials().size()) + ": " + names +
                                              (model->materials().size() > 8 ? ", ..." : "") + ")");
             }
             try {
-                auto mm = std::make_unique<ModelMaterial>(name, model, index, evaluate == "analytic");
+                auto mm = std::make_unique<ModelMaterial>(name, model, index, d.analytic_only);
                 proxies_.push_back(mm->analytic_params());
                 return mm;
             } catch (const std::invalid_argument& e) {
@@ -280,28 +340,21 @@ private:
             }
         }
         if (type == "measured") {
-            r_.check_keys(m, w, {"type", "source", "sampling_params", "isotropic"});
-            const std::string source = r_.resolve(r_.string(r_.require(m, w, "source"), w + ".source"));
+            MeasuredDecl d = read_measured_decl(r_, m, w);
             if (!options_.measured)
-                r_.fail(w, "measured materials ('" + source +
+                r_.fail(w, "measured materials ('" + d.source +
                                "') are evaluated by Python readers: render this scene with hybridbrdf.render "
                                "or 'hbrdf render'");
             BatchEval eval;
             try {
-                eval = options_.measured(source);
+                eval = options_.measured(d.source);
             } catch (const std::exception& e) {
                 r_.fail(w + ".source", e.what());
             }
-            std::optional<AnalyticParams> proxy;
-            if (m.contains("sampling_params")) {
-                const json& sp = m.at("sampling_params");
-                r_.check_keys(sp, w + ".sampling_params", {"kd", "eta", "alpha"});
-                proxy = read_params(r_, sp, w + ".sampling_params");
-            }
-            proxies_.push_back(proxy);
-            return std::make_unique<CallbackMaterial>(name, std::move(eval), r_.boolean(m, w, "isotropic", true));
+            proxies_.push_back(d.proxy);
+            return std::make_unique<CallbackMaterial>(name, std::move(eval), d.isotropic);
         }
-        r_.fail(w + ".type", "unknown material type '" + type + "'; expected analytic, model or measured");
+        unknown_material_type(r_, w, type);
     }
 
     int material_of(const json& obj, const std::string& w, Scene& scene) {
@@ -376,22 +429,52 @@ private:
     std::map<std::string, int> named_;
     std::map<std::string, std::shared_ptr<const HybridModel>> models_;
     std::vector<std::optional<AnalyticParams>> proxies_;  // by material index
-    int tabulated_resolution_ = 1;
 };
 
 }  // namespace
 
 Scene load_scene_json(const std::string& json_text, const std::string& base_dir, const std::string& origin,
                       const SceneLoadOptions& options) {
-    json root;
-    try {
-        root = json::parse(json_text);
-    } catch (const json::parse_error& e) {
-        throw FileError(origin, std::string("invalid JSON: ") + e.what());
-    }
-    if (!root.is_object()) throw FileError(origin, "expected a JSON object at the top level");
+    const json root = parse_scene_text(json_text, origin);
     const Reader reader(origin, base_dir);
     return Loader(reader, options).load(root);
+}
+
+SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_dir, const std::string& origin) {
+    const json root = parse_scene_text(json_text, origin);
+    const Reader r(origin, base_dir);
+    check_top_level(r, root);
+    SceneDecl decl;
+    decl.settings = read_settings(r, root);
+    // Each material through the readers load_scene uses, without the loading.
+    auto declare = [&](const json& m, const std::string& w, const std::string& name) {
+        const std::string type = material_type(r, m, w);
+        if (type == "analytic") read_analytic(r, m, w);
+        else if (type == "model") decl.model_materials.push_back(read_model_decl(r, m, w, name));
+        else if (type == "measured") read_measured_decl(r, m, w);
+        else unknown_material_type(r, w, type);
+        if (type != "model") decl.other_materials.push_back({w, name, type});
+    };
+    std::set<std::string> named;
+    if (root.contains("materials")) {
+        const json& mats = root.at("materials");
+        if (!mats.is_object()) r.fail("materials", "expected an object mapping names to materials");
+        for (const auto& item : mats.items()) {
+            declare(item.value(), "materials." + item.key(), item.key());
+            named.insert(item.key());
+        }
+    }
+    const json& objects = r.require(root, "", "objects");
+    if (!objects.is_array() || objects.empty()) r.fail("objects", "expected a non-empty array");
+    for (std::size_t i = 0; i < objects.size(); ++i) {
+        const std::string w = "objects[" + std::to_string(i) + "]";
+        if (!objects[i].is_object()) r.fail(w, "expected an object");
+        const json& m = r.require(objects[i], w, "material");
+        if (!m.is_string()) declare(m, w + ".material", w);
+        else if (!named.count(m.get<std::string>()))
+            r.fail(w + ".material", "no material named '" + m.get<std::string>() + "' in 'materials'");
+    }
+    return decl;
 }
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {

@@ -7,9 +7,10 @@
 // together, one bounce at a time:
 //
 //     intersect all rays -> (escaped: add environment, MIS-weighted)
-//     -> sort hits by material -> sample light + BSDF directions per path
-//     -> trace shadow rays -> evaluate every (wi, wo) pair of a material in
-//        one batch -> accumulate NEE, update throughputs -> next bounce
+//     -> sample light + BSDF directions per path -> trace shadow rays
+//     -> sort the hits by (material, evaluation mode) with a counting sort
+//     -> evaluate every (wi, wo) pair of a material and mode in one batch
+//     -> accumulate NEE, update throughputs -> next bounce
 //
 // so that a material's BRDF is evaluated in batches of hundreds to thousands
 // of pairs: the vectorised network (HybridModel::eval_batch) and Python
@@ -29,27 +30,21 @@
 
 namespace hbrdf::render {
 
-struct RenderOptions {
-    int spp = 16;                        ///< samples per pixel
-    int max_depth = 8;                   ///< surface interactions per path (1 = direct light only)
-    /// Selective neural evaluation, rule 1: the network runs at interactions
-    /// with depth < neural_max_depth (depth 0 = the surface the camera sees);
-    /// deeper ones use f_a. -1 = max_depth (always the network).
-    int neural_max_depth = -1;
-    /// Rule 2: the network runs only while the path throughput's largest
-    /// component is >= this (0 = always). Both rules must allow it.
-    float neural_min_throughput = 0.0f;
-    int rr_depth = -1;                   ///< Russian roulette from this depth on; -1 = never
-    bool nee = true;                     ///< next-event estimation (+ MIS); false = BSDF sampling only
-    std::uint64_t seed = 0;
-    int threads = 0;                     ///< 0 = all hardware threads
+/// What render() does: the scene's settings (settings.hpp, one definition
+/// with the scene format; see there for each member) and options no scene
+/// file sets. Selective neural evaluation: the network runs at an interaction
+/// when depth < neural_max_depth (rule 1; -1 = max_depth) and the path
+/// throughput's largest component is >= neural_min_throughput (rule 2); both
+/// must allow it. `sampler` and `tabulated_resolution_deg` act when a scene is
+/// loaded (the materials get their samplers then); render() does not read them.
+struct RenderOptions : RenderSettings {
     bool quiet = false;                  ///< no progress bar
     int tile_size = 16;                  ///< tile edge in pixels
     int max_paths_per_wave = 4096;       ///< paths a tile advances together
 
-    /// The options a scene was saved with.
-    static RenderOptions from_scene(const SceneSettings& s);
-    /// Throws std::invalid_argument naming the first bad option.
+    /// The options a scene was saved with (its settings, the defaults otherwise).
+    static RenderOptions from_scene(const RenderSettings& s);
+    /// Throws std::invalid_argument naming the first bad option ("spp: must be >= 1, got 0").
     void validate() const;
 };
 

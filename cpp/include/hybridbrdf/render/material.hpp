@@ -15,9 +15,12 @@
 #pragma once
 
 #include <cstddef>
+#include <iterator>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "hybridbrdf/model.hpp"
 #include "hybridbrdf/render/frame.hpp"
@@ -33,12 +36,40 @@ enum class EvalMode {
     Analytic,  ///< the analytic part f_a only; materials without one evaluate Full
 };
 
-/// How directions are importance-sampled.
+/// How directions are importance-sampled: one of the analytic strategies of
+/// sampling.hpp (under the same names) or the tabulated baseline.
 enum class SamplerKind { Cosine, Ggx, Mis, Tabulated };
 
-/// Parses "cosine" | "ggx" | "mis" | "tabulated"; throws std::invalid_argument.
-SamplerKind parse_sampler(const std::string& name);
-const char* sampler_name(SamplerKind kind);
+inline constexpr SamplerKind kSamplerKinds[] = {SamplerKind::Cosine, SamplerKind::Ggx, SamplerKind::Mis,
+                                                SamplerKind::Tabulated};
+
+/// The analytic strategy a sampler draws from its proxy; nullopt for Tabulated.
+constexpr std::optional<Strategy> sampler_strategy(SamplerKind kind) {
+    switch (kind) {
+        case SamplerKind::Cosine: return Strategy::Cosine;
+        case SamplerKind::Ggx: return Strategy::Ggx;
+        case SamplerKind::Mis: return Strategy::Mis;
+        default: return std::nullopt;
+    }
+}
+
+/// "cosine", "ggx", "mis" (the strategies' own names) or "tabulated".
+constexpr const char* sampler_name(SamplerKind kind) {
+    const std::optional<Strategy> s = sampler_strategy(kind);
+    return s ? strategy_name(*s) : "tabulated";
+}
+
+/// The sampler called `name`; throws std::invalid_argument
+/// "unknown sampler 'x'; expected cosine, ggx, mis or tabulated".
+inline SamplerKind parse_sampler(std::string_view name) {
+    for (SamplerKind k : kSamplerKinds)
+        if (name == sampler_name(k)) return k;
+    std::string expected;
+    const std::size_t n = std::size(kSamplerKinds);
+    for (std::size_t i = 0; i < n; ++i)
+        expected += std::string(i == 0 ? "" : i + 1 == n ? " or " : ", ") + sampler_name(kSamplerKinds[i]);
+    throw std::invalid_argument("unknown sampler '" + std::string(name) + "'; expected " + expected);
+}
 
 class Material {
 public:

@@ -14,4 +14,5 @@
 #include "hybridbrdf/render/rng.hpp"
 #include "hybridbrdf/render/scene.hpp"
 #include "hybridbrdf/render/scene_loader.hpp"
+#include "hybridbrdf/render/settings.hpp"
 #include "hybridbrdf/render/sky.hpp"

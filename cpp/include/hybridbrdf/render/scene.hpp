@@ -26,6 +26,7 @@
 #include "hybridbrdf/render/environment.hpp"
 #include "hybridbrdf/render/material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
+#include "hybridbrdf/render/settings.hpp"
 
 // Embree's handles, without its header.
 typedef struct RTCDeviceTy* RTCDevice;
@@ -45,19 +46,6 @@ struct SurfaceHit {
     Vec3f ng;      ///< geometric normal, facing the incoming ray
     Frame shading; ///< shading frame, its normal on the same side as ng
     int material = -1;
-};
-
-/// Settings saved with a scene; render() takes them as RenderOptions so that
-/// callers can override any of them (see integrator.hpp).
-struct SceneSettings {
-    int spp = 16;
-    int max_depth = 8;
-    int neural_max_depth = -1;          ///< -1 = max_depth
-    float neural_min_throughput = 0.0f;
-    int rr_depth = -1;                  ///< -1 = no Russian roulette
-    bool nee = true;
-    std::uint64_t seed = 0;
-    int threads = 0;
 };
 
 class Scene {
@@ -89,8 +77,10 @@ public:
     std::vector<std::unique_ptr<Material>> materials;
     EnvironmentLight environment;
     PinholeCamera camera;
-    SceneSettings settings;
-    SamplerKind sampler = SamplerKind::Mis;
+    /// The settings the scene was saved with (settings.hpp). render() takes
+    /// them as RenderOptions, so that callers can override any of them; the
+    /// sampler is applied to the materials when the scene is loaded.
+    RenderSettings settings;
 
     std::size_t mesh_count() const { return meshes_.size(); }
     std::size_t sphere_count() const { return spheres_.size(); }

@@ -3,6 +3,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "hybridbrdf/render/scene.hpp"
 
@@ -27,5 +28,32 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 /// Same, from JSON text; `origin` names it in errors, `base_dir` resolves paths.
 Scene load_scene_json(const std::string& json_text, const std::string& base_dir, const std::string& origin,
                       const SceneLoadOptions& options = {});
+
+/// A material of type "model" as a scene declares it.
+struct ModelMaterialDecl {
+    std::string where;          ///< "materials.paper" or "objects[2].material" (for errors)
+    std::string name;           ///< the scene's name for it: its key, or the object's path when inline
+    std::string file;           ///< the model file, resolved against the scene's folder
+    std::string material;       ///< the material's name in that file
+    bool analytic_only = false; ///< "evaluate": "analytic"
+};
+
+/// A material of another type ("analytic" or "measured"), named for messages.
+struct OtherMaterialDecl {
+    std::string where, name, type;
+};
+
+/// What a scene declares, read without opening any file it refers to.
+struct SceneDecl {
+    RenderSettings settings;
+    std::vector<ModelMaterialDecl> model_materials;  ///< in file order
+    std::vector<OtherMaterialDecl> other_materials;  ///< in file order
+};
+
+/// Reads a scene's settings and materials with the readers and checks of
+/// load_scene_json() (same errors), without loading models, meshes or images;
+/// camera, environment and the objects' geometry are not checked. The scene
+/// schema as hbrdf-codegen --scene sees it.
+SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_dir, const std::string& origin);
 
 }  // namespace hbrdf::render

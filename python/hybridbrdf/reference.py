@@ -1,7 +1,9 @@
 """CONVENTIONS.md transcribed literally in NumPy float64: the textbook forms
 (G1 = 2 / (1 + sqrt(1 + ...)), Fresnel with (g - c)/(g + c)), none of the
 library's rewrites or guards. An independent oracle for unit directions
-strictly above the horizon."""
+strictly above the horizon: the tests check the C++ library and the PyTorch
+model against it, and bench/bench_analytic.py times it as the NumPy path.
+Nothing else in the package uses it, so that it stays independent."""
 
 import numpy as np
 

@@ -1,0 +1,70 @@
+// hybridbrdf — the per-value math of fitted models, written once for the scalar
+// path (model.cpp) and the batched path (model_batch.cpp). The contract it
+// implements (activations, combine rules, the pre-exp bound) is declared in
+// spec/model.json; the vector kernels in model_batch.cpp repeat only the
+// activation, lane-wise, from the same constants.
+#pragma once
+
+#include <cmath>
+
+#include "hybridbrdf/model.hpp"
+
+namespace hbrdf::detail {
+
+/// ReLU, or the paper authors' hardGeLU written as x times a hard sigmoid,
+/// x * clamp((x + knee) / (2 knee), 0, 1): three branch-free operations, as in
+/// the shaders. clamp_nan_lo sends NaN to 0, like max(x, 0) in the SIMD kernels.
+HBRDF_INLINE float activate(Activation a, float x) {
+    constexpr float kKnee = float(spec::kHardgeluKnee);
+    if (a == Activation::Relu) return x > 0.f ? x : 0.f;
+    return x * clamp_nan_lo((x + kKnee) * (1.0f / (2.0f * kKnee)), 0.0f, 1.0f);
+}
+
+/// exp(min(x, bound)): the file's pre_exp_max keeps every exp() finite in float32.
+HBRDF_INLINE float exp_clamped(float x, float bound) { return std::exp(x < bound ? x : bound); }
+
+HBRDF_INLINE float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+
+/// One colour channel of f_t from the network output: `o` is the channel's
+/// output o[c], `gate` the gate output o[3 + c] (gated combine only), `fa` the
+/// channel of f_a (0 for the neural baseline). The rules: spec/model.json "combines".
+HBRDF_INLINE float combine(spec::Combine rule, float o, float gate, float fa, float bound) {
+    switch (rule) {
+        case spec::Combine::Additive: return max0(fa + o);
+        case spec::Combine::LogMul: return fa * exp_clamped(o, bound);
+        case spec::Combine::Exp: return exp_clamped(o, bound);
+        case spec::Combine::Gated: break;
+    }
+    return exp_clamped(o, bound) + sigmoid(gate) * fa;
+}
+
+// torch.nn.functional.normalize(v, eps=1e-8): v / max(|v|, eps).
+HBRDF_INLINE Vec3<float> normalize_eps(const Vec3<float>& v) {
+    const float len = std::sqrt(dot(v, v));
+    return v / (len > 1e-8f ? len : 1e-8f);
+}
+
+/// The neural baseline's shading frames from a latent code (docs/FITTING.md,
+/// NeuralBRDF): raw = W z + b gives per frame a normal n and a tangent, made
+/// orthonormal by Gram-Schmidt. Writes frames x (t, b, n) x 3 values to `out`.
+inline void neural_frames(const DenseLayer& frames, const float* z, float* out) {
+    for (int f = 0; f < spec::kNeuralFrames; ++f) {
+        float raw[6];
+        for (int j = 0; j < 6; ++j) {
+            float acc = frames.bias[6 * f + j];
+            for (int k = 0; k < frames.n_in; ++k) acc += frames.weight[(6 * f + j) * frames.n_in + k] * z[k];
+            raw[j] = acc;
+        }
+        const Vec3<float> n = normalize_eps(Vec3<float>(raw[0], raw[1], raw[2]));
+        const Vec3<float> t_raw(raw[3], raw[4], raw[5]);
+        const Vec3<float> t = normalize_eps(t_raw - dot(t_raw, n) * n);
+        const Vec3<float> b = glm::cross(n, t);
+        for (int c = 0; c < 3; ++c) {
+            out[9 * f + c] = t[c];
+            out[9 * f + 3 + c] = b[c];
+            out[9 * f + 6 + c] = n[c];
+        }
+    }
+}
+
+}  // namespace hbrdf::detail

@@ -1,0 +1,21 @@
+{# Jinja2 template, rendered by hybridbrdf.codegen.eval_compute_shader (docs: glsl/README.md).
+   include: the generated model file; function: hbrdf_eval or hbrdf_eval_analytic;
+   material: an HBRDF_MATERIAL_<NAME> constant; n: pair count, or none for no guard. #}
+#version 450
+#extension GL_GOOGLE_include_directive : require
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer In { float data_in[]; };
+layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+#include "{{ include }}"
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+{% if n is not none %}
+    if (i >= {{ n }}u) return;
+{% endif %}
+    vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
+    vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
+    vec3 f = {{ function }}(wi, wo, {{ material }});
+    data_out[3 * i] = f.x;
+    data_out[3 * i + 1] = f.y;
+    data_out[3 * i + 2] = f.z;
+}

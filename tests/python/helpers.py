@@ -1,0 +1,226 @@
+"""Helpers shared by the Python tests: the hard-case table, parameter sets, rotation
+matrices, a source with exact values, model files, the command line, the Mitsuba
+oracle and the Vulkan (lavapipe) runner.
+
+Direction generators and the float64 textbook reference live in the package
+(hybridbrdf.directions, hybridbrdf.reference): the benchmarks use them too."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf.random_model import random_model
+from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.torch_brdf import eval_analytic
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+HARD_DIRECTIONS_FILE = ROOT / "tests" / "data" / "hard_directions.json"
+
+
+# ---- hard cases ----------------------------------------------------------------
+
+
+def _hard_component(value, dtype) -> float:
+    """A component of the table: a number, or one of the strings the table uses for
+    what JSON cannot hold."""
+    if not isinstance(value, str):
+        return float(value)
+    if value == "denorm_min":
+        return float(np.finfo(dtype).smallest_subnormal)
+    if value in ("nan", "inf", "-inf"):
+        return float(value)
+    raise ValueError(f"{HARD_DIRECTIONS_FILE}: unknown component {value!r}")
+
+
+def hard_directions(dtype=np.float32) -> np.ndarray:
+    """The hard directions of tests/data/hard_directions.json (shared with the C++ tests) as a
+    float64 (n, 3) array; "denorm_min" is the smallest subnormal of ``dtype``, by default
+    float32, the type of the C++ library, the bindings and the shaders most tests check."""
+    table = json.loads(HARD_DIRECTIONS_FILE.read_text())["directions"]
+    return np.array([[_hard_component(v, dtype) for v in entry["w"]] for entry in table])
+
+
+def hard_pairs(dtype=np.float32):
+    """Every (wi, wo) of the hard directions crossed with themselves: adds wi = wo and mirrored pairs."""
+    d = hard_directions(dtype)
+    n = len(d)
+    wi = np.repeat(d, n, axis=0)
+    wo = np.tile(d, (n, 1))
+    return wi, wo
+
+
+def valid_upper(w: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """Which directions an implementation working in `dtype` treats as usable and
+    above the horizon (squared length finite and >= the smallest normal)."""
+    w = w.astype(dtype)
+    with np.errstate(over="ignore", invalid="ignore"):
+        len2 = (w * w).sum(axis=1, dtype=dtype)
+        return np.isfinite(len2) & (len2 >= np.finfo(dtype).tiny) & (w[:, 2] > 0)
+
+
+# ---- parameters and directions -------------------------------------------------
+
+
+PARAM_CORNERS = [
+    hb.AnalyticParams(kd=[0.0, 0.5, 1.0], eta=[eta, 1.33, eta], alpha=(ax, ay))
+    for ax in (hb.ALPHA_MIN, 0.01, 0.3, 1.0)
+    for ay in (hb.ALPHA_MIN, 0.3, 1.0)
+    for eta in (1.0, 1.5, 10.0)
+]
+
+
+def random_params(rng: np.random.Generator, alpha_min: float = 1e-3) -> hb.AnalyticParams:
+    lo = np.log10(alpha_min)
+    return hb.AnalyticParams(
+        kd=rng.random(3),
+        eta=1.0 + 9.0 * rng.random(3) * rng.random(3),
+        alpha=10.0 ** (lo * rng.random(2)),
+    )
+
+
+def spherical(theta: float, phi: float) -> np.ndarray:
+    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+def rot_y(t):
+    """Rotation by t about the y axis, as a matrix (independent of the modules' formulas)."""
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(t):
+    """Rotation by t about the z axis, as a matrix."""
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+class AnalyticTestSource(BRDFSource):
+    """A BRDFSource with exactly known values for fitting tests: f_a of the project's own
+    analytic model (float64 PyTorch), optionally plus a retro-reflective bump that no
+    single GGX lobe can express."""
+
+    def __init__(self, name, params, retro=0.0):
+        self.name, self.params, self.retro = name, params, retro
+        self.isotropic = params.isotropic
+        self.origin = "test: analytic" + (" + retro bump" if retro else "")
+
+    def _eval(self, wi, wo):
+        p = self.params
+        f = eval_analytic(torch.tensor(wi), torch.tensor(wo), torch.tensor(p.kd), torch.tensor(p.eta),
+                          torch.tensor(p.alpha)).numpy()
+        return f + self.retro * np.exp(-20.0 * (1.0 - (wi * wo).sum(1)))[:, None]
+
+
+# ---- model files ------------------------------------------------------------------
+
+
+def saved_random_model(tmp_path, arch, activation="hardgelu", width=16, depth=2):
+    """A random model of ``arch`` (latent 12 for the neural baseline, 4 otherwise; materials
+    isotropic, anisotropic, isotropic) with ``activation``, saved as tmp_path/m.safetensors
+    and loaded back: (path, the loaded model), so that both sides of a comparison read one file."""
+    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
+                            isotropic=[True, False, True])
+    model.arch["activation"] = activation
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    return path, hb.load_model(path)
+
+
+def half_rounded_copy(model, path):
+    """The same model with its layer weights rounded to binary16 (what --precision fp16 stores),
+    saved to ``path`` and loaded back."""
+    rounded = copy.deepcopy(model)
+    for k, v in rounded.tensors.items():
+        if k.startswith("mlp.") and k.endswith(".weight"):
+            rounded.tensors[k] = v.astype(np.float16).astype(np.float32)
+    rounded.save(path)
+    return hb.load_model(path)
+
+
+# ---- the command line ----------------------------------------------------------
+
+
+def run_cli(*args):
+    """`hbrdf ARGS` in a fresh interpreter (the package on this interpreter's path, with its _core)."""
+    return subprocess.run([sys.executable, "-m", "hybridbrdf.cli", *args], capture_output=True, text=True)
+
+
+# ---- Mitsuba 3, the oracle -------------------------------------------------------
+
+
+def mitsuba():
+    """Mitsuba 3 with its scalar_rgb variant (the only one that runs here), or a skip."""
+    mi = pytest.importorskip("mitsuba", reason="Mitsuba 3 is an oracle of these tests (test extras)")
+    mi.set_variant("scalar_rgb")
+    return mi
+
+
+def mitsuba_f(bsdf, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """f(wi, wo), (N,3) RGB, of a loaded Mitsuba BSDF. Mitsuba's si.wi points to the viewer
+    (our wo); its eval() takes the light direction (our wi) and returns f * wi.z."""
+    mi = mitsuba()
+    ctx = mi.BSDFContext()
+    si = mi.SurfaceInteraction3f()
+    out = np.empty((len(wi), 3))
+    for k in range(len(wi)):
+        si.wi = mi.Vector3f(*wo[k])
+        v = bsdf.eval(ctx, si, mi.Vector3f(*wi[k]))
+        out[k] = (v[0], v[1], v[2])
+    return out / wi[:, 2:3]
+
+
+def mitsuba_measured(path):
+    """Mitsuba 3's ``measured`` plugin on an RGL ``.bsdf`` file: the project's RGL oracle."""
+    return mitsuba().load_dict({"type": "measured", "filename": str(path)})
+
+
+# ---- shaders under Vulkan (lavapipe) ----------------------------------------------
+
+
+RUNNER = pathlib.Path(os.environ.get("HBRDF_VK_RUNNER", ROOT / "build" / "hbrdf_vk_runner"))
+LVP_ICD = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
+
+
+def skip_without_vulkan(allow_module_level=False):
+    """Skips unless hbrdf_vk_runner and lavapipe are there; HBRDF_REQUIRE_VULKAN=1 (scripts/test.sh)
+    turns the skip into an error, so that a full test run cannot pass without the shader tests."""
+    if RUNNER.exists() and os.path.exists(LVP_ICD):
+        return
+    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
+        raise RuntimeError(f"shader tests need {RUNNER} (cmake --build build) and lavapipe ({LVP_ICD})")
+    pytest.skip("hbrdf_vk_runner or lavapipe not available", allow_module_level=allow_module_level)
+
+
+def compile_spirv(src: pathlib.Path, spv: pathlib.Path, target: str = "glsl", include_dir=None) -> None:
+    """A compute shader (GLSL, or HLSL through glslang's HLSL front end) to SPIR-V for Vulkan 1.1;
+    asserts that glslangValidator and spirv-val both accept it."""
+    args = ["-V"] if target == "glsl" else ["-D", "-V", "-e", "main", "-S", "comp"]
+    include = ["-I" + str(include_dir)] if include_dir is not None else []
+    r = subprocess.run(["glslangValidator", *args, "--target-env", "vulkan1.1", *include, str(src), "-o", str(spv)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:]
+    r = subprocess.run(["spirv-val", str(spv)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def run_on_lavapipe(spv: pathlib.Path, inputs: np.ndarray) -> np.ndarray:
+    """Runs a compute shader of glsl/ on inputs (one row of floats per invocation) under
+    lavapipe with the validation layer on; returns its (n, 3) float32 output."""
+    n = len(inputs)
+    work = spv.parent
+    np.ascontiguousarray(inputs, dtype=np.float32).tofile(work / "in.bin")
+    r = subprocess.run([str(RUNNER), str(spv), str(work / "in.bin"), str(work / "out.bin"), str(n), "3",
+                        "--validation"], capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP_ICD))
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "llvmpipe" in r.stdout
+    return np.fromfile(work / "out.bin", dtype=np.float32).reshape(n, 3)

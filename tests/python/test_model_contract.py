@@ -1,0 +1,206 @@
+"""The model contract (spec/model.json) holds in both languages.
+
+- The generated files (cpp/include/hybridbrdf/spec.hpp, python/hybridbrdf/spec.py) are current.
+- Both loaders reject every file of the shared table tests/data/malformed_models.json, with the
+  same words where the table says so.
+- The container: a file written by the safetensors package is read by libhybridbrdf bit for bit,
+  and a file laid out by hand from the safetensors specification is read by both.
+- Every value the file records is honoured: arch.pre_exp_max bounds exp() in PyTorch, in the C++
+  scalar and batched paths, and in generated code.
+"""
+
+import json
+import math
+import pathlib
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import safetensors.numpy
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf import _core, spec
+from hybridbrdf.model_file import HybridModel
+from hybridbrdf.models import build_model
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+TABLE = json.loads((ROOT / "tests" / "data" / "malformed_models.json").read_text())
+
+
+def test_generated_spec_files_are_current():
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_spec.py"), "--check"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def test_python_and_cpp_read_the_same_contract():
+    assert spec.CONVENTIONS_VERSION == _core.CONVENTIONS_VERSION
+    assert (spec.ALPHA_MIN, spec.ALPHA_MAX, spec.ETA_MIN, spec.ETA_MAX) == (
+        _core.ALPHA_MIN, _core.ALPHA_MAX, _core.ETA_MIN, _core.ETA_MAX)
+
+
+def base_model(base=TABLE["base"]) -> HybridModel:
+    torch.manual_seed(0)
+    mod = build_model(base["arch"], base["materials"], base["width"], base["depth"], base["latent"], "hardgelu",
+                      base["isotropic"])
+    with torch.no_grad():
+        for p in mod.parameters():
+            p.add_(torch.randn_like(p) * 0.3)
+    n = base["materials"]
+    return HybridModel.from_module(mod, [f"mat-{i}" for i in range(n)], ["test"] * n, {"steps": 0})
+
+
+def _value(v):
+    return {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}.get(v, v) if isinstance(v, str) else v
+
+
+def write_case(case, good: pathlib.Path, bad: pathlib.Path) -> None:
+    """Apply one row's edits to the good file and write the result."""
+    if "bytes" in case:
+        raw = good.read_bytes()
+        how = case["bytes"]
+        if how == "empty":
+            data = b""
+        elif how.startswith("first:"):
+            data = raw[:int(how.split(":")[1])]
+        elif how.startswith("drop_last:"):
+            data = raw[:-int(how.split(":")[1])]
+        else:  # header_not_json: a header of the right length that is not JSON
+            (hlen,) = struct.unpack("<Q", raw[:8])
+            data = raw[:8] + b"!" * hlen + raw[8 + hlen:]
+        bad.write_bytes(data)
+        return
+    with safetensors.safe_open(str(good), framework="numpy") as f:
+        meta = dict(f.metadata())
+        tensors = {k: f.get_tensor(k) for k in f.keys()}
+    doc = json.loads(meta["hybridbrdf"])
+    if "doc_set" in case:
+        keys, value = case["doc_set"]
+        target = doc
+        for k in keys[:-1]:
+            target = target[k]
+        target[keys[-1]] = value
+    if "doc_delete" in case:
+        keys = case["doc_delete"]
+        target = doc
+        for k in keys[:-1]:
+            target = target[k]
+        del target[keys[-1]]
+    meta["hybridbrdf"] = json.dumps(doc)
+    if "meta_raw" in case:
+        if case["meta_raw"] is None:
+            del meta["hybridbrdf"]
+        else:
+            meta["hybridbrdf"] = case["meta_raw"]
+    if "tensor_set" in case:
+        name, index, value = case["tensor_set"]
+        tensors[name] = tensors[name].copy()
+        tensors[name][tuple(index)] = _value(value)
+    if "tensor_drop" in case:
+        del tensors[case["tensor_drop"]]
+    if "tensor_new" in case:
+        name, shape = case["tensor_new"]
+        tensors[name] = np.zeros(shape, np.float32)
+    if "tensor_dtype" in case:
+        name, dtype = case["tensor_dtype"]
+        tensors[name] = tensors[name].astype(dtype)
+    bad.write_bytes(safetensors.numpy.save(tensors, meta))
+
+
+@pytest.fixture(scope="module")
+def good_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("contract") / "good.safetensors"
+    base_model().save(path)
+    return path
+
+
+@pytest.mark.parametrize("case", TABLE["cases"], ids=[c["name"] for c in TABLE["cases"]])
+def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_file, case):
+    bad = tmp_path / "bad.safetensors"
+    write_case(case, good_file, bad)
+    with pytest.raises(hb.ModelFileError) as py_err:
+        hb.load_model(bad)
+    with pytest.raises(ValueError) as cpp_err:
+        _core.Model(str(bad))
+    for lang, err in (("python", py_err), ("cpp", cpp_err)):
+        text = str(err.value)
+        assert text.startswith(f"{bad}: "), (lang, text)
+        assert "\n" not in text, (lang, text)
+        problem = text[len(f"{bad}: "):]
+        if "problem" in case:
+            assert problem == case["problem"], (lang, problem)
+        else:
+            assert case["contains"][lang] in problem, (lang, problem)
+
+
+def test_the_base_file_of_the_table_is_valid(good_file):
+    assert hb.load_model(good_file).materials == _core.Model(str(good_file)).materials
+
+
+def test_a_file_written_by_the_safetensors_package_is_read_by_cpp_bit_exactly(tmp_path):
+    for arch in ("hybrid", "analytic-input", "neural"):
+        torch.manual_seed(1)
+        mod = build_model(arch, 4, 8, 3, 12 if arch == "neural" else 4, "relu", [True, False, False, True])
+        with torch.no_grad():
+            for p in mod.parameters():
+                p.add_(torch.randn_like(p))
+        model = HybridModel.from_module(mod, list("abcd"), ["t"] * 4, {})
+        path = tmp_path / f"{arch}.safetensors"
+        model.save(path)
+        read = _core.Model(str(path)).tensors()
+        expected = {k: v for k, v in model.tensors.items() if not k.startswith("frames.")}
+        assert set(read) == set(expected), arch
+        for k, v in expected.items():
+            assert read[k].shape == v.shape and read[k].tobytes() == v.tobytes(), (arch, k)
+
+
+def test_a_file_laid_out_from_the_format_specification_is_read_by_both(tmp_path):
+    """Written here from the safetensors layout alone (8-byte length, JSON header with
+    data_offsets, data), without either codec: both readers must see the same bits."""
+    model = base_model()
+    header, blobs, offset = {"__metadata__": {"hybridbrdf": json.dumps(model.header())}}, [], 0
+    for name in sorted(model.tensors, reverse=True):  # any order the format allows
+        data = np.ascontiguousarray(model.tensors[name], dtype="<f4").tobytes()
+        header[name] = {"dtype": "F32", "shape": list(model.tensors[name].shape), "data_offsets": [offset, offset + len(data)]}
+        blobs.append(data)
+        offset += len(data)
+    text = json.dumps(header).encode()
+    text += b" " * (-len(text) % 8)
+    path = tmp_path / "by_hand.safetensors"
+    path.write_bytes(struct.pack("<Q", len(text)) + text + b"".join(blobs))
+    py = hb.load_model(path)
+    cpp = _core.Model(str(path)).tensors()
+    for k, v in model.tensors.items():
+        assert py.tensors[k].tobytes() == v.tobytes() and cpp[k].tobytes() == v.tobytes(), k
+
+
+@pytest.mark.parametrize("arch", ["hybrid", "logmul", "neural"])
+def test_the_recorded_pre_exp_max_bounds_every_reader(tmp_path, arch):
+    """Output layer: weights 0, biases 10 on the exp() channels and -60 on the gate, so
+    f = exp(min(10, bound)) (+ a gate of 1e-26 times f_a; logmul: f_a exp(min(10, bound)))."""
+    torch.manual_seed(2)
+    latent = 12 if arch == "neural" else 4
+    mod = build_model(arch, 1, 8, 2, latent, "hardgelu", pre_exp_max=2.0)
+    with torch.no_grad():
+        mod.mlp.out.weight.zero_()
+        mod.mlp.out.bias.copy_(torch.tensor([10.0, 10.0, 10.0, -60.0, -60.0, -60.0][:mod.mlp.out.bias.numel()]))
+    model = HybridModel.from_module(mod, ["m"], ["t"], {})
+    assert model.arch["pre_exp_max"] == 2.0
+    path = tmp_path / "bound.safetensors"
+    model.save(path)
+    rng = np.random.default_rng(0)
+    wi = np.abs(rng.normal(size=(64, 3))) + [0, 0, 0.2]
+    wo = np.abs(rng.normal(size=(64, 3))) + [0, 0, 0.2]
+    loaded = hb.load_model(path)
+    scale = loaded.eval_analytic(wi, wo, "m", dtype=torch.float64) if arch == "logmul" else 1.0
+    expected = math.exp(2.0) * scale
+    cpp = _core.Model(str(path))
+    assert cpp.pre_exp_max == 2.0
+    for got in (loaded.eval(wi, wo, "m", dtype=torch.float64), cpp.eval(wi, wo, 0), cpp.eval_scalar(wi, wo, 0)):
+        assert np.allclose(got, expected, rtol=1e-5), (arch, float(np.max(got)))
+    from hybridbrdf.codegen import generate
+
+    for target in ("glsl", "hlsl", "cpp"):
+        assert "HBRDF_PRE_EXP_MAX = 2.0f;" in generate(loaded, target), target
