@@ -2,9 +2,10 @@
 """Training throughput of joint fitting: direction pairs x materials per second.
 
 Fits M materials (LambertGGXDielectric, the synthetic source that is exactly f_a,
-with random parameters: the reference values do not change the cost of a step) for a fixed number of steps at each MLP size
-and prints pairs x materials / s measured over the optimisation loop only (the
-pool evaluation and the final metrics are excluded). Uses all cores torch is
+with random parameters: the reference values do not change the cost of a step)
+for a fixed number of steps at each MLP size and prints pairs x materials / s
+measured over the optimisation loop only (the pool evaluation and the final
+metrics are excluded). Uses all cores torch is
 given (``--threads``, default: all). With ``--compile`` each size is also fitted
 with compiled steps (``fit(..., compile_step=True)``, ``hbrdf fit --compile``) in
 the same run, and the speed-up and the one-time compilation are printed.

@@ -12,7 +12,6 @@ against the sources plus the SMAPE between the two models.
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 import tempfile
 
@@ -21,6 +20,7 @@ import numpy as np
 import hybridbrdf as hb
 from hybridbrdf.fitting import source_material
 from hybridbrdf.metrics import cmae, metric_directions, smape
+from hybridbrdf.precision import half_rounded
 
 
 def main() -> int:
@@ -30,10 +30,7 @@ def main() -> int:
     ap.add_argument("--pairs", type=int, default=1_000_000)
     args = ap.parse_args()
     model = hb.load_model(args.model)
-    half = copy.deepcopy(model)
-    for k, v in half.tensors.items():
-        if k.startswith("mlp.") and k.endswith(".weight"):
-            half.tensors[k] = v.astype(np.float16).astype(np.float32)
+    half = half_rounded(model)
     with tempfile.NamedTemporaryFile(suffix=".safetensors") as tmp:
         half.save(tmp.name)
         half = hb.load_model(tmp.name)

@@ -3,9 +3,7 @@
    (tests/python/test_brdfexplorer.py). params: the file's parameters as constants at their
    defaults; shader: the file's shader block (it defines BRDF(L, V, N, X, Y)); n: pair count. #}
 #version 450
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+{% include "compute_io.glsl" %}
 {{ params }}
 {{ shader }}
 void main() {

@@ -3,9 +3,7 @@
    material: an HBRDF_MATERIAL_<NAME> constant; n: pair count, or none for no guard. #}
 #version 450
 #extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+{% include "compute_io.glsl" %}
 #include "{{ include }}"
 void main() {
     uint i = gl_GlobalInvocationID.x;

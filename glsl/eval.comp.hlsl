@@ -1,8 +1,7 @@
 {# Jinja2 template, rendered by hybridbrdf.codegen.eval_compute_shader (docs: glsl/README.md);
    the HLSL twin of eval.comp.glsl, for glslang's HLSL front end, with the same variables. #}
 #include "{{ include }}"
-RWStructuredBuffer<float> data_in : register(u0);
-RWStructuredBuffer<float> data_out : register(u1);
+{% include "compute_io.hlsl" %}
 [numthreads(64, 1, 1)]
 void main(uint3 id : SV_DispatchThreadID) {
     uint i = id.x;

@@ -3,9 +3,7 @@
    include: the generated model file; material: an HBRDF_MATERIAL_<NAME> constant. #}
 #version 450
 #extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+{% include "compute_io.glsl" %}
 #include "{{ include }}"
 void main() {
     uint i = gl_GlobalInvocationID.x;
@@ -13,7 +11,8 @@ void main() {
     vec3 wo = vec3(data_in[8 * i + 3], data_in[8 * i + 4], data_in[8 * i + 5]);
     float pdf;
     vec3 s = hbrdf_sample(wo, vec2(data_in[8 * i + 6], data_in[8 * i + 7]), {{ material }}, pdf);
-    vec3 f = hbrdf_eval(wi, wo, {{ material }}) + hbrdf_eval_analytic(wi, wo, {{ material }}) + s;
+    vec3 f = hbrdf_eval(wi, wo, {{ material }}) + hbrdf_eval_analytic(wi, wo, {{ material }}) + s
+        + hbrdf_eval_depth(wi, wo, {{ material }}, int(i & 3u));
     data_out[3 * i] = f.x + pdf + hbrdf_pdf(wi, wo, {{ material }});
     data_out[3 * i + 1] = f.y;
     data_out[3 * i + 2] = f.z;

@@ -8,10 +8,15 @@
 #include <array>
 #include <string>
 
+#include "checks.hpp"
 #include "hybridbrdf/hybridbrdf.hpp"
 
 namespace py = pybind11;
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using hbrdf_bindings::check_material;
+using hbrdf_bindings::check_pairs;
+using hbrdf_bindings::check_rows;
+using hbrdf_bindings::FloatArray;
+using hbrdf_bindings::row3;
 
 namespace {
 
@@ -22,18 +27,6 @@ hbrdf::Strategy parse_strategy(const std::string& name) {
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());
     }
-}
-
-// Checks that `a` has shape (n, cols) (n taken from the first array checked
-// when n < 0) and returns n.
-py::ssize_t check_rows(const FloatArray& a, const char* name, py::ssize_t cols, py::ssize_t n) {
-    if (a.ndim() != 2 || a.shape(1) != cols)
-        throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(cols) + "), got ndim " +
-                              std::to_string(a.ndim()) + (a.ndim() >= 2 ? ", shape[1] " + std::to_string(a.shape(1)) : ""));
-    if (n >= 0 && a.shape(0) != n)
-        throw py::value_error(std::string(name) + " has " + std::to_string(a.shape(0)) + " rows, expected " +
-                              std::to_string(n));
-    return a.shape(0);
 }
 
 hbrdf::AnalyticParams make_params(const std::array<float, 3>& kd, const std::array<float, 3>& eta,
@@ -93,14 +86,7 @@ PYBIND11_MODULE(_core, m) {
         }, "Raise ValueError naming the first parameter outside its range.");
 
     m.def("eval_analytic", [](const FloatArray& wi, const FloatArray& wo, const hbrdf::AnalyticParams& p) {
-        const py::ssize_t n = check_rows(wi, "wi", 3, -1);
-        check_rows(wo, "wo", 3, n);
-        FloatArray f({n, py::ssize_t(3)});
-        {
-            py::gil_scoped_release release;
-            hbrdf::eval_analytic_aos(p, std::size_t(n), wi.data(), wo.data(), f.mutable_data());
-        }
-        return f;
+        return hbrdf_eval_analytic_rows(p, wi, wo, check_pairs(wi, wo));
     }, py::arg("wi"), py::arg("wo"), py::arg("params"),
        "f_a for (N,3) wi and wo (local frame, wi toward the light); returns (N,3) RGB without the cosine.");
 
@@ -140,8 +126,7 @@ PYBIND11_MODULE(_core, m) {
     m.def("pdf", [](const FloatArray& wi, const FloatArray& wo, const hbrdf::AnalyticParams& p,
                     const std::string& strategy) {
         const hbrdf::Strategy s = parse_strategy(strategy);
-        const py::ssize_t n = check_rows(wi, "wi", 3, -1);
-        check_rows(wo, "wo", 3, n);
+        const py::ssize_t n = check_pairs(wi, wo);
         FloatArray out({n});
         {
             py::gil_scoped_release release;
@@ -161,10 +146,8 @@ PYBIND11_MODULE(_core, m) {
         })
         .def("find", &hbrdf::HybridModel::find, py::arg("name"), "Index of a material, or -1.")
         .def("eval", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
-            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
-            check_rows(wo, "wo", 3, n);
-            if (material < 0 || material >= static_cast<int>(md.materials().size()))
-                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            const py::ssize_t n = check_pairs(wi, wo);
+            check_material(md, material);
             FloatArray f({n, py::ssize_t(3)});
             {
                 py::gil_scoped_release release;
@@ -173,19 +156,14 @@ PYBIND11_MODULE(_core, m) {
             return f;
         }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_t for (N,3) wi, wo; returns (N,3).")
         .def("eval_scalar", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
-            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
-            check_rows(wo, "wo", 3, n);
-            if (material < 0 || material >= static_cast<int>(md.materials().size()))
-                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            const py::ssize_t n = check_pairs(wi, wo);
+            check_material(md, material);
             FloatArray f({n, py::ssize_t(3)});
             {
                 py::gil_scoped_release release;
-                const float* a = wi.data();
-                const float* b = wo.data();
                 float* o = f.mutable_data();
                 for (py::ssize_t i = 0; i < n; ++i) {
-                    const auto v = md.eval(material, hbrdf::Vec3<float>(a[3 * i], a[3 * i + 1], a[3 * i + 2]),
-                                           hbrdf::Vec3<float>(b[3 * i], b[3 * i + 1], b[3 * i + 2]));
+                    const auto v = md.eval(material, row3(wi.data(), i), row3(wo.data(), i));
                     o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
                 }
             }
@@ -228,11 +206,9 @@ PYBIND11_MODULE(_core, m) {
             return out;
         }, "The network and per-material tensors as loaded (the neural baseline's frame layer excepted).")
         .def("eval_analytic", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo, int material) {
-            const py::ssize_t n = check_rows(wi, "wi", 3, -1);
-            check_rows(wo, "wo", 3, n);
+            const py::ssize_t n = check_pairs(wi, wo);
             if (md.kind() == hbrdf::ModelKind::Neural) throw py::value_error("the neural baseline has no analytic part");
-            if (material < 0 || material >= static_cast<int>(md.materials().size()))
-                throw py::index_error("material index " + std::to_string(material) + " out of range");
+            check_material(md, material);
             return hbrdf_eval_analytic_rows(md.materials()[material].params, wi, wo, n);
         }, py::arg("wi"), py::arg("wo"), py::arg("material"), "f_a of a hybrid material for (N,3) wi, wo.");
 

@@ -6,8 +6,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
-#include <string>
-
+#include "checks.hpp"
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/model.hpp"
 #include "hybridbrdf/tabulated.hpp"
@@ -16,17 +15,11 @@ namespace py = pybind11;
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
-// Shape (n, cols), n taken from `a` when n < 0; returns n.
-py::ssize_t rows_of(const FloatArray& a, const char* name, py::ssize_t cols, py::ssize_t n) {
-    if (a.ndim() != 2 || a.shape(1) != cols)
-        throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(cols) + ")");
-    if (n >= 0 && a.shape(0) != n)
-        throw py::value_error(std::string(name) + " has " + std::to_string(a.shape(0)) + " rows, expected " +
-                              std::to_string(n));
-    return a.shape(0);
-}
+using hbrdf_bindings::check_material;
+using hbrdf_bindings::check_pairs;
+using hbrdf_bindings::check_rows;
+using hbrdf_bindings::FloatArray;
+using hbrdf_bindings::row3;
 
 hbrdf::TabulatedSampler build_or_raise(const hbrdf::BatchEval& eval, bool isotropic, int resolution_deg) {
     try {
@@ -63,8 +56,7 @@ void bind_tabulated(py::module_& m) {
         .def_static(
             "build_model",
             [](const hbrdf::HybridModel& model, int material_index, py::object isotropic, int resolution_deg) {
-                if (material_index < 0 || material_index >= static_cast<int>(model.materials().size()))
-                    throw py::index_error("material index " + std::to_string(material_index) + " out of range");
+                check_material(model, material_index);
                 const bool iso = isotropic.is_none() ? model.materials()[std::size_t(material_index)].isotropic
                                                      : isotropic.cast<bool>();
                 // The sampler keeps this callable (sample() evaluates f for the
@@ -83,19 +75,17 @@ void bind_tabulated(py::module_& m) {
         .def(
             "sample",
             [](const hbrdf::TabulatedSampler& s, const FloatArray& wo, const FloatArray& u) {
-                const py::ssize_t n = rows_of(wo, "wo", 3, -1);
-                rows_of(u, "u", 2, n);
+                const py::ssize_t n = check_rows(wo, "wo", 3, -1);
+                check_rows(u, "u", 2, n);
                 FloatArray wi({n, py::ssize_t(3)}), pdf({n});
                 {
                     py::gil_scoped_release release;
-                    const float* o = wo.data();
                     const float* uu = u.data();
                     float* w = wi.mutable_data();
                     float* p = pdf.mutable_data();
                     for (py::ssize_t k = 0; k < n; ++k) {
                         const hbrdf::BrdfSample b =
-                            s.sample(hbrdf::Vec3<float>(o[3 * k], o[3 * k + 1], o[3 * k + 2]),
-                                     hbrdf::Vec2<float>(uu[2 * k], uu[2 * k + 1]));
+                            s.sample(row3(wo.data(), k), hbrdf::Vec2<float>(uu[2 * k], uu[2 * k + 1]));
                         w[3 * k] = b.wi.x, w[3 * k + 1] = b.wi.y, w[3 * k + 2] = b.wi.z;
                         p[k] = b.pdf;
                     }
@@ -107,17 +97,12 @@ void bind_tabulated(py::module_& m) {
         .def(
             "pdf",
             [](const hbrdf::TabulatedSampler& s, const FloatArray& wi, const FloatArray& wo) {
-                const py::ssize_t n = rows_of(wi, "wi", 3, -1);
-                rows_of(wo, "wo", 3, n);
+                const py::ssize_t n = check_pairs(wi, wo);
                 FloatArray out({n});
                 {
                     py::gil_scoped_release release;
-                    const float* a = wi.data();
-                    const float* b = wo.data();
                     float* p = out.mutable_data();
-                    for (py::ssize_t k = 0; k < n; ++k)
-                        p[k] = s.pdf(hbrdf::Vec3<float>(a[3 * k], a[3 * k + 1], a[3 * k + 2]),
-                                     hbrdf::Vec3<float>(b[3 * k], b[3 * k + 1], b[3 * k + 2]));
+                    for (py::ssize_t k = 0; k < n; ++k) p[k] = s.pdf(row3(wi.data(), k), row3(wo.data(), k));
                 }
                 return out;
             },

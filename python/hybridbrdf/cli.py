@@ -133,7 +133,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
     t = model.training
     if t:
-        print(_settings_line("training", t, ("training", "sparse", "run"), RECORDED_TIMINGS))
+        sections = ("training", "run") + (("sparse",) if t.get("frozen_from") else ())  # sparse_init: sparse fits only
+        print(_settings_line("training", t, sections, RECORDED_TIMINGS))
         print(_settings_line("loss", t, ("loss",)))
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
@@ -185,6 +186,25 @@ def _cmd_render(args: argparse.Namespace) -> int:
           f"{stats['network_evals']:,} of {stats['brdf_evals']:,} BRDF evaluations ran the network, "
           f"{stats['threads']} threads); wrote {args.out}" + (f" and {args.png}" if args.png else ""))
     return 0
+
+
+def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
+    """--spp, --max-depth, ...: one flag per scene setting of the library's table (hybridbrdf.render.settings()),
+    typed and documented by it; the library checks the ranges when rendering (one-line errors)."""
+    from hybridbrdf.render import settings
+
+    for s in settings():
+        flag = "--" + s["name"].replace("_", "-")
+        default = str(s["default"]).lower() if s["type"] == "bool" else s["default"]
+        help_text = f"{s['doc']} (default: the scene's, else {default})".replace("%", "%%")
+        if s["type"] == "bool":
+            parser.add_argument(flag, dest=s["name"], action=argparse.BooleanOptionalAction, default=None,
+                                help=help_text)
+        else:
+            parser.add_argument(flag, dest=s["name"], type={"int": int, "float": float, "str": str}[s["type"]],
+                                choices=s["choices"], default=None,
+                                metavar=None if s["choices"] else ("N" if s["type"] == "int" else "X"),
+                                help=help_text)
 
 
 def build_parser() -> argparse.ArgumentParser:

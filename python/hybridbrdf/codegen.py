@@ -28,22 +28,18 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from hybridbrdf import _core
+from hybridbrdf import _core, spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.shaders import render_shader
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.util import atomic_write_bytes, package_data_dir
 
 TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
 MLP_FORMS = ("auto", "unrolled", "loops")
 
 
 def _template_dir() -> pathlib.Path:
-    here = pathlib.Path(__file__).resolve().parent
-    for candidate in (here / "codegen", here.parents[1] / "codegen"):
-        if (candidate / "hbrdf.j2").is_file():
-            return candidate
-    raise FileNotFoundError("codegen templates (hbrdf.j2) not found next to the package or in the source tree")
+    return package_data_dir("codegen", "hbrdf.j2")
 
 
 def float_literal(x: float) -> str:
@@ -133,7 +129,7 @@ DIALECTS: Dict[str, Dict[str, object]] = {
     "cpp": {"name": "C++17, dependency-free", "comment": "//", "prelude": CPP_PRELUDE,
             "epilogue": "}  // namespace hbrdf", "v3": "float3", "v2": "float2", "const": "inline constexpr",
             "fn": "inline ", "out_array": "", "out_float": lambda n: f"float& {n}", "array": _brace_array,
-            "unused": lambda n: f"(void){n};  // -Wunused-parameter",
+            "unused": lambda n: f"(void){n}; ",  # a parameter the code ignores, without -Wunused-parameter
             "struct_open": lambda t: "{", "struct_close": "}", "uint": "unsigned",
             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
             "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))"},
@@ -173,6 +169,14 @@ def _unrolled_frames(tensors) -> List[str]:
                                          for k in range(w.shape[1]) if w[j, k] != 0.0]
         lines.append(f"raw_frames[{j}] = {' '.join(terms)};")
     return lines
+
+
+def contract_literals() -> Dict[str, str]:
+    """The model contract's constants (spec/model.json) as float literals for the template."""
+    c = {k: float_literal(getattr(spec, k.upper())) for k in
+         ("kd_min", "kd_max", "eta_min", "eta_max", "alpha_max", "hardgelu_knee")}
+    c["hardgelu_inv_width"] = float_literal(np.float32(1.0) / np.float32(2.0 * spec.HARDGELU_KNEE))
+    return c
 
 
 def material_constant(name: str) -> str:
@@ -260,7 +264,9 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     (shader compilers turn constant arrays indexed in loops into per-invocation memory;
     see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops).
     With ``precision="fp16"`` the layer weights are rounded to IEEE binary16: unrolled
-    code prints the rounded values (exactly), loops store them packed two per 32-bit word."""
+    code prints the rounded values (exactly), loops store them packed two per 32-bit word.
+    ``scene`` is the plan :func:`load_scene` makes of a path-tracer scene: ``{"name", "materials":
+    [{"name", "evaluate"}], "neural_max_depth" (optional), "not_emitted" (optional)}``."""
     if target == "brdfexplorer":
         return _generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
@@ -346,7 +352,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         depth_limited=neural_max_depth != NO_DEPTH_LIMIT,
         isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
         mixed=mixed,
-        material_names=names, materials=mats, layers=layers, alpha_min=float_literal(_core.ALPHA_MIN),
+        material_names=names, materials=mats, layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),
         pre_exp_max=float_literal(a["pre_exp_max"]),
         frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],

@@ -9,14 +9,12 @@ import pathlib
 
 import jinja2
 
+from hybridbrdf.util import package_data_dir
+
 
 def shader_dir() -> pathlib.Path:
-    """glsl/ installed inside the package (the wheel), else the source tree's."""
-    here = pathlib.Path(__file__).resolve().parent
-    for candidate in (here / "glsl", here.parents[1] / "glsl"):
-        if (candidate / "eval.comp.glsl").is_file():
-            return candidate
-    raise FileNotFoundError("shader sources (eval.comp.glsl) not found next to the package or in the source tree")
+    """glsl/, inside the package in a wheel, at the top of the repository in the source tree."""
+    return package_data_dir("glsl", "eval.comp.glsl")
 
 
 def render_shader(name: str, **values) -> str:

@@ -3,7 +3,18 @@
 from __future__ import annotations
 
 import os
+import pathlib
 import tempfile
+
+
+def package_data_dir(name: str, marker: str) -> pathlib.Path:
+    """The data folder ``name`` (codegen/, glsl/): installed inside the package in a wheel,
+    at the top of the repository in the source tree; ``marker`` is a file it must hold."""
+    here = pathlib.Path(__file__).resolve().parent
+    for candidate in (here / name, here.parents[1] / name):
+        if (candidate / marker).is_file():
+            return candidate
+    raise FileNotFoundError(f"{name}/{marker} not found next to the package or in the source tree")
 
 
 def atomic_write_bytes(path, data: bytes) -> None:

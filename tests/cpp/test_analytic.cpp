@@ -57,6 +57,13 @@ template <typename T> AnalyticParamsT<T> random_params(std::mt19937& rng) {
 
 double rel_err(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-30); }
 
+// The largest relative error of a against b over the three channels.
+template <typename A, typename B> double max_rel_err(const A& a, const B& b) {
+    double worst = 0;
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, rel_err(a[c], b[c]));
+    return worst;
+}
+
 }  // namespace
 
 TEST_CASE("closed-form values: Lambert only when eta = 1, Fresnel 0.04 at normal incidence") {
@@ -100,8 +107,7 @@ TEST_CASE("double implementation equals an independent textbook transcription") 
         const auto p = random_params<double>(rng);
         const auto wi = random_cosine_dir<double>(rng), wo = random_cosine_dir<double>(rng);
         if (wi.z < 1e-3 || wo.z < 1e-3) continue;  // the textbook G1 form loses digits at grazing angles
-        const Vec3<double> a = eval_analytic(wi, wo, p), b = textbook_fa(wi, wo, p);
-        for (int c = 0; c < 3; ++c) worst = std::max(worst, rel_err(a[c], b[c]));
+        worst = std::max(worst, max_rel_err(eval_analytic(wi, wo, p), textbook_fa(wi, wo, p)));
     }
     CHECK(worst < 1e-9);
 }
@@ -111,18 +117,13 @@ TEST_CASE("float agrees with double on 10^5 cosine-weighted pairs (2e-5 relative
     double worst = 0, worst_rough = 0;
     for (int i = 0; i < 100000; ++i) {
         const auto pd = random_params<double>(rng);
-        AnalyticParamsT<float> pf;
-        pf.kd = Vec3<float>(pd.kd);
-        pf.eta = Vec3<float>(pd.eta);
-        pf.alpha = Vec2<float>(pd.alpha);
-        const auto pd_rounded = AnalyticParamsT<double>{Vec3<double>(pf.kd), Vec3<double>(pf.eta), Vec2<double>(pf.alpha)};
+        const auto pf = test::params_as<float>(pd);
+        const auto pd_rounded = test::params_as<double>(pf);
         const auto wi = random_cosine_dir<float>(rng), wo = random_cosine_dir<float>(rng);
-        const Vec3<float> a = eval_analytic(wi, wo, pf);
-        const Vec3<double> b = eval_analytic(Vec3<double>(wi), Vec3<double>(wo), pd_rounded);
-        for (int c = 0; c < 3; ++c) {
-            worst = std::max(worst, rel_err(a[c], b[c]));
-            if (std::min(pd.alpha.x, pd.alpha.y) >= 0.05) worst_rough = std::max(worst_rough, rel_err(a[c], b[c]));
-        }
+        const double err = max_rel_err(eval_analytic(wi, wo, pf),
+                                       eval_analytic(Vec3<double>(wi), Vec3<double>(wo), pd_rounded));
+        worst = std::max(worst, err);
+        if (std::min(pd.alpha.x, pd.alpha.y) >= 0.05) worst_rough = std::max(worst_rough, err);
     }
     MESSAGE("worst float/double relative error: " << worst << " (alpha >= 0.05: " << worst_rough << ")");
     // D is ill-conditioned for small alpha: an absolute float error of ~6e-8
@@ -138,14 +139,10 @@ TEST_CASE("reciprocity f(wi, wo) = f(wo, wi) to 1e-6 relative") {
     for (int i = 0; i < 50000; ++i) {
         const auto p = random_params<double>(rng);
         const auto wi = random_cosine_dir<double>(rng), wo = random_cosine_dir<double>(rng);
-        const Vec3<double> a = eval_analytic(wi, wo, p), b = eval_analytic(wo, wi, p);
-        AnalyticParamsT<float> pf{Vec3<float>(p.kd), Vec3<float>(p.eta), Vec2<float>(p.alpha)};
-        const Vec3<float> af = eval_analytic(Vec3<float>(wi), Vec3<float>(wo), pf);
-        const Vec3<float> bf = eval_analytic(Vec3<float>(wo), Vec3<float>(wi), pf);
-        for (int c = 0; c < 3; ++c) {
-            worst_d = std::max(worst_d, rel_err(a[c], b[c]));
-            worst_f = std::max(worst_f, rel_err(af[c], bf[c]));
-        }
+        worst_d = std::max(worst_d, max_rel_err(eval_analytic(wi, wo, p), eval_analytic(wo, wi, p)));
+        const auto pf = test::params_as<float>(p);
+        const Vec3<float> wi_f(wi), wo_f(wo);
+        worst_f = std::max(worst_f, max_rel_err(eval_analytic(wi_f, wo_f, pf), eval_analytic(wo_f, wi_f, pf)));
     }
     CHECK(worst_d < 1e-6);
     CHECK(worst_f < 1e-6);
@@ -176,24 +173,21 @@ TEST_CASE("validate() rejects out-of-range and NaN parameters by name; clamped()
 TEST_CASE("batched SoA and AoS paths (AVX2 and baseline) equal the scalar function") {
     std::mt19937 rng(4);
     const std::size_t n = 1000;  // not a multiple of the vector width or chunk
-    std::vector<float> wi(3 * n), wo(3 * n), soa(6 * n), f_aos(3 * n), f_soa(3 * n);
+    std::vector<float> wi(3 * n), wo(3 * n), f_aos(3 * n), f_soa(3 * n);
     for (std::size_t i = 0; i < n; ++i) {
         const auto a = random_cosine_dir<float>(rng), b = random_cosine_dir<float>(rng);
         for (int c = 0; c < 3; ++c) {
             wi[3 * i + c] = a[c];
             wo[3 * i + c] = b[c];
-            soa[c * n + i] = a[c];
-            soa[(3 + c) * n + i] = b[c];
         }
     }
+    const std::vector<float> soa = test::pairs_to_soa(wi, wo);
     const auto p = random_params<float>(rng);
     const AnalyticBrdf brdf(p);
     for (bool baseline : {false, true}) {
         force_baseline_simd(baseline);
         eval_analytic_aos(p, n, wi.data(), wo.data(), f_aos.data());
-        const float* s = soa.data();
-        float* o = f_soa.data();
-        eval_analytic_soa(p, n, {s, s + n, s + 2 * n}, {s + 3 * n, s + 4 * n, s + 5 * n}, {o, o + n, o + 2 * n});
+        test::eval_analytic_soa_planes(p, soa, f_soa);
         double worst = 0;
         for (std::size_t i = 0; i < n; ++i) {
             const Vec3<float> ref = brdf.eval(Vec3<float>(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),

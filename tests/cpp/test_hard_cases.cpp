@@ -61,7 +61,43 @@ template <typename T> void check_sample_hard_cases() {
     }
 }
 
+// Every kind of hard input the contract names is in the shared table, in this type: an edit
+// of tests/data/hard_directions.json cannot drop one unnoticed.
+template <typename T> void check_table_coverage() {
+    bool nan = false, pos_inf = false, neg_inf = false, subnormal = false, zero = false, below = false,
+         grazing = false, huge = false, tiny = false, normal = false;
+    for (const auto& w : hard_directions<T>()) {
+        for (int c = 0; c < 3; ++c) {
+            nan |= std::isnan(w[c]);
+            pos_inf |= w[c] == std::numeric_limits<T>::infinity();
+            neg_inf |= w[c] == -std::numeric_limits<T>::infinity();
+            subnormal |= std::fpclassify(w[c]) == FP_SUBNORMAL;
+            huge |= std::isfinite(w[c]) && std::abs(w[c]) >= T(1e10);
+            tiny |= w[c] != T(0) && std::abs(w[c]) <= T(1e-20);
+        }
+        zero |= w.x == T(0) && w.y == T(0) && w.z == T(0);
+        below |= w.z < T(0);
+        grazing |= w.z >= T(0) && w.z <= T(1e-8) && std::abs(w.x) + std::abs(w.y) > T(0.5);
+        normal |= w.x == T(0) && w.y == T(0) && w.z == T(1);
+    }
+    CHECK(nan);
+    CHECK(pos_inf);
+    CHECK(neg_inf);
+    CHECK(subnormal);
+    CHECK(zero);
+    CHECK(below);
+    CHECK(grazing);
+    CHECK(huge);
+    CHECK(tiny);
+    CHECK(normal);
+}
+
 }  // namespace
+
+TEST_CASE("the shared hard-direction table covers every kind of hard input") {
+    check_table_coverage<float>();
+    check_table_coverage<double>();
+}
 
 TEST_CASE("eval and pdf: finite, non-negative, zero for invalid input (float)") { check_eval_hard_cases<float>(); }
 TEST_CASE("eval and pdf: finite, non-negative, zero for invalid input (double)") { check_eval_hard_cases<double>(); }
@@ -77,19 +113,13 @@ TEST_CASE("batched kernels keep the hard-case contract") {
             wo.insert(wo.end(), {b.x, b.y, b.z});
         }
     const std::size_t n = wi.size() / 3;
-    std::vector<float> f(3 * n), soa_in(6 * n), f_soa(3 * n), q(n);
-    for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) {
-            soa_in[c * n + i] = wi[3 * i + c];
-            soa_in[(3 + c) * n + i] = wo[3 * i + c];
-        }
+    std::vector<float> f(3 * n), f_soa(3 * n), q(n);
+    const std::vector<float> soa_in = pairs_to_soa(wi, wo);
     for (const auto& p : param_corners<float>())
         for (bool baseline : {false, true}) {
             force_baseline_simd(baseline);
             eval_analytic_aos(p, n, wi.data(), wo.data(), f.data());
-            const float* s = soa_in.data();
-            float* o = f_soa.data();
-            eval_analytic_soa(p, n, {s, s + n, s + 2 * n}, {s + 3 * n, s + 4 * n, s + 5 * n}, {o, o + n, o + 2 * n});
+            eval_analytic_soa_planes(p, soa_in, f_soa);
             for (std::size_t i = 0; i < 3 * n; ++i) {
                 REQUIRE(std::isfinite(f[i]));
                 REQUIRE(f[i] >= 0);

@@ -306,6 +306,79 @@ TEST_CASE("scene errors name the file and the problem") {
           "bad.json: objects[0].material: eta[0] = 0.500000 is outside [1.000000, 10.000000]");
 }
 
+TEST_CASE("scene settings: one table, checked without narrowing, copied whole into RenderOptions") {
+    const std::string cam = R"("camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]})";
+    const std::string obj = R"("objects": [{"type": "sphere", "material": {"type": "analytic"}}])";
+    auto message = [&](const std::string& settings) -> std::string {
+        try {
+            load_scene_json("{" + cam + ", " + obj + settings + "}", ".", "s.json");
+        } catch (const FileError& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    CHECK(message(R"(, "spp": 0)") == "s.json: spp: must be >= 1, got 0");
+    // 3000000000 read as an int would wrap to a negative number.
+    CHECK(message(R"(, "spp": 3000000000)") == "s.json: spp: must be <= 2147483647, got 3000000000");
+    CHECK(message(R"(, "max_depth": -1)") == "s.json: max_depth: must be >= 0, got -1");
+    CHECK(message(R"(, "neural_max_depth": -2)") == "s.json: neural_max_depth: must be >= -1, got -2");
+    CHECK(message(R"(, "threads": -1)") == "s.json: threads: must be >= 0, got -1");
+    CHECK(message(R"(, "rr_depth": 1.5)") == "s.json: rr_depth: expected an integer, got a number (1.5)");
+    CHECK(message(R"(, "seed": -1)") == "s.json: seed: must be >= 0, got -1");
+    CHECK(message(R"(, "nee": "yes")") == "s.json: nee: expected true or false, got a string");
+    CHECK(message(R"(, "neural_min_throughput": -0.5)") == "s.json: neural_min_throughput: must be >= 0, got -0.5");
+    CHECK(message(R"(, "tabulated_resolution_deg": 0)") == "s.json: tabulated_resolution_deg: must be >= 1, got 0");
+    CHECK(message(R"(, "sampler": 2)") == "s.json: sampler: expected a string, got an integer");
+    CHECK(message(R"(, "spp": null)") == "s.json: spp: expected an integer, got null");
+    CHECK(message(R"(, "sppp": 4)").rfind("s.json: sppp: unknown key 'sppp' (expected one of: camera, environment, "
+                                          "materials, objects, spp, max_depth,", 0) == 0);
+
+    const Scene scene = load_scene_json("{" + cam + ", " + obj + R"(, "spp": 5, "max_depth": 2, "neural_max_depth": 1,
+        "neural_min_throughput": 0.25, "sampler": "ggx", "nee": false, "rr_depth": 3, "seed": 4294967296,
+        "threads": 3, "tabulated_resolution_deg": 5})", ".", "s.json");
+    const RenderSettings& s = scene.settings;
+    CHECK(s.spp == 5);
+    CHECK(s.max_depth == 2);
+    CHECK(s.neural_max_depth == 1);
+    CHECK(s.neural_min_throughput == 0.25f);
+    CHECK(s.sampler == SamplerKind::Ggx);
+    CHECK(scene.materials[0]->sampler_kind() == SamplerKind::Ggx);
+    CHECK(!s.nee);
+    CHECK(s.rr_depth == 3);
+    CHECK(s.seed == 4294967296ull);  // 2^32: not truncated to 0
+    CHECK(s.threads == 3);
+    CHECK(s.tabulated_resolution_deg == 5);
+    const RenderOptions o = RenderOptions::from_scene(s);
+    for (const SettingInfo& info : kRenderSettings) {
+        CAPTURE(info.name);
+        CHECK(get_setting(o, info) == get_setting(s, info));
+    }
+    RenderOptions bad = o;
+    bad.spp = 0;
+    CHECK_THROWS_WITH_AS(bad.validate(), "spp: must be >= 1, got 0", std::invalid_argument);
+    bad = o;
+    bad.neural_min_throughput = std::nanf("");
+    CHECK_THROWS_AS(bad.validate(), std::invalid_argument);
+    // Keys outside the settings table are read without narrowing too.
+    try {
+        load_scene_json(R"({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4294967312}, )" + obj + "}",
+                        ".", "s.json");
+        FAIL("no error");
+    } catch (const FileError& e) {
+        CHECK(std::string(e.what()) == "s.json: camera.width: must be <= 2147483647, got 4294967312");
+    }
+}
+
+TEST_CASE("sampler names: the analytic strategies' names plus tabulated") {
+    for (SamplerKind k : kSamplerKinds) CHECK(parse_sampler(sampler_name(k)) == k);
+    CHECK(parse_sampler("mis") == SamplerKind::Mis);
+    CHECK(std::string(sampler_name(SamplerKind::Tabulated)) == "tabulated");
+    CHECK(*sampler_strategy(SamplerKind::Ggx) == hbrdf::Strategy::Ggx);
+    CHECK(!sampler_strategy(SamplerKind::Tabulated));
+    CHECK_THROWS_WITH_AS(parse_sampler("best"), "unknown sampler 'best'; expected cosine, ggx, mis or tabulated",
+                         std::invalid_argument);
+}
+
 TEST_CASE("EXR written atomically and read back") {
     Image img(5, 3);
     for (std::size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) * 0.37f - 1.0f + 1e4f * float(i == 7);

@@ -82,3 +82,21 @@ TEST_CASE("GGX visible normals lie on the upper hemisphere and reflect wo") {
         CHECK(glm::length(h) == doctest::Approx(1.0).epsilon(1e-12));
     }
 }
+
+TEST_CASE("strategy names: one list, parsed and printed by one pair of functions") {
+    // The names are the documented ones (docs/CONVENTIONS.md, the Python API), written out here.
+    const char* names[] = {"cosine", "ggx", "mis"};
+    REQUIRE(std::size(kStrategies) == 3);
+    for (std::size_t i = 0; i < 3; ++i) {
+        CHECK(std::string(strategy_name(kStrategies[i])) == names[i]);
+        CHECK(parse_strategy(names[i]) == kStrategies[i]);
+    }
+    CHECK(!find_strategy("MIS"));
+    CHECK(!find_strategy("tabulated"));  // a renderer sampler, not an analytic strategy
+    try {
+        parse_strategy("vndf");
+        FAIL("no exception");
+    } catch (const std::invalid_argument& e) {
+        CHECK(std::string(e.what()) == "unknown sampling strategy 'vndf'; expected cosine, ggx or mis");
+    }
+}

@@ -2,9 +2,14 @@
 #pragma once
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "hybridbrdf/hybridbrdf.hpp"
 
@@ -31,20 +36,68 @@ template <typename T> inline std::vector<AnalyticParamsT<T>> param_corners() {
     return out;
 }
 
-/// The hard directions of the foundation issue: grazing (z = 0, 1e-8), the
-/// normal, below the horizon, zero-length, NaN and Inf, huge and tiny lengths.
-template <typename T> inline std::vector<Vec3<T>> hard_directions() {
-    const T inf = std::numeric_limits<T>::infinity();
-    const T nan = std::numeric_limits<T>::quiet_NaN();
-    const T g = T(1e-8);
-    const T s = std::sqrt(T(1) - g * g);
-    return {
-        {0, 0, 1},  {1, 0, 0},   {0, 1, 0},   {-1, 0, 0},  {s, 0, g},    {0, s, g},   {-s, 0, g},
-        {s * T(0.6), s * T(0.8), g},          {0, 0, -1},  {0.6, 0, -0.8}, {0, 0, 0},   {nan, 0, 1},
-        {0, nan, 1}, {0, 0, nan}, {inf, 0, 1}, {0, 0, inf}, {-inf, 0, 1}, {0.3, 0.4, std::sqrt(T(0.75))},
-        {T(1e-30), 0, T(1e-30)}, {T(1e20), T(1e20), T(1e20)}, {0, 0, std::numeric_limits<T>::denorm_min()},
-        {T(0.70710678), 0, T(0.70710678)},  {T(-0.70710678), 0, T(0.70710678)},
-    };
+namespace detail {
+
+// One component of tests/data/hard_directions.json: a number, or a string for what JSON
+// cannot hold ("nan", "inf", "-inf") or what depends on the type ("denorm_min").
+template <typename T> T hard_component(const nlohmann::json& v, const std::string& file) {
+    if (v.is_number()) return T(v.get<double>());
+    const std::string s = v.is_string() ? v.get<std::string>() : v.dump();
+    if (s == "nan") return std::numeric_limits<T>::quiet_NaN();
+    if (s == "inf") return std::numeric_limits<T>::infinity();
+    if (s == "-inf") return -std::numeric_limits<T>::infinity();
+    if (s == "denorm_min") return std::numeric_limits<T>::denorm_min();
+    throw std::runtime_error(file + ": unknown component " + s);
+}
+
+}  // namespace detail
+
+/// The hard directions of the contract, read from tests/data/hard_directions.json (the table
+/// the Python tests read too): grazing (z = 0, 1e-8), the normal, below the horizon,
+/// zero-length, NaN and Inf, huge, tiny and subnormal lengths. Read once per type.
+template <typename T> inline const std::vector<Vec3<T>>& hard_directions() {
+    static const std::vector<Vec3<T>> dirs = [] {
+        const std::string file = HBRDF_TEST_DATA_DIR "/hard_directions.json";
+        std::ifstream in(file);
+        if (!in) throw std::runtime_error(file + ": cannot open");
+        const nlohmann::json doc = nlohmann::json::parse(in);
+        std::vector<Vec3<T>> out;
+        for (const auto& entry : doc.at("directions")) {
+            const auto& w = entry.at("w");
+            if (w.size() != 3) throw std::runtime_error(file + ": an entry's w has " + std::to_string(w.size()) +
+                                                        " components, expected 3");
+            out.emplace_back(detail::hard_component<T>(w[0], file), detail::hard_component<T>(w[1], file),
+                             detail::hard_component<T>(w[2], file));
+        }
+        return out;
+    }();
+    return dirs;
+}
+
+/// The same parameters in another precision, each value rounded to U.
+template <typename U, typename T> inline AnalyticParamsT<U> params_as(const AnalyticParamsT<T>& p) {
+    return AnalyticParamsT<U>{Vec3<U>(p.kd), Vec3<U>(p.eta), Vec2<U>(p.alpha)};
+}
+
+/// n direction pairs given as AoS arrays (x, y, z per pair) in the layout of
+/// eval_analytic_soa's inputs: planes wi.x, wi.y, wi.z, wo.x, wo.y, wo.z of n values each.
+inline std::vector<float> pairs_to_soa(const std::vector<float>& wi, const std::vector<float>& wo) {
+    const std::size_t n = wi.size() / 3;
+    std::vector<float> soa(6 * n);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+            soa[c * n + i] = wi[3 * i + c];
+            soa[(3 + c) * n + i] = wo[3 * i + c];
+        }
+    return soa;
+}
+
+/// eval_analytic_soa on pairs_to_soa's layout; f receives planes r, g, b of n values each.
+inline void eval_analytic_soa_planes(const AnalyticParams& p, const std::vector<float>& soa, std::vector<float>& f) {
+    const std::size_t n = soa.size() / 6;
+    const float* s = soa.data();
+    float* o = f.data();
+    eval_analytic_soa(p, n, {s, s + n, s + 2 * n}, {s + 3 * n, s + 4 * n, s + 5 * n}, {o, o + n, o + 2 * n});
 }
 
 template <typename T> inline bool finite_nonneg(const Vec3<T>& v) {

@@ -7,7 +7,6 @@ Direction generators and the float64 textbook reference live in the package
 
 from __future__ import annotations
 
-import copy
 import json
 import os
 import pathlib
@@ -19,6 +18,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
+from hybridbrdf.precision import half_rounded
 from hybridbrdf.random_model import random_model
 from hybridbrdf.sources.base import BRDFSource
 from hybridbrdf.torch_brdf import eval_analytic
@@ -139,11 +139,7 @@ def saved_random_model(tmp_path, arch, activation="hardgelu", width=16, depth=2)
 def half_rounded_copy(model, path):
     """The same model with its layer weights rounded to binary16 (what --precision fp16 stores),
     saved to ``path`` and loaded back."""
-    rounded = copy.deepcopy(model)
-    for k, v in rounded.tensors.items():
-        if k.startswith("mlp.") and k.endswith(".weight"):
-            rounded.tensors[k] = v.astype(np.float16).astype(np.float32)
-    rounded.save(path)
+    half_rounded(model).save(path)
     return hb.load_model(path)
 
 

@@ -3,6 +3,8 @@ computes what libhybridbrdf computes (1e-6 relative); GLSL and HLSL compile
 with glslangValidator and pass spirv-val. (Running the shaders under lavapipe
 is the conformance suite of the code-generation issue.)"""
 
+import json
+import pathlib
 import shutil
 import subprocess
 
@@ -11,12 +13,15 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf.codegen import float_literal, generate, main as codegen_main, material_constant
+from hybridbrdf.codegen import float_literal, generate, load_scene, main as codegen_main, material_constant
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
 from hybridbrdf.shaders import render_shader
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, saved_random_model
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
 
 ARCHS = [("hybrid", "hardgelu"), ("hybrid", "relu"), ("neural", "hardgelu"), ("additive", "relu"),
          ("logmul", "hardgelu"), ("analytic-input", "hardgelu")]
@@ -69,6 +74,21 @@ def _run_driver(exe, wi, wo, u, n_mats):
 
 def _rel(a, b):
     return np.abs(a - b) / np.maximum(np.abs(b), 1e-30)
+
+
+def tracer_scene(model_path, materials, extra_materials=None, **settings):
+    """A path-tracer scene (docs/RENDERING.md), one sphere per material: ``materials`` maps the
+    scene's names to a model material of ``model_path``, or to (material, "analytic")."""
+    mats = {}
+    for key, spec in materials.items():
+        name, evaluate = spec if isinstance(spec, tuple) else (spec, None)
+        mats[key] = {"type": "model", "file": str(model_path), "material": name}
+        if evaluate:
+            mats[key]["evaluate"] = evaluate
+    mats.update(extra_materials or {})
+    return {"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0]}, "materials": mats,
+            "objects": [{"type": "sphere", "center": [2 * i, 0, 0], "radius": 0.5, "material": k}
+                        for i, k in enumerate(mats)], **settings}
 
 
 @pytest.mark.parametrize("arch,activation,mlp_form", [(a, act, "auto") for a, act in ARCHS] + [
@@ -186,15 +206,14 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
     wo = cosine_directions(rng, 5000).astype(np.float32)
     u = rng.random((5000, 2)).astype(np.float32)
     cpp = _core.Model(str(path))
-    scene = {"name": "one.json", "materials": [{"name": "mat-2", "evaluate": "full"}]}
+    scene = load_scene(tracer_scene(path, {"two": "mat-2"}), model)
     text = generate(model, "cpp", scene=scene)
     assert "folded into the first layer" in text and ("isotropic-only" in text) == (arch != "neural")
     got = _run_driver(_build_driver(tmp_path, text, ["mat-2"]), wi, wo, u, 1)[0]
     ref = cpp.eval_scalar(wi, wo, 2)
     assert np.allclose(got[:, :3], ref, rtol=1e-5, atol=1e-9)
     if arch != "neural":
-        scene = {"name": "flat.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
-                                                     {"name": "mat-1", "evaluate": "analytic"}]}
+        scene = load_scene(tracer_scene(path, {"a": ("mat-0", "analytic"), "b": ("mat-1", "analytic")}), model)
         text = generate(model, "cpp", scene=scene)
         assert "HBRDF_W0" not in text and "isotropic-only" not in text  # mat-1 is anisotropic
         got = _run_driver(_build_driver(tmp_path, text, ["mat-0", "mat-1"]), wi, wo, u, 2)
@@ -209,10 +228,9 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
 @pytest.mark.parametrize("target", ["cpp", "glsl", "hlsl"])
 def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
     """A scene with one full and one analytic-only material keeps the network, and the
-    analytic-only material's hbrdf_eval is exactly its hbrdf_eval_analytic."""
+    analytic-only material's hbrdf_eval is exactly its hbrdf_eval_analytic, which is the library's f_a."""
     path, model = saved_random_model(tmp_path, "hybrid")
-    scene = {"name": "mixed.json", "materials": [{"name": "mat-0", "evaluate": "analytic"},
-                                                  {"name": "mat-1", "evaluate": "full"}]}
+    scene = load_scene(tracer_scene(path, {"flat": ("mat-0", "analytic"), "full": "mat-1"}), model)
     text = generate(model, target, scene=scene)
     assert "analytic_only" in text and "hbrdf_mlp" in text
     if target != "cpp":  # compiles and validates (the values are the C++ case's, same template)
@@ -227,9 +245,16 @@ def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
     assert np.array_equal(got[0, :, :3], got[0, :, 3:6])  # f == f_a for the analytic-only material
     assert not np.allclose(got[1, :, :3], got[1, :, 3:6])
     assert np.allclose(got[1, :, :3], _core.Model(str(path)).eval_scalar(wi, wo, 1), rtol=1e-5, atol=1e-9)
-    _, neural = random_model("neural", latent=12, width=16, depth=2)
-    with pytest.raises(ValueError, match="neural baseline"):
-        generate(neural, "cpp", scene=scene)
+    _core.force_baseline_simd(True)  # the non-FMA kernels round like the -ffp-contract=off header
+    try:
+        fa = _core.Model(str(path)).eval_analytic(wi, wo, 0)
+    finally:
+        _core.force_baseline_simd(False)
+    assert np.allclose(got[0, :, :3], fa, rtol=1e-6, atol=1e-12)
+    (tmp_path / "n").mkdir()
+    neural_path, neural = saved_random_model(tmp_path / "n", "neural")
+    with pytest.raises(ValueError, match=r"materials\.flat\.evaluate: \"analytic\" is not possible: the neural baseline"):
+        load_scene(tracer_scene(neural_path, {"flat": ("mat-0", "analytic"), "full": "mat-1"}), neural)
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
@@ -237,12 +262,12 @@ def test_specialisation_shrinks_spirv(tmp_path):
     from hybridbrdf.codegen import spirv_size
 
     _, model = random_model("hybrid", width=32, depth=3)
+    model.save(tmp_path / "m.safetensors")
     generic = spirv_size(generate(model, "glsl"), material_constant("mat-0"), tmp_path)
-    folded = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
-                                                                                    "evaluate": "full"}]}),
+    folded = spirv_size(generate(model, "glsl", scene=load_scene(tracer_scene(model.path, {"a": "mat-0"}), model)),
                         material_constant("mat-0"), tmp_path)
-    flat = spirv_size(generate(model, "glsl", scene={"name": "s", "materials": [{"name": "mat-0",
-                                                                                  "evaluate": "analytic"}]}),
+    flat = spirv_size(generate(model, "glsl", scene=load_scene(tracer_scene(model.path, {"a": ("mat-0", "analytic")}),
+                                                               model)),
                       material_constant("mat-0"), tmp_path)
     assert flat < folded < generic, (generic, folded, flat)
 
@@ -265,3 +290,152 @@ def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
         assert np.allclose(got[m, :, :3], ref, rtol=1e-6, atol=1e-12)
         # and the rounding is visible against the float32 model (the test can fail)
         assert not np.allclose(got[m, :, :3], cpp_full.eval(wi, wo, m), rtol=1e-6, atol=1e-12)
+
+
+# ---- scenes: the path tracer's schema (docs/RENDERING.md, docs/CODEGEN.md) --------------------
+
+DEPTH_DRIVER = r"""
+#include <cstdio>
+#include <vector>
+#include "model.h"
+int main() {
+    const hbrdf::HbrdfMaterial mats[] = {MATS};
+    unsigned n = 0;
+    if (std::fread(&n, 4, 1, stdin) != 1) return 2;
+    std::vector<float> in(6 * n);
+    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 3;
+    for (const auto& m : mats)
+        for (int depth = 0; depth < 3; ++depth)
+            for (unsigned i = 0; i < n; ++i) {
+                const float* p = &in[6 * i];
+                const hbrdf::float3 f = hbrdf::hbrdf_eval_depth(hbrdf::float3(p[0], p[1], p[2]),
+                                                                hbrdf::float3(p[3], p[4], p[5]), m, depth);
+                const float out[3] = {f.x, f.y, f.z};
+                std::fwrite(out, 4, 3, stdout);
+            }
+    return 0;
+}
+"""
+
+
+def _eval_depth(tmp_path, text, names, wi, wo):
+    """hbrdf_eval_depth of the generated C++ at depths 0, 1, 2: (material, depth, pair, rgb)."""
+    (tmp_path / "model.h").write_text(text)
+    mats = ", ".join("hbrdf::" + material_constant(n) for n in names)
+    (tmp_path / "depth.cpp").write_text(DEPTH_DRIVER.replace("MATS", mats))
+    exe = tmp_path / "depth"
+    r = subprocess.run(["g++", "-std=c++17", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
+                        "-I", str(tmp_path), str(tmp_path / "depth.cpp"), "-o", str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[:3000]
+    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo], axis=1).astype(np.float32).tobytes()
+    r = subprocess.run([str(exe)], input=payload, capture_output=True)
+    assert r.returncode == 0
+    return np.frombuffer(r.stdout, dtype=np.float32).reshape(len(names), 3, len(wi), 3)
+
+
+def _library_fa(path, wi, wo, k):
+    _core.force_baseline_simd(True)  # the non-FMA kernels round like the -ffp-contract=off header
+    try:
+        return _core.Model(str(path)).eval_analytic(wi, wo, k)
+    finally:
+        _core.force_baseline_simd(False)
+
+
+def test_scene_neural_max_depth_is_the_tracers_rule(tmp_path):
+    """With neural_max_depth = 1, hbrdf_eval_depth is the library's full model at depth 0 and its
+    f_a at depths 1 and 2 (the tracer's rule 1); -1 means max_depth; 0 leaves no network at all."""
+    path, model = saved_random_model(tmp_path, "hybrid")
+    scene_path = tmp_path / "s.json"
+    # "file" relative to the scene's folder, as the tracer resolves it.
+    scene_path.write_text(json.dumps(tracer_scene("m.safetensors", {"a": "mat-0", "b": "mat-1"},
+                                                  neural_max_depth=1, max_depth=5)))
+    plan = load_scene(scene_path, model)
+    assert plan["neural_max_depth"] == 1 and [m["name"] for m in plan["materials"]] == ["mat-0", "mat-1"]
+    text = generate(model, "cpp", scene=plan)
+    assert "inline constexpr int HBRDF_NEURAL_MAX_DEPTH = 1;" in text
+    rng = np.random.default_rng(11)
+    wi = cosine_directions(rng, 4000).astype(np.float32)
+    wo = cosine_directions(rng, 4000).astype(np.float32)
+    got = _eval_depth(tmp_path, text, ["mat-0", "mat-1"], wi, wo)
+    cpp = _core.Model(str(path))
+    for k in range(2):
+        full, fa = cpp.eval_scalar(wi, wo, k), _library_fa(path, wi, wo, k)
+        assert np.allclose(got[k, 0], full, rtol=1e-6, atol=1e-12)
+        assert not np.allclose(full, fa, rtol=1e-3)  # the rule is visible
+        for depth in (1, 2):
+            assert np.allclose(got[k, depth], fa, rtol=1e-6, atol=1e-12)
+
+    scene_path.write_text(json.dumps(tracer_scene("m.safetensors", {"a": "mat-0"}, max_depth=3)))
+    assert "HBRDF_NEURAL_MAX_DEPTH = 3;" in generate(model, "cpp", scene=load_scene(scene_path, model))
+
+    scene_path.write_text(json.dumps(tracer_scene("m.safetensors", {"a": "mat-0", "b": "mat-1"}, neural_max_depth=0)))
+    text = generate(model, "cpp", scene=load_scene(scene_path, model))
+    assert "analytic only (no network)" in text and "hbrdf_mlp" not in text and "HBRDF_W0" not in text
+    got = _eval_depth(tmp_path, text, ["mat-0", "mat-1"], wi, wo)
+    for k in range(2):
+        assert np.allclose(got[k, 0], _library_fa(path, wi, wo, k), rtol=1e-6, atol=1e-12)
+
+
+def test_scene_emits_only_its_materials_of_this_model(tmp_path, capsys):
+    path, model = saved_random_model(tmp_path, "hybrid")
+    others = {"floor": {"type": "analytic", "kd": 0.4},
+              "gold": {"type": "measured", "source": "synthetic:gold"},
+              "elsewhere": {"type": "model", "file": "other.safetensors", "material": "mat-0"}}
+    scene = tracer_scene(path, {"a": "mat-1", "b": "mat-1"}, extra_materials=others)
+    scene["objects"].append({"type": "sphere", "center": [0, 3, 0], "radius": 0.5,
+                             "material": {"type": "model", "file": str(path), "material": "mat-2"}})
+    scene_path = tmp_path / "s.json"
+    scene_path.write_text(json.dumps(scene))
+    out = tmp_path / "x.h"
+    assert codegen_main([str(path), "--target", "cpp", "--scene", str(scene_path), "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "HBRDF_MATERIAL_MAT_1 " in text and "HBRDF_MATERIAL_MAT_2 " in text  # the inline one too
+    assert "HBRDF_MATERIAL_MAT_0 " not in text  # mat-0 is only used from another file
+    assert text.count("inline constexpr HbrdfMaterial HBRDF_MATERIAL_MAT_1 ") == 1  # used twice, emitted once
+    assert "not emitted (analytic or measured scene materials, models of other files): floor (analytic), " \
+           "gold (measured), elsewhere (model other.safetensors)" in text
+
+
+@pytest.mark.parametrize("mutate, problem", [
+    (lambda s: s["materials"]["a"].update(material="nope"), "materials.a.material: no material 'nope' in "),
+    (lambda s: s["materials"]["a"].update(evaluate="maybe"),
+     "materials.a.evaluate: expected 'full' or 'analytic', got 'maybe'"),
+    (lambda s: s["materials"]["a"].update(colour=1), "materials.a.colour: unknown key 'colour'"),
+    (lambda s: s.update(neural_max_depth=-5), "neural_max_depth: must be >= -1, got -5"),
+    (lambda s: s.update(neural_max_depth=2**40), "neural_max_depth: must be <= 2147483647, got 1099511627776"),
+    (lambda s: s.update(neural_depth=1), "neural_depth: unknown key 'neural_depth'"),
+    (lambda s: s.pop("objects"), "missing key 'objects'"),
+    (lambda s: s["materials"].update(b={"type": "model", "file": "m.safetensors", "material": "mat-0",
+                                         "evaluate": "analytic"}),
+     "materials.b.evaluate: 'mat-0' is also used by materials.a with \"evaluate\": \"full\""),
+    (lambda s: s["materials"]["a"].update(file="other.safetensors"),
+     "materials: no material of type \"model\" uses "),
+    (lambda s: s.update(materials=["mat-0", {"name": "mat-1", "evaluate": "analytic"}]),
+     "materials: the list form of hbrdf-codegen scenes was removed"),
+])
+def test_bad_scenes_give_one_line_errors(tmp_path, capsys, mutate, problem):
+    path, _ = saved_random_model(tmp_path, "hybrid")
+    scene = tracer_scene("m.safetensors", {"a": "mat-0"})
+    mutate(scene)
+    scene_path = tmp_path / "bad scene.json"
+    scene_path.write_text(json.dumps(scene))
+    out = tmp_path / "x.glsl"
+    assert codegen_main([str(path), "--target", "glsl", "--scene", str(scene_path), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"hbrdf-codegen: error: {scene_path}: {problem}"), err
+    assert not out.exists()
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None or not MODEL.exists(),
+                    reason="glslang-tools or the fitted model missing")
+def test_the_example_scene_generates_glsl_that_compiles(tmp_path):
+    out = tmp_path / "x.glsl"
+    assert codegen_main([str(MODEL), "--target", "glsl", "--scene", str(ROOT / "scenes" / "sphere_env.json"),
+                         "-o", str(out)]) == 0
+    text = out.read_text()
+    assert text.count("const HbrdfMaterial HBRDF_MATERIAL_") == 1
+    assert "const HbrdfMaterial HBRDF_MATERIAL_PAPER_WHITE_RGB_RGL " in text
+    assert "models of other files): floor (analytic)" in text
+    assert "const int HBRDF_NEURAL_MAX_DEPTH = 4;" in text  # no neural_max_depth: the scene's max_depth
+    src = every_function_shader(tmp_path, "glsl", text, "paper_white_rgb.rgl")
+    compile_spirv(src, tmp_path / "x.spv", "glsl", include_dir=tmp_path)

@@ -14,7 +14,6 @@ from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
-from test_model_file import DAMAGE, damaged_model_file
 
 ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input"]
 

@@ -1,7 +1,6 @@
 """Model files: bit-exact round trip, atomic writes, and a clear ModelFileError
 naming the file for every kind of damage."""
 
-import json
 import os
 import struct
 
@@ -10,7 +9,6 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.model_file import _decode_safetensors, _encode_safetensors
 from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper

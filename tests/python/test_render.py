@@ -138,7 +138,14 @@ def test_exr_and_png_written_and_read_back(tmp_path):
     (lambda s: s["materials"].update(m={"type": "model", "file": "missing.safetensors", "material": "x"}),
      "materials.m.file: "),
     (lambda s: s.update(environment={"type": "file", "file": "missing.exr"}), "environment.file: "),
-    (lambda s: s.update(spp=0), "spp must be >= 1"),
+    (lambda s: s.update(spp=0), "<scene dict>: spp: must be >= 1, got 0"),
+    # Integers are bounded before any conversion: 3000000000 is not wrapped to a negative int.
+    (lambda s: s.update(spp=3000000000), "<scene dict>: spp: must be <= 2147483647, got 3000000000"),
+    (lambda s: s.update(max_depth=2.5), "<scene dict>: max_depth: expected an integer, got a number (2.5)"),
+    (lambda s: s.update(seed=-1), "<scene dict>: seed: must be >= 0, got -1"),
+    (lambda s: s.update(nee=1), "<scene dict>: nee: expected true or false, got an integer"),
+    (lambda s: s.update(tabulated_resolution_deg=91), "<scene dict>: tabulated_resolution_deg: must be <= 90, got 91"),
+    (lambda s: s["camera"].update(width=2**32 + 16), "<scene dict>: camera.width: must be <= 2147483647, got 4294967312"),
 ])
 def test_bad_scenes_give_the_documented_errors(mutate, message):
     s = scene(analytic_material())
@@ -146,6 +153,48 @@ def test_bad_scenes_give_the_documented_errors(mutate, message):
     with pytest.raises(ValueError) as info:
         hr.render(s)
     assert message in str(info.value)
+
+
+def test_overrides_are_checked_by_the_settings_table():
+    s = scene(analytic_material())
+    with pytest.raises(ValueError, match=r"^spp: must be >= 1, got 0$"):
+        hr.render(s, spp=0)
+    with pytest.raises(ValueError, match=r"^sampler: unknown sampler 'best'; expected cosine, ggx, mis or tabulated$"):
+        hr.render(s, sampler="best")
+    with pytest.raises(TypeError, match="unexpected setting 'sp'"):
+        hr.render(s, sp=4)
+
+
+def test_seeds_beyond_32_bits_are_not_wrapped():
+    # A seed read through a 32-bit int would make 2**32 the same as 0.
+    s = scene(analytic_material(), spp=1)
+    a, _ = hr.render(s, seed=0)
+    b, _ = hr.render(s, seed=2**32)
+    c, _ = hr.render(s, seed=2**64 - 1)
+    assert not np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_settings_table_matches_the_documentation():
+    """The settings of docs/RENDERING.md's top-level table (written by hand) are the library's
+    table: same names in the same order, same defaults."""
+    text = (ROOT / "docs" / "RENDERING.md").read_text()
+    lines = text[text.index("| `spp` |"):].splitlines()
+    table = lines[:next(i for i, line in enumerate(lines) if not line.startswith("|"))]
+    rows = [line.split("|")[1:3] for line in table]
+    documented = {name.strip().strip("`"): default.strip().strip("`") for name, default in rows}
+    lib = hr.settings()
+    assert list(documented) == [s["name"] for s in lib]
+    for s in lib:
+        doc = documented[s["name"]]
+        if s["name"] == "neural_max_depth":
+            assert doc == "= max_depth" and s["default"] == -1
+        elif s["type"] == "bool":
+            assert doc == str(s["default"]).lower()
+        elif s["type"] == "str":
+            assert doc == s["default"] and set(s["choices"]) == {"cosine", "ggx", "mis", "tabulated"}
+        else:
+            assert float(doc) == s["default"], s["name"]
+    assert hr.SETTINGS == tuple(s["name"] for s in lib)
 
 
 def test_bad_json_file_names_the_file(tmp_path):
@@ -177,6 +226,24 @@ def test_cli_render(tmp_path):
     assert r.stderr.strip().count("\n") == 0
     assert f"{path}: objects[0].material: no material named 'nope'" in r.stderr
     assert not (tmp_path / "x.exr").exists()
+
+
+def test_cli_render_has_a_flag_per_setting(tmp_path):
+    r = run_cli("render", "--help")
+    assert r.returncode == 0
+    for s in hr.settings():
+        flag = "--" + s["name"].replace("_", "-")
+        assert (f"{flag}, --no-{s['name']}" if s["type"] == "bool" else flag) in r.stdout, flag
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(scene(analytic_material())))
+    r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--spp", "1", "--max-depth", "0",
+                "--sampler", "cosine", "--no-nee", "--threads", "1", "--quiet")
+    assert r.returncode == 0, r.stderr
+    img = hr.read_image(str(tmp_path / "o.exr"))
+    # max_depth 0: only the environment seen directly, so the sphere and the floor are black.
+    assert img[8, 10].max() == 0 and img[0, 0].max() > 0
+    r = run_cli("render", str(path), "-o", str(tmp_path / "x.exr"), "--spp", "0")
+    assert r.returncode == 1 and r.stderr.strip() == "hbrdf render: error: spp: must be >= 1, got 0"
 
 
 OCTAHEDRON_OBJ = """v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1

@@ -70,9 +70,10 @@ public:
         const json& v = obj.at(key);
         if (!v.is_number_integer()) fail(join(where, key), "expected an integer, got " + std::string(v.type_name()));
         // Range-checked before the conversion: get<int>() would wrap 3000000000.
-        const bool fits = v.is_number_unsigned() ? v.get<std::uint64_t>() <= std::uint64_t(INT_MAX)
-                                                 : v.get<std::int64_t>() >= INT_MIN && v.get<std::int64_t>() <= INT_MAX;
-        if (!fits) fail(join(where, key), "out of range for an integer setting: " + v.dump());
+        if (v.is_number_unsigned() ? v.get<std::uint64_t>() > std::uint64_t(INT_MAX) : v.get<std::int64_t>() > INT_MAX)
+            fail(join(where, key), "must be <= " + std::to_string(INT_MAX) + ", got " + v.dump());
+        if (!v.is_number_unsigned() && v.get<std::int64_t>() < INT_MIN)
+            fail(join(where, key), "must be >= " + std::to_string(INT_MIN) + ", got " + v.dump());
         return int(v.get<std::int64_t>());
     }
     bool boolean(const json& obj, const std::string& where, const char* key, bool def) const {

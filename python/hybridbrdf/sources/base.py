@@ -4,6 +4,7 @@ networks and synthetic materials alike. Nothing downstream knows the format."""
 from __future__ import annotations
 
 import abc
+import os
 from typing import Optional
 
 import numpy as np
@@ -17,6 +18,23 @@ class BRDFFormatError(InputFileError):
     ``str(err)`` is ``"<path>: <problem>"``, one line, meant for people; the
     CLI prints it as is. ``path`` and ``problem`` are kept as attributes.
     """
+
+
+def read_file_bytes(spec: str, kind: str) -> bytes:
+    """The whole file ``spec``; an unreadable one raises :class:`BRDFFormatError`
+    ("cannot read <kind> file: <reason>")."""
+    try:
+        with open(spec, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise BRDFFormatError(spec, f"cannot read {kind} file: {exc.strerror or exc}") from None
+
+
+def source_name(name: Optional[str], path: Optional[str], fallback: str) -> str:
+    """A source's name: ``name`` when given, else the stem of ``path``, else ``fallback``."""
+    if name is not None:
+        return name
+    return os.path.splitext(os.path.basename(path))[0] if path else fallback
 
 
 class BRDFSource(abc.ABC):

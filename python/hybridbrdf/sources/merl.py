@@ -47,7 +47,7 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, read_file_bytes, source_name
 from hybridbrdf.sources.rusinkiewicz import dirs_from_half_diff, half_diff_angles
 
 #: Table resolution (theta_h, theta_d, phi_d) of every MERL file.
@@ -161,11 +161,7 @@ def read_merl_raw(path) -> np.ndarray:
     (channel, theta_h, theta_d, phi_d), unscaled. Raises :class:`BRDFFormatError`
     for an unreadable file, a wrong dims header, a wrong size or non-finite data."""
     spec = os.fspath(path)
-    try:
-        with open(spec, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise BRDFFormatError(spec, f"cannot read MERL file: {exc.strerror or exc}") from None
+    data = read_file_bytes(spec, "MERL")
     if len(data) < HEADER_BYTES:
         raise BRDFFormatError(spec, f"truncated MERL file: {len(data)} bytes, shorter than the 12-byte dims header")
     dims = tuple(int(x) for x in np.frombuffer(data, dtype="<i4", count=3))
@@ -205,7 +201,7 @@ class MERLSource(BRDFSource):
         if raw.shape != (3, *MERL_DIMS):
             raise ValueError(f"MERL table must have shape (3, 90, 90, 180), got {raw.shape}")
         self.path = path
-        self.name = name if name is not None else (os.path.splitext(os.path.basename(path))[0] if path else "merl")
+        self.name = source_name(name, path, "merl")
         self.origin = origin
         self.interpolation = interpolation
         # (cells, RGB) with the physical scale applied: one gather per corner at eval time.

@@ -41,7 +41,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, source_name
 from hybridbrdf.sources.rusinkiewicz import half_diff_vectors
 
 #: Network input: (sin theta_h, 0, cos theta_h, d.x, d.y, d.z).
@@ -257,7 +257,7 @@ class NBRDFSource(BRDFSource):
             (n, np.asarray(k, dtype=np.float64), np.asarray(b, dtype=np.float64), a) for n, k, b, a in layers
         ]
         self.path = path
-        self.name = name if name is not None else (os.path.splitext(os.path.basename(path))[0] if path else "nbrdf")
+        self.name = source_name(name, path, "nbrdf")
         self.origin = origin if origin is not None else (nbrdf_origin(path) if path else "NBRDF network")
 
     def forward(self, x: np.ndarray) -> np.ndarray:

@@ -44,7 +44,7 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, read_file_bytes, source_name
 
 N_THETA = 6
 N_PHI = 48
@@ -94,11 +94,7 @@ def read_utia_table(path) -> np.ndarray:
     theta_v, phi_v, RGB). Raises :class:`BRDFFormatError` for an unreadable
     file, a wrong size or non-finite values."""
     spec = os.fspath(path)
-    try:
-        with open(spec, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise BRDFFormatError(spec, f"cannot read UTIA file: {exc.strerror or exc}") from None
+    data = read_file_bytes(spec, "UTIA")
     if len(data) != FILE_BYTES:
         what = "truncated UTIA file" if len(data) < FILE_BYTES else "UTIA file too long"
         raise BRDFFormatError(spec, f"{what}: {len(data)} bytes, expected {FILE_BYTES} (3 x 6x48x6x48 float64)")
@@ -130,7 +126,7 @@ class UTIASource(BRDFSource):
         if table.shape != TABLE_SHAPE:
             raise ValueError(f"UTIA table must have shape {TABLE_SHAPE}, got {table.shape}")
         self.path = path
-        self.name = name if name is not None else (os.path.splitext(os.path.basename(path))[0] if path else "utia")
+        self.name = source_name(name, path, "utia")
         self.origin = origin
         self.theta_beyond = theta_beyond
         self._flat = np.ascontiguousarray(table.reshape(-1, N_PLANES))

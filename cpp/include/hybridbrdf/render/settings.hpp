@@ -43,6 +43,7 @@ using SettingField = std::variant<int RenderSettings::*, std::uint64_t RenderSet
 /// named for the error message.
 struct OtherValue {
     std::string type_name;
+    friend bool operator==(const OtherValue& a, const OtherValue& b) { return a.type_name == b.type_name; }
 };
 
 /// A setting's value as a scene file or a caller states it, before it is
