@@ -104,6 +104,9 @@ def rot_z(t):
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+# ---- a source with exact values ---------------------------------------------------
+
+
 class AnalyticTestSource(BRDFSource):
     """A BRDFSource with exactly known values for fitting tests: f_a of the project's own
     analytic model (float64 PyTorch), optionally plus a retro-reflective bump that no

@@ -42,7 +42,7 @@ def test_versions_agree():
 
 
 def test_alpha_min_is_one_constant():
-    header = (ROOT / "cpp/include/hybridbrdf/params.hpp").read_text()
+    header = (ROOT / "cpp/include/hybridbrdf/spec.hpp").read_text()  # generated from spec/model.json
     assert float(re.search(r"kAlphaMin = ([0-9.e-]+);", header).group(1)) == hb.ALPHA_MIN == 1e-4
     p = hb.AnalyticParams(alpha=hb.ALPHA_MIN)
     f = hb.analytic_eval(np.array([[0.0, 0, 1]]), np.array([[0.0, 0, 1]]), p)
@@ -68,7 +68,8 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
     r = run_cli("info", str(out))
     assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
-    assert "lr 0.005, weight_decay 0.01, seed 0," in r.stdout, r.stdout
+    assert "lr 0.005, clip 0.01, weight_decay 0.01, seed 0," in r.stdout, r.stdout
+    assert "sparse_init" not in r.stdout  # a joint fit: no sparse settings
     for init in ("nearest", "neutral"):  # sparse fitting: the network stays, the start is recorded
         sparse = tmp_path / f"sparse_{init}.safetensors"
         r = run_cli("fit", "--frozen", str(out), "synthetic:gold", "--steps", "20", "--pool", "4096",
@@ -79,7 +80,8 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
         assert all(np.array_equal(v, added.tensors[k]) for k, v in model.tensors.items()
                    if not k.startswith("materials."))
         r = run_cli("info", str(sparse))
-        assert f"frozen_from {out}, sparse_init {init}" in r.stdout and "loss: loss_eps 1.0," in r.stdout, r.stdout
+        assert f"sparse_init {init}" in r.stdout and f"frozen_from {out}" in r.stdout, r.stdout
+        assert "loss: loss_eps 1.0," in r.stdout, r.stdout
         assert ("sparse fit started from gold (smape " in r.stdout) == (init == "nearest"), r.stdout
 
 
