@@ -161,12 +161,6 @@ double read_arch_field(const std::string& path, const json& arch, const spec::Ar
     return 0.0;
 }
 
-const spec::ArchField& arch_field(const char* key) {
-    for (const auto& f : spec::kArchFields)
-        if (std::strcmp(f.key, key) == 0) return f;
-    throw std::logic_error(std::string("no arch field ") + key);  // the contract and this file disagree
-}
-
 std::string join_names(const std::vector<std::string>& names) {
     std::string s;
     for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
@@ -208,15 +202,17 @@ HybridModel HybridModel::load(const std::string& path) {
     model.conventions_version_ = spec::kConventionsVersion;
     if (!doc.contains("arch") || !doc["arch"].is_object()) throw ModelFileError(path, "metadata has no 'arch' object");
     const json& arch = doc["arch"];
-    for (const auto& f : spec::kArchFields) read_arch_field(path, arch, f);  // every field, in the table's order
-    model.kind_ = static_cast<ModelKind>(int(read_arch_field(path, arch, arch_field("kind"))));
-    model.activation_ = static_cast<Activation>(int(read_arch_field(path, arch, arch_field("activation"))));
-    model.width_ = int(read_arch_field(path, arch, arch_field("width")));
-    model.depth_ = int(read_arch_field(path, arch, arch_field("depth")));
-    model.latent_ = int(read_arch_field(path, arch, arch_field("latent")));
-    model.n_in_ = int(read_arch_field(path, arch, arch_field("n_in")));
-    model.n_out_ = int(read_arch_field(path, arch, arch_field("n_out")));
-    model.pre_exp_max_ = float(read_arch_field(path, arch, arch_field("pre_exp_max")));
+    // Every field in the table's order (so the first problem reported is the Python loader's too).
+    std::map<std::string, double> field;
+    for (const auto& f : spec::kArchFields) field[f.key] = read_arch_field(path, arch, f);
+    model.kind_ = static_cast<ModelKind>(int(field.at("kind")));
+    model.activation_ = static_cast<Activation>(int(field.at("activation")));
+    model.width_ = int(field.at("width"));
+    model.depth_ = int(field.at("depth"));
+    model.latent_ = int(field.at("latent"));
+    model.n_in_ = int(field.at("n_in"));
+    model.n_out_ = int(field.at("n_out"));
+    model.pre_exp_max_ = float(field.at("pre_exp_max"));
     const spec::ArchSpec& as = model.arch();
     const int expected_in = as.direction_count + model.latent_ + as.extra_count;
     if (model.n_in_ != expected_in || model.n_out_ != as.n_out)
