@@ -74,6 +74,9 @@ def cpp_header(spec: dict) -> str:
            f"inline constexpr std::uint64_t kMaxHeaderBytes = {spec['container']['max_header_bytes']}ull;", ""]
     for name, c in spec["constants"].items():
         camel = "k" + "".join(p.capitalize() for p in name.split("_"))
+        if isinstance(c["value"], str):
+            out += [_cpp_comment(c["doc"]), f"inline constexpr const char* {camel} = {json.dumps(c['value'])};"]
+            continue
         typ = "int" if isinstance(c["value"], int) else "double"
         out += [_cpp_comment(c["doc"]), f"inline constexpr {typ} {camel} = {_cpp_number(c['value'])};"]
     out.append("")

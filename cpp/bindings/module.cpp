@@ -136,9 +136,27 @@ PYBIND11_MODULE(_core, m) {
     }, py::arg("wi"), py::arg("wo"), py::arg("params"), py::arg("strategy") = "mis",
        "Solid-angle density with which `strategy` samples wi given wo (over the whole sphere).");
 
-    py::register_exception<hbrdf::ModelFileError>(m, "ModelFileError", PyExc_ValueError);
+    // libhybridbrdf's model-file errors surface as hybridbrdf.ModelFileError itself (path,
+    // problem, one-line message), the type the Python loader raises: one except clause for both.
+    m.attr("ModelFileError") = py::module_::import("hybridbrdf.errors").attr("ModelFileError");
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const hbrdf::ModelFileError& e) {
+            const py::gil_scoped_acquire gil;
+            // A path Python handed in round-trips; undecodable bytes stay visible as surrogates.
+            py::object path = py::reinterpret_steal<py::object>(
+                PyUnicode_DecodeUTF8(e.path().data(), py::ssize_t(e.path().size()), "surrogateescape"));
+            py::object err = py::module_::import("hybridbrdf.errors").attr("ModelFileError")(path, e.problem());
+            PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(err.ptr())), err.ptr());
+        }
+    });
     py::class_<hbrdf::HybridModel>(m, "Model", "A model file evaluated by libhybridbrdf (float32).")
-        .def(py::init([](const std::string& path) { return hbrdf::HybridModel::load(path); }), py::arg("path"))
+        // Any str or os.PathLike, encoded as the OS does (os.fsencode): paths with undecodable bytes work.
+        .def(py::init([](const py::object& path) {
+                 const std::string bytes = py::module_::import("os").attr("fsencode")(path).cast<py::bytes>();
+                 return hbrdf::HybridModel::load(bytes);
+             }), py::arg("path"))
         .def_property_readonly("materials", [](const hbrdf::HybridModel& md) {
             std::vector<std::string> names;
             for (const auto& mat : md.materials()) names.push_back(mat.name);

@@ -5,12 +5,14 @@
 #include "hybridbrdf/model.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -44,17 +46,26 @@ std::string shape_str(const std::vector<std::int64_t>& s) {
 // Reads the safetensors container: metadata map and float32 tensors.
 void read_safetensors(const std::string& path, std::map<std::string, std::string>& metadata,
                       std::map<std::string, Tensor>& tensors) {
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) throw ModelFileError(path, "no such file or not readable");
-    const std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (raw.size() < 8)
-        throw ModelFileError(path, "truncated: " + std::to_string(raw.size()) +
-                                       " bytes, not even a safetensors header length");
+    const std::streamoff file_size = in.tellg();
+    if (file_size < 0) throw ModelFileError(path, "not a regular file");
+    const std::uint64_t size = static_cast<std::uint64_t>(file_size);
+    if (size < 8)
+        throw ModelFileError(path, "truncated: " + std::to_string(size) + " bytes, not even a safetensors header length");
+    unsigned char head[8];
+    in.seekg(0);
+    in.read(reinterpret_cast<char*>(head), 8);
     std::uint64_t hlen = 0;
-    for (int i = 7; i >= 0; --i) hlen = (hlen << 8) | static_cast<unsigned char>(raw[i]);
-    if (hlen > kMaxHeaderBytes || 8 + hlen > raw.size())
+    for (int i = 7; i >= 0; --i) hlen = (hlen << 8) | head[i];
+    // Checked before anything is allocated: a damaged length must not size a buffer.
+    if (hlen > kMaxHeaderBytes || 8 + hlen > size)
         throw ModelFileError(path, "not a safetensors file or truncated (header length " + std::to_string(hlen) +
-                                       ", file " + std::to_string(raw.size()) + " bytes)");
+                                       ", file " + std::to_string(size) + " bytes)");
+    in.seekg(0);
+    std::vector<char> raw(static_cast<std::size_t>(size));
+    if (!in.read(raw.data(), static_cast<std::streamsize>(size)))
+        throw ModelFileError(path, "cannot read " + std::to_string(size) + " bytes (changed while reading?)");
     json header;
     try {
         header = json::parse(raw.begin() + 8, raw.begin() + 8 + static_cast<std::ptrdiff_t>(hlen));
@@ -87,6 +98,12 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
         std::uint64_t count = 1;
         for (auto d : t.shape) {
             if (d < 0) throw ModelFileError(path, "tensor '" + it.key() + "': negative dimension");
+            // Element counts past the data section cannot fit it; stopping here also keeps the
+            // product from wrapping around 2^64 and passing the range check below.
+            if (d != 0 && count > data_len / 4 / static_cast<std::uint64_t>(d)) {
+                count = std::numeric_limits<std::uint64_t>::max() / 8;
+                break;
+            }
             count *= static_cast<std::uint64_t>(d);
         }
         if (!(start <= end && end <= data_len) || end - start != 4 * count)
@@ -161,6 +178,95 @@ double read_arch_field(const std::string& path, const json& arch, const spec::Ar
     return 0.0;
 }
 
+// A character of a name as messages show it: 'x' when printable ASCII, else U+XXXX (never
+// raw). `s` is valid UTF-8 (the JSON parser rejects anything else); `i` is advanced past it.
+std::string describe_character(const std::string& s, std::size_t& i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c >= 0x20 && c <= 0x7e) {
+        ++i;
+        return std::string("'") + char(c) + "'";
+    }
+    const int extra = c < 0x80 ? 0 : c < 0xe0 ? 1 : c < 0xf0 ? 2 : 3;
+    std::uint32_t cp = extra == 0 ? c : extra == 1 ? (c & 0x1fu) : extra == 2 ? (c & 0x0fu) : (c & 0x07u);
+    for (int k = 1; k <= extra && i + k < s.size(); ++k) cp = (cp << 6) | (static_cast<unsigned char>(s[i + k]) & 0x3fu);
+    i += 1 + extra;
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "U+%04X", cp);
+    return buf;
+}
+
+// The material-name rule (spec::kNameRule; python/hybridbrdf/names.py): empty when valid.
+// Characters first, so that a length is only ever counted over ASCII (bytes = characters).
+std::string name_problem(const std::string& name) {
+    std::size_t i = 0, n_chars = 0;
+    while (i < name.size()) {
+        const unsigned char c = static_cast<unsigned char>(name[i]);
+        const bool ok = c < 0x80 && (std::isalnum(c) || std::strchr(spec::kNamePunctuation, char(c)) != nullptr) && c != 0;
+        if (!ok) {
+            const std::size_t at = n_chars + 1;
+            return "name character " + std::to_string(at) + " is " + describe_character(name, i) + "; a name is " +
+                   spec::kNameRule;
+        }
+        ++i;
+        ++n_chars;
+    }
+    if (name.size() > std::size_t(spec::kMaxNameLength))
+        return "name is " + std::to_string(name.size()) + " characters long; a name is " + spec::kNameRule;
+    return {};
+}
+
+// <NAME> of the shader constant HBRDF_MATERIAL_<NAME> (python/hybridbrdf/names.py).
+std::string shader_constant_key(const std::string& name) {
+    std::string key;
+    for (unsigned char c : name) key += std::isalnum(c) && c < 0x80 ? char(std::toupper(c)) : '_';
+    return key;
+}
+
+// Interval bound of every network value (spec::kMaxNetworkValue; the Python loader's
+// network_overflow_problem computes the same): inputs bounded, |W| b + |bias| per layer,
+// relu and hardGeLU never grow a magnitude. Empty when the network cannot overflow float32.
+std::string network_overflow_problem(const std::map<std::string, Tensor>& tensors, const spec::ArchSpec& as,
+                                     int depth, int latent) {
+    const Tensor& z = tensors.at("materials.z");
+    std::vector<double> z_bound(latent, 0.0);
+    for (std::size_t k = 0; k < z.data.size(); ++k)
+        z_bound[k % latent] = std::max(z_bound[k % latent], std::fabs(double(z.data[k])));
+    auto layer = [&](const std::string& prefix, const std::vector<double>& b_in) {
+        const Tensor& w = tensors.at(prefix + ".weight");
+        const Tensor& bias = tensors.at(prefix + ".bias");
+        const std::size_t n_out = std::size_t(w.shape[0]), n_in = std::size_t(w.shape[1]);
+        std::vector<double> b(n_out);
+        for (std::size_t o = 0; o < n_out; ++o) {
+            double sum = 0.0;
+            for (std::size_t i = 0; i < n_in; ++i) sum += std::fabs(double(w.data[o * n_in + i])) * b_in[i];
+            b[o] = sum + std::fabs(double(bias.data[o]));
+        }
+        return b;
+    };
+    auto message = [](const std::string& tensor, const std::vector<double>& b) -> std::string {
+        const double top = b.empty() ? 0.0 : *std::max_element(b.begin(), b.end());
+        if (!(top > spec::kMaxNetworkValue)) return {};
+        char buf[160];
+        std::snprintf(buf, sizeof buf, ": network values may reach %.3g, beyond %.3g (float32 evaluation could overflow)",
+                      top, spec::kMaxNetworkValue);
+        return "tensor " + tensor + buf;
+    };
+    if (as.directions == spec::DirectionInputs::Frames) {
+        const std::string problem = message("frames.weight", layer("frames", z_bound));
+        if (!problem.empty()) return problem;
+    }
+    std::vector<double> b(as.direction_count, 1.0);
+    b.insert(b.end(), z_bound.begin(), z_bound.end());
+    b.insert(b.end(), as.extra_count, std::log1p(double(std::numeric_limits<float>::max())));
+    for (int i = 0; i <= depth; ++i) {
+        const std::string prefix = i < depth ? "mlp.hidden." + std::to_string(i) : std::string("mlp.out");
+        b = layer(prefix, b);
+        const std::string problem = message(prefix + ".weight", b);
+        if (!problem.empty()) return problem;
+    }
+    return {};
+}
+
 std::string join_names(const std::vector<std::string>& names) {
     std::string s;
     for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
@@ -168,6 +274,41 @@ std::string join_names(const std::vector<std::string>& names) {
 }
 
 }  // namespace
+
+std::string one_line_text(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    auto escape = [&](unsigned char c) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "\\x%02x", c);
+        out += buf;
+    };
+    for (std::size_t i = 0; i < text.size();) {
+        const unsigned char c = static_cast<unsigned char>(text[i]);
+        if (c < 0x80) {
+            if (c < 0x20 || c == 0x7f) escape(c); else out += char(c);
+            ++i;
+            continue;
+        }
+        // A well-formed UTF-8 sequence (RFC 3629: no overlongs, no surrogates, <= U+10FFFF) is kept.
+        const int n = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
+        bool ok = n > 0 && i + n <= text.size();
+        for (int k = 1; ok && k < n; ++k) ok = (static_cast<unsigned char>(text[i + k]) & 0xc0) == 0x80;
+        if (ok && n >= 3) {
+            const unsigned char c1 = static_cast<unsigned char>(text[i + 1]);
+            ok = !(c == 0xe0 && c1 < 0xa0) && !(c == 0xed && c1 >= 0xa0) && !(c == 0xf0 && c1 < 0x90) &&
+                 !(c == 0xf4 && c1 >= 0x90);
+        }
+        if (ok) {
+            out.append(text, i, std::size_t(n));
+            i += std::size_t(n);
+        } else {
+            escape(c);
+            ++i;
+        }
+    }
+    return out;
+}
 
 // The checks and their order follow the model contract (spec/model.json) and are
 // the same in the Python loader (model_file.py); tests/data/malformed_models.json
@@ -231,6 +372,9 @@ HybridModel HybridModel::load(const std::string& path) {
         if (!m.is_object() || !m.contains("name") || !m["name"].is_string() || m["name"].get<std::string>().empty())
             throw ModelFileError(path, "material " + std::to_string(model.materials_.size()) + " has no name");
         mat.name = m["name"].get<std::string>();
+        const std::string problem = name_problem(mat.name);
+        if (!problem.empty())
+            throw ModelFileError(path, "material " + std::to_string(model.materials_.size()) + ": " + problem);
         if (!seen.insert(mat.name).second) throw ModelFileError(path, "duplicate material names: " + mat.name);
         if (m.contains("origin") && !m["origin"].is_string())
             throw ModelFileError(path, "material '" + mat.name + "': origin must be a string");
@@ -239,6 +383,15 @@ HybridModel HybridModel::load(const std::string& path) {
         mat.origin = m.contains("origin") ? m["origin"].get<std::string>() : "";
         mat.isotropic = !m.contains("isotropic") || m["isotropic"].get<bool>();
         model.materials_.push_back(std::move(mat));
+    }
+
+    // Valid, distinct names can still share a shader constant (gold-1, GOLD_1).
+    std::map<std::string, std::string> constant_owner;
+    for (const auto& mat : model.materials_) {
+        const auto [it, fresh] = constant_owner.emplace(shader_constant_key(mat.name), mat.name);
+        if (!fresh)
+            throw ModelFileError(path, "materials '" + it->second + "' and '" + mat.name +
+                                           "' would share the shader constant HBRDF_MATERIAL_" + it->first);
     }
 
     // The tensors the architecture needs, then their shapes in name order (as Python).
@@ -277,6 +430,7 @@ HybridModel HybridModel::load(const std::string& path) {
     }
 
     // Shared network.
+    const std::string overflow = network_overflow_problem(tensors, as, model.depth_, model.latent_);
     auto layer = [&](const std::string& prefix) {
         DenseLayer l;
         const Tensor& w = tensors.at(prefix + ".weight");
@@ -316,6 +470,7 @@ HybridModel HybridModel::load(const std::string& path) {
             model.analytic_.emplace_back(mat.params);
         }
     }
+    if (!overflow.empty()) throw ModelFileError(path, overflow);  // checked last, as in Python
     model.prepare_batch();
     return model;
 }

@@ -29,10 +29,11 @@ from typing import Dict, List, Optional, Sequence
 import numpy as np
 
 from hybridbrdf import _core, spec
-from hybridbrdf.errors import InputFileError
+from hybridbrdf.errors import InputFileError, one_line_text
 from hybridbrdf.model_file import HybridModel, load_model
+from hybridbrdf.names import names_problem, shader_constant_key
 from hybridbrdf.shaders import render_shader
-from hybridbrdf.util import atomic_write_bytes, package_data_dir
+from hybridbrdf.util import atomic_write_bytes, check_writable, package_data_dir
 
 TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
 MLP_FORMS = ("auto", "unrolled", "loops")
@@ -42,8 +43,30 @@ def _template_dir() -> pathlib.Path:
     return package_data_dir("codegen", "hbrdf.j2")
 
 
+def comment_text(text: str) -> str:
+    """``text`` made safe inside a ``//`` comment of every target: printable ASCII stays, and
+    every other character, as well as '%', '?' and '\\', is percent-encoded (its UTF-8 bytes as
+    %XX). Why those three: a newline or carriage return ends the comment and a backslash at the
+    end of a line (or the trigraph ``??/`` in a C++ compiler that honours trigraphs) splices the
+    next line into it; '%' keeps the encoding unambiguous. File names and scene keys reach the
+    generated headers' comments only through here."""
+    out = []
+    for ch in text:
+        if " " <= ch <= "~" and ch not in "%?\\":
+            out.append(ch)
+        else:
+            out.extend(f"%{b:02X}" for b in ch.encode("utf-8", "surrogateescape"))
+    return "".join(out)
+
+
 def float_literal(x: float) -> str:
-    """A float32 value as a literal every dialect reads back to the same float32."""
+    """A float32 value as a literal every dialect reads back to the same float32.
+    Raises ValueError for NaN and for values that are infinite in float32 (no dialect has a
+    literal for them: the code would not compile)."""
+    with np.errstate(over="ignore"):
+        finite = np.isfinite(np.float32(x))
+    if not finite:
+        raise ValueError(f"cannot write {float(x)!r} as a float32 literal (not finite in float32)")
     s = f"{float(np.float32(x)):.9g}"
     if "e" not in s and "." not in s:
         s += ".0"
@@ -60,7 +83,8 @@ def _brace_array(n: int, values) -> str:
 
 def half_pairs(values) -> List[int]:
     """float32 values rounded to IEEE binary16 and packed two per uint32 (even index low)."""
-    bits = np.asarray(values, dtype=np.float32).astype(np.float16).view(np.uint16).astype(np.uint32)
+    with np.errstate(over="ignore"):  # only --precision fp16 uses them, and it refuses such weights first
+        bits = np.asarray(values, dtype=np.float32).astype(np.float16).view(np.uint16).astype(np.uint32)
     if len(bits) % 2:
         bits = np.append(bits, np.uint32(0))
     return [int(lo | (hi << 16)) for lo, hi in zip(bits[0::2], bits[1::2])]
@@ -180,8 +204,39 @@ def contract_literals() -> Dict[str, str]:
 
 
 def material_constant(name: str) -> str:
-    """HBRDF_MATERIAL_<NAME>: upper-cased, every non-identifier character turned into '_'."""
-    return "HBRDF_MATERIAL_" + re.sub(r"[^A-Za-z0-9_]", "_", name).upper()
+    """HBRDF_MATERIAL_<NAME>: upper-cased, every non-identifier character turned into '_'
+    (hybridbrdf.names.shader_constant_key; the model contract keeps them distinct)."""
+    return "HBRDF_MATERIAL_" + shader_constant_key(name)
+
+
+def check_material_selection(model: HybridModel, names: Sequence[str]) -> None:
+    """Raises ValueError unless ``names`` are distinct materials of ``model`` (one line naming
+    the first unknown or repeated one, and the model's materials when one is unknown)."""
+    seen = set()
+    for n in names:
+        if n not in model.materials:
+            listed = ", ".join(comment_text(m) for m in model.materials[:20])
+            more = f" and {len(model.materials) - 20} more" if len(model.materials) > 20 else ""
+            raise ValueError(f"no material {comment_text(n)!r} in the model (it has: {listed}{more})")
+        if n in seen:
+            raise ValueError(f"material {n!r} is listed twice")
+        seen.add(n)
+    problem = names_problem(list(names))
+    if problem:  # a model built in memory, not loaded, may break the contract's name rule
+        raise ValueError(problem)
+
+
+_HALF_MAX = 65504.0  # largest finite IEEE binary16 value
+
+
+def _check_half_range(layers) -> None:
+    """--precision fp16 rounds layer weights to binary16: one beyond +-65504 would become Inf and
+    every output NaN, so it is an error, not a silent overflow."""
+    for i, layer in enumerate(layers):
+        top = float(np.abs(layer["weight"]).max(initial=0.0))
+        if top > _HALF_MAX:
+            raise ValueError(f"--precision fp16: layer {i} has a weight of magnitude {top:.6g}, beyond the "
+                             f"half-precision range (65504); use --precision fp32")
 
 
 _F_SUFFIX = re.compile(r"(?<=[0-9.])f\b")
@@ -300,12 +355,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
             model.material_info[model.index(n)].get("isotropic", True) for n in names)
         fold_latent = len(names) == 1 and not analytic_only
         flags = {m["name"]: m["evaluate"] == "analytic" for m in scene["materials"]}
-    for n in names:
-        model.index(n)  # KeyError naming the material if absent
+    check_material_selection(model, names)
     consts = [material_constant(n) for n in names]
-    clash = sorted({c for c in consts if consts.count(c) > 1})
-    if clash:
-        raise ValueError(f"materials map to the same constant name: {', '.join(clash)}")
     a = model.arch
     latent = a["latent"]
     t = model.tensors
@@ -325,6 +376,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         w0 = np.delete(w0, np.s_[z_start:z_start + latent], axis=1).astype(np.float32)
         layers[0] = {"n_in": w0.shape[1], "n_out": w0.shape[0], "weight": w0.ravel(), "bias": bias}
         n_in, latent_in = n_in - latent, 0
+    if precision == "fp16":
+        _check_half_range(layers)
     for i, layer in enumerate(layers):
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
         layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1, precision == "fp16")
@@ -344,15 +397,15 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
                              keep_trailing_newline=True)
     d = DIALECTS[target]
     text = env.get_template("hbrdf.j2").render(
-        d=d, target=target, model_path=model_path, extra_args=extra_args, kind=model.kind, width=a["width"],
+        d=d, target=target, model_path=comment_text(model_path), extra_args=comment_text(extra_args), kind=model.kind, width=a["width"],
         depth=a["depth"], activation=a["activation"], latent=latent, latent_in=latent_in, z_len=max(latent, 1),
         n_in=n_in, n_out=a["n_out"], max_width=max(n_in, a["width"]), conventions_version=_core.CONVENTIONS_VERSION,
-        specialised=scene is not None, scene_name=(scene or {}).get("name", ""), analytic_only=analytic_only,
-        not_emitted=(scene or {}).get("not_emitted", []), neural_max_depth=neural_max_depth,
+        specialised=scene is not None, scene_name=comment_text((scene or {}).get("name", "")), analytic_only=analytic_only,
+        not_emitted=[comment_text(n) for n in (scene or {}).get("not_emitted", [])], neural_max_depth=neural_max_depth,
         depth_limited=neural_max_depth != NO_DEPTH_LIMIT,
         isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
         mixed=mixed,
-        material_names=names, materials=mats, layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),
+        material_names=[comment_text(n) for n in names], materials=mats, layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),
         pre_exp_max=float_literal(a["pre_exp_max"]),
         frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
         frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
@@ -369,6 +422,7 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
     import jinja2
 
     names = list(materials) if materials else model.materials
+    check_material_selection(model, names)
     default = model.index(names[0])
     # The GLSL body without material constants; BRDF Explorer's GLSL takes no 'f' suffixes.
     body = generate(model, "glsl", [names[0]], model_path, extra_args)
@@ -402,9 +456,9 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
                              keep_trailing_newline=True)
     a = model.arch
     return env.get_template("brdfexplorer.j2").render(
-        model_path=model_path, extra_args=extra_args, kind=model.kind, width=a["width"], depth=a["depth"],
-        activation=a["activation"], latent=latent, conventions_version=_core.CONVENTIONS_VERSION,
-        default_material=names[0], material_names=model.materials, params=params, body=body,
+        model_path=comment_text(model_path), extra_args=comment_text(extra_args), kind=model.kind, width=a["width"],
+        depth=a["depth"], activation=a["activation"], latent=latent, conventions_version=_core.CONVENTIONS_VERSION,
+        default_material=comment_text(names[0]), material_names=[comment_text(n) for n in model.materials], params=params, body=body,
         z_len=max(latent, 1), z_args=z_args)
 
 
@@ -461,6 +515,10 @@ def main(argv=None) -> int:
         materials = [m for m in args.materials.split(",") if m] if args.materials else None
         if args.scene and materials:
             raise ValueError("give either --materials or --scene, not both")
+        if args.scene and args.target == "brdfexplorer":
+            raise ValueError("--scene specialises shader code for a path-tracer scene; a BRDF Explorer file "
+                             "shows one material: give --materials NAME instead")
+        check_writable(args.out, "generated code")
         scene = load_scene(args.scene, model, args.model) if args.scene else None
         extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
         if args.precision != "fp32":
@@ -476,7 +534,7 @@ def main(argv=None) -> int:
         atomic_write_bytes(args.out, text.encode("utf-8"))
     except (InputFileError, ValueError, KeyError, OSError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        print(f"hbrdf-codegen: error: {msg}", file=sys.stderr)
+        print(f"hbrdf-codegen: error: {one_line_text(str(msg))}", file=sys.stderr)
         return 1
     print(f"wrote {args.out} ({args.target}, {len(materials or model.materials)} materials)")
     return 0

@@ -42,6 +42,7 @@ import torch
 from hybridbrdf import _core, spec
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.models import build_model
+from hybridbrdf.names import name_problem, names_problem
 from hybridbrdf.util import atomic_write_bytes
 
 FORMAT_VERSION = spec.FORMAT_VERSION
@@ -347,6 +348,9 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
     for i, m in enumerate(materials):
         if not isinstance(m, dict) or not isinstance(m.get("name"), str) or not m["name"]:
             fail(f"material {i} has no name")
+        problem = name_problem(m["name"])
+        if problem:
+            fail(f"material {i}: {problem}")
         if m["name"] in seen:
             fail(f"duplicate material names: {m['name']}")
         seen.add(m["name"])
@@ -355,6 +359,9 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
             fail(f"material '{m['name']}': origin must be a string")
         if "isotropic" in m and not isinstance(m["isotropic"], bool):
             fail(f"material '{m['name']}': isotropic must be true or false")
+    problem = names_problem(names)  # the names are valid and distinct: this finds shared shader constants
+    if problem:
+        fail(problem)
     n_mat = len(materials)
     expected = dict(network_tensor_shapes(arch))
     expected["materials.z"] = (n_mat, arch["latent"])
@@ -383,7 +390,47 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
             alpha = tensors["materials.alpha"][i]
             if materials[i].get("isotropic", True) and alpha[0] != alpha[1]:
                 fail(f"material '{name}' is marked isotropic but alpha_x != alpha_y")
+    problem = network_overflow_problem(arch, tensors)
+    if problem:
+        fail(problem)
     return arch
+
+
+def network_overflow_problem(arch: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> Optional[str]:
+    """None when no network value can exceed spec.MAX_NETWORK_VALUE, else the loaders' message.
+
+    Interval propagation: every input is bounded (direction inputs are coordinates of unit
+    vectors, |x| <= 1; latent input k by max |z_k| over the file's materials; log1p(f_a) by
+    log1p(FLT_MAX) for finite f_a), a layer maps bounds b to |W| b + |bias|, and relu and
+    hardGeLU never grow a magnitude. Exact arithmetic bounds float32 rounding to within a
+    factor (1 + 2^-24)^width, which the limit's 8 orders below FLT_MAX absorb. The same
+    computation, in the same order of layers, is libhybridbrdf's (cpp/src/model.cpp); the
+    figure is printed with 3 digits so that summation order cannot change the text."""
+    a = spec.ARCHS[arch["kind"]]
+    z = np.abs(tensors["materials.z"].astype(np.float64))
+    z_bound = z.max(axis=0) if z.size else np.zeros(arch["latent"])
+    limit = spec.MAX_NETWORK_VALUE
+
+    def layer(prefix: str, b_in: np.ndarray) -> np.ndarray:
+        w = np.abs(tensors[prefix + ".weight"].astype(np.float64))
+        return (w * b_in[None, :]).sum(axis=1) + np.abs(tensors[prefix + ".bias"].astype(np.float64))
+
+    if a["directions"] == "frames":
+        raw = layer("frames", z_bound)
+        if raw.max(initial=0.0) > limit:
+            return _overflow_message("frames.weight", raw.max())
+    extra = np.full(a["extra_count"], float(np.log1p(np.float64(np.finfo(np.float32).max))))
+    b = np.concatenate([np.ones(a["direction_count"]), z_bound, extra])
+    for prefix in [f"mlp.hidden.{i}" for i in range(arch["depth"])] + ["mlp.out"]:
+        b = layer(prefix, b)
+        if b.max(initial=0.0) > limit:
+            return _overflow_message(prefix + ".weight", b.max())
+    return None
+
+
+def _overflow_message(tensor: str, bound: float) -> str:
+    return (f"tensor {tensor}: network values may reach {float(bound):.3g}, beyond {spec.MAX_NETWORK_VALUE:.3g} "
+            f"(float32 evaluation could overflow)")
 
 
 def _reject_constant(name: str):
@@ -403,4 +450,6 @@ def load_model(path) -> HybridModel:
     if not isinstance(doc, dict):
         raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not a JSON object")
     arch = _validate(path, doc, tensors)
-    return HybridModel(arch, doc["materials"], tensors, doc.get("training"), path)
+    model = HybridModel(arch, doc["materials"], tensors, doc.get("training"), path)
+    model.written_by = doc.get("library_version")  # informative only: which hybridbrdf wrote the file
+    return model

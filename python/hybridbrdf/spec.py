@@ -35,8 +35,16 @@ MAX_DEPTH = 16
 MAX_LATENT = 64
 #: Most materials one model file may hold.
 MAX_MATERIALS = 1000000
+#: Longest material name, in characters. Names become comments and constant names in generated code (HBRDF_MATERIAL_<NAME>) and keys in scenes and on command lines.
+MAX_NAME_LENGTH = 64
+#: Characters a material name may hold besides the ASCII letters and digits. Nothing that can end a comment, continue a line (backslash) or need quoting in a shell or a comma-separated --materials list.
+NAME_PUNCTUATION = '_.+-'
+#: The material-name rule in words, as both loaders and hbrdf fit state it. Names must also stay distinct once upper-cased with '.', '+' and '-' turned into '_' (the shader constant HBRDF_MATERIAL_<NAME>).
+NAME_RULE = '1 to 64 characters from A-Z a-z 0-9 _ . + -'
 #: Shading frames the neural baseline predicts from its latent code (t, b, n each: 6 raw values per frame).
 NEURAL_FRAMES = 3
+#: Largest magnitude any network value (hidden layers, output, the neural baseline's raw frames) may reach over all unit directions and the file's latent codes, bounded by interval propagation through |W| and |b| at load. Below it float32 evaluation cannot overflow (FLT_MAX = 3.4e38 leaves 8 orders for rounding), so no weight pattern makes an output NaN.
+MAX_NETWORK_VALUE = 1e+30
 
 #: Hidden-layer activations: name -> formula.
 ACTIVATIONS = {'relu': 'max(x, 0)', 'hardgelu': 'x * clamp((x + hardgelu_knee) / (2 hardgelu_knee), 0, 1)'}

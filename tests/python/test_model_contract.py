@@ -122,7 +122,7 @@ def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_file, case
     write_case(case, good_file, bad)
     with pytest.raises(hb.ModelFileError) as py_err:
         hb.load_model(bad)
-    with pytest.raises(ValueError) as cpp_err:
+    with pytest.raises(hb.ModelFileError) as cpp_err:  # libhybridbrdf's errors are the same type
         _core.Model(str(bad))
     for lang, err in (("python", py_err), ("cpp", cpp_err)):
         text = str(err.value)
@@ -204,3 +204,14 @@ def test_the_recorded_pre_exp_max_bounds_every_reader(tmp_path, arch):
 
     for target in ("glsl", "hlsl", "cpp"):
         assert "HBRDF_PRE_EXP_MAX = 2.0f;" in generate(loaded, target), target
+
+
+def test_the_library_raises_the_packages_model_file_error(tmp_path):
+    bad = tmp_path / "bad\udcff.safetensors"  # a path with an undecodable byte round-trips
+    bad.write_bytes(b"\x10\x00\x00\x00\x00\x00\x00\x00{\"a\xff\x01\": 1, }xxxxxxxxxxx")
+    assert _core.ModelFileError is hb.ModelFileError
+    with pytest.raises(hb.ModelFileError) as err:
+        _core.Model(str(bad))
+    assert err.value.path == str(bad)
+    assert "\n" not in str(err.value) and "\x01" not in err.value.problem and "\ufffd" not in err.value.problem
+    str(err.value).encode("utf-8", "surrogateescape")  # printable: no raw bytes that could not be shown

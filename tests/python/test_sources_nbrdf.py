@@ -373,3 +373,26 @@ def test_truncated_hdf5(tmp_path, rng):
 def test_missing_file(tmp_path):
     with pytest.raises(BRDFFormatError, match="no such file"):
         open_nbrdf(tmp_path / "absent.h5")
+
+
+@pytest.mark.parametrize("shape", [(6, 2**26), (6, 2**28), (2**40, 2**20)])
+def test_huge_declared_datasets_are_refused_before_reading(tmp_path, shape):
+    """A small file can declare a chunked dataset of gigabytes (chunks never written read as
+    zeros); the shape is checked from the header before any value is read."""
+    import resource
+    import time
+
+    path = tmp_path / "bomb.h5"
+    write_network(path, tiny_layers(), activations=["relu", "relu"])
+    with h5py.File(path, "a") as f:
+        del f["dense_1"]["dense_1/kernel:0"]
+        f["dense_1"].create_dataset("dense_1/kernel:0", shape=shape, dtype=np.float32, chunks=(1, 1024),
+                                    maxshape=(None, None))
+    assert path.stat().st_size < 100_000
+    rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    t0 = time.perf_counter()
+    with pytest.raises(BRDFFormatError, match=r"values, more than 1048576") as info:
+        open_source(str(path))
+    assert time.perf_counter() - t0 < 2.0
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss_before < 200_000  # KiB: nothing of the dataset

@@ -28,12 +28,19 @@ const char* model_simd_path();
 /// std::invalid_argument for any other name.
 void limit_model_simd(const std::string& path);
 
+/// `text` with every control character (U+0000-U+001F, U+007F) and every byte that is not part
+/// of valid UTF-8 written as \xNN: one printable line. The Python loader's messages follow the
+/// same rule (hybridbrdf.errors.one_line_text), so both report a damaged file alike.
+std::string one_line_text(const std::string& text);
+
 /// A model file that is missing, truncated, malformed or inconsistent.
 /// what() is "<path>: <problem>", one line.
+/// The problem is made printable (one_line_text): a damaged file's bytes never reach a
+/// terminal or a Python str raw.
 class ModelFileError : public std::runtime_error {
 public:
     ModelFileError(const std::string& path, const std::string& problem)
-        : std::runtime_error(path + ": " + problem), path_(path), problem_(problem) {}
+        : std::runtime_error(path + ": " + one_line_text(problem)), path_(path), problem_(one_line_text(problem)) {}
     const std::string& path() const { return path_; }
     const std::string& problem() const { return problem_; }
 

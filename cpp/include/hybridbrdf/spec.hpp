@@ -48,9 +48,25 @@ inline constexpr int kMaxDepth = 16;
 inline constexpr int kMaxLatent = 64;
 /// Most materials one model file may hold.
 inline constexpr int kMaxMaterials = 1000000;
+/// Longest material name, in characters. Names become comments and constant names in generated code
+/// (HBRDF_MATERIAL_<NAME>) and keys in scenes and on command lines.
+inline constexpr int kMaxNameLength = 64;
+/// Characters a material name may hold besides the ASCII letters and digits. Nothing that can end a
+/// comment, continue a line (backslash) or need quoting in a shell or a comma-separated --materials
+/// list.
+inline constexpr const char* kNamePunctuation = "_.+-";
+/// The material-name rule in words, as both loaders and hbrdf fit state it. Names must also stay
+/// distinct once upper-cased with '.', '+' and '-' turned into '_' (the shader constant
+/// HBRDF_MATERIAL_<NAME>).
+inline constexpr const char* kNameRule = "1 to 64 characters from A-Z a-z 0-9 _ . + -";
 /// Shading frames the neural baseline predicts from its latent code (t, b, n each: 6 raw values per
 /// frame).
 inline constexpr int kNeuralFrames = 3;
+/// Largest magnitude any network value (hidden layers, output, the neural baseline's raw frames)
+/// may reach over all unit directions and the file's latent codes, bounded by interval propagation
+/// through |W| and |b| at load. Below it float32 evaluation cannot overflow (FLT_MAX = 3.4e38
+/// leaves 8 orders for rounding), so no weight pattern makes an output NaN.
+inline constexpr double kMaxNetworkValue = 1e+30;
 
 /// Hidden-layer activations (names as in model files).
 enum class Activation { Relu, HardGelu };

@@ -129,6 +129,11 @@ def _dense_layer_names_fallback(f) -> List[str]:
     return sorted(names, key=lambda k: int(k.split("_")[1]))
 
 
+#: Most values one kernel or bias dataset may hold. The NBRDF networks of Sztrajman et al.
+#: (6-21-21-3) have 588 kernel weights in all; this leaves room for far wider ones.
+MAX_LAYER_WEIGHTS = 1 << 20
+
+
 def _read_dense(f, spec: str, name: str) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     """(kernel, bias) of layer ``name`` as float64, or None for a layer without weights."""
     if name not in f:
@@ -152,6 +157,16 @@ def _read_dense(f, spec: str, name: str) -> Optional[Tuple[np.ndarray, np.ndarra
             raise BRDFFormatError(spec, f"'{name}/{wn}' is not a dataset")
         if obj.dtype.kind not in "fiu":
             raise BRDFFormatError(spec, f"'{name}/{wn}' has non-numeric type {obj.dtype}")
+        # Shape first, from the header: an 18 KB file can declare a chunked dataset of
+        # gigabytes, and reading it would allocate them before any check.
+        ndim = 2 if kind == "kernel:0" else 1
+        if len(obj.shape) != ndim:
+            what, expected = ("kernel", "(in, out)") if ndim == 2 else ("bias", "(out,)")
+            raise BRDFFormatError(spec, f"'{name}' {what} has shape {tuple(obj.shape)}, expected {expected}")
+        size = int(np.prod(obj.shape, dtype=np.float64))
+        if size > MAX_LAYER_WEIGHTS:
+            raise BRDFFormatError(spec, f"'{name}/{wn}' has shape {tuple(obj.shape)}: {size} values, more than "
+                                        f"{MAX_LAYER_WEIGHTS} (an NBRDF layer has a few hundred)")
         found[kind] = np.asarray(obj[()], dtype=np.float64)
     if "kernel:0" not in found or "bias:0" not in found:
         raise BRDFFormatError(spec, f"layer '{name}' needs both kernel:0 and bias:0, has {sorted(found)}")
