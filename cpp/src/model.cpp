@@ -75,6 +75,7 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
     if (!header.is_object()) throw ModelFileError(path, "safetensors header is not a JSON object");
     const char* data = raw.data() + 8 + hlen;
     const std::uint64_t data_len = raw.size() - 8 - hlen;
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;  // every tensor's [start, end)
     for (auto it = header.begin(); it != header.end(); ++it) {
         if (it.key() == "__metadata__") {
             if (!it->is_object()) throw ModelFileError(path, "__metadata__ is not an object");
@@ -113,7 +114,21 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
         t.data.resize(count);
         if (count) std::memcpy(t.data.data(), data + start, 4 * count);  // little-endian hosts only
         tensors[it.key()] = std::move(t);
+        ranges.emplace_back(start, end);
     }
+    // The safetensors format indexes its data section exactly: no overlap, no hole, nothing after
+    // the last tensor (bytes nothing reads are damage, or something hidden in the file).
+    std::sort(ranges.begin(), ranges.end());
+    std::uint64_t covered = 0;
+    for (const auto& [start, end] : ranges) {
+        if (start != covered)
+            throw ModelFileError(path, "safetensors data section is not laid out tensor after tensor (bytes " +
+                                           std::to_string(std::min(start, covered)) + " on)");
+        covered = end;
+    }
+    if (covered != data_len)
+        throw ModelFileError(path, "safetensors data section has " + std::to_string(data_len - covered) +
+                                       " bytes after the last tensor");
 }
 
 // "%.9g": the number format of every value quoted in a message, the same in the Python loader.
@@ -161,7 +176,8 @@ double read_arch_field(const std::string& path, const json& arch, const spec::Ar
             if (!v.is_number_integer()) throw ModelFileError(path, where + " must be an integer, got " + json_type(v));
             if (v.is_number_unsigned()) {
                 const std::uint64_t u = v.get<std::uint64_t>();
-                if (double(u) > f.max) throw range_error(std::to_string(u));
+                // JSON's non-negative integers arrive here (0 included): the lower bound counts too.
+                if (double(u) < f.min || double(u) > f.max) throw range_error(std::to_string(u));
                 return double(u);
             }
             const std::int64_t i = v.get<std::int64_t>();
@@ -333,12 +349,14 @@ HybridModel HybridModel::load(const std::string& path) {
     for (const auto& [field, expected] : {std::pair<const char*, int>{"format_version", spec::kFormatVersion},
                                           {"conventions_version", spec::kConventionsVersion}}) {
         const json* v = doc.contains(field) ? &doc[field] : nullptr;
-        const bool ok = v && v->is_number_integer() && !v->is_number_unsigned() ? v->get<std::int64_t>() == expected
-                        : v && v->is_number_unsigned()                         ? v->get<std::uint64_t>() == std::uint64_t(expected)
-                                                                               : false;
+        if (!v || !v->is_number_integer())
+            throw ModelFileError(path, std::string(field) + " must be an integer, got " + (v ? json_type(*v) : "nothing") +
+                                           " (this library reads " + std::to_string(expected) + ")");
+        const bool ok = v->is_number_unsigned() ? v->get<std::uint64_t>() == std::uint64_t(expected)
+                                                : v->get<std::int64_t>() == expected;
         if (!ok)
-            throw ModelFileError(path, std::string(field) + " " + (v ? v->dump() : "null") +
-                                           " is not supported (this library reads " + std::to_string(expected) + ")");
+            throw ModelFileError(path, std::string(field) + " " + v->dump() + " is not supported (this library reads " +
+                                           std::to_string(expected) + ")");
     }
     model.conventions_version_ = spec::kConventionsVersion;
     if (!doc.contains("arch") || !doc["arch"].is_object()) throw ModelFileError(path, "metadata has no 'arch' object");

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 
 #include "hybridbrdf/model.hpp"
 
@@ -31,7 +32,9 @@ HBRDF_INLINE float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
 HBRDF_INLINE float combine(spec::Combine rule, float o, float gate, float fa, float bound) {
     switch (rule) {
         case spec::Combine::Additive: return max0(fa + o);
-        case spec::Combine::LogMul: return fa * exp_clamped(o, bound);
+        // f_a reaches 3.2e15 (D at alpha_min, grazing) and exp(pre_exp_max_limit = 80) 5.5e34:
+        // their product can pass FLT_MAX, so it is held there (as the generated shaders do).
+        case spec::Combine::LogMul: return std::fmin(fa * exp_clamped(o, bound), std::numeric_limits<float>::max());
         case spec::Combine::Exp: return exp_clamped(o, bound);
         case spec::Combine::Gated: break;
     }

@@ -275,11 +275,17 @@ def _num(v) -> str:
     return f"{float(v):.9g}"
 
 
+def _is_json_integer(v) -> bool:
+    """An integer as a 64-bit JSON reader sees one: libhybridbrdf's parser (nlohmann::json)
+    reads integers outside [-2^63, 2^64 - 1] as floating-point numbers, so they are numbers here too."""
+    return isinstance(v, int) and not isinstance(v, bool) and -(2**63) <= v <= 2**64 - 1
+
+
 def _json_type(v) -> str:
     if isinstance(v, bool):
         return "a boolean"
     if isinstance(v, int):
-        return "an integer"
+        return "an integer" if _is_json_integer(v) else "a number"
     if isinstance(v, float):
         return "a number"
     if isinstance(v, str):
@@ -305,7 +311,7 @@ def _arch_field(fail, arch: Dict[str, Any], f: Dict[str, Any]):
             fail(f"{where} '{v}' is not one of {', '.join(names)}")
         return v
     if f["type"] == "int":
-        if not isinstance(v, int) or isinstance(v, bool):
+        if not _is_json_integer(v):
             fail(f"{where} must be an integer, got {_json_type(v)}")
         if not f["min"] <= v <= f["max"]:
             fail(f"{where} = {v} is outside [{_num(f['min'])}, {_num(f['max'])}]")
@@ -325,8 +331,11 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
 
     for field, expected in (("format_version", spec.FORMAT_VERSION), ("conventions_version", spec.CONVENTIONS_VERSION)):
         v = doc.get(field)
-        if not (isinstance(v, int) and not isinstance(v, bool) and v == expected):
-            fail(f"{field} {json.dumps(v)} is not supported (this library reads {expected})")
+        if not _is_json_integer(v):
+            fail(f"{field} must be an integer, got {_json_type(v) if field in doc else 'nothing'} "
+                 f"(this library reads {expected})")
+        if v != expected:
+            fail(f"{field} {v} is not supported (this library reads {expected})")
     arch = doc.get("arch")
     if not isinstance(arch, dict):
         fail("metadata has no 'arch' object")

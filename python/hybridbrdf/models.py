@@ -43,6 +43,8 @@ from hybridbrdf.torch_brdf import _normalize, eval_analytic
 
 ARCHS = tuple(spec.ARCHS)
 ACTIVATIONS = tuple(spec.ACTIVATIONS)
+_FLT_MAX = float(torch.finfo(torch.float32).max)
+
 #: Default bound on every value passed to exp() (spec.PRE_EXP_MAX: exp(16) = 8.9e6 is far above
 #: any measured BRDF value and keeps float32 and float16 products from overflowing).
 PRE_EXP_MAX = spec.PRE_EXP_MAX
@@ -209,7 +211,8 @@ class HybridBRDF(nn.Module):
             return f_c + f_g * f_a
         if self.combine_rule == "additive":
             return torch.clamp(f_a + o, min=0.0)
-        return f_a * torch.exp(o.clamp(max=self.pre_exp_max))  # logmul
+        # logmul; held at FLT_MAX as every other reader: f_a (up to 3.2e15) times exp(80) can pass it.
+        return (f_a * torch.exp(o.clamp(max=self.pre_exp_max))).clamp(max=_FLT_MAX)
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         """Evaluation-ready per-material values: kd, eta, alpha, z (float32, detached)."""

@@ -11,7 +11,7 @@ MAX_HEADER_BYTES = 67108864
 
 #: Default bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6 is far above any measured BRDF value and keeps float32 (and float16 products) from overflowing. A model file records the bound it was trained with (arch.pre_exp_max) and every reader uses the recorded one.
 PRE_EXP_MAX = 16.0
-#: Largest arch.pre_exp_max a model file may record: exp(80) = 5.5e34 stays below FLT_MAX (3.4e38) even after the gate adds f_a.
+#: Largest arch.pre_exp_max a model file may record: exp(80) = 5.5e34 stays below FLT_MAX (3.4e38) even after the gate adds f_a. The logmul ablation multiplies f_a (up to 3.2e15) by it instead, so every reader holds that product at FLT_MAX.
 PRE_EXP_MAX_LIMIT = 80.0
 #: hardGeLU(x) = x * clamp((x + knee) / (2 knee), 0, 1): 0 below -knee, x above knee (the paper authors' activation).
 HARDGELU_KNEE = 1.5

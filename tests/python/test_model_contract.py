@@ -65,6 +65,8 @@ def write_case(case, good: pathlib.Path, bad: pathlib.Path) -> None:
             data = b""
         elif how.startswith("first:"):
             data = raw[:int(how.split(":")[1])]
+        elif how.startswith("append:"):
+            data = raw + b"\0" * int(how.split(":")[1])
         elif how.startswith("drop_last:"):
             data = raw[:-int(how.split(":")[1])]
         else:  # header_not_json: a header of the right length that is not JSON

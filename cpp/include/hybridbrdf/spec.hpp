@@ -20,7 +20,8 @@ inline constexpr std::uint64_t kMaxHeaderBytes = 67108864ull;
 /// recorded one.
 inline constexpr double kPreExpMax = 16.0;
 /// Largest arch.pre_exp_max a model file may record: exp(80) = 5.5e34 stays below FLT_MAX (3.4e38)
-/// even after the gate adds f_a.
+/// even after the gate adds f_a. The logmul ablation multiplies f_a (up to 3.2e15) by it instead,
+/// so every reader holds that product at FLT_MAX.
 inline constexpr double kPreExpMaxLimit = 80.0;
 /// hardGeLU(x) = x * clamp((x + knee) / (2 knee), 0, 1): 0 below -knee, x above knee (the paper
 /// authors' activation).

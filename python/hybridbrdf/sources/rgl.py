@@ -126,6 +126,12 @@ ORIGIN = "RGL measurement (raw .bsdf)"
 # ----------------------------------------------------------------------------
 
 
+#: Largest field rank the reader takes (RGL's tables have rank 4 or 5; numpy allows 64).
+_MAX_RANK = 8
+#: Longest field name quoted in an error message.
+_MAX_NAME_CHARS = 40
+
+
 def read_tensor_file(path) -> Dict[str, np.ndarray]:
     """Read a Mitsuba ``tensor_file`` into ``{name: array}`` (arrays are copies,
     in the file's dtype and shape).
@@ -188,10 +194,14 @@ def read_tensor_file(path) -> Dict[str, np.ndarray]:
             name = buf[pos: pos + name_len].decode("utf-8")
         except UnicodeDecodeError:
             raise BRDFFormatError(
-                path, f"field #{k} has a name that is not UTF-8: {buf[pos:pos + name_len]!r}"
+                path, f"field #{k} has a name that is not UTF-8: {buf[pos:pos + min(name_len, _MAX_NAME_CHARS)]!r}"
             ) from None
         pos += name_len
+        if len(name) > _MAX_NAME_CHARS:  # RGL's names are a few letters; keep messages short
+            name = name[:_MAX_NAME_CHARS] + "..."
         (ndim,) = take("<H", f"the rank of field {name!r}")
+        if ndim > _MAX_RANK:
+            raise BRDFFormatError(path, f"field {name!r} has rank {ndim}; RGL fields have at most {_MAX_RANK}")
         code, offset = take("<BQ", f"the dtype and offset of field {name!r}")
         shape = take("<" + "Q" * ndim, f"the shape of field {name!r}")
         if code not in _DTYPES:
@@ -207,7 +217,7 @@ def read_tensor_file(path) -> Dict[str, np.ndarray]:
         for s in shape:
             count_items *= s  # Python ints: a corrupt shape cannot overflow
         nbytes = count_items * dtype.itemsize
-        if offset + nbytes > size:
+        if offset + nbytes > size or max(shape, default=0) > size:  # (a huge extent beside a 0 is damage too)
             raise BRDFFormatError(
                 path, f"truncated file: field {name!r} {dtype.name}{list(shape)} needs bytes "
                       f"{offset}..{offset + nbytes} but the file has {size} bytes"
