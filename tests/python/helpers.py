@@ -212,14 +212,14 @@ def compile_spirv(src: pathlib.Path, spv: pathlib.Path, target: str = "glsl", in
     assert r.returncode == 0, r.stderr
 
 
-def run_on_lavapipe(spv: pathlib.Path, inputs: np.ndarray) -> np.ndarray:
+def run_on_lavapipe(spv: pathlib.Path, inputs: np.ndarray, out_floats: int = 3) -> np.ndarray:
     """Runs a compute shader of glsl/ on inputs (one row of floats per invocation) under
-    lavapipe with the validation layer on; returns its (n, 3) float32 output."""
+    lavapipe with the validation layer on; returns its (n, out_floats) float32 output."""
     n = len(inputs)
     work = spv.parent
     np.ascontiguousarray(inputs, dtype=np.float32).tofile(work / "in.bin")
-    r = subprocess.run([str(RUNNER), str(spv), str(work / "in.bin"), str(work / "out.bin"), str(n), "3",
+    r = subprocess.run([str(RUNNER), str(spv), str(work / "in.bin"), str(work / "out.bin"), str(n), str(out_floats),
                         "--validation"], capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP_ICD))
     assert r.returncode == 0, r.stderr[-3000:]
     assert "llvmpipe" in r.stdout
-    return np.fromfile(work / "out.bin", dtype=np.float32).reshape(n, 3)
+    return np.fromfile(work / "out.bin", dtype=np.float32).reshape(n, out_floats)
