@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import copy
+import functools
 import io
 import json
 import os
@@ -275,12 +276,19 @@ def cli_flags() -> List[tuple]:
             for a in actions]
 
 
+@functools.lru_cache(maxsize=1)
+def _parser() -> argparse.ArgumentParser:
+    from hybridbrdf.cli import build_parser
+
+    return build_parser()  # parsing does not change it, so one serves every example
+
+
 def check_cli_flag(command: str, flag: str, value: str) -> str:
     """``hbrdf COMMAND FLAG VALUE`` parsed (nothing run): a usage error of one line, or a value
     that is finite and of the flag's type."""
-    from hybridbrdf.cli import build_parser, settings_from_args
+    from hybridbrdf.cli import settings_from_args
 
-    parser = build_parser()
+    parser = _parser()
     positional = {"fit": ["synthetic:gold"], "eval": ["m.safetensors", "synthetic:gold"], "info": ["m"],
                   "render": ["scene.json"], "demo": []}.get(command, [])
     err = io.StringIO()
