@@ -1,17 +1,26 @@
 // hybridbrdf._core — bindings of the reference path tracer (docs/RENDERING.md).
 // The Python front end is python/hybridbrdf/render.py; these functions are its
-// plumbing. Rendering releases the GIL; measured materials are Python callables
-// that take it back once per batch.
+// plumbing. Loading and rendering run on a thread of their own, GIL released,
+// while the calling thread watches for Ctrl-C; measured materials are Python
+// callables that take the GIL back once per batch.
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <variant>
 
 namespace py = pybind11;
@@ -24,6 +33,29 @@ namespace {
 
 namespace hr = hbrdf::render;
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// A Python exception as one line for a scene error: its message, prefixed by
+// its type unless it is a ValueError or OSError (whose messages name the file
+// and the problem already: "gold.bsdf: truncated file"). Tracebacks stay out:
+// the error is about the scene, not about where the reader noticed it.
+// Called with the GIL held.
+std::string one_line(const py::error_already_set& e) {
+    std::string msg = py::str(e.value());
+    for (char& c : msg)
+        if (c == '\n' || c == '\r') c = ' ';
+    const bool names_itself = PyErr_GivenExceptionMatches(e.type().ptr(), PyExc_ValueError) ||
+                              PyErr_GivenExceptionMatches(e.type().ptr(), PyExc_OSError);
+    if (names_itself && !msg.empty()) return msg;
+    const std::string type = py::str(e.type().attr("__name__"));
+    return msg.empty() ? type : type + ": " + msg;
+}
+
+// A BaseException that is not an Exception (KeyboardInterrupt, SystemExit)
+// stops the render as Ctrl-C does, instead of becoming a scene error.
+[[noreturn]] void rethrow_python_error(const py::error_already_set& e, const std::string& prefix) {
+    if (!e.matches(PyExc_Exception)) throw hr::Cancelled();
+    throw std::runtime_error(prefix + one_line(e));
+}
 
 // A Python callable f(wi, wo) -> (n, 3) as a BatchEval. The callable is held
 // through a shared_ptr whose deleter takes the GIL, so copies of the
@@ -46,10 +78,75 @@ hbrdf::BatchEval wrap_callable(py::object fn, const std::string& source) {
         } catch (py::error_already_set& e) {
             // Converted while the GIL is held: the Python error object must not
             // outlive it on a worker thread.
-            throw std::runtime_error("measured material '" + source + "': " + std::string(e.what()));
+            rethrow_python_error(e, "measured material '" + source + "': eval(wi, wo) raised ");
         }
     };
 }
+
+// The loader's MeasuredFactory over a Python `measured(source)`; called on the
+// loading thread, so it takes the GIL. `measured` outlives the load.
+hr::MeasuredFactory measured_factory(const py::object& measured) {
+    return [&measured](const std::string& source) {
+        py::gil_scoped_acquire gil;
+        try {
+            return wrap_callable(measured(source), source);
+        } catch (py::error_already_set& e) {
+            rethrow_python_error(e, "");
+        }
+    };
+}
+
+// Runs `work` on a thread of its own while this thread, GIL released, waits
+// for it and every 50 ms takes the GIL to run Python's signal handlers: the
+// only way Ctrl-C reaches Python while C++ works (handlers run on the main
+// thread only, between bytecodes). A handler that raises (SIGINT's
+// KeyboardInterrupt) sets `cancel`, which the loader and the renderer check
+// between tiles and waves; once `work` has returned, the handler's exception
+// is raised here. Otherwise `work`'s own exception, if any, is rethrown.
+void run_interruptibly(const std::function<void()>& work, std::atomic<bool>& cancel) {
+    std::exception_ptr error;
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool done = false;
+    bool interrupted = false;
+    {
+        py::gil_scoped_release release;
+        std::thread worker([&] {
+            try {
+                work();
+            } catch (...) {
+                error = std::current_exception();
+            }
+            std::lock_guard<std::mutex> lock(mutex);
+            done = true;
+            cv.notify_all();
+        });
+        std::unique_lock<std::mutex> lock(mutex);
+        while (!cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return done; })) {
+            if (interrupted) continue;
+            lock.unlock();
+            {
+                py::gil_scoped_acquire gil;
+                // A raising handler leaves its exception set on this thread; it is raised below.
+                interrupted = PyErr_CheckSignals() != 0;
+            }
+            if (interrupted) cancel = true;
+            lock.lock();
+        }
+        lock.unlock();
+        worker.join();
+    }
+    if (interrupted) throw py::error_already_set();
+    if (error) std::rethrow_exception(error);
+}
+
+// What render_scene computes on its worker thread.
+struct RenderJob {
+    std::unique_ptr<hr::Scene> scene;
+    hr::RenderOptions options;
+    hr::RenderStats stats;
+    hr::Image image;
+};
 
 hr::ToneMap parse_tonemap(const std::string& s) {
     if (s == "clamp") return hr::ToneMap::Clamp;
@@ -106,30 +203,53 @@ FloatArray array_from_image(const hr::Image& img) {
 
 void bind_render(py::module_& m) {
     py::register_exception<hr::FileError>(m, "RenderFileError", PyExc_ValueError);
+    py::register_exception<hr::MaterialError>(m, "RenderMaterialError", PyExc_RuntimeError);
+    // A cancellation with no Python exception behind it (a measured callable
+    // raised KeyboardInterrupt or SystemExit) reads as Ctrl-C.
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const hr::Cancelled&) {
+            PyErr_SetNone(PyExc_KeyboardInterrupt);
+        }
+    });
 
     m.def(
         "render_scene",
         [](const std::string& json_text, const std::string& base_dir, const std::string& origin, py::object measured,
            bool quiet, const std::string& exr, const std::string& png, float exposure, const std::string& tonemap) {
-            hr::SceneLoadOptions load;
-            if (!measured.is_none())
-                load.measured = [measured](const std::string& source) { return wrap_callable(measured(source), source); };
             const hr::PngOptions png_options{exposure, parse_tonemap(tonemap)};
-            hr::Scene scene = hr::load_scene_json(json_text, base_dir, origin, load);
-            hr::RenderOptions options = hr::RenderOptions::from_scene(scene.settings);
-            options.quiet = quiet;
-            hr::RenderStats stats;
-            hr::Image image;
-            {
-                py::gil_scoped_release release;
+            // Before the render, not after it: a bad output path costs no render time.
+            if (!exr.empty()) hr::check_output_path(exr);
+            if (!png.empty()) hr::check_output_path(png);
+            std::atomic<bool> cancel{false};
+            hr::SceneLoadOptions load;
+            load.cancel = &cancel;
+            if (!measured.is_none()) load.measured = measured_factory(measured);
+            RenderJob job;
+            run_interruptibly([&] {
+                job.scene = std::make_unique<hr::Scene>(hr::load_scene_json(json_text, base_dir, origin, load));
+                job.options = hr::RenderOptions::from_scene(job.scene->settings);
+                job.options.quiet = quiet;
+                job.options.cancel = &cancel;
                 try {
-                    image = hr::render(scene, options, &stats);
+                    job.image = hr::render(*job.scene, job.options, &job.stats);
                 } catch (const std::invalid_argument& e) {
                     throw hr::FileError(origin, e.what());
                 }
-                if (!exr.empty()) hr::write_exr(image, exr);
-                if (!png.empty()) hr::write_png(image, png, png_options);
-            }
+                // Both files are written under temporary names, then renamed
+                // together: a cancelled render replaces neither.
+                std::optional<hr::StagedFile> staged_exr, staged_png;
+                if (!exr.empty()) staged_exr.emplace(hr::stage_exr(job.image, exr));
+                if (!png.empty()) staged_png.emplace(hr::stage_png(job.image, png, png_options));
+                hr::throw_if_cancelled(&cancel);
+                if (staged_exr) staged_exr->commit();
+                if (staged_png) staged_png->commit();
+            }, cancel);
+            const hr::Scene& scene = *job.scene;
+            const hr::RenderOptions& options = job.options;
+            const hr::RenderStats& stats = job.stats;
+            const hr::Image& image = job.image;
             py::dict st;
             st["seconds"] = stats.seconds;
             st["samples_per_second"] = stats.samples_per_second;

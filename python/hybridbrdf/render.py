@@ -34,9 +34,16 @@ def settings() -> List[Dict[str, Any]]:
 #: Names of the settings that :func:`render` accepts as overrides (and a scene file at its top level).
 SETTINGS = tuple(s["name"] for s in settings())
 
+#: Raised by :func:`render` when a measured material's callable fails while rendering (a RuntimeError
+#: whose message is one line, "<scene>: <where>: measured material '<source>': eval(wi, wo) raised ...").
+RenderMaterialError = getattr(_core, "RenderMaterialError", RuntimeError)
+
 
 def _measured_factory(source: str):
-    """f(wi, wo) -> (N, 3) float32 for a measured source (a path or synthetic:NAME)."""
+    """f(wi, wo) -> (N, 3) float32 for a measured source (a path or synthetic:NAME).
+
+    A missing or malformed source raises open_source's ValueError, which names the file; the library
+    reports it as one line, "<scene>: <where>.source: <message>", without a traceback."""
     from hybridbrdf.sources import open_source
 
     src = open_source(source)
@@ -66,17 +73,42 @@ def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dic
     return data, os.path.dirname(os.path.abspath(path)), path
 
 
+def _prepare_outputs(out, png) -> None:
+    """Create the output files' folders, and fail now, in one line naming the path, when an output
+    cannot be written: before the render, not after it. The library then checks that each file can
+    be created (``check_output_path``: not a folder, a folder that takes new files)."""
+    paths = [os.fspath(p) for p in (out, png) if p]
+    if len(paths) == 2 and os.path.abspath(paths[0]) == os.path.abspath(paths[1]):
+        raise ValueError(f"{paths[0]}: the EXR and the PNG output are the same file")
+    for path in paths:
+        parent = os.path.dirname(os.path.abspath(path))
+        if os.path.exists(parent) and not os.path.isdir(parent):
+            raise ValueError(f"{path}: {parent} is a file, not a folder")
+        try:
+            os.makedirs(parent, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot create the folder {parent} ({exc.strerror})") from None
+
+
 def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = None, png: Optional[str] = None, *,
            quiet: bool = True, exposure: float = 0.0, tonemap: str = "clamp", width: Optional[int] = None,
            height: Optional[int] = None, measured_factory=None, **overrides) -> Tuple[np.ndarray, Dict[str, Any]]:
     """Render a scene; returns (image (H, W, 3) float32 linear RGB, stats).
 
     out: OpenEXR file to write (linear float32); png: 8-bit sRGB PNG (``exposure`` in stops, ``tonemap``
-    "clamp" or "aces"). Both are written atomically. Overrides (``spp=``, ``threads=``, ...) replace the
-    scene's settings; None values are ignored, bad ones raise ValueError "<setting>: <problem>". ``measured_factory(source) -> f(wi, wo)`` replaces the
-    default (:func:`hybridbrdf.sources.open_source`) for measured materials. stats: seconds, samples_per_second, rays, shadow_rays,
-    brdf_evals, network_evals, threads, tiles, spp, sampler, sampler_memory_bytes.
-    Raises ValueError "<scene>: <where>: <problem>" for bad scenes.
+    "clamp" or "aces"). Their folders are created, and both are checked before the render starts
+    (ValueError "<path>: <problem>" for a folder, an unwritable place, ...); they are written under
+    temporary names and renamed into place together once the image is complete. Overrides (``spp=``,
+    ``threads=``, ...) replace the scene's settings; None values are ignored, bad ones raise ValueError
+    "<setting>: <problem>". ``measured_factory(source) -> f(wi, wo)`` replaces the default
+    (:func:`hybridbrdf.sources.open_source`) for measured materials. stats: seconds, samples_per_second,
+    rays, shadow_rays, brdf_evals, network_evals, threads, tiles, spp, sampler, sampler_memory_bytes.
+
+    Raises ValueError "<scene>: <where>: <problem>" for bad scenes, sizes beyond the documented limits
+    included (docs/RENDERING.md); RenderMaterialError (a RuntimeError) "<scene>: <where>: ..." when a
+    measured material's callable fails while rendering. Ctrl-C (SIGINT, or any signal whose Python
+    handler raises) stops loading and rendering within about one tile and raises KeyboardInterrupt (the
+    handler's exception); no output file is touched.
     """
     if not getattr(_core, "HAVE_RENDERER", False):
         raise RuntimeError("this build of hybridbrdf has no renderer (HBRDF_BUILD_RENDERER=OFF)")
@@ -90,10 +122,7 @@ def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = 
     for key, value in (("width", width), ("height", height)):
         if value is not None:
             data.setdefault("camera", {})[key] = int(value)
-    for path in (out, png):
-        if path:
-            parent = os.path.dirname(os.path.abspath(path))
-            os.makedirs(parent, exist_ok=True)
+    _prepare_outputs(out, png)
     image, stats = _core.render_scene(json.dumps(data), base_dir, origin, measured=measured_factory or _measured_factory, quiet=quiet,
                                       exr=os.fspath(out) if out else "", png=os.fspath(png) if png else "",
                                       exposure=float(exposure), tonemap=tonemap)

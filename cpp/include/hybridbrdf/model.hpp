@@ -16,6 +16,7 @@
 #include "hybridbrdf/analytic.hpp"
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/spec.hpp"
+#include "hybridbrdf/text.hpp"
 
 namespace hbrdf {
 
@@ -27,11 +28,6 @@ const char* model_simd_path();
 /// so that tests and benchmarks can run every kernel on one machine. Throws
 /// std::invalid_argument for any other name.
 void limit_model_simd(const std::string& path);
-
-/// `text` with every control character (U+0000-U+001F, U+007F) and every byte that is not part
-/// of valid UTF-8 written as \xNN: one printable line. The Python loader's messages follow the
-/// same rule (hybridbrdf.errors.one_line_text), so both report a damaged file alike.
-std::string one_line_text(const std::string& text);
 
 /// A model file that is missing, truncated, malformed or inconsistent.
 /// what() is "<path>: <problem>", one line.

@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+
+#include "hybridbrdf/render/limits.hpp"
 
 namespace hbrdf::render {
 
@@ -19,7 +22,21 @@ float luminance(const float* rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] +
 
 EnvironmentLight::EnvironmentLight(Image radiance, float scale, float rotation_deg) : image_(std::move(radiance)) {
     if (image_.width <= 0 || image_.height <= 0) throw std::invalid_argument("environment image has no pixels");
-    for (float& v : image_.rgb) v = (v > 0.0f && is_finite(v)) ? v * scale : 0.0f;  // no negative light
+    const std::string too_big = check_image_size(image_.width, image_.height, kMaxEnvironmentTexels,
+                                                 kEnvironmentBytesPerTexel, "with its sampling tables");
+    if (!too_big.empty()) throw std::invalid_argument("the environment map is " + too_big);
+    if (!(scale >= 0.0f) || !is_finite(scale))
+        throw std::invalid_argument("scale: must be a finite number >= 0, got " + format_number(scale));
+    float brightest = 0.0f;
+    for (float& v : image_.rgb) {
+        v = (v > 0.0f && is_finite(v)) ? v : 0.0f;  // no negative light; measured maps can hold noise
+        brightest = std::max(brightest, v);
+    }
+    // A scale that overflows float would make texels infinite (and the image black, where non-finite samples are dropped).
+    if (!is_finite(brightest * scale))
+        throw std::invalid_argument("scale: " + format_number(scale) + " x the brightest texel (" +
+                                    format_number(brightest) + ") overflows float");
+    for (float& v : image_.rgb) v *= scale;
     const double rot = double(rotation_deg) * 3.14159265358979323846 / 180.0;
     cos_rot_ = float(std::cos(rot));
     sin_rot_ = float(std::sin(rot));

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -64,8 +65,10 @@ public:
         const int tw = x1 - x0, th = y1 - y0, n_pixels = tw * th;
         accum_.assign(std::size_t(n_pixels) * 3, 0.0f);
         const int per_wave = std::max(1, opt_.max_paths_per_wave / n_pixels);
-        for (int s0 = 0; s0 < opt_.spp; s0 += per_wave) {
-            const int s1 = std::min(opt_.spp, s0 + per_wave);
+        // s0 + per_wave may exceed INT_MAX when spp is near it: step to s1, never past spp.
+        for (int s0 = 0, s1; s0 < opt_.spp; s0 = s1) {
+            throw_if_cancelled(opt_.cancel);  // a tile of many samples holds many waves
+            s1 = s0 + std::min(per_wave, opt_.spp - s0);
             paths_.clear();
             for (int s = s0; s < s1; ++s)
                 for (int ly = 0; ly < th; ++ly)
@@ -254,6 +257,30 @@ bool use_network(const RenderOptions& options, int depth, const Vec3f& throughpu
     return depth < max_d && max_component(throughput) >= options.neural_min_throughput;
 }
 
+namespace {
+
+// Runs `worker` on `n` threads and returns how many ran it. Workers share the
+// tiles, so when the system refuses a thread the ones started finish the
+// image (the same image: it does not depend on the thread count); when it
+// refuses all of them, the caller's thread does the work.
+template <typename F> int run_workers(F& worker, int n) {
+    if (n == 1) {
+        worker();  // on the caller's thread: no thread start-up for tiny renders
+        return 1;
+    }
+    std::vector<std::thread> pool;
+    pool.reserve(std::size_t(n));
+    try {
+        for (int i = 0; i < n; ++i) pool.emplace_back(worker);
+    } catch (const std::system_error&) {
+        if (pool.empty()) worker();
+    }
+    for (auto& th : pool) th.join();
+    return pool.empty() ? 1 : int(pool.size());
+}
+
+}  // namespace
+
 Image render(const Scene& scene, const RenderOptions& options, RenderStats* stats) {
     options.validate();
     if (scene.materials.empty()) throw std::invalid_argument("the scene has no materials");
@@ -277,6 +304,7 @@ Image render(const Scene& scene, const RenderOptions& options, RenderStats* stat
         Counters local;
         try {
             for (int t; !abort.load(std::memory_order_relaxed) && (t = next_tile.fetch_add(1)) < n_tiles;) {
+                throw_if_cancelled(options.cancel);
                 const int x0 = (t % tiles_x) * T, y0 = (t / tiles_x) * T;
                 tr.render_tile(x0, y0, std::min(W, x0 + T), std::min(H, y0 + T), image, local);
                 progress.tick();
@@ -292,14 +320,11 @@ Image render(const Scene& scene, const RenderOptions& options, RenderStats* stat
         total.brdf_evals += local.brdf_evals;
         total.network_evals += local.network_evals;
     };
-    if (n_threads == 1) {
-        worker();  // on the caller's thread: no thread start-up for tiny renders
-    } else {
-        std::vector<std::thread> pool;
-        for (int i = 0; i < n_threads; ++i) pool.emplace_back(worker);
-        for (auto& th : pool) th.join();
+    n_threads = run_workers(worker, n_threads);
+    if (error) {
+        progress.stop();  // the caller's message goes on a line of its own
+        std::rethrow_exception(error);
     }
-    if (error) std::rethrow_exception(error);
     progress.finish();
 
     if (stats) {

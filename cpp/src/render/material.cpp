@@ -8,13 +8,15 @@
 
 namespace hbrdf::render {
 
-void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg) {
+void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg,
+                           CancelFlag cancel) {
     tabulated_.reset();
     if (kind == SamplerKind::Tabulated) {
         // The table is built through the material's own (batched) evaluation;
         // sampling uses sample_direction(), which never calls it again.
         const Material* self = this;
-        const BatchEval eval = [self](std::size_t n, const float* wi, const float* wo, float* f) {
+        const BatchEval eval = [self, cancel](std::size_t n, const float* wi, const float* wo, float* f) {
+            throw_if_cancelled(cancel);  // a table of a network or a Python reader takes seconds
             self->eval(n, wi, wo, f, EvalMode::Full);
         };
         tabulated_ = std::make_shared<const TabulatedSampler>(

@@ -6,6 +6,7 @@
 
 #include <assimp/Importer.hpp>
 #include <fstream>
+#include <string>
 
 #include "hybridbrdf/render/image.hpp"
 
@@ -27,16 +28,28 @@ void transform_mesh(TriangleMesh& mesh, const Transform& xf) {
     for (Vec3f& t : mesh.tangents) t = normalized_or(xf.linear * t, Vec3f(0));
 }
 
+std::int64_t first_nonfinite_vertex(const TriangleMesh& mesh) {
+    for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+        const Vec3f& p = mesh.positions[i];
+        if (!(is_finite(p.x) && is_finite(p.y) && is_finite(p.z))) return std::int64_t(i);
+    }
+    return -1;
+}
+
 TriangleMesh load_mesh(const std::string& path, bool smooth_normals) {
     if (!std::ifstream(path).good()) throw FileError(path, "cannot open the mesh file");
     Assimp::Importer importer;
     unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                     aiProcess_SortByPType | aiProcess_CalcTangentSpace;
+                     aiProcess_SortByPType | aiProcess_CalcTangentSpace |
+                     aiProcess_ValidateDataStructure;  // first: out-of-range indices would corrupt the later steps
     if (smooth_normals) flags |= aiProcess_GenSmoothNormals;
     const aiScene* scene = importer.ReadFile(path, flags);
-    if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || scene->mNumMeshes == 0)
-        throw FileError(path, std::string("cannot read the mesh: ") +
-                                  (scene ? "the file holds no triangle mesh" : importer.GetErrorString()));
+    if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || scene->mNumMeshes == 0) {
+        std::string problem = scene ? "the file holds no triangle mesh" : importer.GetErrorString();
+        // assimp reports a header that declares more elements than fit as the allocation failure.
+        if (problem.find("bad_alloc") != std::string::npos) problem = "it declares more data than fits in memory";
+        throw FileError(path, "cannot read the mesh: " + problem);
+    }
     TriangleMesh mesh;
     bool all_normals = smooth_normals, all_tangents = true;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
@@ -63,10 +76,17 @@ TriangleMesh load_mesh(const std::string& path, bool smooth_normals) {
         for (unsigned f = 0; f < am->mNumFaces; ++f) {
             const aiFace& face = am->mFaces[f];
             if (face.mNumIndices != 3) continue;
-            for (int k = 0; k < 3; ++k) mesh.indices.push_back(base + face.mIndices[k]);
+            for (int k = 0; k < 3; ++k) {
+                if (face.mIndices[k] >= am->mNumVertices)  // a malformed file; Embree would read out of bounds
+                    throw FileError(path, "face " + std::to_string(f) + " refers to vertex " + std::to_string(face.mIndices[k]) +
+                                              ", but the mesh has " + std::to_string(am->mNumVertices));
+                mesh.indices.push_back(base + face.mIndices[k]);
+            }
         }
     }
     if (mesh.indices.empty()) throw FileError(path, "the mesh has no triangles");
+    if (const std::int64_t v = first_nonfinite_vertex(mesh); v >= 0)
+        throw FileError(path, "vertex " + std::to_string(v) + " is not finite");
     return mesh;
 }
 

@@ -6,7 +6,10 @@
 namespace hbrdf::render {
 
 ProgressBar::ProgressBar(long total, bool quiet)
-    : total_(total > 0 ? total : 1), quiet_(quiet), start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
+    : total_(total > 0 ? total : 1), quiet_(quiet), start_(std::chrono::steady_clock::now()), last_draw_(start_) {
+    // Drawn at once: a tile of many samples can take minutes, and a bar tells that the render has begun.
+    if (!quiet_) draw(0, false);
+}
 
 void ProgressBar::tick() {
     const long done = ++done_;
@@ -25,6 +28,13 @@ void ProgressBar::finish() {
     draw(done_.load(), true);
 }
 
+void ProgressBar::stop() {
+    if (quiet_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (drawn_) std::fputc('\n', stderr);
+    drawn_ = false;
+}
+
 void ProgressBar::draw(long done, bool final) {
     constexpr int kWidth = 30;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -33,9 +43,14 @@ void ProgressBar::draw(long done, bool final) {
     char bar[kWidth + 1];
     for (int i = 0; i < kWidth; ++i) bar[i] = i < filled ? '#' : '-';
     bar[kWidth] = '\0';
-    const double eta = done > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
-    std::fprintf(stderr, "\rrender [%s] %ld/%ld tiles, %.1f s, ETA %.1f s   ", bar, done, total_, elapsed, eta);
+    if (done > 0) {
+        const double eta = elapsed * (1.0 - frac) / frac;
+        std::fprintf(stderr, "\rrender [%s] %ld/%ld tiles, %.1f s, ETA %.1f s   ", bar, done, total_, elapsed, eta);
+    } else {
+        std::fprintf(stderr, "\rrender [%s] %ld/%ld tiles, %.1f s, ETA -   ", bar, done, total_, elapsed);
+    }
     if (final) std::fputc('\n', stderr);
+    drawn_ = !final;
     std::fflush(stderr);
 }
 

@@ -110,6 +110,30 @@ RTCRay make_ray(const Vec3f& o, const Vec3f& d, float t_max) {
 
 Vec3f normalized(const Vec3f& v) { return v * inverse_length_or_zero(v); }
 
+bool finite3(const Vec3f& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
+
+// What Embree and intersect() rely on: finite vertices, whole triangles,
+// indices in range (an out-of-range index would read past the vertex buffer),
+// per-vertex normals and tangents for every vertex when present.
+void check_mesh(const TriangleMesh& m) {
+    if (m.indices.empty() || m.indices.size() % 3 != 0)
+        throw std::invalid_argument("the mesh has " + std::to_string(m.indices.size()) + " indices, expected 3 per triangle");
+    for (std::size_t i = 0; i < m.positions.size(); ++i)
+        if (!finite3(m.positions[i]))
+            throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
+    for (std::size_t i = 0; i < m.indices.size(); ++i)
+        if (m.indices[i] >= m.positions.size())
+            throw std::invalid_argument("triangle " + std::to_string(i / 3) + " refers to vertex " +
+                                        std::to_string(m.indices[i]) + ", but the mesh has " +
+                                        std::to_string(m.positions.size()) + " vertices");
+    if (!m.normals.empty() && m.normals.size() != m.positions.size())
+        throw std::invalid_argument("the mesh has " + std::to_string(m.normals.size()) + " normals for " +
+                                    std::to_string(m.positions.size()) + " vertices");
+    if (!m.tangents.empty() && m.tangents.size() != m.positions.size())
+        throw std::invalid_argument("the mesh has " + std::to_string(m.tangents.size()) + " tangents for " +
+                                    std::to_string(m.positions.size()) + " vertices");
+}
+
 }  // namespace
 
 Scene::Scene() {
@@ -152,6 +176,7 @@ int Scene::add_material(std::unique_ptr<Material> material) {
 
 void Scene::add_mesh(TriangleMesh mesh, int material) {
     if (committed_) throw std::logic_error("Scene::add_mesh after commit()");
+    check_mesh(mesh);
     meshes_.push_back(std::make_unique<TriangleMesh>(std::move(mesh)));
     const TriangleMesh& m = *meshes_.back();
     RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -175,6 +200,9 @@ void Scene::add_mesh(TriangleMesh mesh, int material) {
 void Scene::add_sphere(const Sphere& sphere, int material) {
     if (committed_) throw std::logic_error("Scene::add_sphere after commit()");
     if (!(sphere.radius > 0.0f)) throw std::invalid_argument("sphere radius must be > 0");
+    // Its bounds (center +- radius) must be finite floats for Embree.
+    if (!finite3(sphere.center - Vec3f(sphere.radius)) || !finite3(sphere.center + Vec3f(sphere.radius)))
+        throw std::invalid_argument("the sphere's bounds (center +- radius) overflow float");
     spheres_.push_back(std::make_unique<Sphere>(sphere));
     RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geom, 1);

@@ -3,6 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
+#include <cfloat>
 #include <climits>
 #include <cmath>
 #include <fstream>
@@ -12,6 +14,7 @@
 #include <sstream>
 
 #include "hybridbrdf/render/integrator.hpp"
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/sky.hpp"
 
 namespace hbrdf::render {
@@ -60,7 +63,50 @@ public:
         if (!v.is_number()) fail(where, "expected a number, got " + std::string(v.type_name()));
         const double d = v.get<double>();
         if (!std::isfinite(d)) fail(where, "expected a finite number");
+        // Scene numbers are floats: 1e300 would become inf.
+        if (std::fabs(d) > double(FLT_MAX)) fail(where, "must be within +-" + format_number(FLT_MAX) + ", got " + v.dump());
         return float(d);
+    }
+    // A number that must be >= 0 (scales, radiances: no negative light).
+    float nonnegative(const json& obj, const std::string& where, const char* key, float def) const {
+        const float x = number(obj, where, key, def);
+        if (!(x >= 0.0f)) fail(join(where, key), "must be >= 0, got " + format_number(x));
+        return x;
+    }
+    // Each component >= 0; "key[i]" names the one that is not.
+    template <int N>
+    glm::vec<N, float> nonnegative_vec(const json& obj, const std::string& where, const char* key,
+                                       const glm::vec<N, float>& def) const {
+        const glm::vec<N, float> v = vec<N>(obj, where, key, def, true);
+        for (int i = 0; i < N; ++i)
+            if (!(v[i] >= 0.0f)) {
+                const bool array = obj.at(key).is_array();
+                fail(join(where, key) + (array ? "[" + std::to_string(i) + "]" : ""), "must be >= 0, got " + format_number(v[i]));
+            }
+        return v;
+    }
+    // An array of N JSON integers in [lo, INT_MAX] (image resolutions).
+    template <int N>
+    std::array<int, N> integers(const json& obj, const std::string& where, const char* key, const std::array<int, N>& def,
+                                int lo) const {
+        if (!obj.contains(key)) return def;
+        const json& v = obj.at(key);
+        const std::string w = join(where, key);
+        if (!v.is_array() || v.size() != std::size_t(N))
+            fail(w, "expected an array of " + std::to_string(N) + " integers");
+        std::array<int, N> out{};
+        for (int i = 0; i < N; ++i) {
+            const json& x = v[std::size_t(i)];
+            const std::string wi = w + "[" + std::to_string(i) + "]";
+            if (!x.is_number_integer()) fail(wi, "expected an integer, got " + (x.is_number() ? x.dump() : std::string(x.type_name())));
+            // Bounded before the conversion, as integer() does.
+            if (x.is_number_unsigned() ? x.get<std::uint64_t>() > std::uint64_t(INT_MAX) : x.get<std::int64_t>() > INT_MAX)
+                fail(wi, "must be <= " + std::to_string(INT_MAX) + ", got " + x.dump());
+            if (!x.is_number_unsigned() && x.get<std::int64_t>() < lo)
+                fail(wi, "must be >= " + std::to_string(lo) + ", got " + x.dump());
+            out[std::size_t(i)] = int(x.get<std::int64_t>());
+        }
+        return out;
     }
     float number(const json& obj, const std::string& where, const char* key, float def) const {
         return obj.contains(key) ? number(obj.at(key), join(where, key)) : def;
@@ -224,21 +270,27 @@ public:
             const json& mats = root.at("materials");
             if (!mats.is_object()) r_.fail("materials", "expected an object mapping names to materials");
             for (const auto& item : mats.items()) {
+                throw_if_cancelled(options_.cancel);
                 named_[item.key()] = scene.add_material(read_material(item.value(), "materials." + item.key(), item.key()));
             }
         }
         const json& objects = r_.require(root, "", "objects");
         if (!objects.is_array() || objects.empty()) r_.fail("objects", "expected a non-empty array");
-        for (std::size_t i = 0; i < objects.size(); ++i) read_object(objects[i], "objects[" + std::to_string(i) + "]", scene);
+        for (std::size_t i = 0; i < objects.size(); ++i) {
+            throw_if_cancelled(options_.cancel);
+            read_object(objects[i], "objects[" + std::to_string(i) + "]", scene);
+        }
         // Samplers last: a tabulated one evaluates its material millions of times.
         for (std::size_t m = 0; m < scene.materials.size(); ++m) {
+            throw_if_cancelled(options_.cancel);
             try {
                 scene.materials[m]->set_sampler(scene.settings.sampler, proxies_[m],
-                                                scene.settings.tabulated_resolution_deg);
+                                                scene.settings.tabulated_resolution_deg, options_.cancel);
             } catch (const std::invalid_argument& e) {
                 r_.fail("materials." + scene.materials[m]->name(), e.what());
             }
         }
+        throw_if_cancelled(options_.cancel);
         scene.commit();
         return scene;
     }
@@ -261,49 +313,63 @@ private:
         const std::string w = "environment";
         if (!e.is_object()) r_.fail(w, "expected an object");
         const std::string type = e.contains("type") ? r_.string(e.at("type"), w + ".type") : "sky";
-        const float scale = r_.number(e, w, "scale", 1.0f);
+        const float scale = r_.nonnegative(e, w, "scale", 1.0f);
         const float rotation = r_.number(e, w, "rotation_deg", 0.0f);
-        if (type == "sky") {
-            r_.check_keys(e, w, {"type", "scale", "rotation_deg", "sun_elevation_deg", "sun_azimuth_deg", "sun_irradiance",
-                                 "sun_size_deg", "sky_intensity", "turbidity", "ground_albedo", "resolution"});
-            SkyParams p;
-            p.sun_elevation_deg = r_.number(e, w, "sun_elevation_deg", p.sun_elevation_deg);
-            p.sun_azimuth_deg = r_.number(e, w, "sun_azimuth_deg", p.sun_azimuth_deg);
-            p.sun_irradiance = r_.vec<3>(e, w, "sun_irradiance", p.sun_irradiance, true);
-            p.sun_size_deg = r_.number(e, w, "sun_size_deg", p.sun_size_deg);
-            p.sky_intensity = r_.number(e, w, "sky_intensity", p.sky_intensity);
-            p.turbidity = r_.number(e, w, "turbidity", p.turbidity);
-            p.ground_albedo = r_.vec<3>(e, w, "ground_albedo", p.ground_albedo, true);
-            const Vec2<float> res = r_.vec<2>(e, w, "resolution", Vec2<float>(float(p.width), float(p.height)));
-            p.width = int(res.x);
-            p.height = int(res.y);
-            try {
-                return EnvironmentLight(make_sky_image(p), scale, rotation);
-            } catch (const std::invalid_argument& ex) {
-                r_.fail(w, ex.what());
-            }
-        }
+        if (type == "sky") return light(read_sky(e), scale, rotation);
         if (type == "constant") {
             r_.check_keys(e, w, {"type", "scale", "rotation_deg", "radiance"});
-            const Vec3f L = r_.vec<3>(e, w, "radiance", Vec3f(1.0f), true);
+            const Vec3f L = r_.nonnegative_vec<3>(e, w, "radiance", Vec3f(1.0f));
             Image img(8, 4);  // a small image: the same sampling code, sin(theta)-weighted rows
             for (std::size_t i = 0; i < img.rgb.size(); i += 3) {
                 img.rgb[i] = L.x;
                 img.rgb[i + 1] = L.y;
                 img.rgb[i + 2] = L.z;
             }
-            return EnvironmentLight(std::move(img), scale, rotation);
+            return light(std::move(img), scale, rotation);
         }
         if (type == "file") {
             r_.check_keys(e, w, {"type", "scale", "rotation_deg", "file"});
             const std::string file = r_.resolve(r_.string(r_.require(e, w, "file"), w + ".file"));
+            Image img;
             try {
-                return EnvironmentLight(read_image(file), scale, rotation);
+                img = read_image(file);  // refuses oversized headers before decoding (limits.hpp)
             } catch (const FileError& ex) {
                 r_.fail(w + ".file", ex.what());
             }
+            return light(std::move(img), scale, rotation);
         }
         r_.fail(w + ".type", "unknown environment type '" + type + "'; expected sky, file or constant");
+    }
+
+    // The sky's image; every parameter is checked, with its key, before the
+    // image is allocated (a [100000, 50000] resolution is an error, not bad_alloc).
+    Image read_sky(const json& e) {
+        const std::string w = "environment";
+        r_.check_keys(e, w, {"type", "scale", "rotation_deg", "sun_elevation_deg", "sun_azimuth_deg", "sun_irradiance",
+                             "sun_size_deg", "sky_intensity", "turbidity", "ground_albedo", "resolution"});
+        SkyParams p;
+        p.sun_elevation_deg = r_.number(e, w, "sun_elevation_deg", p.sun_elevation_deg);
+        p.sun_azimuth_deg = r_.number(e, w, "sun_azimuth_deg", p.sun_azimuth_deg);
+        p.sun_irradiance = r_.nonnegative_vec<3>(e, w, "sun_irradiance", p.sun_irradiance);
+        p.sun_size_deg = r_.number(e, w, "sun_size_deg", p.sun_size_deg);
+        p.sky_intensity = r_.nonnegative(e, w, "sky_intensity", p.sky_intensity);
+        p.turbidity = r_.number(e, w, "turbidity", p.turbidity);
+        p.ground_albedo = r_.nonnegative_vec<3>(e, w, "ground_albedo", p.ground_albedo);
+        const auto res = r_.integers<2>(e, w, "resolution", {p.width, p.height}, 1);
+        p.width = res[0];
+        p.height = res[1];
+        const SkyProblem problem = check_sky(p);
+        if (!problem.key.empty()) r_.fail(w + "." + problem.key, problem.problem);
+        throw_if_cancelled(options_.cancel);  // a large sky takes seconds to bake
+        return make_sky_image(p);
+    }
+
+    EnvironmentLight light(Image img, float scale, float rotation) {
+        try {
+            return EnvironmentLight(std::move(img), scale, rotation);
+        } catch (const std::invalid_argument& ex) {
+            r_.fail("environment", ex.what());
+        }
     }
 
     std::unique_ptr<Material> read_material(const json& m, const std::string& w, const std::string& name) {
@@ -349,13 +415,30 @@ private:
             BatchEval eval;
             try {
                 eval = options_.measured(d.source);
+            } catch (const Cancelled&) {
+                throw;
             } catch (const std::exception& e) {
                 r_.fail(w + ".source", e.what());
             }
             proxies_.push_back(d.proxy);
-            return std::make_unique<CallbackMaterial>(name, std::move(eval), d.isotropic);
+            return std::make_unique<CallbackMaterial>(name, naming_errors(std::move(eval), w), d.isotropic);
         }
         unknown_material_type(r_, w, type);
+    }
+
+    // A measured callback whose failures (while rendering, or while a
+    // tabulated sampler is built) name the scene and the material's key.
+    BatchEval naming_errors(BatchEval eval, const std::string& where) const {
+        const std::string prefix = r_.origin() + ": " + where + ": ";
+        return [eval = std::move(eval), prefix](std::size_t n, const float* wi, const float* wo, float* f) {
+            try {
+                eval(n, wi, wo, f);
+            } catch (const Cancelled&) {
+                throw;
+            } catch (const std::exception& e) {
+                throw MaterialError(prefix + e.what());
+            }
+        };
     }
 
     int material_of(const json& obj, const std::string& w, Scene& scene) {
@@ -378,7 +461,7 @@ private:
             s.center = r_.vec<3>(o, w, "center", Vec3f(0.0f));
             s.radius = r_.number(o, w, "radius", 1.0f);
             if (!(s.radius > 0.0f)) r_.fail(w + ".radius", "must be > 0");
-            scene.add_sphere(s, material_of(o, w, scene));
+            add_geometry(w, [&] { scene.add_sphere(s, material_of(o, w, scene)); });
         } else if (type == "plane") {
             r_.check_keys(o, w, {"type", "material", "center", "normal", "tangent", "size"});
             const Vec3f n = r_.vec<3>(o, w, "normal", Vec3f(0, 1, 0));
@@ -386,7 +469,8 @@ private:
             const Vec3f t = r_.vec<3>(o, w, "tangent", Frame::from_normal(glm::normalize(n)).t);
             const Vec2<float> size = r_.vec<2>(o, w, "size", Vec2<float>(10.0f), true);
             if (!(size.x > 0.0f && size.y > 0.0f)) r_.fail(w + ".size", "must be > 0");
-            scene.add_mesh(make_plane(r_.vec<3>(o, w, "center", Vec3f(0.0f)), n, t, size.x, size.y), material_of(o, w, scene));
+            const Vec3f center = r_.vec<3>(o, w, "center", Vec3f(0.0f));
+            add_geometry(w, [&] { scene.add_mesh(make_plane(center, n, t, size.x, size.y), material_of(o, w, scene)); });
         } else if (type == "mesh") {
             r_.check_keys(o, w, {"type", "material", "file", "transform", "smooth_normals"});
             const std::string file = r_.resolve(r_.string(r_.require(o, w, "file"), w + ".file"));
@@ -396,10 +480,24 @@ private:
             } catch (const FileError& e) {
                 r_.fail(w + ".file", e.what());
             }
-            if (o.contains("transform")) transform_mesh(mesh, read_transform(o.at("transform"), w + ".transform"));
-            scene.add_mesh(std::move(mesh), material_of(o, w, scene));
+            if (o.contains("transform")) {
+                transform_mesh(mesh, read_transform(o.at("transform"), w + ".transform"));
+                if (const std::int64_t v = first_nonfinite_vertex(mesh); v >= 0)
+                    r_.fail(w + ".transform", "moves vertex " + std::to_string(v) + " beyond the float range");
+            }
+            add_geometry(w, [&] { scene.add_mesh(std::move(mesh), material_of(o, w, scene)); });
         } else {
             r_.fail(w + ".type", "unknown object type '" + type + "'; expected sphere, plane or mesh");
+        }
+    }
+
+    // Scene::add_* refuses geometry Embree cannot use (non-finite vertices,
+    // indices out of range): the error names the object.
+    template <typename F> void add_geometry(const std::string& w, F&& add) {
+        try {
+            add();
+        } catch (const std::invalid_argument& e) {
+            r_.fail(w, e.what());
         }
     }
 

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "hybridbrdf/render/limits.hpp"
+
 namespace hbrdf::render {
 
 namespace {
@@ -21,6 +23,13 @@ Vec3f equirect_direction(float u, float v) {
     return Vec3f(s * std::sin(phi), std::cos(theta), -s * std::cos(phi));
 }
 
+// 2 pi (1 - cos r) as 4 pi sin^2(r / 2): 1 - cos r cancels to 0 in float for
+// disks under ~0.03 degrees, and the sun's radiance would be infinite.
+float sun_solid_angle(float size_deg) {
+    const double s = std::sin(0.25 * double(size_deg) * 3.14159265358979323846 / 180.0);
+    return float(4.0 * 3.14159265358979323846 * s * s);
+}
+
 }  // namespace
 
 Vec3f SkyParams::sun_direction() const {
@@ -29,14 +38,37 @@ Vec3f SkyParams::sun_direction() const {
     return Vec3f(std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az));
 }
 
-Image make_sky_image(const SkyParams& p) {
-    if (p.width < 4 || p.height < 2) throw std::invalid_argument("sky resolution must be at least 4 x 2");
-    if (!(p.turbidity >= 1.0f && p.turbidity <= 10.0f)) throw std::invalid_argument("sky turbidity must be in [1, 10]");
+SkyProblem check_sky(const SkyParams& p) {
+    auto got = [](float x) { return ", got " + format_number(x); };
+    if (p.width < 4 || p.height < 2)
+        return {"resolution", "must be at least 4 x 2, got " + std::to_string(p.width) + " x " + std::to_string(p.height)};
+    const std::string too_big = check_image_size(p.width, p.height, kMaxEnvironmentTexels, kEnvironmentBytesPerTexel,
+                                                 "with its sampling tables");
+    if (!too_big.empty()) return {"resolution", too_big};
+    // Angles only need to be finite; a sun below the horizon is a valid (dark) sky.
+    if (!is_finite(p.sun_elevation_deg)) return {"sun_elevation_deg", "must be finite" + got(p.sun_elevation_deg)};
+    if (!is_finite(p.sun_azimuth_deg)) return {"sun_azimuth_deg", "must be finite" + got(p.sun_azimuth_deg)};
+    if (!(p.turbidity >= 1.0f && p.turbidity <= 10.0f)) return {"turbidity", "must be in [1, 10]" + got(p.turbidity)};
     if (!(p.sun_size_deg > 0.0f && p.sun_size_deg < 90.0f))
-        throw std::invalid_argument("sun_size_deg must be in (0, 90)");
-    if (!(p.sky_intensity >= 0.0f)) throw std::invalid_argument("sky_intensity must be >= 0");
-    for (int c = 0; c < 3; ++c)
-        if (!(p.sun_irradiance[c] >= 0.0f)) throw std::invalid_argument("sun irradiance must be >= 0");
+        return {"sun_size_deg", "must be in (0, 90)" + got(p.sun_size_deg)};
+    if (!(p.sky_intensity >= 0.0f && is_finite(p.sky_intensity)))
+        return {"sky_intensity", "must be a finite number >= 0" + got(p.sky_intensity)};
+    for (int c = 0; c < 3; ++c) {
+        const std::string i = "[" + std::to_string(c) + "]";
+        if (!(p.sun_irradiance[c] >= 0.0f && is_finite(p.sun_irradiance[c])))
+            return {"sun_irradiance" + i, "must be a finite number >= 0" + got(p.sun_irradiance[c])};
+        if (!(p.ground_albedo[c] >= 0.0f && is_finite(p.ground_albedo[c])))
+            return {"ground_albedo" + i, "must be a finite number >= 0" + got(p.ground_albedo[c])};
+        if (!is_finite(p.sun_irradiance[c] / sun_solid_angle(p.sun_size_deg)))
+            return {"sun_size_deg", "is too small for sun_irradiance: the disk's radiance overflows float" +
+                                        got(p.sun_size_deg)};
+    }
+    return {};
+}
+
+Image make_sky_image(const SkyParams& p) {
+    const SkyProblem problem = check_sky(p);
+    if (!problem.key.empty()) throw std::invalid_argument(problem.key + ": " + problem.problem);
 
     const float haze = (p.turbidity - 1.0f) / 9.0f;
     const Vec3f white(0.9f), zenith = mix(Vec3f(0.20f, 0.40f, 0.90f), white, haze),
@@ -45,7 +77,7 @@ Image make_sky_image(const SkyParams& p) {
     const Vec3f sun = p.sun_direction();
     const float radius = 0.5f * p.sun_size_deg * kDeg;
     const float cos_radius = std::cos(radius);
-    const float solid_angle = 2.0f * kPi<float> * (1.0f - cos_radius);
+    const float solid_angle = sun_solid_angle(p.sun_size_deg);
     const Vec3f sun_radiance = p.sun_irradiance / solid_angle;
 
     // Radiance without the disk; the disk is added by coverage below.

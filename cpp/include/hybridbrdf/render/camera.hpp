@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "hybridbrdf/render/frame.hpp"
+#include "hybridbrdf/render/limits.hpp"
 
 namespace hbrdf::render {
 
@@ -21,6 +22,9 @@ public:
     PinholeCamera(const Vec3f& position, const Vec3f& look_at, const Vec3f& up, float fov_deg, int width, int height)
         : position_(position), width_(width), height_(height) {
         if (width < 1 || height < 1) throw std::invalid_argument("camera width and height must be >= 1");
+        // Before anything allocates the film (limits.hpp): an error, not std::bad_alloc.
+        const std::string too_big = check_image_size(width, height, kMaxFilmPixels, kFilmBytesPerPixel, "of film");
+        if (!too_big.empty()) throw std::invalid_argument("width x height = " + too_big);
         if (!(fov_deg > 0.0f && fov_deg < 180.0f)) throw std::invalid_argument("camera fov_deg must be in (0, 180)");
         const Vec3f f = look_at - position;
         if (!(dot(f, f) > 0.0f)) throw std::invalid_argument("camera look_at equals position");

@@ -2,9 +2,12 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "hybridbrdf/text.hpp"
 
 namespace hbrdf::render {
 
@@ -13,7 +16,7 @@ namespace hbrdf::render {
 class FileError : public std::runtime_error {
 public:
     FileError(const std::string& path, const std::string& problem)
-        : std::runtime_error(path + ": " + problem), path_(path), problem_(problem) {}
+        : std::runtime_error(path + ": " + one_line_text(problem)), path_(path), problem_(one_line_text(problem)) {}
     const std::string& path() const { return path_; }
     const std::string& problem() const { return problem_; }
 
@@ -43,17 +46,55 @@ struct PngOptions {
 };
 
 /// Reads an equirectangular environment map: OpenEXR (.exr, via tinyexr) or
-/// Radiance RGBE (.hdr, via stb_image). Throws FileError naming the file.
+/// Radiance RGBE (.hdr, via stb_image). Throws FileError naming the file,
+/// also when its header declares more than kMaxEnvironmentTexels pixels
+/// (checked before any pixel is decoded: a forged header cannot make it
+/// allocate what it says).
 Image read_image(const std::string& path);
 
-/// Writes linear float32 RGB OpenEXR. Atomic: the data go to "<path>.tmp<pid>"
-/// first and are renamed over `path`, so a failed write never leaves a
-/// half-written file. Throws FileError.
+/// An output file written under a temporary name next to its destination,
+/// "<path>.tmp<pid>", and moved into place by commit(); the destructor
+/// removes the temporary if it was not committed. A render with two outputs
+/// stages both, then commits both, so that a failed or cancelled render
+/// leaves the previous files untouched.
+class StagedFile {
+public:
+    explicit StagedFile(std::string path);
+    StagedFile(StagedFile&& other) noexcept;
+    StagedFile(const StagedFile&) = delete;
+    StagedFile& operator=(const StagedFile&) = delete;
+    StagedFile& operator=(StagedFile&&) = delete;
+    ~StagedFile();
+
+    const std::string& path() const { return path_; }
+    const std::string& temp_path() const { return temp_; }
+    /// Renames the temporary over path(). Throws FileError.
+    void commit();
+
+private:
+    std::string path_, temp_;
+    bool pending_ = true;
+};
+
+/// Writes linear float32 RGB OpenEXR to a StagedFile (commit it to finish).
+StagedFile stage_exr(const Image& image, const std::string& path);
+/// Writes an 8-bit sRGB PNG to a StagedFile: exposure, tone map, then the
+/// sRGB OETF (IEC 61966-2-1), rounded to nearest.
+StagedFile stage_png(const Image& image, const std::string& path, const PngOptions& options = {});
+
+/// Writes linear float32 RGB OpenEXR. Atomic: stage_exr, then commit, so a
+/// failed write never leaves a half-written file. Throws FileError.
 void write_exr(const Image& image, const std::string& path);
 
-/// Writes an 8-bit sRGB PNG: exposure, tone map, then the sRGB OETF
-/// (IEC 61966-2-1), rounded to nearest. Atomic like write_exr.
+/// Writes an 8-bit sRGB PNG (stage_png, then commit). Atomic like write_exr.
 void write_png(const Image& image, const std::string& path, const PngOptions& options = {});
+
+/// Checks, before a long render, that `path` can be written later: it is not
+/// a folder, its folder exists and accepts new files (by creating and removing
+/// the temporary a StagedFile would use: the only test that also holds for
+/// root, read-only mounts and network file systems). Throws FileError naming
+/// the path.
+void check_output_path(const std::string& path);
 
 /// The display value in [0, 1] of one linear channel value, as write_png computes it.
 float display_value(float linear, const PngOptions& options);

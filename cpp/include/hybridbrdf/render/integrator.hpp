@@ -26,6 +26,7 @@
 #include <cstdint>
 
 #include "hybridbrdf/render/image.hpp"
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/scene.hpp"
 
 namespace hbrdf::render {
@@ -41,6 +42,9 @@ struct RenderOptions : RenderSettings {
     bool quiet = false;                  ///< no progress bar
     int tile_size = 16;                  ///< tile edge in pixels
     int max_paths_per_wave = 4096;       ///< paths a tile advances together
+    /// Set by another thread to stop the render (Ctrl-C): render() checks it
+    /// before every tile and every wave of a tile, then throws Cancelled.
+    CancelFlag cancel = nullptr;
 
     /// The options a scene was saved with (its settings, the defaults otherwise).
     static RenderOptions from_scene(const RenderSettings& s);
@@ -65,7 +69,9 @@ bool use_network(const RenderOptions& options, int depth, const Vec3f& throughpu
 
 /// Renders `scene` (committed) with `options`: the mean radiance per pixel
 /// over options.spp samples, linear RGB. Exceptions from materials (e.g. a
-/// failing Python callable) stop the render and are rethrown here.
+/// failing Python callable) stop the render and are rethrown here; so is
+/// Cancelled, within one wave of options.cancel being set (a wave is at most
+/// max_paths_per_wave paths of one tile).
 Image render(const Scene& scene, const RenderOptions& options, RenderStats* stats = nullptr);
 
 }  // namespace hbrdf::render

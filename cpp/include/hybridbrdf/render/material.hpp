@@ -24,6 +24,7 @@
 
 #include "hybridbrdf/model.hpp"
 #include "hybridbrdf/render/frame.hpp"
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/sampling.hpp"
 #include "hybridbrdf/tabulated.hpp"
 
@@ -95,7 +96,9 @@ public:
     /// material falls back to cosine sampling (documented in docs/RENDERING.md).
     /// Tabulated builds the table now through eval(..., Full), which can take
     /// seconds; `tabulated_resolution_deg` is passed to TabulatedSampler::build.
-    void set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg = 1);
+    /// The build checks `cancel` before every batch and throws Cancelled.
+    void set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg = 1,
+                     CancelFlag cancel = nullptr);
 
     /// A direction wi for wo (both local) from u in [0, 1)^2 and its
     /// whole-sphere solid-angle pdf; pdf == 0 means no sample. The weight of

@@ -33,10 +33,15 @@ struct Transform {
 /// Applies `xf` to every vertex, normal and tangent (renormalised).
 void transform_mesh(TriangleMesh& mesh, const Transform& xf);
 
+/// The index of the first vertex with a non-finite coordinate, or -1.
+std::int64_t first_nonfinite_vertex(const TriangleMesh& mesh);
+
 /// Reads every mesh of a model file through assimp (triangulated, vertices
 /// joined). With smooth_normals, missing normals are generated smooth;
 /// otherwise vertex normals are dropped and the geometric normal shades.
-/// Tangents are taken when the file has UVs. Throws FileError("<path>: ...").
+/// Tangents are taken when the file has UVs. Throws FileError("<path>: ...")
+/// for files that cannot be read, faces whose indices are out of range and
+/// vertices that are not finite.
 TriangleMesh load_mesh(const std::string& path, bool smooth_normals = true);
 
 /// A square-cornered rectangle of size (sx, sy) centred at `center`, facing

@@ -8,6 +8,7 @@
 #include "hybridbrdf/render/frame.hpp"
 #include "hybridbrdf/render/image.hpp"
 #include "hybridbrdf/render/integrator.hpp"
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
 #include "hybridbrdf/render/progress.hpp"

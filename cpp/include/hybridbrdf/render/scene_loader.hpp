@@ -2,9 +2,11 @@
 #pragma once
 
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/scene.hpp"
 
 namespace hbrdf::render {
@@ -17,12 +19,24 @@ using MeasuredFactory = std::function<BatchEval(const std::string& source)>;
 
 struct SceneLoadOptions {
     MeasuredFactory measured;  ///< empty: "measured" materials are an error
+    /// Set by another thread to stop loading (checked between materials,
+    /// objects and sampler tables, and before a sky is baked): Cancelled.
+    CancelFlag cancel = nullptr;
+};
+
+/// A measured material's callback failed while rendering or while its
+/// tabulated sampler was built: "<scene>: <where>: <problem>", one line, e.g.
+/// "scene.json: materials.gold: measured material 'gold.bsdf': ValueError: ...".
+class MaterialError : public std::runtime_error {
+public:
+    explicit MaterialError(const std::string& what) : std::runtime_error(one_line_text(what)) {}
 };
 
 /// Reads a scene file. Relative paths inside it (meshes, environment maps,
 /// model files, measured sources) are resolved against the file's folder.
 /// Every problem throws FileError "<path>: <where>: <problem>", e.g.
-/// "scenes/a.json: objects[1].radius: expected a number".
+/// "scenes/a.json: objects[1].radius: expected a number", before anything
+/// large is allocated: sizes are checked against limits.hpp first.
 Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 
 /// Same, from JSON text; `origin` names it in errors, `base_dir` resolves paths.

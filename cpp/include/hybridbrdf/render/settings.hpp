@@ -16,6 +16,7 @@
 #include <string_view>
 #include <variant>
 
+#include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/material.hpp"
 
 namespace hbrdf::render {
@@ -78,7 +79,7 @@ inline constexpr SettingInfo kRenderSettings[] = {
     {"nee", &RenderSettings::nee, 0, 0, "next-event estimation toward the environment with MIS; false = BSDF sampling only"},
     {"rr_depth", &RenderSettings::rr_depth, -1, kUnbounded, "Russian roulette from this depth on; -1 = never"},
     {"seed", &RenderSettings::seed, 0, kUnbounded, "random seed"},
-    {"threads", &RenderSettings::threads, 0, kUnbounded, "worker threads; 0 = all hardware threads"},
+    {"threads", &RenderSettings::threads, 0, kMaxThreads, "worker threads; 0 = all hardware threads"},
 };
 
 /// The setting called `name`, or nullptr.

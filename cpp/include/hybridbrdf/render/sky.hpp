@@ -15,6 +15,8 @@
 // supersampled 8 x 8, so the baked image reproduces it to within ~1%.
 #pragma once
 
+#include <string>
+
 #include "hybridbrdf/render/image.hpp"
 #include "hybridbrdf/render/frame.hpp"
 
@@ -34,8 +36,19 @@ struct SkyParams {
     Vec3f sun_direction() const;
 };
 
+/// The first parameter of a sky that is out of range: `key` is its name in a
+/// scene file ("turbidity", "sun_irradiance[1]", "resolution"), `problem` the
+/// reason ("must be in [1, 10], got 12"). Both empty when all are in range.
+/// The resolution must be at least 4 x 2 and at most kMaxEnvironmentTexels
+/// (limits.hpp), radiances and albedos >= 0, every number finite.
+struct SkyProblem {
+    std::string key, problem;
+};
+SkyProblem check_sky(const SkyParams& params);
+
 /// Bakes the sky into an equirect image with the mapping of EnvironmentLight
-/// (before any rotation). Throws std::invalid_argument for out-of-range parameters.
+/// (before any rotation). Throws std::invalid_argument "<key>: <problem>"
+/// (check_sky) for out-of-range parameters, before allocating the image.
 Image make_sky_image(const SkyParams& params);
 
 }  // namespace hbrdf::render

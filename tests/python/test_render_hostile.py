@@ -1,0 +1,333 @@
+"""Hostile input and interruption for the renderer (docs/RENDERING.md, "Cancellation" and "Limits
+and validation"): Ctrl-C and SIGTERM stop ``hbrdf render`` and ``hybridbrdf.render.render()`` within
+about one tile and leave the previous output files untouched; sizes beyond the limits, negative or
+non-finite values, unwritable outputs and bad measured sources are one-line errors, raised before any
+rendering (the C++ side of the same rules: tests/cpp/test_render_hostile.cpp)."""
+
+import copy
+import json
+import os
+import select
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from hybridbrdf import _core
+from hybridbrdf import render as hr
+
+from helpers import run_cli
+
+pytestmark = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+
+
+def scene(**settings):
+    """A sphere on a floor under the sky, 20x16 pixels."""
+    s = {
+        "camera": {"position": [0, 0.5, 4], "look_at": [0, 0, 0], "fov_deg": 40, "width": 20, "height": 16},
+        "environment": {"type": "sky", "resolution": [64, 32]},
+        "materials": {"m": {"type": "analytic", "kd": 0.5, "eta": 1.5, "alpha": 0.3}},
+        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"},
+                    {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 8, "material": "m"}],
+        "spp": 1, "max_depth": 3, "threads": 2,
+    }
+    s.update(settings)
+    return s
+
+
+def slow_scene():
+    """Minutes of work (64x64 pixels, 2^20 samples each) in 16 tiles: nothing finishes by accident."""
+    s = scene(spp=1 << 20, max_depth=4)
+    s["camera"].update(width=64, height=64)
+    return s
+
+
+def old_outputs(tmp_path):
+    """Existing output files with known bytes, as a previous render would have left them."""
+    exr, png = tmp_path / "o.exr", tmp_path / "o.png"
+    exr.write_bytes(b"previous exr")
+    png.write_bytes(b"previous png")
+    return exr, png
+
+
+def only_outputs_left(tmp_path, exr, png):
+    """The old files' bytes, and no temporary left behind."""
+    assert exr.read_bytes() == b"previous exr" and png.read_bytes() == b"previous png"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["o.exr", "o.png", "s.json"])
+
+
+# ---- cancellation ----------------------------------------------------------------
+
+
+def wait_for(stream, text: str, timeout: float) -> str:
+    """Read `stream` (unbuffered) until `text` appears; what was read."""
+    seen, deadline = b"", time.monotonic() + timeout
+    while text.encode() not in seen:
+        left = deadline - time.monotonic()
+        assert left > 0, f"no {text!r} within {timeout} s: {seen[-500:]!r}"
+        if select.select([stream], [], [], left)[0]:
+            chunk = os.read(stream.fileno(), 4096)
+            assert chunk, f"the process ended before {text!r}: {seen[-2000:]!r}"
+            seen += chunk
+    return seen.decode(errors="replace")
+
+
+@pytest.mark.parametrize("sig, status, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_stops_hbrdf_render_within_a_tile_and_keeps_the_old_files(tmp_path, sig, status, word):
+    exr, png = old_outputs(tmp_path)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(slow_scene()))
+    # SIGINT as an interactive shell leaves it (a background job may have inherited SIG_IGN).
+    proc = subprocess.Popen([sys.executable, "-m", "hybridbrdf.cli", "render", str(path), "-o", str(exr), "--png", str(png)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        seen = wait_for(proc.stderr, "render [", timeout=120)  # the render has started: the bar is drawn
+        time.sleep(1.0)  # inside the first tiles, which take minutes
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        _, rest = proc.communicate(timeout=30)
+        elapsed = time.monotonic() - sent
+    finally:
+        proc.kill()
+    stderr = seen + rest.decode(errors="replace")
+    assert proc.returncode == status, stderr[-2000:]
+    assert elapsed < 5.0  # measured ~0.5 s, interpreter exit included; the render itself takes minutes
+    assert stderr.splitlines()[-1] == f"hbrdf render: {word}, nothing written"
+    assert "Traceback" not in stderr
+    only_outputs_left(tmp_path, exr, png)
+
+
+@pytest.fixture
+def sigint_raises():
+    """Python's own SIGINT handler for the test (a test run started in the background inherits SIG_IGN)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def interrupt_in(seconds: float) -> dict:
+    """SIGINT to this process after `seconds`, from a timer thread; returns {'at': monotonic time}."""
+    sent = {}
+
+    def fire():
+        time.sleep(seconds)
+        sent["at"] = time.monotonic()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=fire, daemon=True).start()
+    return sent
+
+
+@pytest.mark.parametrize("material", ["analytic", "measured"])
+def test_ctrl_c_raises_keyboard_interrupt_from_render_and_writes_nothing(tmp_path, material, sigint_raises):
+    # A measured material runs Python callbacks on the worker threads: they share the GIL with the
+    # thread that watches for signals.
+    (tmp_path / "s.json").write_text("{}")
+    exr, png = old_outputs(tmp_path)
+    s = slow_scene()
+    if material == "measured":
+        s["materials"]["m"] = {"type": "measured", "source": "synthetic:gold"}
+    sent = interrupt_in(1.0)
+    with pytest.raises(KeyboardInterrupt):
+        hr.render(s, out=str(exr), png=str(png))
+    assert time.monotonic() - sent["at"] < 1.0  # measured: 6-12 ms
+    only_outputs_left(tmp_path, exr, png)
+
+
+def test_ctrl_c_stops_a_tabulated_sampler_build(sigint_raises):
+    # Building a tabulated sampler from a Python reader takes ~10 s; it checks the flag per batch.
+    s = scene(sampler="tabulated")
+    s["materials"]["m"] = {"type": "measured", "source": "synthetic:gold"}
+    sent = interrupt_in(0.5)
+    with pytest.raises(KeyboardInterrupt):
+        hr.render(s)
+    assert time.monotonic() - sent["at"] < 1.0  # measured: ~40 ms
+
+
+def test_keyboard_interrupt_in_a_measured_callable_cancels_the_render():
+    def factory(source):
+        def f(wi, wo):
+            raise KeyboardInterrupt
+        return f
+
+    s = scene()
+    s["materials"]["m"] = {"type": "measured", "source": "synthetic:x"}
+    with pytest.raises(KeyboardInterrupt):
+        hr.render(s, measured_factory=factory)
+
+
+# ---- sizes -------------------------------------------------------------------------
+
+
+def fails_fast(s, match, **kwargs):
+    """render() raises ValueError matching `match`, in well under a second (nothing was allocated)."""
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match=match):
+        hr.render(s, **kwargs)
+    assert time.monotonic() - t0 < 0.5
+
+
+def test_huge_films_and_skies_are_errors_with_an_estimate_not_memory_errors():
+    s = scene()
+    s["camera"].update(width=100000, height=100000)
+    fails_fast(s, r"^<scene dict>: camera: width x height = 100000 x 100000 = 10000000000 pixels need ~120 GB of film "
+                  r"\(limit 134217728 pixels, e.g. 16384 x 8192\)$")
+    fails_fast(scene(), r"camera: width x height = 200000 x 100000 .* need ~240 GB of film", width=200000, height=100000)
+    s = scene(environment={"type": "sky", "resolution": [100000, 50000]})
+    fails_fast(s, r"^<scene dict>: environment.resolution: 100000 x 50000 = 5000000000 pixels need ~140 GB")
+    s = scene(environment={"type": "sky", "resolution": [64.5, 32]})
+    fails_fast(s, r"environment.resolution\[0\]: expected an integer, got 64.5")
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("spp", 4294967297, "spp: must be <= 2147483647, got 4294967297"),
+    ("max_depth", -1, "max_depth: must be >= 0, got -1"),
+    ("threads", 4096, "threads: must be <= 1024, got 4096"),
+])
+def test_integer_settings_are_bounded_not_narrowed(key, value, message):
+    fails_fast(scene(**{key: value}), f"^<scene dict>: {message}$")  # in the scene
+    with pytest.raises(ValueError, match=f"^{message}$"):  # as an override
+        hr.render(scene(), **{key: value})
+
+
+def test_integer_flags_are_bounded_not_narrowed(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(scene()))
+    r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--spp", "4294967297")
+    assert r.returncode == 1 and r.stderr == "hbrdf render: error: spp: must be <= 2147483647, got 4294967297\n"
+    assert not (tmp_path / "o.exr").exists()
+
+
+# ---- values ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("environment, message", [
+    ({"type": "sky", "scale": -1}, "environment.scale: must be >= 0, got -1"),
+    ({"type": "constant", "radiance": [1, -1, 1]}, r"environment.radiance\[1\]: must be >= 0, got -1"),
+    ({"type": "constant", "radiance": 1, "scale": 1e300}, r"environment.scale: must be within \+-3.40282e\+38, got 1e\+300"),
+    ({"type": "constant", "radiance": 1e30, "scale": 1e30}, "environment: scale: 1e\\+30 x the brightest texel"),
+    ({"type": "sky", "ground_albedo": -0.2}, "environment.ground_albedo: must be >= 0, got -0.2"),
+    ({"type": "sky", "sun_irradiance": [5, 5, -5]}, r"environment.sun_irradiance\[2\]: must be >= 0, got -5"),
+    ({"type": "sky", "sky_intensity": -1}, "environment.sky_intensity: must be >= 0, got -1"),
+    ({"type": "sky", "turbidity": 0}, r"environment.turbidity: must be in \[1, 10\], got 0"),
+    ({"type": "sky", "sun_size_deg": 1e-30}, "environment.sun_size_deg: is too small for sun_irradiance"),
+])
+def test_negative_and_overflowing_radiances_are_errors_naming_the_key(environment, message):
+    fails_fast(scene(environment=environment), f"^<scene dict>: {message}")
+
+
+def test_python_nan_and_inf_are_rejected():
+    # json.dumps writes NaN/Infinity, which is not JSON: the scene is refused, not rendered black.
+    for bad in (float("nan"), float("inf")):
+        s = scene()
+        s["environment"]["scale"] = bad
+        with pytest.raises(ValueError, match=r"^<scene dict>: invalid JSON"):
+            hr.render(s)
+    with pytest.raises(ValueError, match=r"^neural_min_throughput: expected a finite number, got nan$"):
+        hr.render(scene(), neural_min_throughput=float("nan"))
+
+
+def test_malformed_meshes_are_errors_not_crashes(tmp_path):
+    # An out-of-range face index crashed the process in assimp's post-processing (SIGSEGV).
+    (tmp_path / "bad.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                      "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
+    s = scene()
+    s["objects"].append({"type": "mesh", "file": "bad.ply", "material": "m"})
+    (tmp_path / "s.json").write_text(json.dumps(s))
+    with pytest.raises(ValueError, match=r"s\.json: objects\[2\]\.file: .*bad\.ply: cannot read the mesh: .*out of range"):
+        hr.render(str(tmp_path / "s.json"))
+
+
+# ---- outputs -----------------------------------------------------------------------
+
+
+def unwritable_folder(tmp_path):
+    """A folder in which files cannot be created, even by root (who ignores permission bits), or a skip."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    for candidate in (str(ro), "/sys", "/proc"):
+        try:
+            with open(os.path.join(candidate, "probe.tmp"), "wb"):
+                pass
+            os.remove(os.path.join(candidate, "probe.tmp"))
+        except OSError:
+            return candidate
+    pytest.skip("no unwritable folder on this machine")
+
+
+def test_unusable_outputs_fail_before_the_render(tmp_path):
+    s = slow_scene()  # minutes of work: the errors must come before it
+    (tmp_path / "file").write_text("a file")
+    fails_fast(s, f"^{tmp_path}: is a folder, expected a file name$", out=str(tmp_path))
+    fails_fast(s, f"^{tmp_path}/file/o.exr: {tmp_path}/file is a file, not a folder$", out=str(tmp_path / "file" / "o.exr"))
+    fails_fast(s, f"^{tmp_path}/file/a/o.png: cannot create the folder {tmp_path}/file/a \\(Not a directory\\)$",
+               png=str(tmp_path / "file" / "a" / "o.png"))
+    folder = unwritable_folder(tmp_path)
+    fails_fast(s, f"^{folder}/o.exr: cannot create files in {folder} \\(", out=f"{folder}/o.exr")
+    fails_fast(s, "the EXR and the PNG output are the same file", out=str(tmp_path / "x"), png=str(tmp_path / "x"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "ro"]
+
+
+def test_cli_output_errors_are_one_line_and_come_before_the_render(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(slow_scene()))
+    t0 = time.monotonic()
+    r = run_cli("render", str(path), "-o", str(tmp_path), "--quiet")
+    # The interpreter start (importing torch) is most of this; the render would take minutes.
+    assert time.monotonic() - t0 < 30
+    assert r.returncode == 1 and r.stderr == f"hbrdf render: error: {tmp_path}: is a folder, expected a file name\n"
+
+
+# ---- measured sources --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("write, problem", [
+    (None, "missing.binary: no such file"),
+    (lambda p: p.write_bytes(struct.pack("<3i", 90, 90, 180) + bytes(100)), "missing.binary: truncated MERL file"),
+])
+def test_bad_measured_sources_are_one_line_naming_scene_key_and_problem(tmp_path, write, problem):
+    if write:
+        write(tmp_path / "missing.binary")
+    s = scene()
+    s["materials"]["m"] = {"type": "measured", "source": "missing.binary"}
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(s))
+    r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--quiet")
+    assert r.returncode == 1
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr and "At:" not in r.stderr
+    assert r.stderr.startswith(f"hbrdf render: error: {path}: materials.m.source: {tmp_path}/{problem}")
+
+
+def test_a_failing_measured_callable_names_the_scene_and_the_material():
+    def factory(source):
+        def f(wi, wo):
+            raise ZeroDivisionError("reader exploded\nsecond line")
+        return f
+
+    s = scene()
+    s["materials"]["m"] = {"type": "measured", "source": "synthetic:x"}
+    with pytest.raises(hr.RenderMaterialError) as info:
+        hr.render(s, measured_factory=factory)
+    assert isinstance(info.value, RuntimeError)
+    assert str(info.value) == ("<scene dict>: materials.m: measured material 'synthetic:x': eval(wi, wo) raised "
+                               "ZeroDivisionError: reader exploded second line")
+
+
+def test_a_measured_factory_error_is_one_line():
+    def factory(source):
+        raise OSError(2, "No such file or directory", source)
+
+    s = scene()
+    s["materials"]["m"] = {"type": "measured", "source": "x.bsdf"}
+    with pytest.raises(ValueError) as info:
+        hr.render(s, measured_factory=factory)
+    assert "\n" not in str(info.value)
+    assert str(info.value).startswith("<scene dict>: materials.m.source: [Errno 2] No such file or directory: ")
