@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
+
+from hybridbrdf import spec
 
 EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
           "or synthetic:NAME (synthetic:all = every built-in material).")
@@ -86,17 +89,61 @@ def fit_synopsis() -> str:
     return "\n".join(lines)
 
 
+def _check_fit_outputs(args: argparse.Namespace) -> None:
+    """--out and --checkpoint: writable, and not the same file (the model would replace the
+    checkpoint a later --resume needs). Raises InputFileError naming the path."""
+    import os
+
+    from hybridbrdf.errors import InputFileError
+    from hybridbrdf.util import check_writable
+
+    check_writable(args.out, "model")
+    if args.checkpoint:
+        if os.path.realpath(args.checkpoint) == os.path.realpath(args.out):
+            raise InputFileError(args.out, "--out and --checkpoint name the same file")
+        check_writable(args.checkpoint, "checkpoint")
+    elif args.resume:
+        raise ValueError("--resume needs --checkpoint FILE")
+
+
+def _check_out_is_no_source(out: str, sources) -> None:
+    """Refuse to write the model over one of the files it is fitted to."""
+    import os
+
+    from hybridbrdf.errors import InputFileError
+
+    target = os.path.realpath(out)
+    for src in sources:
+        if src.path and os.path.realpath(src.path) == target:
+            raise InputFileError(out, "--out names one of the sources; the model would overwrite it")
+
+
 def _cmd_fit(args: argparse.Namespace) -> int:
-    from hybridbrdf.fitting import fit, format_table
+    import os
+
+    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fitting import fit, format_table, frozen_arch_settings
     from hybridbrdf.model_file import load_model
 
     settings = settings_from_args(args)
     settings.check()
+    # Whatever can fail without the sources fails before they are opened and evaluated (which,
+    # with the training itself, is the expensive part): outputs, the frozen model, the checkpoint.
+    _check_fit_outputs(args)
     frozen = load_model(settings.frozen_from) if settings.frozen_from else None
+    if frozen is not None:
+        frozen_arch_settings(settings, frozen)
+    if args.resume and os.path.exists(args.checkpoint):
+        ckpt.load(args.checkpoint, settings)  # fit() restores it; this only fails early
     sources = _open_all(args.sources)
+    _check_out_is_no_source(args.out, sources)
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    model = fit(sources, settings, frozen=frozen, checkpoint=args.checkpoint, checkpoint_every=args.checkpoint_every,
-                resume=args.resume, progress=not args.quiet, log=log, compile_step=args.compile)
+    try:
+        model = fit(sources, settings, frozen=frozen, checkpoint=args.checkpoint,
+                    checkpoint_every=args.checkpoint_every, resume=args.resume, progress=not args.quiet, log=log,
+                    compile_step=args.compile)
+    except MemoryError:
+        raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
     model.save(args.out)
     rows = [dict(material=m["name"], origin=m["origin"], **m["metrics"]) for m in model.material_info]
     print(format_table(rows, settings.eval_pairs))
@@ -107,11 +154,19 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
+    from hybridbrdf.fit_settings import PAIRS
     from hybridbrdf.fitting import evaluate, format_extended_table, format_table
     from hybridbrdf.model_file import load_model
 
+    problem = PAIRS.problem(args.pairs)  # the range of fit's --eval-pairs (argparse takes counts up to 1e9)
+    if problem:
+        raise ValueError(f"--pairs {problem}")
+    # eval writes no file: its inputs are checked by load_model and the readers.
     model = load_model(args.model)
-    rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs, extended=args.all_metrics)
+    try:
+        rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs, extended=args.all_metrics)
+    except MemoryError:
+        raise ValueError(f"out of memory for {args.pairs} pairs; lower --pairs") from None
     print(format_table(rows, args.pairs))
     if args.all_metrics:
         print()
@@ -119,37 +174,52 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _shown(value) -> str:
+    """A value from a model file's free-form records (training, metrics, origin) as ``hbrdf
+    info`` prints it: floats with 6 significant digits, anything else as one printable line.
+    Those records are informative, not part of the contract, so no value of them may stop info."""
+    from hybridbrdf.errors import one_line_text
+
+    if isinstance(value, (bool, int)):
+        return str(value)
+    if isinstance(value, float):
+        text = f"{value:.6g}"
+        return text if any(c in text for c in ".enia") else text + ".0"  # a float still reads as one
+    return one_line_text(value if isinstance(value, str) else json.dumps(value, default=str)[:200])
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     from hybridbrdf.model_file import load_model
 
     model = load_model(args.model)
     a = model.arch
-    h = model.header()
-    print(f"{args.model}: hybridbrdf model, format {h['format_version']}, conventions {h['conventions_version']}, "
-          f"written by hybridbrdf {h['library_version']}")
+    written_by = getattr(model, "written_by", None)
+    print(f"{args.model}: hybridbrdf model, format {spec.FORMAT_VERSION}, conventions {spec.CONVENTIONS_VERSION}"
+          + (f", written by hybridbrdf {_shown(written_by)}" if written_by is not None else ""))
     print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "
           f"{a['n_in']} inputs -> {a['n_out']} outputs")
     n_net = sum(v.size for k, v in model.tensors.items() if not k.startswith("materials."))
     print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
-    t = model.training
+    t = model.training if isinstance(model.training, dict) else {}
     if t:
         sections = ("training", "run") + (("sparse",) if t.get("frozen_from") else ())  # sparse_init: sparse fits only
         print(_settings_line("training", t, sections, RECORDED_TIMINGS))
         print(_settings_line("loss", t, ("loss",)))
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
-        line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {m.get('origin', '')}"
+        line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {_shown(m.get('origin', ''))}"
         if model.kind != "neural":
             p = model.analytic_params(m["name"])
             line += (f"\n      kd {p.kd.round(4).tolist()} eta {p.eta.round(4).tolist()} "
                      f"alpha {p.alpha.round(5).tolist()}")
-        met = m.get("metrics") or {}
-        if met:
-            line += "\n      " + ", ".join(f"{k} {v:.4g}" for k, v in met.items() if isinstance(v, (int, float)))
+        met = m.get("metrics")
+        if isinstance(met, dict) and met:
+            line += "\n      " + ", ".join(f"{_shown(k)} {_shown(v)}" for k, v in met.items()
+                                           if isinstance(v, (int, float)) and not isinstance(v, bool))
         st = m.get("sparse_start")
         if isinstance(st, dict):
-            line += (f"\n      sparse fit started from {st.get('material')} "
-                     f"(smape {st.get('smape', float('nan')):.4g}, cmae {st.get('cmae', float('nan')):.4g})")
+            line += (f"\n      sparse fit started from {_shown(st.get('material'))} "
+                     f"(smape {_shown(st.get('smape'))}, cmae {_shown(st.get('cmae'))})")
         print(line)
     return 0
 
@@ -164,7 +234,7 @@ def _settings_line(title: str, recorded: dict, sections, extra=()) -> str:
 
     keys = [f.name for f in dataclasses.fields(FitSettings) if f.metadata["section"] in sections
             and f.name != "sources"] + list(extra)
-    return f"{title}: " + ", ".join(f"{k} {recorded[k]}" for k in keys if recorded.get(k) is not None)
+    return f"{title}: " + ", ".join(f"{k} {_shown(recorded[k])}" for k in keys if recorded.get(k) is not None)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -175,12 +245,38 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from hybridbrdf.render import render, settings
+    import signal
+    import threading
+
+    from hybridbrdf.render import RenderMaterialError, render, settings
 
     # One flag per scene setting (the library's table); None = keep the scene's value.
     overrides = {s["name"]: getattr(args, s["name"]) for s in settings()}
-    _, stats = render(args.scene, out=args.out, png=args.png, quiet=args.quiet, exposure=args.exposure,
-                      tonemap=args.tonemap, **overrides)
+    # SIGTERM stops the render as Ctrl-C does: the library runs Python's signal handlers while it
+    # works, and an exception from one cancels the render before any file is written.
+    terminated = []
+
+    def on_sigterm(signum, frame):
+        terminated.append(signum)
+        raise KeyboardInterrupt
+
+    in_main_thread = threading.current_thread() is threading.main_thread()  # signal.signal needs it
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread else None
+    try:
+        _, stats = render(args.scene, out=args.out, png=args.png, quiet=args.quiet, exposure=args.exposure,
+                          tonemap=args.tonemap, **overrides)
+    except KeyboardInterrupt:
+        print(f"hbrdf render: {'terminated' if terminated else 'interrupted'}, nothing written", file=sys.stderr)
+        return 128 + (signal.SIGTERM if terminated else signal.SIGINT)
+    except RenderMaterialError as exc:  # one line naming the scene and the material, as main() prints scene errors
+        print(f"hbrdf render: error: {exc}", file=sys.stderr)
+        return 1
+    except MemoryError as exc:  # the sizes a scene sets are checked up front; this is the machine's limit
+        print(f"hbrdf render: error: out of memory ({exc or 'MemoryError'})", file=sys.stderr)
+        return 1
+    finally:
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
     print(f"rendered {args.scene}: {stats['spp']} spp in {stats['seconds']:.2f} s "
           f"({stats['samples_per_second']:,.0f} samples/s, {stats['rays']:,} rays + {stats['shadow_rays']:,} shadow rays, "
           f"{stats['network_evals']:,} of {stats['brdf_evals']:,} BRDF evaluations ran the network, "
@@ -281,8 +377,10 @@ def main(argv=None) -> int:
         print(f"hbrdf {args.command}: interrupted", file=sys.stderr)
         return 130
     except (ValueError, KeyError, OSError, FloatingPointError) as exc:
+        from hybridbrdf.errors import one_line_text
+
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        print(f"hbrdf {args.command}: error: {msg}", file=sys.stderr)
+        print(f"hbrdf {args.command}: error: {one_line_text(str(msg))}", file=sys.stderr)  # one line, always
         return 1
 
 

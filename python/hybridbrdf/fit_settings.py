@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import List, Optional
 
 from hybridbrdf import spec
@@ -33,18 +33,87 @@ def _setting(default, help: str, section: str, flag: Optional[str] = None, **cli
     return field(default=default, metadata=meta)
 
 
+class Number:
+    """The range of a numeric setting, in one place for the command line and for Python.
+
+    ``Number(int, 1, 10**9)(text)`` is an argparse type: it parses ``text`` ("2e4" allowed for
+    integers) and raises ``argparse.ArgumentTypeError`` (argparse prints one line) for inf, nan,
+    fractions and values outside the range; :meth:`problem` is the same check of a value set
+    from Python or read from a checkpoint (:meth:`FitSettings.check`). Every number is finite:
+    inf and nan mean nothing in a fit setting and would surface hours later as an
+    OverflowError or a NaN loss."""
+
+    def __init__(self, kind: type, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False):
+        self.kind, self.lo, self.hi, self.lo_open, self.hi_open = kind, lo, hi, lo_open, hi_open
+
+    def describe(self) -> str:
+        """The range in words: "an integer in [1, 1000000000]", "a number > 0"."""
+        noun = "an integer" if self.kind is int else "a number"
+        fmt = str if self.kind is int else (lambda v: f"{v:g}")
+        if math.isinf(self.hi):
+            return f"{noun} {'>' if self.lo_open else '>='} {fmt(self.lo)}"
+        return (f"{noun} in {'(' if self.lo_open else '['}{fmt(self.lo)}, "
+                f"{fmt(self.hi)}{')' if self.hi_open else ']'}")
+
+    def problem(self, value) -> Optional[str]:
+        """Why ``value`` is not in the range ("must be ..., got ..."), or None."""
+        ok_type = isinstance(value, int) if self.kind is int else isinstance(value, (int, float))
+        if isinstance(value, bool) or not ok_type:
+            return f"must be {self.describe()}, got {value!r}"
+        if not math.isfinite(value):
+            return f"must be {self.describe()}, got {value!r}"
+        below = value <= self.lo if self.lo_open else value < self.lo
+        above = value >= self.hi if self.hi_open else value > self.hi
+        return f"must be {self.describe()}, got {value!r}" if below or above else None
+
+    def __call__(self, text: str):
+        try:
+            value = self._parse(text)
+        except (ValueError, OverflowError):
+            value = None
+        if value is None or self.problem(value):
+            raise argparse.ArgumentTypeError(f"expected {self.describe()}, got {text!r}")
+        return value
+
+    def _parse(self, text: str):
+        if self.kind is float:
+            return float(text)
+        try:
+            return int(text)
+        except ValueError:
+            v = float(text)  # "2e4"; inf and nan fail below, fractions too
+            if not math.isfinite(v) or v != int(v):
+                raise ValueError(text) from None
+            return int(v)
+
+
+#: The largest count any integer flag takes (steps, --checkpoint-every, --pairs): far beyond any
+#: real run (the paper trained 200k steps) and small enough that no count overflows a torch
+#: index or a float64 schedule.
+MAX_COUNT = 10 ** 9
+STEPS = Number(int, 1, MAX_COUNT)
+#: Direction pairs per step: 2^24 pairs x materials already needs gigabytes for the network's activations.
+BATCH = Number(int, 1, 1 << 24)
+#: Training pool pairs: 2^30 x 3 float32 values per source is 12 GiB a material.
+POOL = Number(int, 1, 1 << 30)
+#: Metric pairs: 10^8 pairs take ~10 GiB of float64 directions and values (CONVENTIONS uses 10^6).
+PAIRS = Number(int, 1, 10 ** 8)
+LATENT = Number(int, 0, spec.MAX_LATENT)
+#: Seeds NumPy and torch both take.
+SEED = Number(int, 0, 2 ** 32 - 1)
+POSITIVE = Number(float, 0.0, math.inf, lo_open=True)
+NON_NEGATIVE = Number(float, 0.0, math.inf)
+UNIT = Number(float, 0.0, 1.0)
+EXPECTILE = Number(float, 0.5, 1.0, hi_open=True)
+SPECULAR_ALPHA = Number(float, 0.0, 1.0, lo_open=True)
+#: f_c starts at exp(fc_init): above the pre-exp clamp it would be clamped, below -80 it is 0 in float32.
+FC_INIT = Number(float, -spec.PRE_EXP_MAX_LIMIT, spec.PRE_EXP_MAX)
+
+
 def positive_int(text: str) -> int:
-    """argparse type: a positive integer ("2e4" allowed); rejects inf, nan and fractions."""
-    try:
-        v = float(text)
-        if not math.isfinite(v) or v != int(v):
-            raise ValueError
-        v = int(v)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
+    """argparse type: a positive integer up to :data:`MAX_COUNT` ("2e4" allowed); rejects inf,
+    nan, fractions and larger values with a one-line error."""
+    return STEPS(text)
 
 
 @dataclass
@@ -61,28 +130,28 @@ class FitSettings:
     width: int = _setting(32, "hidden layers as WIDTHxDEPTH (default: 32x3)", "network", "--mlp", metavar="WxD")
     depth: int = _setting(3, "set by --mlp", "network")
     latent: int = _setting(4, "latent dimensions per material (default: 4, or 12 for --arch neural)", "network",
-                           "--latent", type=int)
+                           "--latent", type=LATENT)
     activation: str = _setting("hardgelu", "hidden activation (default: %(default)s)", "network", "--activation",
                                choices=ACTIVATIONS)
-    steps: int = _setting(2000, "optimiser steps (default: %(default)s)", "training", "--steps", type=positive_int)
+    steps: int = _setting(2000, "optimiser steps (default: %(default)s)", "training", "--steps", type=STEPS)
     batch: int = _setting(1024, "direction pairs per step (default: %(default)s)", "training", "--batch",
-                          type=positive_int)
+                          type=BATCH)
     lr: float = _setting(5e-3, "AdamW learning rate, cosine-decayed (default: %(default)s)", "training", "--lr",
-                         type=float)
+                         type=POSITIVE)
     clip: float = _setting(0.01, "gradient-norm clipping (the paper's 0.01)", "training")
     weight_decay: float = _setting(
         0.01, "AdamW weight decay of the shared network (not of p or z) (default: %(default)s, torch's default, "
-        "which the paper's AdamW implies)", "training", "--weight-decay", type=float)
-    seed: int = _setting(0, "random seed (default: %(default)s)", "training", "--seed", type=int)
+        "which the paper's AdamW implies)", "training", "--weight-decay", type=NON_NEGATIVE)
+    seed: int = _setting(0, "random seed (default: %(default)s)", "training", "--seed", type=SEED)
     pool: int = _setting(1 << 18, "direction pairs in the training pool, evaluated once per source "
-                         "(default: %(default)s)", "training", "--pool", type=positive_int)
+                         "(default: %(default)s)", "training", "--pool", type=POOL)
     eval_pairs: int = _setting(100_000, "pairs for the metrics stored with the model (default: %(default)s; "
-                               "CONVENTIONS uses 1e6)", "training", "--eval-pairs", type=positive_int)
+                               "CONVENTIONS uses 1e6)", "training", "--eval-pairs", type=PAIRS)
     #: epsilon of the loss log(eps + cos f); 1 is the paper's log(1 + cos f). Smaller values make the
     #: loss relative in dark regions (see docs/FITTING.md, "Dark regions").
     loss_eps: float = _setting(1.0, "epsilon of the loss log(eps + cos f); 1 = the paper's log(1 + cos f), smaller "
                                "values weigh relative errors in dark regions (default: %(default)s)", "loss",
-                               "--loss-eps", type=float)
+                               "--loss-eps", type=POSITIVE)
     #: scale the loss epsilon per material by its mean cos f_ref over the cosine-weighted pool pairs
     #: (eps_m = loss_eps * mean cos f_ref), which makes the loss invariant to a material's brightness.
     #: See docs/FITTING.md, "Dark materials".
@@ -96,7 +165,7 @@ class FitSettings:
     analytic_loss_eps: Optional[float] = _setting(
         None, "epsilon of the analytic term L(f_ref, f_a) of the loss (default: --loss-eps); an ablation knob: a "
         "larger value lets f_a drift and costs the hybrid too (docs/FITTING.md)", "loss", "--analytic-loss-eps",
-        type=float, metavar="EPS")
+        type=POSITIVE, metavar="EPS")
     #: weigh f by cos(theta_i) inside the loss, log(eps + cos f), as the paper does. False fits
     #: log(eps + f): grazing pairs, whose cos f falls below eps, then keep their relative weight
     #: (docs/FITTING.md, "Grazing angles"); with ``loss_eps_relative`` eps then scales with mean f.
@@ -111,18 +180,18 @@ class FitSettings:
     analytic_expectile: float = _setting(
         0.5, "expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data more, "
         "fitting an upper envelope the gate can dim (default: %(default)s, the paper's loss)", "loss",
-        "--analytic-expectile", type=float)
+        "--analytic-expectile", type=EXPECTILE)
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
     #: sampling. See docs/FITTING.md, "Specular pairs".
     specular: float = _setting(0.0, "fraction of the training pool drawn around the mirror direction instead of "
                                "cosine-weighted; weighs the specular peaks that dominate cMAE (default: %(default)s, "
-                               "the paper's sampling)", "loss", "--specular", type=float)
+                               "the paper's sampling)", "loss", "--specular", type=UNIT)
     specular_alpha: float = _setting(0.1, "GGX roughness of the half-vector distribution of --specular pairs "
-                                     "(default: %(default)s)", "loss", "--specular-alpha", type=float)
+                                     "(default: %(default)s)", "loss", "--specular-alpha", type=SPECULAR_ALPHA)
     #: initial pre-exp bias of the hybrid correction f_c (f_c starts at exp(fc_init)).
     fc_init: float = _setting(-4.0, "initial pre-exp bias of the hybrid correction f_c = exp(o) "
-                              "(default: %(default)s)", "loss", "--fc-init", type=float)
+                              "(default: %(default)s)", "loss", "--fc-init", type=FC_INIT)
     #: where sparse fitting (``frozen=``) starts each new material's (p, z): "nearest" copies the
     #: frozen model's material whose (p, z) has the lowest training loss on the new material's
     #: pool; "neutral" starts from the joint fit's grey rough dielectric with z ~ 0. See
@@ -136,37 +205,35 @@ class FitSettings:
                                           "sources", "sparse", "--frozen", metavar="MODEL")
 
     def check(self) -> None:
-        for name in ("width", "depth", "steps", "batch", "pool", "eval_pairs"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.latent < 0:
-            raise ValueError(f"latent must be >= 0, got {self.latent}")
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f"lr must be positive, got {self.lr}")
-        if not (self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
-            raise ValueError(f"weight_decay must be >= 0, got {self.weight_decay}")
-        if not (self.loss_eps > 0 and math.isfinite(self.loss_eps)):
-            raise ValueError(f"loss_eps must be positive, got {self.loss_eps}")
-        if self.analytic_loss_eps is not None and not (self.analytic_loss_eps > 0
-                                                       and math.isfinite(self.analytic_loss_eps)):
-            raise ValueError(f"analytic_loss_eps must be positive, got {self.analytic_loss_eps}")
-        if not 0.5 <= self.analytic_expectile < 1.0:
-            raise ValueError(f"analytic_expectile must be in [0.5, 1), got {self.analytic_expectile}")
-        if not 0.0 <= self.specular <= 1.0:
-            raise ValueError(f"specular must be in [0, 1], got {self.specular}")
-        if not (0.0 < self.specular_alpha <= 1.0):
-            raise ValueError(f"specular_alpha must be in (0, 1], got {self.specular_alpha}")
-        if self.sparse_init not in SPARSE_INITS:
-            raise ValueError(f"sparse_init must be one of {', '.join(SPARSE_INITS)}, got {self.sparse_init!r}")
+        """Raise ValueError naming the first setting out of its range (the flags' own ranges,
+        :class:`Number`, and the model contract's size limits)."""
+        for f in fields(self):
+            rng = f.metadata.get("cli", {}).get("type")
+            value = getattr(self, f.name)
+            if isinstance(rng, Number) and value is not None:
+                problem = rng.problem(value)
+                if problem:
+                    raise ValueError(f"{f.name} {problem}")
+        for name, limit in (("width", spec.MAX_WIDTH), ("depth", spec.MAX_DEPTH)):
+            problem = Number(int, 1, limit).problem(getattr(self, name))
+            if problem:
+                raise ValueError(f"{name} {problem}")
+        problem = POSITIVE.problem(self.clip)
+        if problem:
+            raise ValueError(f"clip {problem}")
+        for name, choices in (("arch", ARCHS), ("activation", ACTIVATIONS), ("sparse_init", SPARSE_INITS)):
+            if getattr(self, name) not in choices:
+                raise ValueError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
 
 
 def parse_mlp(text: str):
-    """'32x3' -> (width 32, depth 3)."""
+    """'32x3' -> (width 32, depth 3), within the model contract's limits."""
     try:
         w, d = text.lower().split("x")
         width, depth = int(w), int(d)
     except ValueError:
         raise ValueError(f"--mlp must look like WIDTHxDEPTH (e.g. 32x3), got {text!r}") from None
-    if width < 1 or depth < 1:
-        raise ValueError(f"--mlp needs positive width and depth, got {text!r}")
+    if not (1 <= width <= spec.MAX_WIDTH and 1 <= depth <= spec.MAX_DEPTH):
+        raise ValueError(f"--mlp needs a width in [1, {spec.MAX_WIDTH}] and a depth in [1, {spec.MAX_DEPTH}], "
+                         f"got {text!r}")
     return width, depth

@@ -21,7 +21,6 @@ model's best-fitting material (FitSettings.sparse_init).
 from __future__ import annotations
 
 import dataclasses
-import io
 import math
 import os
 import time
@@ -31,12 +30,14 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 import torch
 
+from hybridbrdf import checkpoint as ckpt
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.metrics import cmae, cosine_hemisphere, metric_directions, smape
 from hybridbrdf.model_file import HybridModel
 from hybridbrdf.models import build_model
+from hybridbrdf.names import name_problem, names_problem
 from hybridbrdf.sources.base import BRDFSource
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.util import check_writable
 
 
 from hybridbrdf.fit_settings import SPARSE_INITS, FitSettings, positive_int  # noqa: F401  (re-exported)
@@ -136,6 +137,16 @@ def material_names(sources: Sequence[BRDFSource]) -> List[str]:
     dupes = sorted({n for n in out if out.count(n) > 1})
     if dupes:
         raise ValueError(f"two sources share the material name(s) {', '.join(dupes)}; names must be unique")
+    # The model contract's name rule (hybridbrdf.names), checked before any training: a name the
+    # loaders would refuse must not cost a fit. Names come from file names, so the error names the file.
+    for src, name in zip(sources, out):
+        problem = name_problem(name)
+        if problem:
+            raise InputFileError(src.path or name, f"material name '{name}' breaks the rule: {problem} "
+                                                   f"(rename the file)")
+    problem = names_problem(out)
+    if problem:
+        raise ValueError(f"{problem}; rename one of the files")
     return out
 
 
@@ -236,16 +247,24 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
 
 
 def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSettings, names: List[str],
-                     train_seconds: float, timed_from_step: int) -> None:
-    buf = io.BytesIO()
+                     train_seconds: float, timed_from_step: int, gen: torch.Generator) -> None:
     # train_seconds: training time of the steps from timed_from_step on (0 unless the fit once
     # resumed a checkpoint that kept no time), so that a resumed fit records the time of the
-    # whole fit, not of its last segment.
-    torch.save({"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                "step": step, "settings": dataclasses.asdict(settings), "names": names,
-                "torch_rng": torch.get_rng_state(), "train_seconds": float(train_seconds),
-                "timed_from_step": int(timed_from_step)}, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    # whole fit, not of its last segment. batch_rng: the batch generator's state, so that a
+    # resume continues the batch sequence without replaying it (docs/FITTING.md, "Checkpoints").
+    ckpt.save(path, {"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                     "step": step, "settings": dataclasses.asdict(settings), "names": names,
+                     "torch_rng": torch.get_rng_state(), "batch_rng": gen.get_state(),
+                     "train_seconds": float(train_seconds), "timed_from_step": int(timed_from_step)})
+
+
+def frozen_arch_settings(settings: FitSettings, frozen: HybridModel) -> FitSettings:
+    """Set ``settings``' network fields (arch, width, depth, latent, activation) to those of the
+    frozen model a sparse fit keeps; returns ``settings``."""
+    a = frozen.arch
+    settings.arch, settings.width, settings.depth = a["kind"], a["width"], a["depth"]
+    settings.latent, settings.activation = a["latent"], a["activation"]
+    return settings
 
 
 def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel] = None,
@@ -264,6 +283,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     and backward passes; docs/FITTING.md, "Training speed"). The first step then takes
     the compilation time (recorded as ``compile_seconds``); the result differs from an
     eager fit only by float rounding, and a checkpoint resumes either way.
+
+    Before any source is evaluated, ``checkpoint`` must be writable and, when resumed, pass
+    every check of :mod:`hybridbrdf.checkpoint` (checksum, structure, settings, step, finite
+    values, shapes); otherwise :class:`~hybridbrdf.errors.InputFileError` naming the file.
     """
     if stop_after is not None and not checkpoint:
         raise ValueError("stop_after needs a checkpoint file to stop into")
@@ -275,9 +298,15 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     iso = [bool(s.isotropic) for s in sources]
 
     if frozen is not None:
-        a = frozen.arch
-        settings.arch, settings.width, settings.depth = a["kind"], a["width"], a["depth"]
-        settings.latent, settings.activation = a["latent"], a["activation"]
+        frozen_arch_settings(settings, frozen)
+    if checkpoint:
+        check_writable(checkpoint, "checkpoint")
+    saved = None
+    if resume and checkpoint and os.path.exists(checkpoint):
+        # Before any expensive work: a checkpoint that cannot be resumed must not cost the pool.
+        saved, checksummed = ckpt.load(checkpoint, settings)
+        if not checksummed:
+            log(f"{checkpoint}: checkpoint from an earlier hybridbrdf has no checksum; damage cannot be detected")
     module = build_model(settings.arch, len(sources), settings.width, settings.depth, settings.latent,
                          settings.activation, iso)
     if settings.arch in ("hybrid", "analytic-input") and frozen is None:
@@ -287,39 +316,29 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
         module.load_state_dict(state, strict=False)
 
-    pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None,
-                        settings.specular, settings.specular_alpha).to(settings.device)
     module.to(settings.device)
     opt, sched = _optimizer(module, settings, frozen is not None)
+    gen = torch.Generator(device="cpu").manual_seed(settings.seed)
     start = 0
     # Training time of the steps from ``timed_from`` to ``start`` (from the checkpoint). A
     # checkpoint that predates that record kept no time: the clock then starts at the resume.
     earlier_seconds, timed_from = 0.0, 0
-    if resume and checkpoint and os.path.exists(checkpoint):
-        state = torch.load(checkpoint, map_location=settings.device, weights_only=True)
-        if state["names"] != names:
-            raise InputFileError(checkpoint, "checkpoint was written for other materials; refusing to resume")
-        defaults = dataclasses.asdict(FitSettings())  # settings added after the checkpoint was written
-        saved = {k: v for k, v in {**defaults, **state["settings"]}.items()
-                 if k not in ("sources", "device", "eval_pairs")}
-        mine = {k: v for k, v in dataclasses.asdict(settings).items() if k not in ("sources", "device", "eval_pairs")}
-        if saved != mine:
-            diff = ", ".join(f"{k}: {saved.get(k)!r} -> {mine.get(k)!r}" for k in mine if saved.get(k) != mine.get(k))
-            raise InputFileError(checkpoint, f"checkpoint was written with other settings ({diff})")
-        module.load_state_dict(state["module"])
-        opt.load_state_dict(state["optimizer"])
-        sched.load_state_dict(state["scheduler"])
-        torch.set_rng_state(state["torch_rng"])
-        start = int(state["step"])
-        if "train_seconds" in state:
-            earlier_seconds, timed_from = float(state["train_seconds"]), int(state["timed_from_step"])
+    if saved is not None:
+        ckpt.restore(checkpoint, saved, names, module, opt, sched)
+        start = saved["step"]
+        if "train_seconds" in saved:
+            earlier_seconds, timed_from = float(saved["train_seconds"]), saved["timed_from_step"]
         else:
             timed_from = start
+        if "batch_rng" in saved:
+            gen.set_state(saved["batch_rng"])
+        else:  # an older checkpoint: replay its batches (start <= steps: checked)
+            for _ in range(start):
+                torch.randint(0, settings.pool, (settings.batch,), generator=gen)
         log(f"resuming from {checkpoint} at step {start}")
-
-    gen = torch.Generator(device="cpu").manual_seed(settings.seed)
-    for _ in range(start):  # keep the batch sequence identical to an uninterrupted run
-        torch.randint(0, settings.pool, (settings.batch,), generator=gen)
+    # After the checkpoint: evaluating every source on the pool is the expensive part of the set-up.
+    pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None,
+                        settings.specular, settings.specular_alpha).to(settings.device)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -373,7 +392,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         if checkpoint and (stopping or ((step + 1) % checkpoint_every == 0 and step + 1 < settings.steps)):
             # Once per step even where stop_after falls on a regular checkpoint.
             _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
-                             earlier_seconds + time.perf_counter() - t0, timed_from)
+                             earlier_seconds + time.perf_counter() - t0, timed_from, gen)
         if stopping:
             if bar is not None:
                 bar.close()

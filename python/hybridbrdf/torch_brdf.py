@@ -2,8 +2,12 @@
 
 Same formulas and the same guards as the C++ library (docs/CONVENTIONS.md),
 written with ``torch.where`` so that it stays branch-free and, for training,
-keeps gradients finite: invalid directions are replaced by +z *before* any
-arithmetic (the "double where" pattern), so no NaN reaches the backward pass.
+keeps gradients finite: invalid and below-horizon directions are replaced by +z
+*before* any arithmetic (the "safe where" pattern: masking only the output would
+still send inf * 0 = NaN through the backward pass of the masked rows), square
+roots never see 0 where their derivative matters, and normalisation has a
+backward of its own that cannot overflow. For valid inputs the forward values
+are those of the plain formulas, bit for bit.
 
 Shapes: directions ``(..., 3)``; ``kd``/``eta`` ``(..., 3)`` and ``alpha``
 ``(..., 2)`` broadcast against them (one material, or one per row, or a
@@ -29,17 +33,47 @@ def _clamp_nan_lo(x: torch.Tensor, lo: float, hi: float) -> torch.Tensor:
     return torch.where(torch.isnan(x), torch.full_like(x, lo), x).clamp(lo, hi)
 
 
+class _Scale(torch.autograd.Function):
+    """u = v * inv_len for inv_len = 1 / |v| (given, without gradient), differentiated as the
+    unit vector it is: du = (g - u (u.g)) inv_len.
+
+    Autograd's own chain through rsqrt(|v|^2) forms |v|^-3, which overflows float32 for
+    |v| < ~1e-13 (valid directions go down to |v| = 1.1e-19) and turns into inf - inf = NaN,
+    while the true derivative, of size 1 / |v|, is finite."""
+
+    @staticmethod
+    def forward(v: torch.Tensor, inv_len: torch.Tensor) -> torch.Tensor:
+        return v * inv_len
+
+    @staticmethod
+    def setup_context(ctx, inputs, output):
+        ctx.save_for_backward(output, inputs[1])
+
+    @staticmethod
+    def backward(ctx, g):
+        u, inv_len = ctx.saved_tensors
+        return (g - u * (u * g).sum(-1, keepdim=True)) * inv_len, None
+
+
 def _normalize(v: torch.Tensor):
     """(unit vector, validity): zero, under/overflowing or non-finite vectors are
-    invalid and replaced by +z."""
+    invalid and replaced by +z, before any arithmetic, so their gradient is 0, not NaN."""
     finfo = torch.finfo(v.dtype)
-    len2 = (v * v).sum(-1, keepdim=True)
-    ok = (len2 >= finfo.tiny) & (len2 <= finfo.max)
-    safe_len2 = torch.where(ok, len2, torch.ones_like(len2))
-    z = torch.zeros_like(v)
+    with torch.no_grad():
+        len2 = (v * v).sum(-1, keepdim=True)
+        ok = (len2 >= finfo.tiny) & (len2 <= finfo.max)  # NaN compares false
+    # Safe where: the backward of v * v at a NaN or Inf row would give 0 * NaN = NaN.
+    v_safe = torch.where(ok, v, _unit_z(v))
+    with torch.no_grad():
+        inv_len = torch.rsqrt((v_safe * v_safe).sum(-1, keepdim=True))  # = rsqrt(len2) on valid rows
+    return _Scale.apply(v_safe, inv_len), ok[..., 0]
+
+
+def _unit_z(like: torch.Tensor) -> torch.Tensor:
+    """+z in the shape, dtype and device of ``like`` (..., 3)."""
+    z = torch.zeros_like(like)
     z[..., 2] = 1.0
-    w = torch.where(ok, v * torch.rsqrt(safe_len2), z)
-    return w, ok[..., 0]
+    return z
 
 
 def fresnel_dielectric(cos_theta: torch.Tensor, eta2_minus_1: torch.Tensor) -> torch.Tensor:
@@ -47,19 +81,24 @@ def fresnel_dielectric(cos_theta: torch.Tensor, eta2_minus_1: torch.Tensor) -> t
 
     The C++ ``fresnel_dielectric`` form: with s = g + c, a = c s - 1, b = c e + s
     (e = eta^2 - 1), F = e^2 (a^2 s^2 + b^2) / (2 s^4 b^2), which avoids the
-    cancellation in g - c as eta -> 1. 0 for the single 0/0 (c = 0, eta = 1).
+    cancellation in g - c as eta -> 1. 0 for e <= 0 (eta = 1: no interface).
     """
     c = cos_theta.clamp(0.0, 1.0)
     e = eta2_minus_1
-    s = torch.sqrt(e + c * c) + c
+    # sqrt's derivative is infinite at 0 (e = 0 and c = 0, or c^2 underflowing): the floor keeps
+    # it finite and changes no value, since F = 0 there anyway (e = 0).
+    s = torch.sqrt(torch.clamp(e + c * c, min=torch.finfo(c.dtype).tiny)) + c
     a = c * s - 1.0
     b = c * e + s
     s2 = s * s
     den = 2.0 * s2 * s2 * b * b
     num = e * e * (a * a * s2 + b * b)
-    # den = 0 only when e = 0 (then num = 0 too); otherwise den >= ~1e-20 since
-    # s >= sqrt(e), so clamping to the smallest normal changes no value.
-    return num / torch.clamp(den, min=torch.finfo(den.dtype).tiny)
+    # For e > 0, den >= 2 e^3 (s, b >= sqrt(e)): 2.8e-20 at the smallest float32 e. For e = 0,
+    # F = 0 but den = 2 s^6 underflows at grazing c; a safe where keeps the backward from
+    # forming inf = upstream / den and then inf * e^2 = inf * 0 = NaN.
+    has_interface = e > 0
+    ratio = num / torch.where(has_interface, den, torch.ones_like(den))
+    return torch.where(has_interface, ratio, torch.zeros_like(ratio))
 
 
 def ggx_D(h: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -98,8 +137,8 @@ def eval_analytic(
     wi_n, ok_i = _normalize(wi)
     wo_n, ok_o = _normalize(wo.to(dtype))
     valid = ok_i & ok_o & (wi_n[..., 2] > 0) & (wo_n[..., 2] > 0)
-    up = torch.zeros_like(wi_n)
-    up[..., 2] = 1.0
+    # Safe where: below-horizon rows would reach Smith's 1 / (w.z + |w|) = 1 / 0.
+    up = _unit_z(wi_n)
     wi_n = torch.where(valid[..., None], wi_n, up)
     wo_n = torch.where(valid[..., None], wo_n, up)
 
@@ -116,12 +155,6 @@ def eval_analytic(
 # ---- importance sampling (the library's three strategies, in PyTorch) --------
 
 MIS_MIN_LOBE_PROBABILITY = _core.MIS_MIN_LOBE_PROBABILITY
-
-
-def _unit_z(like: torch.Tensor) -> torch.Tensor:
-    z = torch.zeros_like(like)
-    z[..., 2] = 1.0
-    return z
 
 
 def square_to_cosine_hemisphere(u: torch.Tensor) -> torch.Tensor:
@@ -149,10 +182,18 @@ def sample_ggx_vndf(wo: torch.Tensor, u: torch.Tensor, ax: torch.Tensor, ay: tor
 
 
 def pdf_ggx_vndf(wi: torch.Tensor, wo: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
-    """Density of reflect(wo, h) with h from sample_ggx_vndf: G1(wo) D(h) / (4 wo.z), over the sphere."""
+    """Density of reflect(wo, h) with h from sample_ggx_vndf: G1(wo) D(h) / (4 wo.z), over the sphere.
+
+    0 where wo is below the horizon or wi = -wo. Such rows are replaced by +z before any
+    arithmetic, so that their gradient is 0 rather than inf * 0 = NaN (a straight-down wo makes
+    Smith's 1 / (wo.z + |wo|) infinite), which would poison a shared alpha's gradient."""
+    upper = wo[..., 2] > 0
+    wo = torch.where(upper[..., None], wo, _unit_z(wo))
     h, ok = _normalize(wi + wo)
-    p = ggx_D(h, ax, ay) * 0.5 * smith_g1_over_2cos(wo, ax, ay)
-    return torch.where(ok & (wo[..., 2] > 0), p, torch.zeros_like(p))
+    ok = ok & upper & (h[..., 2] > 0)
+    h = torch.where(ok[..., None], h, _unit_z(h))
+    p = _ggx_D_upper(h, ax, ay) * 0.5 * smith_g1_over_2cos(wo, ax, ay)
+    return torch.where(ok, p, torch.zeros_like(p))
 
 
 def ggx_lobe_probability(wo: torch.Tensor, kd: torch.Tensor, eta: torch.Tensor) -> torch.Tensor:
@@ -178,6 +219,9 @@ def pdf(wi: torch.Tensor, wo: torch.Tensor, kd, eta, alpha, strategy: str = "mis
     wi_n, ok_i = _normalize(wi.to(wo.dtype))
     wo_n, ok_o = _normalize(wo)
     valid = ok_i & ok_o & (wo_n[..., 2] > 0)
+    # Safe where: rows without a density take +z before the arithmetic, so their gradient is 0.
+    wi_n = torch.where(valid[..., None], wi_n, _unit_z(wi_n))
+    wo_n = torch.where(valid[..., None], wo_n, _unit_z(wo_n))
     p_cos = torch.clamp(wi_n[..., 2], min=0.0) * INV_PI
     if strategy == "cosine":
         p = p_cos

@@ -135,8 +135,9 @@ def test_every_fit_setting_flag_reaches_fit_settings_and_hbrdf_info():
             argv += ["--mlp", "8x5"]; wanted.update(width=8, depth=5)
         elif f.name in ("device", "frozen_from"):
             argv += [f.metadata["flag"], "elsewhere"]; wanted[f.name] = "elsewhere"
-        else:
-            argv += [f.metadata["flag"], "7"]; wanted[f.name] = 7
+        else:  # 7, or inside the flag's range (fit_settings.Number) where 7 is outside it
+            value = 0.7 if cli["type"].problem(7) else 7
+            argv += [f.metadata["flag"], str(value)]; wanted[f.name] = value
     settings = settings_from_args(build_parser().parse_args(argv))
     for name, value in wanted.items():
         assert getattr(settings, name) == value, name
