@@ -8,7 +8,8 @@ input that broke it and makes the exit status 1.
 Surfaces and their inputs: model files (byte damage: both loaders must agree), model metadata
 (JSON edits: both loaders, same words), tensor values (any float32 in any tensor), material
 names (both loaders, then generated GLSL/HLSL/C++ for the accepted ones), measured files (RGL,
-NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), command-line
+NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), checkpoints
+(damaged bytes, and edited states re-encoded with a valid checksum), command-line
 flags (every typed flag of every hbrdf command) and directions (float32 bit patterns through the
 library's batched and scalar paths and torch)."""
 
@@ -128,6 +129,15 @@ def main(argv=None) -> int:
     if hasattr(_core, "read_scene_decl"):
         scene = json.loads((ROOT / "scenes" / "sphere_env.json").read_text())
         run("scenes", int(200_000 * k), lambda i: (fs.mutate_doc(scene, rng),), fs.check_scene, counts, failures)
+
+    ck_bytes, ck_state, ck_settings = fs.checkpoint_seed(work)
+    from hybridbrdf import checkpoint as ckpt
+
+    run("checkpoint bytes", int(20_000 * k),
+        lambda i: (fs.mutate_bytes(ck_bytes, rng), work / "ck.pt", ck_settings), fs.check_checkpoint, counts, failures)
+    run("checkpoint structure", int(5_000 * k),
+        lambda i: (ckpt.encode(fs.mutate_checkpoint_state(ck_state, rng)), work / "ck.pt", ck_settings),
+        fs.check_checkpoint, counts, failures)
 
     flags = fs.cli_flags()
     values = ["0", "-1", "1", "inf", "-inf", "nan", "1e999", "4294967297", "2147483648", "-0", "1.5", "1e-400",

@@ -60,7 +60,7 @@ class Number:
         ok_type = isinstance(value, int) if self.kind is int else isinstance(value, (int, float))
         if isinstance(value, bool) or not ok_type:
             return f"must be {self.describe()}, got {value!r}"
-        if not math.isfinite(value):
+        if isinstance(value, float) and not math.isfinite(value):  # (an int may pass float's range: no float())
             return f"must be {self.describe()}, got {value!r}"
         below = value <= self.lo if self.lo_open else value < self.lo
         above = value >= self.hi if self.hi_open else value > self.hi

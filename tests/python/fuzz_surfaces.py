@@ -312,6 +312,69 @@ def check_cli_flag(command: str, flag: str, value: str) -> str:
     return VALID
 
 
+# ---- checkpoints -------------------------------------------------------------------------------
+
+def checkpoint_seed(workdir: pathlib.Path):
+    """(bytes, state, settings) of a valid checkpoint at step 10 of a tiny fit of synthetic:gold."""
+    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fit_settings import FitSettings
+    from hybridbrdf.fitting import fit
+    from hybridbrdf.sources import open_source
+
+    settings = FitSettings(width=8, depth=1, steps=20, batch=64, pool=256, eval_pairs=200, seed=5)
+    path = workdir / "seed-checkpoint.pt"
+    fit([open_source("synthetic:gold")], settings, checkpoint=str(path), checkpoint_every=10, progress=False,
+        stop_after=10, log=lambda m: None)
+    state, _ = ckpt.read(path)
+    return path.read_bytes(), state, settings
+
+
+def mutate_checkpoint_state(state, rng: np.random.Generator):
+    """A copy of a checkpoint's state with one entry replaced: a random JSON value, a tensor of
+    another shape, or a tensor holding NaN/Inf/huge values (re-encoded with a valid checksum, so
+    only the structural checks can catch it)."""
+    import torch
+
+    state = copy.deepcopy(state)
+    node = state
+    while True:  # descend into nested dicts (settings, model, optimizer) now and then
+        keys = list(node)
+        key = keys[int(rng.integers(0, len(keys)))]
+        if isinstance(node[key], dict) and node[key] and rng.random() < 0.6:
+            node = node[key]
+            continue
+        break
+    old = node[key]
+    r = rng.random()
+    if isinstance(old, torch.Tensor) and r < 0.5:
+        t = old.clone()
+        if t.numel() and t.is_floating_point():
+            t.view(-1)[int(rng.integers(0, t.numel()))] = float(rng.choice([np.nan, np.inf, -np.inf, 1e38, -1.0]))
+        node[key] = t
+    elif isinstance(old, torch.Tensor) and r < 0.7:
+        node[key] = torch.zeros(tuple(int(d) for d in rng.integers(0, 4, size=int(rng.integers(0, 3)))))
+    else:
+        node[key] = random_json(rng)
+    return state
+
+
+def check_checkpoint(data: bytes, path: pathlib.Path, settings) -> str:
+    """A checkpoint through hybridbrdf.checkpoint.load (what ``hbrdf fit --resume`` runs before
+    any source is opened): refused with one line naming it, or valid; never altered."""
+    from hybridbrdf import checkpoint as ckpt
+
+    path.write_bytes(data)
+    try:
+        ckpt.load(path, settings)
+    except Exception as exc:  # noqa: BLE001
+        outcome = expect_clean_error("checkpoint", exc, str(path))
+    else:
+        outcome = VALID
+    if path.read_bytes() != data:
+        raise Violation("checkpoint: the file was changed by reading it")
+    return outcome
+
+
 # ---- registry for the scale bench --------------------------------------------------------------
 
 SURFACES: Dict[str, Callable] = {
@@ -321,4 +384,5 @@ SURFACES: Dict[str, Callable] = {
     "scenes": check_scene,
     "material names": check_material_name,
     "cli flags": check_cli_flag,
+    "checkpoints": check_checkpoint,
 }

@@ -162,3 +162,33 @@ def test_directions_through_every_path(seed_model, tmp_path, pairs):
             np.asarray(cpp.eval_analytic(wi, wo, 1)), py.eval(wi, wo, 1)]
     for f in outs:
         assert np.isfinite(f).all() and (f >= 0).all(), f
+
+
+# ---- checkpoints --------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def seed_checkpoint(tmp_path_factory):
+    return fs.checkpoint_seed(tmp_path_factory.mktemp("ck"))
+
+
+@FUZZ
+@given(cut=st.one_of(st.none(), st.integers(0, 10**6)),
+       edits=st.lists(st.tuples(st.integers(0, 10**6), st.integers(0, 255)), max_size=4))
+def test_checkpoint_bytes(tmp_path, seed_checkpoint, cut, edits):
+    data, _, settings = seed_checkpoint
+    b = bytearray(data)
+    for pos, value in edits:
+        b[pos % len(b)] = value
+    if cut is not None:
+        b = b[:cut % (len(b) + 1)]
+    fs.check_checkpoint(bytes(b), tmp_path / "ck.pt", settings)
+
+
+@FEW
+@given(seed=st.integers(0, 2**32 - 1))
+def test_checkpoint_structure(tmp_path, seed_checkpoint, seed):
+    from hybridbrdf import checkpoint as ckpt
+
+    _, state, settings = seed_checkpoint
+    edited = fs.mutate_checkpoint_state(state, np.random.default_rng(seed))
+    fs.check_checkpoint(ckpt.encode(edited), tmp_path / "ck.pt", settings)
