@@ -16,6 +16,7 @@ from hybridbrdf._core import (
 )
 from hybridbrdf import _core
 from hybridbrdf._core import __version__ as _core_version
+from hybridbrdf.adding import add
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
 from hybridbrdf.model_file import HybridModel, load_model
@@ -40,6 +41,7 @@ __all__ = [
     "BRDFFormatError",
     "BRDFSource",
     "HybridModel",
+    "add",
     "InputFileError",
     "ModelFileError",
     "expand_sources",

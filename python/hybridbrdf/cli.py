@@ -34,10 +34,13 @@ def _fit_fields():
     return [f for f in dataclasses.fields(FitSettings) if f.metadata.get("flag")]
 
 
-def add_fit_flags(parser: argparse.ArgumentParser) -> None:
-    """``hbrdf fit``'s setting flags, one per FitSettings field that has one."""
+def add_fit_flags(parser: argparse.ArgumentParser, sections=None, skip=()) -> None:
+    """``hbrdf fit``'s setting flags, one per FitSettings field that has one (only those of
+    ``sections`` when given, and none of the fields named in ``skip``)."""
     for f in _fit_fields():
         m = f.metadata
+        if (sections is not None and m["section"] not in sections) or f.name in skip:
+            continue
         kwargs = dict(m["cli"])
         if kwargs.get("action") not in ("store_true", "store_false"):
             kwargs["default"] = None  # unset: FitSettings' default (shown in the help text)
@@ -51,7 +54,7 @@ def settings_from_args(args: argparse.Namespace):
 
     values = {}
     for f in _fit_fields():
-        v = getattr(args, f.name)
+        v = getattr(args, f.name, None)  # a command may offer a subset of the flags (hbrdf add)
         if v is not None:
             values[f.name] = v
     if "width" in values:  # --mlp WIDTHxDEPTH sets two fields
@@ -150,6 +153,26 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     rate = model.training.get("pairs_x_materials_per_second")
     print(f"trained {settings.steps} steps in {model.training['train_seconds']:.1f} s"
           + (f" ({rate:,.0f} pairs x materials / s)" if rate else "") + f"; wrote {args.out}")
+    return 0
+
+
+def _cmd_add(args: argparse.Namespace) -> int:
+    from hybridbrdf.adding import add
+    from hybridbrdf.fitting import format_table
+
+    settings = settings_from_args(args)
+    log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    try:
+        model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log)
+    except MemoryError:
+        raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
+    added = set(model.training["additions"][-1]["materials"])
+    new = [m for m in model.material_info if m["name"] in added]
+    print(format_table([dict(material=m["name"], origin=m.get("origin", ""), **m["metrics"]) for m in new],
+                       settings.eval_pairs))
+    seconds = model.training["additions"][-1].get("train_seconds", 0.0)
+    print(f"added {len(new)} material(s) to {args.to} in {seconds:.1f} s; wrote {args.out} "
+          f"({len(model.materials)} materials)")
     return 0
 
 
@@ -326,6 +349,18 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
     fit.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     fit.set_defaults(func=_cmd_fit)
+
+    ad = sub.add_parser("add", help="add BRDF sources to a model without retraining its network",
+                        description="Sparse fitting (paper Sec. 4.2): fit only the analytic parameters and latent "
+                                    "code of each source against BASE's frozen network, and write a model holding "
+                                    "BASE's materials followed by the new ones. Inputs are checked before any "
+                                    "training; --out is written only when the fit succeeds.", epilog=EPILOG)
+    ad.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    ad.add_argument("--to", required=True, metavar="BASE", help="model file whose network the new materials share")
+    ad.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
+    add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from",))
+    ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
+    ad.set_defaults(func=_cmd_add)
 
     ev = sub.add_parser("eval", help="per-material SMAPE/cMAE of a model against BRDF sources",
                         description="Evaluate a model against the sources its materials were fitted to (matched by "

@@ -1,0 +1,117 @@
+"""hbrdf add / hybridbrdf.add: new materials on a frozen network, merged into one model file."""
+
+import os
+import re
+import time
+
+import numpy as np
+import pytest
+
+import hybridbrdf as hb
+from hybridbrdf.adding import merge
+from hybridbrdf.fit_settings import FitSettings
+from hybridbrdf.fitting import fit
+from hybridbrdf.sources import open_source
+
+from helpers import run_cli
+
+TINY = dict(steps=150, batch=256, pool=2048, eval_pairs=2000)
+
+
+@pytest.fixture(scope="module")
+def base_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("add") / "base.safetensors"
+    settings = FitSettings(width=8, depth=1, latent=2, **TINY)
+    fit([open_source("synthetic:gold"), open_source("synthetic:plastic")], settings, progress=False,
+        log=lambda m: None).save(path)
+    return path
+
+
+def test_added_materials_join_the_base_unchanged(base_file, tmp_path):
+    out = tmp_path / "merged.safetensors"
+    merged = hb.add(["synthetic:velvet", "synthetic:rough_clay"], to=base_file, out=out,
+                    settings=FitSettings(**TINY), progress=False)
+    base = hb.load_model(base_file)
+    assert merged.materials == ["gold", "plastic", "velvet", "rough_clay"]
+    assert hb.load_model(out).materials == merged.materials  # written, and valid for the loader
+    for key, value in base.tensors.items():
+        got = merged.tensors[key]
+        if key.startswith("materials."):
+            np.testing.assert_array_equal(got[:2], value)  # the base's materials, bit for bit
+        else:
+            np.testing.assert_array_equal(got, value)  # the frozen network
+    # The new rows are exactly what a sparse fit against the frozen network gives on its own.
+    alone = fit([open_source("synthetic:velvet"), open_source("synthetic:rough_clay")],
+                FitSettings(frozen_from=str(base_file), width=8, depth=1, latent=2, **TINY), frozen=base,
+                progress=False, log=lambda m: None)
+    for key in alone.tensors:
+        if key.startswith("materials."):
+            np.testing.assert_array_equal(merged.tensors[key][2:], alone.tensors[key])
+    wi = np.array([[0.3, 0.1, 0.9]], np.float32)
+    wo = np.array([[-0.2, 0.2, 0.95]], np.float32)
+    # (The tensors are bit-identical; evaluation order in the batched kernel may differ by an ulp.)
+    np.testing.assert_allclose(merged.eval(wi, wo, "velvet"), alone.eval(wi, wo, "velvet"), rtol=1e-6)
+    assert merged.training["additions"][-1]["materials"] == ["velvet", "rough_clay"]
+
+
+def test_merge_refuses_materials_of_another_network(base_file):
+    base = hb.load_model(base_file)
+    other = fit([open_source("synthetic:velvet")], FitSettings(width=8, depth=1, latent=2, seed=3, **TINY),
+                progress=False, log=lambda m: None)
+    with pytest.raises(ValueError, match="were not fitted to this network"):
+        merge(base, other)
+
+
+@pytest.mark.parametrize("case", ["name taken", "constant taken", "base not a model", "source unreadable",
+                                  "out is a folder"])
+def test_bad_input_fails_before_training_and_leaves_out_alone(base_file, tmp_path, case):
+    out = tmp_path / "out.safetensors"
+    out.write_bytes(b"previous file")
+    sources, to, target = ["synthetic:velvet"], base_file, out
+    if case == "name taken":
+        sources, words = ["synthetic:gold"], "gold: material 'gold' is already in"
+    elif case == "constant taken":
+        clash = tmp_path / "GOLD.binary"
+        from hybridbrdf.sources.merl import write_merl
+
+        write_merl(clash, open_source("synthetic:gold"))
+        sources, words = [str(clash)], "materials 'gold' and 'GOLD' would share the shader constant HBRDF_MATERIAL_GOLD"
+    elif case == "base not a model":
+        to = tmp_path / "base.safetensors"
+        to.write_bytes(b"\x00" * 5)
+        words = f"{to}: truncated"
+    elif case == "source unreadable":
+        bad = tmp_path / "broken.bsdf"
+        bad.write_bytes(b"tensor_file\x00\x01")
+        sources, words = [str(bad)], f"{bad}: "
+    else:
+        target = tmp_path
+        words = f"{tmp_path}: is a folder"
+    t0 = time.perf_counter()
+    r = run_cli("add", *sources, "--to", str(to), "--out", str(target), "--steps", "100000")
+    assert r.returncode == 1, r.stdout + r.stderr
+    err = r.stderr.strip()
+    assert err.count("\n") == 0 and words in err, err
+    assert "Traceback" not in r.stderr
+    assert time.perf_counter() - t0 < 60  # 10^5 steps would take far longer: refused before training
+    assert out.read_bytes() == b"previous file"
+
+
+def test_out_may_be_the_base_itself(base_file, tmp_path):
+    path = tmp_path / "collection.safetensors"
+    path.write_bytes(base_file.read_bytes())
+    r = run_cli("add", "synthetic:velvet", "--to", str(path), "--out", str(path), "--steps", "50",
+                "--eval-pairs", "2000", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert "added 1 material(s)" in r.stdout and "(3 materials)" in r.stdout
+    assert hb.load_model(path).materials == ["gold", "plastic", "velvet"]
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]  # no temporaries left
+
+
+def test_add_takes_only_the_settings_that_apply():
+    r = run_cli("add", "--help")
+    assert r.returncode == 0
+    for flag in ("--steps", "--lr", "--loss-eps", "--specular", "--sparse-init", "--to", "--out"):
+        assert flag in r.stdout
+    for flag in ("--mlp", "--arch", "--latent", "--frozen"):  # the base's network decides these
+        assert not re.search(rf"^\s+{flag}\b", r.stdout, re.M), flag
