@@ -3,6 +3,7 @@ never crash `hbrdf info`, damaged bytes give one printable line from both loader
 that could overflow float32 are refused before any evaluation."""
 
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -96,3 +97,26 @@ def test_largest_accepted_weights_give_finite_outputs(tmp_path, arch):
         for f in (cpp.eval(wi, wo, m), loaded.eval(wi, wo, m)):
             f = np.asarray(f)
             assert np.isfinite(f).all() and (f >= 0).all()
+
+
+@pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+def test_render_names_scene_key_and_file_for_a_byte_flipped_model(tmp_path):
+    """A damaged model header used to surface as UnicodeDecodeError from the C++ loader, naming
+    neither file nor problem; now it is one line with the scene, its key and the model file."""
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    data = bytearray(path.read_bytes())
+    i = data.index(b'"arch', 8)
+    data[i + 2:i + 4] = b"\xff\x01"  # not UTF-8, and a control byte, inside the JSON header
+    path.write_bytes(bytes(data))
+    scene = json.loads((pathlib.Path(__file__).resolve().parents[2] / "scenes" / "sphere_env.json").read_text())
+    scene["materials"]["paper"] = {"type": "model", "file": str(path), "material": "mat-0"}
+    scene["camera"].update(width=8, height=8)
+    scene_path = tmp_path / "scene.json"
+    scene_path.write_text(json.dumps(scene))
+    r = run_cli("render", str(scene_path), "-o", str(tmp_path / "o.exr"), "--quiet")
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    line = r.stderr.strip()
+    assert "\n" not in line and f"{scene_path}: materials.paper.file: {path}: " in line, line
+    assert "\\xff" in line and "\x01" not in line
