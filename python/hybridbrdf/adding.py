@@ -112,8 +112,9 @@ def add(sources: Sequence[SourceLike], to: Union[str, os.PathLike], out: Optiona
         with tempfile.TemporaryDirectory() as tmp:
             probe = os.path.join(tmp, "merged.safetensors")
             merged.save(probe)
-            load_model(probe)
-            data = open(probe, "rb").read()
+            merged = load_model(probe)  # the model as a reader of the file sees it
+            with open(probe, "rb") as fh:
+                data = fh.read()
         atomic_write_bytes(out, data)
-        merged = load_model(out)
+        merged.path = os.fspath(out)
     return merged
