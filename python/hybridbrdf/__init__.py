@@ -20,6 +20,7 @@ from hybridbrdf.adding import add
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
 from hybridbrdf.model_file import HybridModel, load_model
+from hybridbrdf.prior import load_prior, prior_path
 from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open_source
 
 __version__ = "0.1.0"
@@ -46,6 +47,8 @@ __all__ = [
     "ModelFileError",
     "expand_sources",
     "load_model",
+    "load_prior",
+    "prior_path",
     "open_source",
     "analytic_eval",
     "pdf",

@@ -58,40 +58,50 @@ def check_additions(base: HybridModel, sources: Sequence[BRDFSource]) -> List[st
     return names
 
 
-def merge(base: HybridModel, added: HybridModel) -> HybridModel:
-    """One model: ``base``'s network and materials followed by ``added``'s materials. ``added``
+def merge(base: HybridModel, added: HybridModel, keep_base_materials: bool = True) -> HybridModel:
+    """One model: ``base``'s network and materials followed by ``added``'s materials (only
+    ``added``'s without ``keep_base_materials``: a model built on the shipped prior). ``added``
     must have been fitted against ``base``'s frozen network (its network tensors are checked to
     be bit-identical)."""
     for key, value in base.tensors.items():
         if not key.startswith("materials.") and not np.array_equal(value, added.tensors[key]):
             raise ValueError(f"cannot merge: tensor {key} differs; the added materials were not fitted to this network")
-    tensors = {k: (np.concatenate([v, added.tensors[k]]) if k.startswith("materials.") else v.copy())
+    tensors = {k: ((np.concatenate([v, added.tensors[k]]) if keep_base_materials else added.tensors[k].copy())
+                   if k.startswith("materials.") else v.copy())
                for k, v in base.tensors.items()}
     training = dict(base.training) if isinstance(base.training, dict) else {}
     # The base's record describes the network; each addition keeps its own (settings, time, names).
     training["additions"] = list(training.get("additions", [])) + [dict(added.training, materials=added.materials)]
-    materials = [dict(m) for m in base.material_info] + [dict(m) for m in added.material_info]
+    materials = ([dict(m) for m in base.material_info] if keep_base_materials else []) + \
+        [dict(m) for m in added.material_info]
     return HybridModel(dict(base.arch), materials, tensors, training)
 
 
-def add(sources: Sequence[SourceLike], to: Union[str, os.PathLike], out: Optional[Union[str, os.PathLike]] = None,
-        settings: Optional[FitSettings] = None, progress: bool = True,
-        log: Callable[[str], None] = lambda msg: None) -> HybridModel:
+def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = None,
+        out: Optional[Union[str, os.PathLike]] = None, settings: Optional[FitSettings] = None,
+        progress: bool = True, log: Callable[[str], None] = lambda msg: None) -> HybridModel:
     """Sparse-fit ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects)
     onto the frozen network of the model file ``to`` and return the merged model (``to``'s
     materials, then the new ones); with ``out``, also write it there (atomically; ``out`` may be
-    ``to`` itself, which is then replaced only once the fit has succeeded).
+    ``to`` itself, which is then replaced only once the fit has succeeded). Without ``to``, the
+    network is the shipped prior's (:mod:`hybridbrdf.prior`) and the model holds the new
+    materials only.
 
     ``settings``: the fit's training, loss and sparse settings (:class:`FitSettings`; its
-    network fields are taken from ``to``). Raises InputFileError / ModelFileError / ValueError,
-    one line naming the input, before any training for every input that can be checked."""
+    network fields are taken from ``to``); default: the default recipe with
+    :data:`~hybridbrdf.fit_settings.ADD_STEPS` steps. Raises InputFileError / ModelFileError /
+    ValueError, one line naming the input, before any training for every input that can be checked."""
+    from hybridbrdf.fit_settings import ADD_STEPS
     from hybridbrdf.fitting import fit, frozen_arch_settings
+    from hybridbrdf.prior import prior_path
     from hybridbrdf.util import atomic_write_bytes, check_writable
 
     if out is not None:
         check_writable(out, "model")
+    on_prior = to is None
+    to = prior_path() if on_prior else to
     base = load_model(to)
-    settings = dataclasses.replace(settings) if settings is not None else FitSettings()
+    settings = dataclasses.replace(settings) if settings is not None else FitSettings(steps=ADD_STEPS)
     settings.frozen_from = os.fspath(to)
     frozen_arch_settings(settings, base)
     settings.check()
@@ -101,10 +111,11 @@ def add(sources: Sequence[SourceLike], to: Union[str, os.PathLike], out: Optiona
     for src in opened:
         if out is not None and src.path and os.path.exists(out) and os.path.samefile(src.path, out):
             raise InputFileError(out, "--out names one of the sources")
-    check_additions(base, opened)
+    if not on_prior:  # the prior's own materials are not written: their names cannot clash
+        check_additions(base, opened)
     settings.sources = [s.path or s.name for s in opened]
     added = fit(opened, settings, frozen=base, progress=progress, log=log)
-    merged = merge(base, added)
+    merged = merge(base, added, keep_base_materials=not on_prior)
     if out is not None:
         import tempfile
 

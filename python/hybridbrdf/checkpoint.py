@@ -50,7 +50,9 @@ _REQUIRED = {"module": dict, "optimizer": dict, "scheduler": dict, "step": int, 
              "names": list, "torch_rng": torch.Tensor}
 _OPTIONAL = {"train_seconds": (float, int), "timed_from_step": int, "batch_rng": torch.Tensor}
 #: Settings that may differ between the run that wrote a checkpoint and the one resuming it.
-_FREE_SETTINGS = ("sources", "device", "eval_pairs")
+#: Settings a resumed fit may change: where it runs, what it reports, and the recipe's name (a
+#: label; the values it set are compared one by one).
+_FREE_SETTINGS = ("sources", "device", "eval_pairs", "recipe")
 _ADAM_STATE = ("step", "exp_avg", "exp_avg_sq")
 
 
@@ -165,7 +167,9 @@ def _check_settings(path: str, saved_settings: Dict[str, Any], settings: FitSett
     bad = sorted(str(k) for k, v in saved_settings.items() if not isinstance(k, str) or not _plain(v))
     if bad:
         raise CheckpointError(path, f"checkpoint's settings {', '.join(bad)} are not plain values")
-    defaults = dataclasses.asdict(FitSettings())  # settings added after the checkpoint was written
+    # A setting added after the checkpoint was written had its paper value then: every setting
+    # was introduced with the paper's behaviour as its default (the "paper" recipe).
+    defaults = dataclasses.asdict(FitSettings.from_recipe("paper"))
     saved = {k: v for k, v in {**defaults, **saved_settings}.items() if k not in _FREE_SETTINGS}
     mine = {k: v for k, v in dataclasses.asdict(settings).items() if k not in _FREE_SETTINGS}
     if saved != mine:

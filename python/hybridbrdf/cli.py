@@ -47,9 +47,11 @@ def add_fit_flags(parser: argparse.ArgumentParser, sections=None, skip=()) -> No
         parser.add_argument(m["flag"], dest=f.name, help=m["help"].replace("%(default)s", str(f.default)), **kwargs)
 
 
-def settings_from_args(args: argparse.Namespace):
-    """FitSettings from parsed flags: a flag left unset keeps the field's default."""
-    from hybridbrdf.fit_settings import FitSettings, parse_mlp
+def settings_from_args(args: argparse.Namespace, sparse: bool = False):
+    """FitSettings from parsed flags: a flag left unset keeps its value in the recipe
+    (``--recipe``, default hybridbrdf: the fields' defaults). ``sparse``: the settings of a
+    sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit_settings.ADD_STEPS`."""
+    from hybridbrdf.fit_settings import ADD_STEPS, FitSettings, parse_mlp
     from hybridbrdf.fitting import default_device
 
     values = {}
@@ -61,8 +63,10 @@ def settings_from_args(args: argparse.Namespace):
         values["width"], values["depth"] = parse_mlp(values["width"])
     if "latent" not in values and values.get("arch") == "neural":
         values["latent"] = 12  # the neural baseline's latent = the hybrid's l + its analytic parameter count
+    if sparse:
+        values.setdefault("steps", ADD_STEPS)
     values.setdefault("device", default_device())
-    return FitSettings(sources=list(args.sources), **values)
+    return FitSettings.from_recipe(values.pop("recipe", "hybridbrdf"), sources=list(args.sources), **values)
 
 
 def fit_synopsis() -> str:
@@ -160,7 +164,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from hybridbrdf.adding import add
     from hybridbrdf.fitting import format_table
 
-    settings = settings_from_args(args)
+    settings = settings_from_args(args, sparse=True)
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     try:
         model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log)
@@ -171,7 +175,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     print(format_table([dict(material=m["name"], origin=m.get("origin", ""), **m["metrics"]) for m in new],
                        settings.eval_pairs))
     seconds = model.training["additions"][-1].get("train_seconds", 0.0)
-    print(f"added {len(new)} material(s) to {args.to} in {seconds:.1f} s; wrote {args.out} "
+    print(f"added {len(new)} material(s) to {args.to or 'the shipped prior'} in {seconds:.1f} s; wrote {args.out} "
           f"({len(model.materials)} materials)")
     return 0
 
@@ -352,11 +356,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     ad = sub.add_parser("add", help="add BRDF sources to a model without retraining its network",
                         description="Sparse fitting (paper Sec. 4.2): fit only the analytic parameters and latent "
-                                    "code of each source against BASE's frozen network, and write a model holding "
-                                    "BASE's materials followed by the new ones. Inputs are checked before any "
-                                    "training; --out is written only when the fit succeeds.", epilog=EPILOG)
+                                    "code of each source against BASE's frozen network (default: the shipped prior), "
+                                    "and write a model holding BASE's materials followed by the new ones (the new "
+                                    "ones only on the prior). Inputs are checked before any training; --out is "
+                                    "written only when the fit succeeds.", epilog=EPILOG)
     ad.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
-    ad.add_argument("--to", required=True, metavar="BASE", help="model file whose network the new materials share")
+    ad.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
+                                                 "shipped prior, hybridbrdf.prior; the model then holds the new "
+                                                 "materials only)")
     ad.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
     add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from",))
     ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")

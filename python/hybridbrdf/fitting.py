@@ -110,6 +110,14 @@ class TrainingPool:
         self.wo = torch.from_numpy(wo.astype(np.float32))
         self.ref = torch.from_numpy(ref)
 
+    def repeat_materials(self, k: int) -> "TrainingPool":
+        """Each material's values k times in a row (material m becomes rows m k .. m k + k - 1):
+        the pool of a sparse fit from k starts per material (FitSettings.sparse_starts)."""
+        self.ref = self.ref.repeat_interleave(k, dim=0)
+        self.brightness = self.brightness.repeat_interleave(k)
+        self.mean_f = self.mean_f.repeat_interleave(k)
+        return self
+
     def to(self, device: str) -> "TrainingPool":
         self.wi, self.wo, self.ref = self.wi.to(device), self.wo.to(device), self.ref.to(device)
         self.brightness, self.mean_f = self.brightness.to(device), self.mean_f.to(device)
@@ -202,10 +210,12 @@ def _optimizer(module, settings: FitSettings, frozen: bool):
 
 
 def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, eps_analytic,
-                       settings: FitSettings, n_pairs: int = 8192, chunk: int = 64) -> List[int]:
+                       settings: FitSettings, n_pairs: int = 8192, chunk: int = 64, starts: int = 1) -> List[int]:
     """Sparse fitting's starting point (FitSettings.sparse_init = "nearest"): give every new
     material the (p, z) of the frozen model's material with the lowest training loss on the
-    new material's pool values, and return those materials' indices.
+    new material's pool values, and return those materials' indices. With ``starts`` = k > 1
+    the pool and the module hold each new material k times in a row (rows m k + j), and row
+    m k + j starts from the j-th best material (FitSettings.sparse_starts).
 
     Only (p, z) move in a sparse fit, and the loss over them is far from convex: a glossy
     measurement started from the neutral grey rough lobe must first narrow alpha by orders of
@@ -238,12 +248,43 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
                 losses[m, lo:lo + chunk] = training_loss(
                     ref[m].expand_as(f_t), f_t, f_a, wi[:, 2], for_material(eps, m, k),
                     for_material(eps_analytic, m, k), settings.loss_cos, settings.analytic_expectile)
-        best = [int(k) for k in losses.argmin(dim=1)]
+        order = torch.argsort(losses, dim=1, stable=True)
+        best = [int(order[m, m % starts]) for m in range(n_new)]
         for m, k in enumerate(best):
             if "kd" in cand:
                 module.set_analytic(m, cand["kd"][k], cand["eta"][k], cand["alpha"][k])
             module.z[m] = cand["z"][k]
     return best
+
+
+def best_starts(module, pool: "TrainingPool", starts: int, eps, eps_analytic, settings: FitSettings,
+                n_pairs: int = 65536, chunk: int = 16384) -> List[int]:
+    """The row of each new material's best fit in a sparse fit from ``starts`` starts per
+    material (rows m k .. m k + k - 1): the lowest training loss on ``n_pairs`` pool pairs
+    spread over its cosine and specular parts, the loss the fit minimised."""
+    dev = pool.wi.device
+    step = max(1, pool.wi.shape[0] // n_pairs)
+    idx = torch.arange(0, pool.wi.shape[0], step, device=dev)[:n_pairs]
+    total = torch.zeros(pool.ref.shape[0], device=dev)
+    with torch.no_grad():
+        for lo in range(0, len(idx), chunk):
+            i = idx[lo:lo + chunk]
+            f_t, f_a = module(pool.wi[i], pool.wo[i])
+            total += training_loss(pool.ref[:, i], f_t, f_a if settings.arch != "neural" else None,
+                                   pool.wi[i, 2], eps, eps_analytic,
+                                   settings.loss_cos, settings.analytic_expectile) * len(i)
+    per_start = total.reshape(-1, starts)
+    return [m * starts + int(j) for m, j in enumerate(per_start.argmin(dim=1))]
+
+
+def _keep_materials(module, rows: List[int], settings: FitSettings, iso: List[bool]):
+    """A module of the same network holding only the per-material parameters of ``rows``."""
+    kept = build_model(settings.arch, len(rows), settings.width, settings.depth, settings.latent,
+                       settings.activation, iso)
+    index = torch.tensor(rows, device=next(module.parameters()).device)
+    shared = ("mlp.", "frames.")
+    kept.load_state_dict({k: (v if k.startswith(shared) else v[index]) for k, v in module.state_dict().items()})
+    return kept
 
 
 def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSettings, names: List[str],
@@ -299,6 +340,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
 
     if frozen is not None:
         frozen_arch_settings(settings, frozen)
+    # Sparse fitting from several starts: every new material k times over (rows m k + j).
+    starts = (min(settings.sparse_starts, len(frozen.materials))
+              if frozen is not None and settings.sparse_init == "nearest" else 1)
+    if starts > 1 and checkpoint:
+        raise ValueError("--sparse-starts above 1 fits without --checkpoint (a sparse fit is minutes long)")
     if checkpoint:
         check_writable(checkpoint, "checkpoint")
     saved = None
@@ -307,8 +353,8 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         saved, checksummed = ckpt.load(checkpoint, settings)
         if not checksummed:
             log(f"{checkpoint}: checkpoint from an earlier hybridbrdf has no checksum; damage cannot be detected")
-    module = build_model(settings.arch, len(sources), settings.width, settings.depth, settings.latent,
-                         settings.activation, iso)
+    module = build_model(settings.arch, len(sources) * starts, settings.width, settings.depth, settings.latent,
+                         settings.activation, [i for i in iso for _ in range(starts)])
     if settings.arch in ("hybrid", "analytic-input") and frozen is None:
         with torch.no_grad():
             module.mlp.out.bias[0:3] = settings.fc_init
@@ -338,7 +384,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         log(f"resuming from {checkpoint} at step {start}")
     # After the checkpoint: evaluating every source on the pool is the expensive part of the set-up.
     pool = TrainingPool(sources, settings.pool, settings.seed, log if progress else None,
-                        settings.specular, settings.specular_alpha).to(settings.device)
+                        settings.specular, settings.specular_alpha).repeat_materials(starts).to(settings.device)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -356,9 +402,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
 
     start_names: Optional[List[str]] = None
     if frozen is not None and start == 0 and settings.sparse_init == "nearest":
-        chosen = start_from_nearest(module, frozen, pool, eps, eps_analytic, settings)
+        chosen = start_from_nearest(module, frozen, pool, eps, eps_analytic, settings, starts=starts)
         start_names = [frozen.materials[k] for k in chosen]
-        log("sparse fit starts from " + ", ".join(f"{n} <- {s}" for n, s in zip(names, start_names)))
+        log("sparse fit starts from " + ", ".join(
+            f"{n} <- {' | '.join(start_names[m * starts:(m + 1) * starts])}" for m, n in enumerate(names)))
 
     def batch_loss(wi: torch.Tensor, wo: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
         f_t, f_a = module(wi, wo)
@@ -400,6 +447,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     if bar is not None:
         bar.close()
     elapsed = time.perf_counter() - t0
+    if starts > 1:
+        keep = best_starts(module, pool, starts, eps, eps_analytic, settings)
+        module = _keep_materials(module, keep, settings, iso)
+        start_names = [start_names[r] for r in keep]
+        log("kept the fits started from " + ", ".join(f"{n} <- {s}" for n, s in zip(names, start_names)))
     module.eval().cpu()
 
     training = dataclasses.asdict(settings)
@@ -414,7 +466,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         training["compile_seconds"] = round(compile_seconds, 3)
         timed_steps, timed_seconds = timed_steps - 1, elapsed - compile_seconds
     training["pairs_x_materials_per_second"] = (
-        round(timed_steps * settings.batch * len(sources) / timed_seconds) if timed_seconds > 0 else None)
+        round(timed_steps * settings.batch * len(sources) * starts / timed_seconds) if timed_seconds > 0 else None)
     model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
     metrics = evaluate(model, sources, n_pairs=settings.eval_pairs, names=names)
     for info, row in zip(model.material_info, metrics):

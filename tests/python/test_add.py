@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 import pytest
+import torch
 
 import hybridbrdf as hb
 from hybridbrdf.adding import merge
@@ -115,3 +116,92 @@ def test_add_takes_only_the_settings_that_apply():
         assert flag in r.stdout
     for flag in ("--mlp", "--arch", "--latent", "--frozen"):  # the base's network decides these
         assert not re.search(rf"^\s+{flag}\b", r.stdout, re.M), flag
+
+
+def test_add_without_to_uses_the_shipped_prior_and_writes_the_new_materials_only(base_file, tmp_path, monkeypatch):
+    import hybridbrdf.prior as prior_module
+
+    monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)  # a small stand-in for the shipped prior
+    out = tmp_path / "mine.safetensors"
+    added = hb.add(["synthetic:velvet", "synthetic:gold"], out=out, settings=FitSettings(**TINY), progress=False)
+    prior = hb.load_model(base_file)
+    # gold is a material of the prior too: on the prior that is no clash, its materials are not written.
+    assert added.materials == ["velvet", "gold"] and hb.load_model(out).materials == ["velvet", "gold"]
+    for key, value in prior.tensors.items():
+        if not key.startswith("materials."):
+            np.testing.assert_array_equal(added.tensors[key], value)
+        else:
+            assert added.tensors[key].shape[0] == 2
+    assert added.training["additions"][-1]["frozen_from"] == str(base_file)
+
+
+def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch):
+    import hybridbrdf.prior as prior_module
+
+    monkeypatch.setattr(prior_module, "PRIOR_FILE", tmp_path / "absent" / "prior.safetensors")
+    out = tmp_path / "mine.safetensors"
+    with pytest.raises(hb.InputFileError, match="shipped prior is missing") as err:
+        hb.add(["synthetic:velvet"], out=out, settings=FitSettings(**TINY), progress=False)
+    assert "\n" not in str(err.value) and not out.exists()
+
+
+def test_the_shipped_prior_is_a_valid_model_when_present():
+    from hybridbrdf.prior import PRIOR_FILE
+
+    if not PRIOR_FILE.is_file():
+        pytest.skip("no prior in this checkout (bench/train_prior.py writes it)")
+    prior = hb.load_prior()
+    assert prior.kind == "hybrid" and len(prior.materials) >= 100
+    assert PRIOR_FILE.stat().st_size < 1 << 20  # small enough to ship in the wheel
+
+
+class _ModelMaterial(hb.BRDFSource):
+    """A material of a fitted model as a source: the loss of its own (p, z) is ~0."""
+
+    def __init__(self, model, material):
+        self.model, self.material, self.name, self.isotropic, self.origin = model, material, "twin", True, "model"
+
+    def _eval(self, wi, wo):
+        return self.model.eval(wi.astype(np.float32), wo.astype(np.float32), self.material).astype(np.float64)
+
+
+def test_several_starts_keep_the_start_of_lowest_loss(base_file):
+    """sparse_starts: each new material is fitted from its k best-scoring base materials at once
+    and the fit of lowest training loss is kept. A twin of a base material (its own values) is
+    fitted exactly from that material's (p, z), so with 0 steps the kept start must be it: the
+    selection picks by loss, whatever row the start sits in."""
+    base = hb.load_model(base_file)
+    logs = []
+    twin = _ModelMaterial(base, "plastic")
+    for starts in (1, 2):
+        model = fit([twin], FitSettings(frozen_from=str(base_file), sparse_starts=starts, **dict(TINY, steps=1, lr=1e-9)),
+                    frozen=base, progress=False, log=logs.append)
+        assert model.materials == ["twin"] and model.material_info[0]["sparse_start"]["material"] == "plastic"
+        for key, value in base.tensors.items():
+            if key.startswith("materials."):
+                got = model.tensors[key][0]
+                np.testing.assert_allclose(got, value[base.materials.index("plastic")], rtol=1e-5, atol=1e-6)
+    assert any(re.search(r"twin <- plastic \| gold", m) for m in logs), logs  # both starts were fitted
+    assert any("kept the fits started from twin <- plastic" in m for m in logs), logs
+
+
+def test_several_starts_pick_the_better_fit_when_the_nearest_is_not_it(base_file, monkeypatch):
+    """Put the worse start first (row m k + 0): the selection must still keep the other."""
+    import hybridbrdf.fitting as fitting
+
+    base = hb.load_model(base_file)
+    real = fitting.start_from_nearest
+
+    def reversed_order(module, frozen, pool, eps, eps_a, settings, starts=1, **kw):
+        best = real(module, frozen, pool, eps, eps_a, settings, starts=starts, **kw)
+        swapped = [best[i ^ 1] for i in range(len(best))]  # row 0 <-> row 1 of each material
+        for m, k in enumerate(swapped):
+            module.set_analytic(m, *(np.asarray(base.tensors[f"materials.{p}"][k]) for p in ("kd", "eta", "alpha")))
+            module.z.data[m] = torch.from_numpy(base.tensors["materials.z"][k])
+        return swapped
+
+    monkeypatch.setattr(fitting, "start_from_nearest", reversed_order)
+    model = fit([_ModelMaterial(base, "gold")], FitSettings(frozen_from=str(base_file), sparse_starts=2,
+                                                            **dict(TINY, steps=1, lr=1e-9)),
+                frozen=base, progress=False, log=lambda m: None)
+    assert model.material_info[0]["sparse_start"]["material"] == "gold"

@@ -4,8 +4,11 @@ import pathlib
 import re
 
 import numpy as np
+import pytest
 
 import hybridbrdf as hb
+
+from hybridbrdf.fit_settings import FitSettings
 
 from helpers import ROOT, run_cli
 
@@ -68,7 +71,7 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
     r = run_cli("info", str(out))
     assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
-    assert "lr 0.005, clip 0.01, weight_decay 0.01, seed 0," in r.stdout, r.stdout
+    assert "lr 0.005, clip 0.01, weight_decay 0.0, seed 0," in r.stdout and "recipe hybridbrdf" in r.stdout, r.stdout
     assert "sparse_init" not in r.stdout  # a joint fit: no sparse settings
     for init in ("nearest", "neutral"):  # sparse fitting: the network stays, the start is recorded
         sparse = tmp_path / f"sparse_{init}.safetensors"
@@ -81,7 +84,7 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
                    if not k.startswith("materials."))
         r = run_cli("info", str(sparse))
         assert f"sparse_init {init}" in r.stdout and f"frozen_from {out}" in r.stdout, r.stdout
-        assert "loss: loss_eps 1.0," in r.stdout, r.stdout
+        assert "loss: loss_eps 0.1," in r.stdout, r.stdout
         assert ("sparse fit started from gold (smape " in r.stdout) == (init == "nearest"), r.stdout
 
 
@@ -149,3 +152,55 @@ def test_every_fit_setting_flag_reaches_fit_settings_and_hbrdf_info():
     # Unset flags keep FitSettings' defaults (the parser holds no copy of them).
     plain = settings_from_args(build_parser().parse_args(["fit", "synthetic:gold", "--out", "x"]))
     assert dataclasses.replace(plain, device="cpu", sources=[]) == FitSettings()
+
+
+def test_recipe_paper_sets_the_papers_values_and_flags_still_win():
+    """--recipe paper: the paper's Sec. 3.3 settings (eps 1, symmetric loss, cosine pairs only,
+    decay 0.01, 200k steps, 32x3); a flag given explicitly overrides its recipe value. The
+    paper's values are spelled out here from the paper's text, not read from RECIPES."""
+    from hybridbrdf.cli import build_parser, settings_from_args
+
+    def parsed(*flags, command="fit"):
+        argv = [command, "synthetic:gold", "--out", "x", *flags]
+        return settings_from_args(build_parser().parse_args(argv), sparse=command == "add")
+
+    paper = parsed("--recipe", "paper")
+    assert (paper.recipe, paper.loss_eps, paper.analytic_expectile, paper.specular, paper.weight_decay,
+            paper.steps, paper.batch, paper.lr, paper.clip, paper.width, paper.depth, paper.latent) == \
+        ("paper", 1.0, 0.5, 0.0, 0.01, 200_000, 1024, 0.005, 0.01, 32, 3, 4)
+    mixed = parsed("--recipe", "paper", "--loss-eps", "0.3", "--steps", "77")
+    assert (mixed.loss_eps, mixed.steps, mixed.specular) == (0.3, 77, 0.0)
+    ours = parsed()
+    assert (ours.recipe, ours.loss_eps, ours.analytic_expectile, ours.specular, ours.weight_decay, ours.steps) == \
+        ("hybridbrdf", 0.1, 0.9, 0.1, 0.0, 120_000)
+    # hbrdf add: a sparse fit's steps, whatever the recipe, unless given.
+    from hybridbrdf.fit_settings import ADD_STEPS
+
+    assert parsed(command="add").steps == ADD_STEPS == parsed("--recipe", "paper", command="add").steps
+    assert parsed("--steps", "9", command="add").steps == 9
+    r = run_cli("fit", "synthetic:gold", "--out", "x", "--recipe", "fancy")
+    assert r.returncode == 2 and "invalid choice: 'fancy'" in r.stderr
+
+
+def test_a_checkpoint_from_before_a_setting_existed_resumes_with_the_papers_value(tmp_path):
+    """A setting added after a checkpoint was written had its paper value then (each setting was
+    introduced with the paper's behaviour as default): such a checkpoint resumes under --recipe
+    paper and is refused, naming the setting, under the default recipe."""
+    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fitting import fit
+    from hybridbrdf.sources import open_source
+
+    path = tmp_path / "ck.pt"
+    settings = FitSettings.from_recipe("paper", width=8, depth=1, latent=2, steps=4, batch=64, pool=512,
+                                       eval_pairs=500)
+    assert fit([open_source("synthetic:gold")], settings, checkpoint=str(path), checkpoint_every=2, stop_after=2,
+               progress=False, log=lambda m: None) is None
+    state, _ = ckpt.load(str(path), settings)
+    for key in ("specular", "analytic_expectile", "recipe"):  # as an older hybridbrdf wrote it
+        del state["settings"][key]
+    ckpt.save(str(path), state)
+    ckpt.load(str(path), settings)  # resumes
+    ours = FitSettings(width=8, depth=1, latent=2, steps=4, batch=64, pool=512, eval_pairs=500, loss_eps=1.0,
+                       weight_decay=0.01)
+    with pytest.raises(ckpt.CheckpointError, match=r"analytic_expectile: 0.5 -> 0.9.*specular: 0.0 -> 0.1"):
+        ckpt.load(str(path), ours)

@@ -20,10 +20,10 @@ def sources():
     return [AnalyticTestSource("plain", P_PLAIN), AnalyticTestSource("retro", P_RETRO, retro=0.6)]
 
 
-def quick(**kw):
+def quick(recipe="hybridbrdf", **kw):
     base = dict(width=16, depth=2, steps=400, batch=512, pool=1 << 14, eval_pairs=20_000, seed=3)
     base.update(kw)
-    return FitSettings(**base)
+    return FitSettings.from_recipe(recipe, **base)
 
 
 def test_log_cos_loss_matches_its_definition():
@@ -103,7 +103,9 @@ def test_analytic_term_epsilon_changes_only_the_analytic_term():
     steering f_a and the analytic part drifts to a worse fit on both metrics (docs/FITTING.md,
     "The analytic term's epsilon")."""
     src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
-    base = dict(steps=300, loss_eps=0.01)
+    # The paper's symmetric loss on cosine pairs: with the default expectile 0.9 f_a is an upper
+    # envelope by design, and how far it sits from the data is no longer the term's steering.
+    base = dict(steps=300, loss_eps=0.01, recipe="paper")
     default = fit(src, quick(**base), progress=False)
     spelled = fit(src, quick(**base, analytic_loss_eps=0.01), progress=False)
     for key, value in default.tensors.items():
