@@ -207,8 +207,9 @@ class FitSettings:
     #: f_g in (0, 1) can dim where f_a overshoots, instead of a compromise whose peak the
     #: correction exp(o) must build (docs/FITTING.md, "An upper envelope for the analytic part").
     analytic_expectile: float = _setting(
-        0.9, "expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data more, "
-        "fitting an upper envelope the gate can dim (default: %(default)s; 0.5 is the paper's loss)", "loss",
+        0.5, "expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data more, "
+        "fitting an upper envelope the gate can dim, for a hybrid whose f_a is never rendered alone "
+        "(default: %(default)s, the paper's loss: f_a stays a fit)", "loss",
         "--analytic-expectile", type=EXPECTILE)
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's

@@ -145,11 +145,17 @@ def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch
     assert "\n" not in str(err.value) and not out.exists()
 
 
-def test_the_shipped_prior_is_a_valid_model_when_present():
+def test_the_shipped_prior_is_installed_with_the_package_and_valid():
+    """The checkout's prior (python/hybridbrdf/data) must reach the installed package, bit for bit."""
     from hybridbrdf.prior import PRIOR_FILE
 
-    if not PRIOR_FILE.is_file():
+    from helpers import ROOT
+
+    source = ROOT / "python" / "hybridbrdf" / "data" / "prior.safetensors"
+    if not source.is_file():
         pytest.skip("no prior in this checkout (bench/train_prior.py writes it)")
+    assert PRIOR_FILE.is_file(), f"{PRIOR_FILE} missing: the wheel did not carry the prior"
+    assert PRIOR_FILE.read_bytes() == source.read_bytes()
     prior = hb.load_prior()
     assert prior.kind == "hybrid" and len(prior.materials) >= 100
     assert PRIOR_FILE.stat().st_size < 1 << 20  # small enough to ship in the wheel
