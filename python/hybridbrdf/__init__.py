@@ -19,6 +19,7 @@ from hybridbrdf._core import __version__ as _core_version
 from hybridbrdf.adding import add
 from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
+from hybridbrdf.fit_settings import FitSettings
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.prior import load_prior, prior_path
 from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open_source
@@ -41,6 +42,7 @@ __all__ = [
     "AnalyticParams",
     "BRDFFormatError",
     "BRDFSource",
+    "FitSettings",
     "HybridModel",
     "add",
     "InputFileError",
