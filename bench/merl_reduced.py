@@ -111,8 +111,8 @@ def main() -> int:
         return out
 
     full = network(sorted(paths), args.full_model, "full80")
-    half = network(trained, args.half_model, "half40")
-    sparse = os.path.join(args.out_dir, "half40_plus_sparse40.safetensors")
+    half = network(trained, args.half_model, "half")
+    sparse = os.path.join(args.out_dir, "half_plus_sparse.safetensors")
     t0 = time.time()
     hb.add([paths[n] for n in held], to=half, out=sparse, progress=False,
            settings=FitSettings(steps=args.sparse_steps, eval_pairs=10_000))
