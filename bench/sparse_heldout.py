@@ -15,7 +15,7 @@
 
     python bench/sparse_heldout.py [--steps 20000] [--sparse-steps 5000] [--mlp 32x2] [--loss-eps 0.01] [--specular 0.1]
         [--analytic-expectile 0.9] [--sparse-init nearest|neutral] [--with-reconstructions] [--compile]
-        [--checkpoint PATH] [--base-model MODEL] [--sparse-loss-eps E] [--sparse-lr LR]
+        [--checkpoint PATH] [--base-model MODEL] [--sparse-loss-eps E] [--sparse-lr LR] [--sparse-starts N]
         [--weight-decay W] [--seed S] [--collection nbrdf-rgl|rgl|all] [--leave-out NAME]...
 
 --base-model skips step 1 and freezes an existing network; the sparse fit's loss then comes
@@ -65,6 +65,8 @@ def main() -> int:
                     help="where the sparse fit starts each file's (p, z) (FitSettings.sparse_init)")
     ap.add_argument("--sparse-loss-eps", type=float, default=None,
                     help="loss epsilon of the sparse fit (default: --loss-eps); docs/FITTING.md, 'Re-balancing'")
+    ap.add_argument("--sparse-starts", type=int, default=1,
+                    help="starts per file of the sparse fit (FitSettings.sparse_starts; default 1)")
     ap.add_argument("--sparse-lr", type=float, default=FitSettings.lr,
                     help="learning rate of the sparse fit (default: FitSettings.lr)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the training steps of both fits")
@@ -110,7 +112,8 @@ def main() -> int:
     print(f"network's own fit (its eval pairs): {collection_means(frozen)}", flush=True)
     sparse_settings = dict(common, loss_eps=args.loss_eps if args.sparse_loss_eps is None else args.sparse_loss_eps)
     sparse = fit(raw, FitSettings(steps=args.sparse_steps, sources=[s.path for s in raw], frozen_from=net_path,
-                                  sparse_init=args.sparse_init, lr=args.sparse_lr, **sparse_settings),
+                                  sparse_init=args.sparse_init, sparse_starts=args.sparse_starts, lr=args.sparse_lr,
+                                  **sparse_settings),
                  frozen=frozen, progress=False, compile_step=args.compile)
     sparse_path = os.path.join(args.out_dir, f"sparse_rgl{len(raw)}_{args.mlp}_{args.sparse_init}.safetensors")
     sparse.save(sparse_path)

@@ -158,7 +158,7 @@ class FitSettings:
                            "(default: %(default)s)", "training", "--recipe", choices=RECIPE_NAMES)
     #: 120k: at 60k steps a 49-material network let 4 of 5 sparse-added RGL files beat the released
     #: model, at 120k 5 of 5 on three seeds (docs/BENCHMARKS_HISTORY.md, "Weight decay off").
-    steps: int = _setting(120_000, "optimiser steps (default: %(default)s; hbrdf add: 5000)", "training", "--steps",
+    steps: int = _setting(120_000, f"optimiser steps (default: %(default)s; hbrdf add: {ADD_STEPS})", "training", "--steps",
                           type=STEPS)
     batch: int = _setting(1024, "direction pairs per step (default: %(default)s)", "training", "--batch",
                           type=BATCH)

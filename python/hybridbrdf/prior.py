@@ -2,7 +2,7 @@
 
 The prior is a hybrid model whose shared network was fitted to every measured material of the
 project's data (the raw RGL files and the NBRDF reconstructions of RGL, MERL and Nielsen), with
-the default recipe; it ships inside the package (a few hundred KB: the network and each
+the default recipe; it ships inside the package (about 60 KB: the network and each
 training material's (p, z), which sparse fitting scores as starting points). A measurement added
 to it gets its own (p, z) on the prior's frozen network; the written model holds the new
 materials only (docs/FITTING.md, "The shipped prior").
