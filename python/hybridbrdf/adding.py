@@ -94,7 +94,7 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     from hybridbrdf.fit_settings import ADD_STEPS
     from hybridbrdf.fitting import fit, frozen_arch_settings
     from hybridbrdf.prior import prior_path
-    from hybridbrdf.util import atomic_write_bytes, check_writable
+    from hybridbrdf.util import check_writable
 
     if out is not None:
         check_writable(out, "model")
@@ -117,15 +117,5 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     added = fit(opened, settings, frozen=base, progress=progress, log=log)
     merged = merge(base, added, keep_base_materials=not on_prior)
     if out is not None:
-        import tempfile
-
-        # Validate the merged file by the loaders' own rules before it replaces anything.
-        with tempfile.TemporaryDirectory() as tmp:
-            probe = os.path.join(tmp, "merged.safetensors")
-            merged.save(probe)
-            merged = load_model(probe)  # the model as a reader of the file sees it
-            with open(probe, "rb") as fh:
-                data = fh.read()
-        atomic_write_bytes(out, data)
-        merged.path = os.fspath(out)
+        merged = merged.save_checked(out)
     return merged

@@ -30,8 +30,11 @@ def _vector(value, n: int, name: str) -> np.ndarray:
 
 
 def _check_range(arr: np.ndarray, lo: float, hi: float, name: str) -> None:
+    # Compared in float32, as the model contract and both loaders compare (spec MATERIAL_RANGES):
+    # a material stored at ALPHA_MIN holds float32(1e-4) = 9.99999975e-05, below the float64 bound.
+    lo32, hi32 = np.float32(lo), np.float32(hi)
     for i, v in enumerate(arr):
-        if not (lo <= v <= hi):  # written so that NaN fails
+        if not (lo32 <= np.float32(v) <= hi32):  # written so that NaN fails
             raise ValueError(f"{name}[{i}] = {float(v)!r} is outside [{lo:g}, {hi:g}]")
 
 

@@ -1,4 +1,4 @@
-"""The ``hbrdf`` command line: ``fit``, ``eval``, ``info``, ``demo``, ``render``.
+"""The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``info``, ``demo``, ``render``.
 
 ``hbrdf <command> --help`` documents every flag. The fit flags, their help and defaults are
 generated from :class:`hybridbrdf.fitting.FitSettings` (:func:`add_fit_flags`), and so is the
@@ -180,6 +180,45 @@ def _cmd_add(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_new_material(model, name: str, out: str) -> int:
+    """Write an edited or blended model (validated, atomically) and describe its new material:
+    parameters and maximum directional albedo, with a warning when it exceeds 1."""
+    model = model.save_checked(out)
+    line = f"wrote {out} ({len(model.materials)} materials): {name}"
+    if model.has_analytic:
+        p = model.analytic_params(name)
+        line += f" kd {p.kd.round(4).tolist()} eta {p.eta.round(4).tolist()} alpha {p.alpha.round(5).tolist()}"
+    print(line)
+    a = model.albedo(name)
+    print(f"max directional albedo {a['max']:.3f} (theta_o {a['argmax_deg'][0]:g}, phi_o {a['argmax_deg'][1]:g} degrees)")
+    if a["max"] > 1.0:
+        print(f"warning: {name} reflects more light than it receives from some directions; "
+              + ("hbrdf edit --conserve-energy scales kd down to prevent it" if model.has_analytic
+                 else "this blend of the neural baseline cannot be corrected"), file=sys.stderr)
+    return 0
+
+
+def _cmd_edit(args: argparse.Namespace) -> int:
+    from hybridbrdf.editing import parse_assignments
+    from hybridbrdf.model_file import load_model
+    from hybridbrdf.util import check_writable
+
+    values = parse_assignments(args.set)
+    check_writable(args.out, "model")
+    model = load_model(args.model)
+    edited = model.edit(args.material, args.as_name, conserve_energy=args.conserve_energy, **values)
+    return _write_new_material(edited, args.as_name, args.out)
+
+
+def _cmd_mix(args: argparse.Namespace) -> int:
+    from hybridbrdf.model_file import load_model
+    from hybridbrdf.util import check_writable
+
+    check_writable(args.out, "model")
+    model = load_model(args.model)
+    return _write_new_material(model.mix(args.a, args.b, args.t, args.as_name), args.as_name, args.out)
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
     from hybridbrdf.fit_settings import PAIRS
     from hybridbrdf.fitting import evaluate, format_extended_table, format_table
@@ -243,6 +282,14 @@ def _cmd_info(args: argparse.Namespace) -> int:
         if isinstance(met, dict) and met:
             line += "\n      " + ", ".join(f"{_shown(k)} {_shown(v)}" for k, v in met.items()
                                            if isinstance(v, (int, float)) and not isinstance(v, bool))
+        if args.albedo_samples:
+            a = model.albedo(m["name"], samples=args.albedo_samples)
+            line += (f"\n      max directional albedo {a['max']:.3f} (theta_o {a['argmax_deg'][0]:g}, "
+                     f"phi_o {a['argmax_deg'][1]:g} degrees)" + ("  EXCEEDS 1" if a["max"] > 1.0 else ""))
+        for key, what in (("edit", "edit"), ("mix", "blend")):
+            rec = m.get(key)
+            if isinstance(rec, dict):
+                line += f"\n      {what}: " + ", ".join(f"{_shown(k)} {_shown(v)}" for k, v in rec.items())
         st = m.get("sparse_start")
         if isinstance(st, dict):
             line += (f"\n      sparse fit started from {_shown(st.get('material'))} "
@@ -380,9 +427,43 @@ def build_parser() -> argparse.ArgumentParser:
                          "at 45 degrees for the reference, the analytic part and the model")
     ev.set_defaults(func=_cmd_eval)
 
+    ed = sub.add_parser("edit", help="add an edited copy of a material (new analytic parameters, same latent code)",
+                        description="Paper Sec. 5.1: change the analytic parameters of a fitted material (diffuse "
+                                    "colour kd, index of refraction eta, GGX roughness alpha; two alpha values make "
+                                    "it anisotropic) and keep its latent code, so the network's correction follows. "
+                                    "Writes MODEL's materials plus the edited one to --out and prints its maximum "
+                                    "directional albedo (a warning when it exceeds 1). --out is written only when "
+                                    "everything is valid.")
+    ed.add_argument("model", help="model file holding the material")
+    ed.add_argument("material", help="name of the material to start from")
+    ed.add_argument("--set", action="append", required=True, metavar="KEY=VALUES",
+                    help="a new parameter: kd=R,G,B or kd=V (in [0, 1]), eta=V or eta=R,G,B (in [1, 10]), "
+                         "alpha=V (isotropic) or alpha=AX,AY (anisotropic; in [1e-4, 1]); repeatable")
+    ed.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
+    ed.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    ed.add_argument("--conserve-energy", action="store_true",
+                    help="scale the new kd down (hue kept) until the maximum directional albedo is at most 0.99")
+    ed.set_defaults(func=_cmd_edit)
+
+    mx = sub.add_parser("mix", help="add a blend of two materials (analytic parameters and latent codes)",
+                        description="Paper Sec. 5.1: the linear blend (1 - t) A + t B of two materials' analytic "
+                                    "parameters and latent codes, added to MODEL's materials and written to --out; "
+                                    "t = 0 and 1 reproduce A and B exactly. Prints the blend's maximum directional "
+                                    "albedo.")
+    mx.add_argument("model", help="model file holding both materials")
+    mx.add_argument("a", metavar="A", help="material at t = 0")
+    mx.add_argument("b", metavar="B", help="material at t = 1")
+    mx.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
+    mx.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
+    mx.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    mx.set_defaults(func=_cmd_mix)
+
     info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
                                                                             "training settings and materials.")
     info.add_argument("model", help="model file")
+    info.add_argument("--albedo-samples", type=int, default=1 << 13, metavar="N",
+                      help="incident samples per outgoing direction for each material's maximum directional albedo "
+                           "(44 outgoing directions; default: %(default)s; 0: do not estimate it)")
     info.set_defaults(func=_cmd_info)
 
     demo = sub.add_parser(

@@ -175,6 +175,29 @@ class HybridModel:
     def latent(self, material) -> np.ndarray:
         return self.tensors["materials.z"][self.index(material)].copy()
 
+    # ---- editing (hybridbrdf.editing) ------------------------------------------------
+    def edit(self, material, name: str, *, kd=None, eta=None, alpha=None,
+             conserve_energy: bool = False) -> "HybridModel":
+        """A new model: these materials and ``name``, ``material`` with the given analytic
+        parameters (kd, eta, alpha) replaced; see :func:`hybridbrdf.editing.edit`."""
+        from hybridbrdf.editing import edit
+
+        return edit(self, material, name, kd=kd, eta=eta, alpha=alpha, conserve_energy=conserve_energy)
+
+    def mix(self, a, b, t: float, name: str) -> "HybridModel":
+        """A new model: these materials and ``name``, the linear blend at ``t`` of the analytic
+        parameters and latent codes of ``a`` and ``b``; see :func:`hybridbrdf.editing.mix`."""
+        from hybridbrdf.editing import mix
+
+        return mix(self, a, b, t, name)
+
+    def albedo(self, material, samples: Optional[int] = None) -> Dict[str, Any]:
+        """Directional albedo of a material over a grid of outgoing directions and its maximum;
+        see :func:`hybridbrdf.editing.albedo_profile`."""
+        from hybridbrdf.editing import ALBEDO_SAMPLES, albedo_profile
+
+        return albedo_profile(self, material, samples or ALBEDO_SAMPLES)
+
     # ---- evaluation ------------------------------------------------------------
     def _module(self, dtype: torch.dtype):
         if dtype not in self._modules:
@@ -255,6 +278,23 @@ class HybridModel:
         atomic_write_bytes(path, encode(self.tensors, meta))
         self.path = os.fspath(path)
         self._cpp = None
+
+    def save_checked(self, path) -> "HybridModel":
+        """Write the model file only once the loaders' own rules accept it: the file is first
+        written to a temporary folder and read back by :func:`load_model` (so a model no reader
+        would load never replaces ``path``), then written atomically. Returns the model as read
+        back, with ``path`` set."""
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            probe = os.path.join(tmp, "model.safetensors")
+            self.save(probe)
+            checked = load_model(probe)
+            with open(probe, "rb") as fh:
+                data = fh.read()
+        atomic_write_bytes(path, data)
+        checked.path = os.fspath(path)
+        return checked
 
     @classmethod
     def from_module(cls, module, names: List[str], origins: List[str], training: Dict[str, Any],
