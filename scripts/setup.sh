@@ -16,6 +16,7 @@ apt_packages=(
   doctest-dev                      # C++ unit tests
   nlohmann-json3-dev               # model-file header parsing in libhybridbrdf
   libassimp-dev libtinyexr-dev libstb-dev   # the path tracer: OBJ/PLY meshes, EXR and HDR/PNG images
+  libllvm19                        # Mitsuba's llvm_ad_rgb (the plugin's tests): Dr.Jit needs LLVM >= 16 here
 )
 missing=()
 for p in "${apt_packages[@]}"; do
