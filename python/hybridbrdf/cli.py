@@ -193,7 +193,7 @@ def _write_new_material(model, name: str, out: str) -> int:
     print(f"max directional albedo {a['max']:.3f} (theta_o {a['argmax_deg'][0]:g}, phi_o {a['argmax_deg'][1]:g} degrees)")
     if a["max"] > 1.0:
         print(f"warning: {name} reflects more light than it receives from some directions; "
-              + ("hbrdf edit --conserve-energy scales kd down to prevent it" if model.has_analytic
+              + ("--conserve-energy scales kd down to prevent it" if model.has_analytic
                  else "this blend of the neural baseline cannot be corrected"), file=sys.stderr)
     return 0
 
@@ -216,7 +216,8 @@ def _cmd_mix(args: argparse.Namespace) -> int:
 
     check_writable(args.out, "model")
     model = load_model(args.model)
-    return _write_new_material(model.mix(args.a, args.b, args.t, args.as_name), args.as_name, args.out)
+    blend = model.mix(args.a, args.b, args.t, args.as_name, conserve_energy=args.conserve_energy)
+    return _write_new_material(blend, args.as_name, args.out)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -456,6 +457,8 @@ def build_parser() -> argparse.ArgumentParser:
     mx.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
     mx.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
     mx.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    mx.add_argument("--conserve-energy", action="store_true",
+                    help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
     mx.set_defaults(func=_cmd_mix)
 
     info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "

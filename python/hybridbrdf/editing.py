@@ -108,23 +108,35 @@ def edit(model, material, name: str, *, kd=None, eta=None, alpha=None, conserve_
         if value is not None:
             record[key] = _shortest(row[key])
     info = {"origin": f"edit of {source}", "isotropic": isotropic, "metrics": {}, "edit": record}
-    edited = _with_material(model, name, row, info)
-    if conserve_energy:
-        dark = _with_material(model, name, dict(row, kd=np.zeros(3, np.float32)), info)
-        scale = _energy_conserving_kd_scale(edited, dark, name)
-        if scale < 1.0:
-            row["kd"] = (row["kd"].astype(np.float64) * scale).astype(np.float32)
-            record["kd"] = _shortest(row["kd"])
-            record["kd_scaled_for_energy"] = scale
-            edited = _with_material(model, name, row, info)
-    return edited
+    return _add_material(model, name, row, info, record, conserve_energy)
 
 
-def mix(model, a, b, t: float, name: str):
+def _add_material(model, name, row, info, record, conserve_energy: bool):
+    """``model`` plus the material ``row``; with ``conserve_energy``, its kd scaled (and the
+    scale recorded in ``record``) so that its maximum directional albedo is at most ALBEDO_TARGET."""
+    new = _with_material(model, name, row, info)
+    if not conserve_energy:
+        return new
+    if "kd" not in row:
+        raise ValueError("the neural baseline has no kd to scale: conserve_energy needs a hybrid model")
+    dark = _with_material(model, name, dict(row, kd=np.zeros(3, np.float32)), info)
+    scale = _energy_conserving_kd_scale(new, dark, name)
+    if scale >= 1.0:
+        return new
+    row = dict(row, kd=(row["kd"].astype(np.float64) * scale).astype(np.float32))
+    record["kd"] = _shortest(row["kd"])
+    record["kd_scaled_for_energy"] = scale
+    return _with_material(model, name, row, info)
+
+
+def mix(model, a, b, t: float, name: str, conserve_energy: bool = False):
     """A model holding ``model``'s materials and a new one, ``name``: the linear blend
     (1 - t) x_a + t x_b of the analytic parameters and latent codes of materials ``a`` and ``b``
     (paper Sec. 5.1, "BRDF interpolation"). t = 0 and t = 1 reproduce ``a`` and ``b`` bit for bit.
-    The blend is isotropic when both are. Raises ValueError for t outside [0, 1] (or NaN)."""
+    The blend is isotropic when both are. A latent code between two fitted ones can make the
+    network's correction brighter than either end (bench/edit_guarantees.py measures how often);
+    ``conserve_energy`` then scales the blend's kd as :func:`edit` does. Raises ValueError for t
+    outside [0, 1] (or NaN)."""
     t = float(t)
     if not 0.0 <= t <= 1.0:  # written so that NaN fails
         raise ValueError(f"t = {t!r} is outside [0, 1]: a blend does not extrapolate")
@@ -133,9 +145,10 @@ def mix(model, a, b, t: float, name: str):
     name_a, name_b = model.materials[model.index(a)], model.materials[model.index(b)]
     iso = [model.material_info[model.index(m)].get("isotropic", True) for m in (a, b)]
     isotropic = bool(all(iso)) if "alpha" not in row else bool(row["alpha"][0] == row["alpha"][1])
+    record = {"a": name_a, "b": name_b, "t": t}
     info = {"origin": f"mix of {name_a} and {name_b} at t = {t:g}", "isotropic": isotropic, "metrics": {},
-            "mix": {"a": name_a, "b": name_b, "t": t}}
-    return _with_material(model, name, row, info)
+            "mix": record}
+    return _add_material(model, name, row, info, record, conserve_energy)
 
 
 # ---- directional albedo --------------------------------------------------------------------------
@@ -212,7 +225,8 @@ def _energy_conserving_kd_scale(edited, dark, material) -> float:
         k = np.unravel_index(int(np.argmax(rho_0)), rho_0.shape)
         th, ph = _outgoing_grid_angles(k[0])
         raise ValueError(f"cannot conserve energy by scaling kd: with kd = 0 the material still reflects "
-                         f"{rho_0.max():.3f} of the light at theta_o {th:g}, phi_o {ph:g} degrees; lower eta")
+                         f"{rho_0.max():.3f} of the light at theta_o {th:g}, phi_o {ph:g} degrees (its specular part "
+                         f"and the network's correction); lower eta, or for a blend choose another t")
     diffuse = rho_kd - rho_0  # the kd-proportional part, >= 0 up to rounding
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(diffuse > 1e-9, (ALBEDO_TARGET - rho_0) / diffuse, np.inf)

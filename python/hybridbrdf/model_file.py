@@ -184,12 +184,12 @@ class HybridModel:
 
         return edit(self, material, name, kd=kd, eta=eta, alpha=alpha, conserve_energy=conserve_energy)
 
-    def mix(self, a, b, t: float, name: str) -> "HybridModel":
+    def mix(self, a, b, t: float, name: str, conserve_energy: bool = False) -> "HybridModel":
         """A new model: these materials and ``name``, the linear blend at ``t`` of the analytic
         parameters and latent codes of ``a`` and ``b``; see :func:`hybridbrdf.editing.mix`."""
         from hybridbrdf.editing import mix
 
-        return mix(self, a, b, t, name)
+        return mix(self, a, b, t, name, conserve_energy=conserve_energy)
 
     def albedo(self, material, samples: Optional[int] = None) -> Dict[str, Any]:
         """Directional albedo of a material over a grid of outgoing directions and its maximum;

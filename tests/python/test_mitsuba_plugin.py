@@ -127,3 +127,16 @@ def test_llvm_variant_chi_square_and_render(edited_model, env_file, tmp_path):
         assert case["passed"], case
     assert res["render"]["max_abs_z"] < 4.5, res["render"]
     assert res["render"]["tiles"] >= 40
+
+
+def test_the_readme_example_runs(tmp_path):
+    """The README's Mitsuba example as written (at 1 spp instead of 64, for time)."""
+    readme = open(os.path.join(HERE, "..", "..", "README.md")).read()
+    section = readme[readme.index("## Mitsuba 3"):]
+    code = section[section.index("```python") + len("```python"):section.index("```", section.index("```python") + 9)]
+    assert "spp=64" in code
+    r = subprocess.run([sys.executable, "-c", code.replace("spp=64", "spp=1")], capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    img = np.array(mi.Bitmap(str(tmp_path / "ball.exr")))
+    assert img.shape[2] >= 3 and np.isfinite(img).all() and img.max() > 0
