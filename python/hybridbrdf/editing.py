@@ -21,7 +21,7 @@ stays at or below :data:`ALBEDO_TARGET` for every outgoing direction of the grid
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, Optional, Sequence, Tuple
+from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 

@@ -4,7 +4,6 @@ hbrdf render within Monte Carlo noise, in scalar_rgb here and in llvm_ad_rgb in 
 (tests/python/mitsuba_llvm_checks.py: a process holds one Mitsuba variant at a time)."""
 
 import json
-import math
 import os
 import subprocess
 import sys
@@ -13,7 +12,6 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf import _core
 from hybridbrdf.render import render, write_exr
 
 import mitsuba as mi  # noqa: E402  (a test extra)
