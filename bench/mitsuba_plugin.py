@@ -4,12 +4,14 @@ render error of the plugin against Mitsuba's own ``measured`` plugin on the same
 reference), and the frame time of each, in scalar_rgb or llvm_ad_rgb.
 
 The scene is the plugin tests' (tests/python/mitsuba_scenes.py): a sphere under a smooth
-environment map with a blurred sun, direct lighting, box filter. Both renders use the same
-seed; MAE is over the sphere's pixels and RGB of the linear images; the noise row is the MAE
-between two seeds of the reference.
+environment map with a blurred sun, direct lighting, box filter. The reference is the measured
+plugin at --ref-spp; MAE is over the sphere's pixels and RGB of the linear images, for renders
+at --spp; the noise column is the MAE of the measured plugin itself at --spp (another seed)
+against the reference: what noise alone contributes. Times are per frame at --spp, after a
+first frame that compiles the kernels.
 
     python bench/mitsuba_plugin.py [--variant llvm_ad_rgb] [--model results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors]
-        [--size 128] [--spp 64] [NAME ...]
+        [--size 128] [--spp 256] [--ref-spp 2048] [NAME ...]
 
 NAME: raw RGL files of ../shared/data/rgl (default: the five), matched to the model's
 ``NAME.rgl`` materials.
@@ -37,7 +39,8 @@ def main() -> int:
     ap.add_argument("--variant", default="llvm_ad_rgb", choices=("scalar_rgb", "llvm_ad_rgb"))
     ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_hybrid_32x2_e09_120k_refit01.safetensors"))
     ap.add_argument("--size", type=int, default=128)
-    ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--ref-spp", type=int, default=2048)
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     args = ap.parse_args()
 
@@ -52,28 +55,29 @@ def main() -> int:
     hbmi.register()
     model = hb.load_model(args.model)
 
-    def frame(bsdf, seed):
-        scene = mi.load_dict(mitsuba_scene(mi, env, bsdf, args.size, args.spp))
-        mi.render(scene, seed=seed)  # first frame: kernels compiled (llvm), files loaded
+    def frame(bsdf, seed, spp=args.spp):
+        scene = mi.load_dict(mitsuba_scene(mi, env, bsdf, args.size, spp))
+        mi.render(scene, seed=seed, spp=1)  # first frame: kernels compiled (llvm), files loaded
         t0 = time.perf_counter()
-        img = np.array(mi.render(scene, seed=seed))
+        img = np.array(mi.render(scene, seed=seed, spp=spp))  # spp again: the warm-up's spp=1 sticks
         return img, time.perf_counter() - t0
 
     with tempfile.TemporaryDirectory() as tmp:
         env = os.path.join(tmp, "env.exr")
         write_exr(environment_map(), env)
         print(f"Mitsuba {mi.__version__} {args.variant}; sphere under an environment map, {args.size}x{args.size}, "
-              f"{args.spp} spp, direct lighting; model {args.model}")
+              f"direct lighting; renders {args.spp} spp against the measured plugin at {args.ref_spp} spp; "
+              f"model {args.model}")
         print(f"{'material':24s} {'noise MAE':>9s} {'MAE full':>9s} {'MAE f_a':>9s} | {'measured s':>10s} "
               f"{'hbrdf s':>8s} {'f_a s':>7s}")
         rows = []
         for name in args.names:
             path = os.path.join(args.shared, "rgl", f"{name}.bsdf")
             material = f"{name}.rgl" if f"{name}.rgl" in model.materials else name
-            ref, t_ref = frame({"type": "measured", "filename": path}, 1)
-            ref2, _ = frame({"type": "measured", "filename": path}, 2)
-            full, t_full = frame({"type": "hbrdf", "filename": args.model, "material": material}, 1)
-            fa, t_fa = frame({"type": "hbrdf", "filename": args.model, "material": material, "evaluate": "analytic"}, 1)
+            ref, _ = frame({"type": "measured", "filename": path}, 1, args.ref_spp)
+            ref2, t_ref = frame({"type": "measured", "filename": path}, 2)
+            full, t_full = frame({"type": "hbrdf", "filename": args.model, "material": material}, 3)
+            fa, t_fa = frame({"type": "hbrdf", "filename": args.model, "material": material, "evaluate": "analytic"}, 3)
             hit = sphere_mask(mi, env, args.size)
             mae = lambda img: float(np.abs(img[hit] - ref[hit]).mean())  # noqa: E731
             rows.append((mae(ref2), mae(full), mae(fa)))
