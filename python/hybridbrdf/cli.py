@@ -258,6 +258,8 @@ def _shown(value) -> str:
 def _cmd_info(args: argparse.Namespace) -> int:
     from hybridbrdf.model_file import load_model
 
+    if args.albedo_samples < 0:
+        raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
     model = load_model(args.model)
     a = model.arch
     written_by = getattr(model, "written_by", None)

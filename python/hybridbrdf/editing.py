@@ -162,12 +162,14 @@ def _outgoing_grid() -> np.ndarray:
 
 
 def _stratified_u(n: int, seed: int) -> np.ndarray:
-    """n jittered 2-D points, one per cell of a sqrt(n)-ish grid (a fixed seed: reproducible)."""
+    """n 2-D points in [0, 1)^2: one jittered point per cell of an nx x (n // nx) grid (nx about
+    sqrt(n)), the n mod nx left over uniform; a fixed seed makes every estimate reproducible."""
     nx = 1 << (int(math.log2(n)) // 2)
     ny = n // nx
     rng = np.random.default_rng(seed)
     i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
     u = np.stack([(i.ravel() + rng.random(nx * ny)) / nx, (j.ravel() + rng.random(nx * ny)) / ny], axis=-1)
+    u = np.concatenate([u, rng.random((n - nx * ny, 2))])
     return np.minimum(u, np.nextafter(1.0, 0.0))
 
 
@@ -177,6 +179,8 @@ def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarra
     by outgoing direction."""
     from hybridbrdf.analytic import AnalyticParams, sample
 
+    if isinstance(samples, bool) or not (isinstance(samples, (int, np.integer)) and samples >= 1):
+        raise ValueError(f"albedo samples must be a positive integer, got {samples!r}")
     wo_grid = _outgoing_grid()
     wo = np.repeat(wo_grid, samples, axis=0)
     u = np.tile(_stratified_u(samples, seed), (len(wo_grid), 1))

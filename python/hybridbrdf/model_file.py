@@ -196,7 +196,7 @@ class HybridModel:
         see :func:`hybridbrdf.editing.albedo_profile`."""
         from hybridbrdf.editing import ALBEDO_SAMPLES, albedo_profile
 
-        return albedo_profile(self, material, samples or ALBEDO_SAMPLES)
+        return albedo_profile(self, material, ALBEDO_SAMPLES if samples is None else samples)
 
     # ---- evaluation ------------------------------------------------------------
     def _module(self, dtype: torch.dtype):

@@ -245,3 +245,14 @@ def test_a_blend_can_outshine_both_ends_and_kd_cannot_always_fix_it(prior):
     # nearer an end, scaling kd is enough
     kept = prior.mix(a, b, 0.8, "near", conserve_energy=True)
     assert kept.albedo("near")["max"] <= 1.0  # the target 0.99 leaves room for the estimate's noise
+
+
+def test_albedo_takes_any_sample_count_and_refuses_nonsense(prior):
+    for n in (1, 7, 1000, 2049):
+        prof = prior.albedo(GLOSSY, samples=n)
+        assert prof["albedo"].shape == (44, 3) and np.isfinite(prof["albedo"]).all()
+    for n in (0, -5, 2.5):
+        with pytest.raises(ValueError, match="positive integer"):
+            prior.albedo(GLOSSY, samples=n)
+    r = run_cli("info", str(hb.prior_path()), "--albedo-samples", "-1")
+    assert r.returncode == 1 and "--albedo-samples -1: must be >= 0" in r.stderr
