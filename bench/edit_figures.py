@@ -52,6 +52,19 @@ def shown(img, exposure=0.0):
     return srgb(np.clip(img * 2.0 ** exposure, 0.0, 1.0))
 
 
+def contact_sheet(plt, tiles, rows, cols, size, title, path):
+    """The labelled images of ``tiles`` ((image, label) pairs) on a rows x cols grid, as a PNG."""
+    fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False)
+    for ax, (img, label) in zip(axes.ravel(), tiles):
+        ax.imshow(shown(img))
+        ax.set_title(label, fontsize=7)
+        ax.axis("off")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", help="model file (default: the shipped prior)")
@@ -109,24 +122,12 @@ def main() -> int:
     seconds = time.time() - t0
 
     cols = len(SCALES)
-    fig, axes = plt.subplots(3, cols, figsize=(2.0 * cols, 2.0 * 3 + 0.4))
-    for ax, (img, label) in zip(axes.ravel(), tiles):
-        ax.imshow(shown(img))
-        ax.set_title(label, fontsize=7)
-        ax.axis("off")
-    fig.suptitle(f"Editing {args.material} (shipped prior): kd, eta, alpha rows; fitted in the middle", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.out_dir, "editing_grid.png"), dpi=110)
-    plt.close(fig)
-    fig, axes = plt.subplots(1, len(strip), figsize=(1.9 * len(strip), 2.3))
-    for ax, (img, label) in zip(axes, strip):
-        ax.imshow(shown(img))
-        ax.set_title(label, fontsize=7)
-        ax.axis("off")
-    fig.suptitle(f"Interpolating (p, z): {args.mix[0]} (t = 0) to {args.mix[1]} (t = 1)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.out_dir, "interpolation_strip.png"), dpi=110)
-    plt.close(fig)
+    contact_sheet(plt, tiles, 3, cols, (2.0 * cols, 2.0 * 3 + 0.4),
+                  f"Editing {args.material} (shipped prior): kd, eta, alpha rows; fitted in the middle",
+                  os.path.join(args.out_dir, "editing_grid.png"))
+    contact_sheet(plt, strip, 1, len(strip), (1.9 * len(strip), 2.3),
+                  f"Interpolating (p, z): {args.mix[0]} (t = 0) to {args.mix[1]} (t = 1)",
+                  os.path.join(args.out_dir, "interpolation_strip.png"))
     print(f"{len(tiles) + len(strip)} renders, {args.size}x{args.size}, {args.spp} spp, MIS sampler, in {seconds:.0f} s; "
           f"wrote {args.out_dir}/editing_grid.png and {args.out_dir}/interpolation_strip.png")
     return 0
