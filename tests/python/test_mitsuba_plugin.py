@@ -38,6 +38,25 @@ def env_file(tmp_path_factory):
     return path
 
 
+def llvm_env():
+    """The environment of a subprocess that uses llvm_ad_rgb: DRJIT_LIBLLVM_PATH at the newest
+    libLLVM of the system (>= 16, which scripts/setup.sh installs) unless the caller set one, so
+    that Dr.Jit does not pick Mesa's older LLVM (docs/MITSUBA.md)."""
+    import glob
+    import re
+
+    env = dict(os.environ)
+    if "DRJIT_LIBLLVM_PATH" not in env:
+        found = []
+        for path in glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"):
+            m = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+            if m and int(m.group(1)) >= 16:
+                found.append((int(m.group(1)), path))
+        if found:
+            env["DRJIT_LIBLLVM_PATH"] = max(found)[1]
+    return env
+
+
 def plugin(model, material, **extra):
     hbmi.register()
     return mi.load_dict(dict({"type": "hbrdf", "filename": str(model.path), "material": material}, **extra))
@@ -116,7 +135,7 @@ def test_llvm_variant_chi_square_and_render(edited_model, env_file, tmp_path):
     and the render comparison there at 64x64, 64 spp."""
     out = tmp_path / "llvm.json"
     r = subprocess.run([sys.executable, os.path.join(HERE, "mitsuba_llvm_checks.py"), str(edited_model.path),
-                        env_file, str(out)], capture_output=True, text=True, cwd=tmp_path)  # chi2 may write its data there
+                        env_file, str(out)], capture_output=True, text=True, cwd=tmp_path, env=llvm_env())  # chi2 may write its data there
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     res = json.loads(out.read_text())
     assert res["variant"] == "llvm_ad_rgb"
@@ -134,7 +153,7 @@ def test_the_readme_example_runs(tmp_path):
     code = section[section.index("```python") + len("```python"):section.index("```", section.index("```python") + 9)]
     assert "spp=64" in code
     r = subprocess.run([sys.executable, "-c", code.replace("spp=64", "spp=1")], capture_output=True, text=True,
-                       cwd=tmp_path)
+                       cwd=tmp_path, env=llvm_env())
     assert r.returncode == 0, r.stderr[-3000:]
     img = np.array(mi.Bitmap(str(tmp_path / "ball.exr")))
     assert img.shape[2] >= 3 and np.isfinite(img).all() and img.max() > 0
