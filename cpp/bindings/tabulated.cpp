@@ -21,10 +21,18 @@ using hbrdf_bindings::check_rows;
 using hbrdf_bindings::FloatArray;
 using hbrdf_bindings::row3;
 
-hbrdf::TabulatedSampler build_or_raise(const hbrdf::BatchEval& eval, bool isotropic, int resolution_deg) {
+hbrdf::TabulatedStorage parse_storage(const std::string& name) {
+    if (name == "compact") return hbrdf::TabulatedStorage::Compact;
+    if (name == "full") return hbrdf::TabulatedStorage::Full;
+    throw py::value_error("storage must be 'compact' or 'full', got '" + name + "'");
+}
+
+hbrdf::TabulatedSampler build_or_raise(const hbrdf::BatchEval& eval, bool isotropic, int resolution_deg,
+                                       const std::string& storage_name) {
+    const hbrdf::TabulatedStorage storage = parse_storage(storage_name);
     try {
         py::gil_scoped_release release;
-        return hbrdf::TabulatedSampler::build(eval, isotropic, resolution_deg);
+        return hbrdf::TabulatedSampler::build(eval, isotropic, resolution_deg, storage);
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());
     }
@@ -40,7 +48,7 @@ void bind_tabulated(py::module_& m) {
         "cells of resolution_deg, mixed with 10% cosine sampling. See docs/SAMPLING.md.")
         .def_static(
             "build_analytic",
-            [](py::object params_in, bool isotropic, int resolution_deg) {
+            [](py::object params_in, bool isotropic, int resolution_deg, const std::string& storage) {
                 // hybridbrdf.AnalyticParams (the validated Python class) converts itself.
                 if (!py::isinstance<hbrdf::AnalyticParams>(params_in) && py::hasattr(params_in, "to_core"))
                     params_in = params_in.attr("to_core")();
@@ -48,14 +56,17 @@ void bind_tabulated(py::module_& m) {
                 const hbrdf::BatchEval eval = [params](std::size_t n, const float* wi, const float* wo, float* f) {
                     hbrdf::eval_analytic_aos(params, n, wi, wo, f);
                 };
-                return build_or_raise(eval, isotropic, resolution_deg);
+                return build_or_raise(eval, isotropic, resolution_deg, storage);
             },
             py::arg("params"), py::arg("isotropic") = true, py::arg("resolution_deg") = 1,
+            py::arg("storage") = "compact",
             "Tabulate the analytic BRDF f_a; params is a _core.AnalyticParams or a hybridbrdf.AnalyticParams. "
-            "resolution_deg must divide 90.")
+            "resolution_deg must divide 90. storage: 'compact' (16-bit CDFs, isotropic azimuth folded by mirror "
+            "symmetry; 2.9 MB at 1 degree) or 'full' (float CDFs, 11.7 MB); docs/SAMPLING.md.")
         .def_static(
             "build_model",
-            [](const hbrdf::HybridModel& model, int material_index, py::object isotropic, int resolution_deg) {
+            [](const hbrdf::HybridModel& model, int material_index, py::object isotropic, int resolution_deg,
+               const std::string& storage) {
                 check_material(model, material_index);
                 const bool iso = isotropic.is_none() ? model.materials()[std::size_t(material_index)].isotropic
                                                      : isotropic.cast<bool>();
@@ -66,12 +77,12 @@ void bind_tabulated(py::module_& m) {
                                                                    float* f) {
                     md->eval_batch(material_index, n, wi, wo, f);
                 };
-                return build_or_raise(eval, iso, resolution_deg);
+                return build_or_raise(eval, iso, resolution_deg, storage);
             },
             py::arg("model"), py::arg("material_index"), py::arg("isotropic") = py::none(),
-            py::arg("resolution_deg") = 1, py::keep_alive<0, 1>(),
+            py::arg("resolution_deg") = 1, py::arg("storage") = "compact", py::keep_alive<0, 1>(),
             "Tabulate material `material_index` of a Model (f_t as Model.eval computes it). isotropic=None takes "
-            "the material's own flag from the model file.")
+            "the material's own flag from the model file. storage: 'compact' or 'full', as for build_analytic.")
         .def(
             "sample",
             [](const hbrdf::TabulatedSampler& s, const FloatArray& wo, const FloatArray& u) {
@@ -110,6 +121,8 @@ void bind_tabulated(py::module_& m) {
         .def_property_readonly("memory_bytes", &hbrdf::TabulatedSampler::memory_bytes,
                                "Bytes of the tables held (CDFs and per-row constants).")
         .def_property_readonly("isotropic", &hbrdf::TabulatedSampler::isotropic)
+        .def_property_readonly("mirrored", &hbrdf::TabulatedSampler::mirrored,
+                               "True when the azimuth is folded by mirror symmetry (compact and isotropic).")
         .def_property_readonly("resolution_deg", &hbrdf::TabulatedSampler::resolution_deg)
         .def_property_readonly("table_count", &hbrdf::TabulatedSampler::table_count,
                                "Number of 2D tables: theta_o bins x phi_o bins.")

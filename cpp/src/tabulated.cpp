@@ -72,15 +72,18 @@ inline int bin_index(double x, double width, int n) {
     return b <= 0.0 ? 0 : (b >= double(n - 1) ? n - 1 : int(b));
 }
 
-/// Inverts an inclusive CDF of n entries (last = 1) at u in [0, 1): the first
-/// entry above u, i.e. the cell whose [cdf[k-1], cdf[k]) holds u. Cells of zero
-/// probability (equal neighbours) are never returned. `remainder` is u's
-/// position inside that cell, rescaled to [0, 1) for reuse.
-inline int invert_cdf(const float* cdf, int n, double u, double& remainder) {
-    const int k = int(std::upper_bound(cdf, cdf + n, u) - cdf);
+/// Inverts an inclusive CDF of n entries (entry k is P(cell <= k) / scale; the
+/// last is 1 / scale) at u in [0, 1): the first entry above u, i.e. the cell
+/// whose [cdf[k-1], cdf[k]) holds u. Cells of zero probability (equal
+/// neighbours) are never returned. `remainder` is u's position inside that
+/// cell, rescaled to [0, 1) for reuse. float CDFs have scale 1, 16-bit ones
+/// 1 / 65535.
+template <class T> inline int invert_cdf(const T* cdf, int n, double scale, double u, double& remainder) {
+    const double v = u / scale;
+    const int k = int(std::upper_bound(cdf, cdf + n, v, [](double a, T b) { return a < double(b); }) - cdf);
     const int idx = std::min(k, n - 1);  // only reached if u >= 1, which callers rule out
-    const double lo = idx > 0 ? double(cdf[idx - 1]) : 0.0;
-    const double hi = double(cdf[idx]);
+    const double lo = idx > 0 ? double(cdf[idx - 1]) * scale : 0.0;
+    const double hi = double(cdf[idx]) * scale;
     const double r = hi > lo ? (u - lo) / (hi - lo) : 0.0;
     remainder = clamp_nan_lo(r, 0.0, kOneMinusEpsD);
     return idx;
@@ -98,9 +101,23 @@ inline void write_cdf(const double* mass, int n, double total, float* cdf) {
     cdf[n - 1] = 1.0f;
 }
 
+/// The same CDF in 16-bit fixed point, entry = round(65535 P(cell <= k)): the
+/// rounding of a non-decreasing sequence is non-decreasing, and the last entry
+/// is exactly 65535. A cell whose probability is below half a step can round to
+/// an empty cell; the defensive cosine lobe keeps the sampler unbiased there.
+inline void write_cdf_q16(const double* mass, int n, double total, std::uint16_t* cdf) {
+    double acc = 0.0;
+    for (int k = 0; k < n; ++k) {
+        acc += mass[k];
+        cdf[k] = std::uint16_t(std::lround(std::min(acc / total, 1.0) * 65535.0));
+    }
+    cdf[n - 1] = 65535;
+}
+
 }  // namespace
 
-TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, int resolution_deg) {
+TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, int resolution_deg,
+                                         TabulatedStorage storage) {
     if (!eval) throw std::invalid_argument("TabulatedSampler::build: empty BatchEval");
     if (resolution_deg < 1 || resolution_deg > 90 || 90 % resolution_deg != 0)
         throw std::invalid_argument("TabulatedSampler::build: resolution_deg = " + std::to_string(resolution_deg) +
@@ -108,9 +125,14 @@ TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, 
 
     TabulatedSampler s;
     s.isotropic_ = isotropic;
+    s.storage_ = storage;
+    // Mirror symmetry of isotropic BRDFs about the plane of incidence: cell c and
+    // cell n_phi - 1 - c of relative azimuth share one stored column.
+    s.mirrored_ = isotropic && storage == TabulatedStorage::Compact;
     s.resolution_deg_ = resolution_deg;
     s.n_theta_ = 90 / resolution_deg;
-    s.n_phi_ = 360 / resolution_deg;
+    s.n_phi_ = 360 / resolution_deg;  // even for every allowed resolution
+    s.n_col_ = s.mirrored_ ? s.n_phi_ / 2 : s.n_phi_;
     // Anisotropic: phi_o every ~10 x resolution_deg (36 bins at 1 degree). The
     // exact step is 360 / n_phi_o_, so the bins tile the circle.
     s.n_phi_o_ = isotropic ? 1 : std::max(1, int(std::lround(36.0 / resolution_deg)));
@@ -151,9 +173,12 @@ TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, 
             }
     }
 
-    const int n_tables = s.table_count();
+    const int n_tables = s.table_count(), n_col = s.n_col_;
     s.marginal_cdf_.resize(std::size_t(n_tables) * n_theta);
-    s.conditional_cdf_.resize(std::size_t(n_tables) * n_theta * n_phi);
+    if (storage == TabulatedStorage::Full)
+        s.conditional_cdf_.resize(std::size_t(n_tables) * n_theta * n_col);
+    else
+        s.conditional_cdf_q_.resize(std::size_t(n_tables) * n_theta * n_col);
 
     const std::size_t batch = std::min(kTabulatedBuildBatch, n_pairs);
     std::vector<float> wo_buf(3 * batch), f_buf(3 * batch);
@@ -201,13 +226,21 @@ TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, 
             }
         }
 
+        // Mirrored tables: the first n_col cells of a row become the mean of each
+        // cell and its mirror image (the same 4 sub-samples per cell, 8 per column).
+        if (s.mirrored_)
+            for (int r = 0; r < n_theta; ++r) {
+                double* row = &mean_g[std::size_t(r) * n_phi];
+                for (int c = 0; c < n_col; ++c) row[c] = 0.5 * (row[c] + row[n_phi - 1 - c]);
+            }
         // Cell integral = mean(g) x cell solid angle; all cells of a row share
-        // the solid angle, so it only enters the marginal.
+        // the solid angle, so it only enters the marginal. Only the first n_col
+        // cells of each row are read from here on.
         double total = 0.0;
         for (int r = 0; r < n_theta; ++r) {
             double sum = 0.0;
-            for (int c = 0; c < n_phi; ++c) sum += mean_g[std::size_t(r) * n_phi + c];
-            row_mass[std::size_t(r)] = sum * cell_solid_angle[std::size_t(r)];
+            for (int c = 0; c < n_col; ++c) sum += mean_g[std::size_t(r) * n_phi + c];
+            row_mass[std::size_t(r)] = sum * cell_solid_angle[std::size_t(r)] * (double(n_phi) / n_col);
             total += row_mass[std::size_t(r)];
         }
         if (!(total > 0.0) || !std::isfinite(total)) {
@@ -225,16 +258,20 @@ TabulatedSampler TabulatedSampler::build(const BatchEval& eval, bool isotropic, 
         write_cdf(row_mass.data(), n_theta, total, &s.marginal_cdf_[std::size_t(t) * n_theta]);
         for (int r = 0; r < n_theta; ++r) {
             const double* row = &mean_g[std::size_t(r) * n_phi];
-            float* cdf = &s.conditional_cdf_[(std::size_t(t) * n_theta + r) * n_phi];
+            std::vector<double> uniform;
             double sum = 0.0;
-            for (int c = 0; c < n_phi; ++c) sum += row[c];
-            if (sum > 0.0) {
-                write_cdf(row, n_phi, sum, cdf);
-            } else {
+            for (int c = 0; c < n_col; ++c) sum += row[c];
+            if (!(sum > 0.0)) {
                 // A row the marginal never picks (probability 0): any valid CDF.
-                for (int c = 0; c < n_phi; ++c) cdf[c] = float(double(c + 1) / n_phi);
-                cdf[n_phi - 1] = 1.0f;
+                uniform.assign(std::size_t(n_col), 1.0);
+                row = uniform.data();
+                sum = n_col;
             }
+            const std::size_t at = (std::size_t(t) * n_theta + r) * n_col;
+            if (storage == TabulatedStorage::Full)
+                write_cdf(row, n_col, sum, &s.conditional_cdf_[at]);
+            else
+                write_cdf_q16(row, n_col, sum, &s.conditional_cdf_q_[at]);
         }
     }
     return s;
@@ -249,16 +286,18 @@ int TabulatedSampler::table_index(const Vec3<double>& wo) const {
 
 double TabulatedSampler::cell_probability(int t, int row, int col) const {
     const float* m = &marginal_cdf_[std::size_t(t) * n_theta_];
-    const float* c = &conditional_cdf_[(std::size_t(t) * n_theta_ + row) * n_phi_];
+    const std::size_t at = (std::size_t(t) * n_theta_ + row) * n_col_;
     const double p_row = double(m[row]) - (row > 0 ? double(m[row - 1]) : 0.0);
-    const double p_col = double(c[col]) - (col > 0 ? double(c[col - 1]) : 0.0);
+    const double p_col = conditional(at, col) - (col > 0 ? conditional(at, col - 1) : 0.0);
     return p_row * p_col;
 }
 
 void TabulatedSampler::sample_cell(int t, double ux, double uy, int& row, int& col, double& rx,
                                    double& ry) const {
-    row = invert_cdf(&marginal_cdf_[std::size_t(t) * n_theta_], n_theta_, ux, rx);
-    col = invert_cdf(&conditional_cdf_[(std::size_t(t) * n_theta_ + row) * n_phi_], n_phi_, uy, ry);
+    row = invert_cdf(&marginal_cdf_[std::size_t(t) * n_theta_], n_theta_, 1.0, ux, rx);
+    const std::size_t at = (std::size_t(t) * n_theta_ + row) * n_col_;
+    col = storage_ == TabulatedStorage::Full ? invert_cdf(&conditional_cdf_[at], n_col_, 1.0, uy, ry)
+                                             : invert_cdf(&conditional_cdf_q_[at], n_col_, 1.0 / 65535.0, uy, ry);
 }
 
 namespace {
@@ -290,8 +329,11 @@ float TabulatedSampler::pdf(const Vec3<float>& wi_in, const Vec3<float>& wo_in) 
         y = -s * wi.x + c * wi.y;
     }
     const int row = bin_index(std::acos(std::min(wi.z, 1.0)), dtheta_, n_theta_);
-    const int col = bin_index(azimuth(x, y), dphi_, n_phi_);
-    const double p_table = cell_probability(t, row, col) * inv_cell_solid_angle_[std::size_t(row)];
+    const int cell = bin_index(azimuth(x, y), dphi_, n_phi_);
+    // A mirrored column's probability is shared by its two cells.
+    const int col = mirrored_ && cell >= n_col_ ? n_phi_ - 1 - cell : cell;
+    const double p_table =
+        cell_probability(t, row, col) * inv_cell_solid_angle_[std::size_t(row)] * (mirrored_ ? 0.5 : 1.0);
     const double p_cos = wi.z * kInvPi<double>;
     return float(kTabulatedDefensiveFraction * p_cos + (1.0 - kTabulatedDefensiveFraction) * p_table);
 }
@@ -317,6 +359,13 @@ BrdfSample TabulatedSampler::sample_direction(const Vec3<float>& wo_in, const Ve
         int row, col;
         double rx, ry;
         sample_cell(table_index(wo), ux, double(u.y), row, col, rx, ry);
+        if (mirrored_) {
+            // The column's two mirrored cells are equally likely: the first half of
+            // ry keeps the stored cell, the second takes its mirror image.
+            const bool mirror = ry >= 0.5;
+            ry = clamp_nan_lo(mirror ? 2.0 * ry - 1.0 : 2.0 * ry, 0.0, kOneMinusEpsD);
+            if (mirror) col = n_phi_ - 1 - col;
+        }
         // Uniform in cos theta and phi inside the cell = uniform in solid angle.
         const double c0 = cos_bound_[std::size_t(row)], c1 = cos_bound_[std::size_t(row) + 1];
         const Vec3<double> local = direction(c0 - rx * (c0 - c1), (col + ry) * dphi_);
@@ -355,7 +404,8 @@ BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>&
 
 std::size_t TabulatedSampler::memory_bytes() const {
     return cos_bound_.size() * sizeof(double) + inv_cell_solid_angle_.size() * sizeof(float) +
-           marginal_cdf_.size() * sizeof(float) + conditional_cdf_.size() * sizeof(float);
+           marginal_cdf_.size() * sizeof(float) + conditional_cdf_.size() * sizeof(float) +
+           conditional_cdf_q_.size() * sizeof(std::uint16_t);
 }
 
 }  // namespace hbrdf

@@ -40,15 +40,22 @@ struct Key {
     float ax, ay, kd;
     bool iso;
     int res;
+    TabulatedStorage storage;
     bool operator<(const Key& o) const {
-        return std::tie(ax, ay, kd, iso, res) < std::tie(o.ax, o.ay, o.kd, o.iso, o.res);
+        return std::tie(ax, ay, kd, iso, res, storage) < std::tie(o.ax, o.ay, o.kd, o.iso, o.res, o.storage);
     }
 };
-const TabulatedSampler& cached(float ax, float ay, bool iso, int res, float kd = 0.1f) {
+const TabulatedSampler& cached(float ax, float ay, bool iso, int res, float kd = 0.1f,
+                               TabulatedStorage storage = TabulatedStorage::Compact) {
     static std::map<Key, std::unique_ptr<TabulatedSampler>> cache;
-    auto& slot = cache[Key{ax, ay, kd, iso, res}];
-    if (!slot) slot = std::make_unique<TabulatedSampler>(TabulatedSampler::build(analytic_eval(glossy(ax, ay, kd)), iso, res));
+    auto& slot = cache[Key{ax, ay, kd, iso, res, storage}];
+    if (!slot)
+        slot = std::make_unique<TabulatedSampler>(
+            TabulatedSampler::build(analytic_eval(glossy(ax, ay, kd)), iso, res, storage));
     return *slot;
+}
+const TabulatedSampler& cached_full(float ax, float ay, bool iso, int res) {
+    return cached(ax, ay, iso, res, 0.1f, TabulatedStorage::Full);
 }
 
 // The table's cells are (theta, phi) rectangles of resolution_deg, phi
@@ -198,8 +205,11 @@ double albedo_quadrature(const AnalyticParams& p32, const Vec3<double>& wo, int 
 }  // namespace
 
 TEST_CASE("tabulated: pdf integrates to 1 over the sphere, including grazing wo") {
-    for (bool iso : {true, false}) {
-        const TabulatedSampler& s = iso ? cached(0.1f, 0.1f, true, 1) : cached(0.05f, 0.3f, false, 3);
+    for (int which = 0; which < 3; ++which) {
+        const bool iso = which < 2;  // 0: compact isotropic (mirrored), 1: full isotropic, 2: anisotropic
+        const TabulatedSampler& s = which == 0 ? cached(0.1f, 0.1f, true, 1)
+                                    : which == 1 ? cached_full(0.1f, 0.1f, true, 1)
+                                                 : cached(0.05f, 0.3f, false, 3);
         for (double theta_o : {0.0, 0.3, 1.0, 1.4, 1.5607, 0.5 * M_PI - 1e-6}) {
             for (double phi_o : {0.0, 2.2}) {
                 const Vec3<float> wo(spherical(theta_o, phi_o));
@@ -220,6 +230,7 @@ TEST_CASE("tabulated: sample() draws from pdf() (chi-square), and a wrong pdf is
         int res;
         double theta_o, phi_o;
         int group;  // histogram bin size in fine-grid points (kSub per cell)
+        TabulatedStorage storage = TabulatedStorage::Compact;
     };
     const Case cases[] = {
         // The table's distribution, 6 x 6-cell bins.
@@ -228,12 +239,16 @@ TEST_CASE("tabulated: sample() draws from pdf() (chi-square), and a wrong pdf is
         {0.05f, 0.3f, false, 3, 1.52, 5.5, 6 * kSub},
         // Coarse tables, half-cell bins: placement inside a cell.
         {0.3f, 0.3f, true, 15, 0.7, 1.3, 1},          {0.2f, 0.5f, false, 15, 1.2, 3.9, 1},
+        // The uncompressed layout (float CDFs, full azimuth).
+        {0.1f, 0.1f, true, 1, 0.6, 0.7, 6 * kSub, TabulatedStorage::Full},
+        {0.3f, 0.3f, true, 15, 0.7, 1.3, 1, TabulatedStorage::Full},
     };
     std::uint32_t seed = 11;
     for (const Case& c : cases) {
-        const TabulatedSampler& s = cached(c.ax, c.ay, c.iso, c.res);
+        const TabulatedSampler& s = cached(c.ax, c.ay, c.iso, c.res, 0.1f, c.storage);
         const Vec3<float> wo(spherical(c.theta_o, c.phi_o));
         const Binning bn = binning(s, c.group);
+        CAPTURE(s.mirrored());
         CAPTURE(c.iso); CAPTURE(c.res); CAPTURE(c.theta_o); CAPTURE(c.phi_o);
         const auto count = histogram(s, wo, bn, kN, seed++);
         const auto prob = bin_probabilities(s, wo, bn, [&](const Vec3<float>& wi) { return s.pdf(wi, wo); });
@@ -343,6 +358,30 @@ TEST_CASE("tabulated: lower variance than cosine sampling on a glossy GGX lobe, 
         CAPTURE(theta_o);
         CHECK(var_tab < 0.25 * var_cos);
         CHECK(std::abs(tab.first - reference) < 4.0 * tab.second + 1e-4 * reference);
+    }
+}
+
+TEST_CASE("tabulated: the compact tables sample as well as the full ones (same u, same material)") {
+    // Common random numbers: both samplers see the same u sequence, so the
+    // variance ratio measures the tables, not the luck of the draw.
+    constexpr int kN = 200000;
+    struct Case {
+        float ax, ay;
+        double theta_o;
+    };
+    for (const Case& c : {Case{0.1f, 0.1f, 0.2}, Case{0.1f, 0.1f, 0.8}, Case{0.1f, 0.1f, 1.3}, Case{0.3f, 0.3f, 0.8},
+                          Case{0.01f, 0.01f, 0.5}}) {
+        const TabulatedSampler& compact = cached(c.ax, c.ay, true, 1);
+        const TabulatedSampler& full = cached_full(c.ax, c.ay, true, 1);
+        const Vec3<float> wo(spherical(c.theta_o, 0.9));
+        const auto a = estimate([&](const Vec2<float>& u) { return compact.sample(wo, u); }, kN, 41);
+        const auto b = estimate([&](const Vec2<float>& u) { return full.sample(wo, u); }, kN, 41);
+        const double ratio = (a.second * a.second) / (b.second * b.second);
+        MESSAGE("alpha " << c.ax << " theta_o " << c.theta_o << ": variance compact / full " << ratio << " (compact "
+                         << a.first << " +- " << a.second << ", full " << b.first << " +- " << b.second << ")");
+        CAPTURE(c.ax); CAPTURE(c.theta_o);
+        CHECK(ratio < 1.1);
+        CHECK(std::abs(a.first - b.first) < 4.0 * std::hypot(a.second, b.second));
     }
 }
 
@@ -466,16 +505,24 @@ TEST_CASE("tabulated: memory_bytes counts the tables") {
     CHECK(iso.table_count() == 90);
     CHECK(iso.theta_bins() == 90);
     CHECK(iso.phi_bins() == 360);
-    // CDFs: 90 tables x (90 marginal + 90 x 360 conditional) floats; per row
-    // constants: 91 cos bounds (double) and 90 inverse solid angles (float).
-    const std::size_t expected = 90 * (90 + 90 * 360) * 4 + 91 * 8 + 90 * 4;
+    // Compact: 90 tables x (90 float marginal + 90 x 180 mirrored 16-bit conditional
+    // entries); per row constants: 91 cos bounds (double) and 90 inverse solid angles (float).
+    const std::size_t expected = 90 * 90 * 4 + 90 * 90 * 180 * 2 + 91 * 8 + 90 * 4;
+    CHECK(iso.mirrored());
     CHECK(iso.memory_bytes() == expected);
+    CHECK(iso.memory_bytes() <= 5620000);  // the paper's 1-degree table: 5.62 MB
     MESSAGE("isotropic 1-degree tables: " << iso.memory_bytes() << " bytes");
+    // Full: float CDFs over the whole azimuth.
+    const TabulatedSampler& full = cached_full(0.1f, 0.1f, true, 1);
+    CHECK(!full.mirrored());
+    CHECK(full.memory_bytes() == std::size_t(90) * (90 + 90 * 360) * 4 + 91 * 8 + 90 * 4);
+    MESSAGE("isotropic 1-degree tables, full: " << full.memory_bytes() << " bytes");
 
     const TabulatedSampler& aniso = cached(0.05f, 0.3f, false, 3);
     CHECK(aniso.phi_o_bins() == 12);
     CHECK(aniso.table_count() == 30 * 12);
-    CHECK(aniso.memory_bytes() == std::size_t(360) * (30 + 30 * 120) * 4 + 31 * 8 + 30 * 4);
+    CHECK(!aniso.mirrored());  // no mirror symmetry without isotropy: 16-bit CDFs only
+    CHECK(aniso.memory_bytes() == std::size_t(360) * (30 * 4 + 30 * 120 * 2) + 31 * 8 + 30 * 4);
 }
 
 // Not run by default (420 MB and tens of seconds): doctest --no-skip

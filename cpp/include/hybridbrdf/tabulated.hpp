@@ -60,6 +60,19 @@ inline constexpr int kAnisotropicPhiOStepFactor = 10;
 /// Directions per eval() call while building (pairs).
 inline constexpr std::size_t kTabulatedBuildBatch = 65536;
 
+/// How a TabulatedSampler stores its tables.
+enum class TabulatedStorage {
+    /// Conditional CDFs as 16-bit fixed point (k / 65535) and, for isotropic
+    /// tables, the azimuth folded by the mirror symmetry phi -> -phi (half the
+    /// columns; the build averages g over each mirrored pair of cells): 2.9 MB
+    /// per isotropic material at 1 degree, a quarter of Full, under the 5.62 MB
+    /// of the paper's 1-degree table. The default.
+    Compact,
+    /// float32 CDFs over the full azimuth (11.7 MB isotropic at 1 degree): the
+    /// uncompressed reference Compact is measured against (docs/SAMPLING.md).
+    Full,
+};
+
 /// Tabulated importance sampler for one material. Immutable once built;
 /// pdf() is thread-safe, sample() is thread-safe if the BatchEval it was built
 /// with is (it calls it once per sample for the weight).
@@ -77,7 +90,10 @@ public:
     ///
     /// `eval` is copied into the sampler and called again by sample() for the
     /// weight: whatever it refers to must outlive the sampler.
-    static TabulatedSampler build(const BatchEval& eval, bool isotropic, int resolution_deg = 1);
+    ///
+    /// `storage` chooses the table layout (TabulatedStorage; Compact by default).
+    static TabulatedSampler build(const BatchEval& eval, bool isotropic, int resolution_deg = 1,
+                                  TabulatedStorage storage = TabulatedStorage::Compact);
 
     /// Samples wi for viewing direction wo (normalised; any length) from u in
     /// [0, 1)^2 (clamped into it, NaN -> 0). u.x picks the defensive cosine lobe
@@ -105,6 +121,9 @@ public:
     std::size_t memory_bytes() const;
 
     bool isotropic() const { return isotropic_; }
+    TabulatedStorage storage() const { return storage_; }
+    /// True when the azimuth is folded by mirror symmetry (Compact and isotropic).
+    bool mirrored() const { return mirrored_; }
     int resolution_deg() const { return resolution_deg_; }
     /// theta_i rows (= theta_o bins) and phi_i columns of every table.
     int theta_bins() const { return n_theta_; }
@@ -124,7 +143,15 @@ private:
     // rescaled to [0, 1) for the position inside the cell.
     void sample_cell(int t, double ux, double uy, int& row, int& col, double& rx, double& ry) const;
 
+    // Conditional CDF entry k of (table t, row r), as a probability in [0, 1].
+    double conditional(std::size_t row_start, int k) const {
+        return storage_ == TabulatedStorage::Full ? double(conditional_cdf_[row_start + std::size_t(k)])
+                                                  : conditional_cdf_q_[row_start + std::size_t(k)] * (1.0 / 65535.0);
+    }
     bool isotropic_ = true;
+    TabulatedStorage storage_ = TabulatedStorage::Compact;
+    bool mirrored_ = false;
+    int n_col_ = 0;    ///< stored columns per row: n_phi_, or n_phi_ / 2 when mirrored
     int resolution_deg_ = 0;
     int n_theta_ = 0;  ///< theta_i rows and theta_o bins: 90 / resolution_deg
     int n_phi_ = 0;    ///< phi_i columns: 360 / resolution_deg
@@ -138,8 +165,10 @@ private:
     /// Per table: n_theta_ marginal CDF values over rows (inclusive: entry r is
     /// P(row <= r); the last is 1).
     std::vector<float> marginal_cdf_;
-    /// Per table and row: n_phi_ conditional CDF values over columns (inclusive).
+    /// Per table and row: n_col_ conditional CDF values over the stored columns
+    /// (inclusive), float32 (Full) or 16-bit fixed point, k / 65535 (Compact).
     std::vector<float> conditional_cdf_;
+    std::vector<std::uint16_t> conditional_cdf_q_;
 
     BatchEval eval_;
 };
