@@ -1,32 +1,45 @@
 #!/usr/bin/env python3
-"""What accuracy costs in time: evaluation throughput of the analytic model and of
-hybrid and neural models at 16x2 .. 64x3, on the C++ batched path (one core) and
-as generated GLSL under lavapipe (both cores), measured in one run, next to each
-model's SMAPE; writes a table and a PNG plot (error against cost).
+"""What accuracy costs in time and memory: evaluation throughput of the analytic model,
+hybrid and neural models at 16x2 .. 64x3 and the fitted RGL models, on the C++ batched
+path (one core, AVX2 kernel and, where the CPU has it, AVX-512) and as generated GLSL
+under lavapipe (both cores; the host's own SIMD path and an AVX2-only run), measured in
+one run, next to each model's SMAPE, its SPIR-V instruction count per evaluation and
+its bytes per material and per collection; writes a table and a PNG plot (error against
+cost).
 
-- FLOPs per evaluation count the network's multiply-adds (2 per weight); the
-  achieved GFLOP/s is set against one core's FMA peak measured in the same run by
-  ``hbrdf_fma_peak`` on the same pinned core.
+- FLOPs per evaluation count the network's multiply-adds (2 per weight); the achieved
+  GFLOP/s is set against one core's FMA peak measured in the same run by
+  ``hbrdf_fma_peak`` on the same pinned core (on Zen 4 the AVX2 and AVX-512 peaks are
+  equal: AVX-512 runs on the same 256-bit pipes).
 - Lavapipe runs the generated shader (default form: unrolled network with literal
-  weights) as a compute shader over ``--pairs`` pairs, 64 invocations per workgroup;
-  three extra rows run the hybrid 32x2 with fp16 weights and with the network as loops
-  over constant arrays (``--mlp-form loops``).
-- SMAPE columns come from a fitting campaign (``bench/compare_models.py`` with all six
-  sizes, e.g. ``--models-dir out/cost``): the mean over its materials of the hybrid
-  (latent 4), the neural baseline (latent 12) and, for the analytic row, the analytic
-  part of the hybrid 32x3. Its fitted models are also the ones timed; without it,
-  models with random weights are timed (throughput does not depend on the values).
+  weights) as a compute shader over ``--pairs`` pairs, 64 invocations per workgroup,
+  once as the host allows and once with ``GALLIUM_OVERRIDE_CPU_CAPS=avx`` (Mesa's switch
+  that hides AVX-512, so LLVM emits AVX2+FMA code: the figure a machine without AVX-512
+  gets). Lavapipe is a proxy for a GPU, so each shader's SPIR-V instruction count per
+  evaluation is printed too (after ``spirv-opt -O``, which inlines everything into
+  straight-line code; "fma" counts the fused multiply-adds spirv-opt forms).
+- Bytes: what the model holds per material (analytic parameters and latent code, float32)
+  and the shared network once; "per collection" is for the 54 RGL materials.
+- SMAPE of the size sweep comes from a fitting campaign (``bench/compare_models.py``
+  with all six sizes; ``--models-dir``, default ``out/cost`` and, without it, the tables
+  kept in ``results/compare_rgl5_synthetic_<mlp>.txt``): the mean over its materials of
+  the hybrid (latent 4), the neural baseline (latent 12) and, for the analytic row, the
+  analytic part of the hybrid 32x3. Fitted models of the campaign are timed when present,
+  otherwise models with random weights (throughput does not depend on the values). The
+  RGL rows (``--rgl-models``) are fitted models, with their mean SMAPE / cMAE over the
+  five raw RGL rows of docs/BENCHMARKS.md.
 
     python bench/bench_inference.py [--pairs 1048576] [--models-dir out/cost] [--no-lavapipe]
+        [--rgl-models results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_fast.safetensors]
         [--out docs/figures/cost_accuracy]
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import os
 import pathlib
-import re
 import subprocess
 import sys
 import tempfile
@@ -46,20 +59,53 @@ RUNNER = ROOT / "build" / "hbrdf_vk_runner"
 FMA_PEAK = ROOT / "build" / "hbrdf_fma_peak"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
 SIZES = [(16, 2), (16, 3), (32, 2), (32, 3), (64, 2), (64, 3)]
+RGL_MODELS = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_fast.safetensors"
+# Lavapipe runs: the host's own SIMD path, and AVX2+FMA only (Mesa hides AVX-512 from LLVM).
+VK_RUNS = {"host": {}, "avx2": {"GALLIUM_OVERRIDE_CPU_CAPS": "avx"}}
+FLOAT = 4  # bytes
 
-def lavapipe_rate(model, fn, n, wi, wo, d, **generate_options):
-    """Evaluations per second of the generated GLSL ``fn`` for the model's first material."""
+
+def compile_shader(model, fn, d, **generate_options):
+    """SPIR-V of the eval kernel running the generated GLSL ``fn`` for the model's first material."""
     (pathlib.Path(d) / "model.glsl").write_text(generate(model, "glsl", [model.materials[0]], **generate_options))
     src = pathlib.Path(d) / "w.comp"
     src.write_text(eval_compute_shader(fn, material_constant(model.materials[0]), "model.glsl"))
     spv = pathlib.Path(d) / "w.spv"
     subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
                    check=True, capture_output=True)
-    np.concatenate([wi, wo], axis=1).astype(np.float32).tofile(pathlib.Path(d) / "in.bin")
-    r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
-                       check=True, capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP))
-    ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
-    return n / (ms / 1000.0)
+    return spv
+
+
+def spirv_counts(spv, d):
+    """(instructions, fused multiply-adds) in the function bodies after spirv-opt -O: the
+    unrolled shaders become one straight-line function, so this is the count per evaluation."""
+    opt = pathlib.Path(d) / "o.spv"
+    subprocess.run(["spirv-opt", "-O", str(spv), "-o", str(opt)], check=True, capture_output=True)
+    dis = subprocess.run(["spirv-dis", "--raw-id", str(opt)], check=True, capture_output=True, text=True).stdout
+    ops, inside = collections.Counter(), False
+    for line in dis.splitlines():
+        words = line.split("=")[-1].split()
+        if not words:
+            continue
+        if words[0] == "OpFunction":
+            inside = True
+        elif words[0] == "OpFunctionEnd":
+            inside = False
+        elif inside:
+            ops["Fma" if words[0] == "OpExtInst" and "Fma" in words else words[0]] += 1
+    return sum(ops.values()), ops["Fma"]
+
+
+def lavapipe_rates(spv, n, d):
+    """Evaluations per second under lavapipe for each of VK_RUNS (inputs already in d/in.bin)."""
+    rates = {}
+    for run, env in VK_RUNS.items():
+        r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
+                           check=True, capture_output=True, text=True,
+                           env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
+        ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
+        rates[run] = n / (ms / 1000.0)
+    return rates
 
 
 def fma_peak_gflops(core: int) -> float:
@@ -68,23 +114,21 @@ def fma_peak_gflops(core: int) -> float:
 
 
 def campaign_smape(models_dir):
-    """{mlp: (analytic, hybrid, neural)} mean SMAPE from compare_<mlp>.txt files, plus the header line."""
-    out, header = {}, ""
-    if not models_dir:
-        return out, header
+    """{mlp: (analytic, hybrid, neural)} mean SMAPE from compare_<mlp>.txt files (or the copies
+    kept as results/compare_rgl5_synthetic_<mlp>.txt), plus the header line and where it came from."""
+    out, header, where = {}, "", ""
     for w, d in SIZES:
-        p = pathlib.Path(models_dir) / f"compare_{w}x{d}.txt"
-        if not p.exists():
+        for p in (pathlib.Path(models_dir or "-") / f"compare_{w}x{d}.txt",
+                  ROOT / "results" / f"compare_rgl5_synthetic_{w}x{d}.txt"):
+            if p.exists():
+                break
+        else:
             continue
         lines = p.read_text().splitlines()
-        header = header or lines[0].split(": ", 1)[-1]  # drop the "# WxD: " prefix
+        header, where = header or lines[0].split(": ", 1)[-1], where or str(p.parent)  # drop the "# WxD: " prefix
         mean = [ln for ln in lines if ln.startswith("mean ")][0].split()
         out[(w, d)] = (float(mean[1]), float(mean[2]), float(mean[3]))
-    return out, header
-
-
-def models_dir_label(models_dir):
-    return models_dir or "none"
+    return out, header, where
 
 
 def model_for(arch, width, depth, models_dir, d):
@@ -98,6 +142,26 @@ def model_for(arch, width, depth, models_dir, d):
     return path, False
 
 
+def network_bytes(model) -> int:
+    """float32 bytes of the shared network (every tensor but the per-material ones)."""
+    return FLOAT * sum(int(np.asarray(v).size) for k, v in model.tensors.items() if not k.startswith("materials."))
+
+
+def material_bytes(model) -> int:
+    """float32 bytes one material holds: analytic parameters (kd, eta, alpha) and latent code."""
+    return FLOAT * sum(int(np.asarray(v)[0].size) for k, v in model.tensors.items() if k.startswith("materials."))
+
+
+def rgl_accuracy(path):
+    """Mean SMAPE and cMAE over the five raw RGL rows (CONVENTIONS protocol), hybrid and f_a."""
+    from hybridbrdf.fitting import evaluate
+
+    model = hb.load_model(path)
+    sources = [hb.open_source(str(p)) for p in sorted((ROOT.parent / "shared" / "data" / "rgl").glob("*.bsdf"))]
+    rows = evaluate(model, sources)
+    return {k: float(np.mean([r[k] for r in rows])) for k in ("smape", "cmae", "smape_analytic", "cmae_analytic")}
+
+
 def plot(rows, path_png, title):
     import matplotlib
 
@@ -105,10 +169,11 @@ def plot(rows, path_png, title):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for ax, key, label in ((axes[0], "cpp", "C++ batched, 1 core"), (axes[1], "vk", "GLSL under lavapipe, 2 cores")):
+    for ax, key, label in ((axes[0], ("cpp", "avx2+fma"), "C++ batched, 1 core, AVX2"),
+                           (axes[1], ("vk", "avx2"), "GLSL under lavapipe, 2 cores, AVX2")):
         for arch, marker in (("analytic", "s"), ("hybrid", "o"), ("neural", "^")):
-            pts = [(1e9 / r[key], r["smape"], r["name"]) for r in rows
-                   if r["arch"] == arch and r.get(key) and r.get("smape") is not None]
+            pts = [(1e9 / r[key[0]][key[1]], r["smape"], r["name"]) for r in rows
+                   if r["arch"] == arch and r.get(key[0], {}).get(key[1]) and r.get("smape") is not None]
             if not pts:
                 continue
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=marker, linestyle="-" if arch != "analytic" else "",
@@ -118,7 +183,7 @@ def plot(rows, path_png, title):
                             xytext=(4, 4), fontsize=7)
         ax.set_xscale("log")
         ax.set_xlabel("ns per evaluation (" + label + ")")
-        ax.set_ylabel("mean SMAPE")
+        ax.set_ylabel("mean SMAPE (size sweep)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
     fig.suptitle(title, fontsize=9)
@@ -130,8 +195,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--pairs", type=int, default=1 << 20, help="direction pairs per measurement (default 2^20)")
     ap.add_argument("--models-dir", default="out/cost",
-                    help="fitting campaign with compare_<mlp>.txt tables and fitted models (default out/cost)")
-    ap.add_argument("--no-lavapipe", action="store_true", help="skip the GLSL-under-lavapipe column")
+                    help="fitting campaign with compare_<mlp>.txt tables and fitted models (default out/cost; "
+                         "without it the tables in results/ and random weights)")
+    ap.add_argument("--rgl-models", default=RGL_MODELS,
+                    help="comma-separated fitted RGL models to time and score on the five raw RGL rows "
+                         f"(default {RGL_MODELS}; missing files are skipped)")
+    ap.add_argument("--no-lavapipe", action="store_true", help="skip the GLSL-under-lavapipe columns")
     ap.add_argument("--out", default="", help="write OUT.txt (the table) and OUT.png (the plot)")
     args = ap.parse_args()
     n = args.pairs
@@ -143,58 +212,115 @@ def main() -> int:
     use_vk = not args.no_lavapipe and RUNNER.exists() and os.path.exists(LVP)
     all_cores = os.sched_getaffinity(0)
     core = sorted(all_cores)[0]
-    smapes, campaign = campaign_smape(args.models_dir)
+    smapes, campaign, where = campaign_smape(args.models_dir)
     peak = fma_peak_gflops(core) if FMA_PEAK.exists() else float("nan")
+    kernels = ["avx2+fma"] + (["avx512"] if _core.model_simd_path() == "avx512" else [])
     os.sched_setaffinity(0, {core})  # the C++ path on one core
 
-    def vk_rate(*a, **kw):
+    def cpp_rates(evaluate):
+        rates = {}
+        try:
+            for k in kernels:
+                _core.limit_model_simd(k)
+                rates[k] = best_rate(evaluate, n, 7)
+        finally:
+            _core.limit_model_simd("avx512")
+        return rates
+
+    def shader_figures(model, fn, d, **options):
+        spv = compile_shader(model, fn, d, **options)
+        instr, fma = spirv_counts(spv, d)
         os.sched_setaffinity(0, all_cores)
         try:
-            return lavapipe_rate(*a, **kw)
+            return lavapipe_rates(spv, n, d), instr, fma
         finally:
             os.sched_setaffinity(0, {core})
 
-    lines = [f"{n} cosine-weighted pairs; C++ batched on 1 core (kernel {_core.model_simd_path()}, one-core FMA "
-             f"peak {peak:.1f} GFLOP/s measured by hbrdf_fma_peak); GLSL under lavapipe, 64 invocations per "
-             f"workgroup, {len(all_cores)} cores",
-             f"SMAPE (mean over the campaign's materials, {models_dir_label(args.models_dir)}): "
-             f"{campaign or 'no fitting campaign found (random weights timed)'}",
-             f"{'model':22s} {'FLOP/eval':>9s} {'C++ M/s':>8s} {'GFLOP/s':>8s} {'% peak':>7s} {'lavapipe M/s':>13s} "
-             f"{'SMAPE':>7s}"]
     rows = []
     with tempfile.TemporaryDirectory() as d:
+        np.concatenate([wi, wo], axis=1).astype(np.float32).tofile(pathlib.Path(d) / "in.bin")
+
+        def add(name, arch, model_path, fn="hbrdf_eval", smape=None, **options):
+            model = hb.load_model(model_path)
+            cpp = _core.Model(model_path)
+            row = {"arch": arch, "name": name, "smape": smape, "flops": None, "vk": {}, "spirv": None,
+                   "net_bytes": network_bytes(model), "mat_bytes": material_bytes(model)}
+            if fn == "hbrdf_eval_analytic":
+                p = model.analytic_params(0)
+                row["cpp"] = {"avx2+fma": best_rate(lambda: hb.analytic_eval(wi, wo, p), n, 7)}
+                row["net_bytes"], row["mat_bytes"] = 0, 8 * FLOAT  # kd, eta (RGB), alpha (2)
+            elif not options:
+                row["flops"] = cpp.flops_per_eval
+                row["cpp"] = cpp_rates(lambda: cpp.eval(wi, wo, 0))
+            else:
+                row["cpp"] = {}
+            if use_vk:
+                row["vk"], instr, fma = shader_figures(model, fn, d, **options)
+                row["spirv"] = None if options.get("mlp_form") == "loops" else (instr, fma)
+            rows.append(row)
+            return row
+
         path, _ = model_for("hybrid", 32, 3, args.models_dir, d)
-        any_model = hb.load_model(path)
-        p = any_model.analytic_params(0)
-        row = {"arch": "analytic", "name": "analytic (f_a)", "cpp": best_rate(lambda: hb.analytic_eval(wi, wo, p), n, 7),
-               "vk": vk_rate(any_model, "hbrdf_eval_analytic", n, wi, wo, d) if use_vk else None,
-               "smape": smapes.get((32, 3), (None,))[0], "flops": None}
-        rows.append(row)
+        add("analytic (f_a)", "analytic", path, "hbrdf_eval_analytic", smapes.get((32, 3), (None,))[0])
         for arch in ("hybrid", "neural"):
             for width, depth in SIZES:
                 path, _ = model_for(arch, width, depth, args.models_dir, d)
-                cpp = _core.Model(path)
                 s = smapes.get((width, depth))
-                rows.append({"arch": arch, "name": f"{arch} {width}x{depth}", "flops": cpp.flops_per_eval,
-                             "cpp": best_rate(lambda: cpp.eval(wi, wo, 0), n, 7),
-                             "vk": vk_rate(hb.load_model(path), "hbrdf_eval", n, wi, wo, d) if use_vk else None,
-                             "smape": (s[1] if arch == "hybrid" else s[2]) if s else None})
+                add(f"{arch} {width}x{depth}", arch, path, smape=(s[1] if arch == "hybrid" else s[2]) if s else None)
         if use_vk:  # the other code forms of the hybrid 32x2
             path, _ = model_for("hybrid", 32, 2, args.models_dir, d)
             for name, options in (("32x2 fp16 unrolled", {"precision": "fp16"}),
-                                  ("32x2 fp32 loops", {"mlp_form": "loops"}),
-                                  ("32x2 fp16 loops", {"precision": "fp16", "mlp_form": "loops"})):
-                rows.append({"arch": "form", "name": "hybrid " + name, "flops": None, "cpp": None,
-                             "vk": vk_rate(hb.load_model(path), "hbrdf_eval", n, wi, wo, d, **options),
-                             "smape": None})
+                                  ("32x2 fp32 loops", {"mlp_form": "loops"})):
+                add("hybrid " + name, "form", path, **options)
+        for p in [p for p in args.rgl_models.split(",") if p]:
+            if not (ROOT / p).exists() and not pathlib.Path(p).exists():
+                print(f"skipped {p}: no such file", file=sys.stderr)
+                continue
+            full = str(ROOT / p) if (ROOT / p).exists() else p
+            m = hb.load_model(full)
+            row = add(f"RGL {m.arch['width']}x{m.arch['depth']} {pathlib.Path(p).stem}", "rgl", full)
+            row["rgl"] = rgl_accuracy(full)
+            row["materials"] = len(m.materials)
+
+    kernel_cols = " ".join(f"{'C++ ' + k[:6]:>11s} {'%peak':>6s}" for k in kernels)
+    vk_cols = " ".join(f"{'vk ' + r:>9s}" for r in VK_RUNS)
+    lines = [f"{n} cosine-weighted pairs; C++ batched on 1 core (kernels {', '.join(kernels)}; one-core FMA peak "
+             f"{peak:.1f} GFLOP/s measured by hbrdf_fma_peak); GLSL under lavapipe, 64 invocations per workgroup, "
+             f"{len(all_cores)} cores, host SIMD path and AVX2 only (GALLIUM_OVERRIDE_CPU_CAPS=avx)",
+             f"SMAPE of the size sweep (mean over the campaign's materials, {where or 'none'}): "
+             f"{campaign or 'no fitting campaign found'}",
+             "M/s: million evaluations per second; SPIR-V: instructions per evaluation after spirv-opt -O (fma: fused "
+             "multiply-adds among them); bytes: network (shared) + per material; collection: 54 materials",
+             f"{'model':44s} {'FLOP/ev':>7s} {kernel_cols} {vk_cols} {'SPIR-V':>6s} {'fma':>5s} "
+             f"{'net B':>7s} {'B/mat':>5s} {'54 mat B':>8s} {'SMAPE':>7s}"]
     for r in rows:
-        fl = f"{r['flops']:9.0f}" if r["flops"] else f"{'-':>9s}"
-        cpp = f"{r['cpp'] / 1e6:8.2f}" if r["cpp"] else f"{'-':>8s}"
-        gf = r["cpp"] * r["flops"] / 1e9 if r["flops"] and r["cpp"] else None
-        gfs = f"{gf:8.1f} {100 * gf / peak:6.1f}%" if gf else f"{'-':>8s} {'-':>7s}"
-        vk = f"{r['vk'] / 1e6:13.2f}" if r["vk"] else f"{'-':>13s}"
+        fl = f"{r['flops']:7.0f}" if r["flops"] else f"{'-':>7s}"
+        cols = []
+        for k in kernels:
+            rate = r["cpp"].get(k)
+            pct = 100 * rate * r["flops"] / 1e9 / peak if rate and r["flops"] else None
+            cols.append((f"{rate / 1e6:11.2f}" if rate else f"{'-':>11s}") + " " +
+                        (f"{pct:5.1f}%" if pct else f"{'-':>6s}"))
+        vk = " ".join(f"{r['vk'][run] / 1e6:9.2f}" if r["vk"].get(run) else f"{'-':>9s}" for run in VK_RUNS)
+        sp = f"{r['spirv'][0]:6d} {r['spirv'][1]:5d}" if r["spirv"] else f"{'-':>6s} {'-':>5s}"
+        coll = r["net_bytes"] + 54 * r["mat_bytes"]
         sm = f"{r['smape']:7.4f}" if r["smape"] is not None else f"{'-':>7s}"
-        lines.append(f"{r['name']:22s} {fl} {cpp} {gfs} {vk} {sm}")
+        lines.append(f"{r['name'][:44]:44s} {fl} {' '.join(cols)} {vk} {sp} {r['net_bytes']:7d} {r['mat_bytes']:5d} "
+                     f"{coll:8d} {sm}")
+    rgl = [r for r in rows if "rgl" in r]
+    if rgl:
+        from rgl_paper_comparison import PAPER
+
+        ref = np.mean(list(PAPER.values()), axis=0)  # SMAPE, SMAPE f_a, cMAE, cMAE f_a of the released model
+        lines.append(f"RGL models: mean over the five raw RGL rows, hybrid (f_a part); the released model: SMAPE "
+                     f"{ref[0]:.4f} ({ref[1]:.4f}), cMAE {ref[2]:.5f} ({ref[3]:.5f})")
+        for r in rgl:
+            a = r["rgl"]
+            lines.append(f"  {r['name']}: SMAPE {a['smape']:.4f} ({a['smape_analytic']:.4f}), cMAE {a['cmae']:.5f} "
+                         f"({a['cmae_analytic']:.5f}); {r['materials']} materials")
+        if len(rgl) == 2 and use_vk:
+            lines.append(f"  lavapipe speed-up {rgl[1]['name']} / {rgl[0]['name']}: " + ", ".join(
+                f"{run} {rgl[1]['vk'][run] / rgl[0]['vk'][run]:.2f}x" for run in VK_RUNS))
     text = "\n".join(lines)
     print(text)
     if args.out:
