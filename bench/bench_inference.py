@@ -162,6 +162,43 @@ def rgl_accuracy(path):
     return {k: float(np.mean([r[k] for r in rows])) for k in ("smape", "cmae", "smape_analytic", "cmae_analytic")}
 
 
+RGL_NAMES = ("cc_ibiza_sunset_rgb", "cg_sunflower_rgb", "colodur_napoli_4f_rgb", "paper_white_rgb",
+             "vch_golden_yellow_rgb")
+
+
+def alternatives(n_pairs=1_000_000, seed=7):
+    """The representations a user would pick instead, for each of the five raw RGL
+    measurements: the measurement tabulated in the MERL layout (nearest-cell lookup,
+    _core.MerlTable) and its published NBRDF network (_core.NbrdfNetwork). Returns
+    {name: (C++ object, mean SMAPE, mean cMAE)} over the five, scored like the models
+    (CONVENTIONS protocol), and the objects of the first material for timing."""
+    from hybridbrdf.metrics import cmae, metric_directions, smape
+    from hybridbrdf.sources.merl import MERL_DIMS, MERL_SCALES, MERLSource, _evaluate_at_nodes
+    from hybridbrdf.sources.nbrdf import open_nbrdf
+
+    wi, wo = metric_directions(n_pairs, seed)
+    wi32, wo32 = wi.astype(np.float32), wo.astype(np.float32)
+    scores = {"MERL-layout table": [], "NBRDF network": []}
+    first = {}
+    data = ROOT.parent / "shared" / "data"
+    for name in RGL_NAMES:
+        src = hb.open_source(str(data / "rgl" / f"{name}.bsdf"))
+        ref = src.eval(wi, wo)
+        # Tabulated at the MERL nodes; nodes below the horizon are missing and filled from
+        # their nearest measured neighbours, as the MERL reader does.
+        values, measurable = _evaluate_at_nodes(src.eval)
+        raw = np.where(measurable[:, None], values / MERL_SCALES, -1.0).T.reshape(3, *MERL_DIMS)
+        table = _core.MerlTable(MERLSource(raw, interpolation="nearest")._table.astype(np.float32))
+        net = open_nbrdf(data / "nbrdf" / "rgl" / f"{name}.h5")
+        network = _core.NbrdfNetwork([(k.T.astype(np.float32), b.astype(np.float32)) for _, k, b, _ in net.layers])
+        for key, obj in (("MERL-layout table", table), ("NBRDF network", network)):
+            f = obj.eval(wi32, wo32).astype(np.float64)
+            scores[key].append((smape(ref, f), cmae(ref, f, wi[:, 2])))
+            first.setdefault(key, obj)
+    return {k: (first[k], float(np.mean([s[0] for s in v])), float(np.mean([s[1] for s in v])))
+            for k, v in scores.items()}
+
+
 def plot(rows, path_png, title):
     import matplotlib
 
@@ -281,6 +318,13 @@ def main() -> int:
             row = add(f"RGL {m.arch['width']}x{m.arch['depth']} {pathlib.Path(p).stem}", "rgl", full)
             row["rgl"] = rgl_accuracy(full)
             row["materials"] = len(m.materials)
+        if (ROOT.parent / "shared" / "data" / "rgl").exists():
+            for name, (obj, sm, cm) in alternatives().items():
+                rows.append({"arch": "alternative", "name": name + " (one per material)", "smape": None, "flops": None,
+                             "vk": {}, "spirv": None, "net_bytes": 0, "mat_bytes": obj.memory_bytes,
+                             "cpp": {"avx2+fma": best_rate(lambda: obj.eval(wi, wo), n, 7)},
+                             "rgl": {"smape": sm, "cmae": cm, "smape_analytic": float("nan"),
+                                     "cmae_analytic": float("nan")}, "materials": 1})
 
     kernel_cols = " ".join(f"{'C++ ' + k[:6]:>11s} {'%peak':>6s}" for k in kernels)
     vk_cols = " ".join(f"{'vk ' + r:>9s}" for r in VK_RUNS)
@@ -316,11 +360,13 @@ def main() -> int:
                      f"{ref[0]:.4f} ({ref[1]:.4f}), cMAE {ref[2]:.5f} ({ref[3]:.5f})")
         for r in rgl:
             a = r["rgl"]
-            lines.append(f"  {r['name']}: SMAPE {a['smape']:.4f} ({a['smape_analytic']:.4f}), cMAE {a['cmae']:.5f} "
-                         f"({a['cmae_analytic']:.5f}); {r['materials']} materials")
-        if len(rgl) == 2 and use_vk:
-            lines.append(f"  lavapipe speed-up {rgl[1]['name']} / {rgl[0]['name']}: " + ", ".join(
-                f"{run} {rgl[1]['vk'][run] / rgl[0]['vk'][run]:.2f}x" for run in VK_RUNS))
+            fa = (f" ({a['smape_analytic']:.4f})", f" ({a['cmae_analytic']:.5f})") if r["arch"] == "rgl" else ("", "")
+            lines.append(f"  {r['name']}: SMAPE {a['smape']:.4f}{fa[0]}, cMAE {a['cmae']:.5f}{fa[1]}; "
+                         f"{r['mat_bytes'] + r['net_bytes'] // r['materials']:,} bytes per material")
+        models = [r for r in rgl if r["arch"] == "rgl"]
+        if len(models) == 2 and use_vk:
+            lines.append(f"  lavapipe speed-up {models[1]['name']} / {models[0]['name']}: " + ", ".join(
+                f"{run} {models[1]['vk'][run] / models[0]['vk'][run]:.2f}x" for run in VK_RUNS))
     text = "\n".join(lines)
     print(text)
     if args.out:

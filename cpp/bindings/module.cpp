@@ -52,6 +52,7 @@ FloatArray hbrdf_eval_analytic_rows(const hbrdf::AnalyticParams& p, const FloatA
 
 // Defined in tabulated.cpp: hybridbrdf._core.TabulatedSampler.
 void bind_tabulated(pybind11::module_& m);
+void bind_baselines(pybind11::module_& m);
 
 void bind_render(py::module_& m);  // cpp/bindings/render.cpp
 
@@ -239,5 +240,6 @@ PYBIND11_MODULE(_core, m) {
           "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
 
     bind_tabulated(m);  // after Model, which TabulatedSampler.build_model takes
+    bind_baselines(m);
     bind_render(m);     // the path tracer (cpp/bindings/render.cpp)
 }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "hybridbrdf/analytic.hpp"
+#include "hybridbrdf/baselines.hpp"
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/fresnel.hpp"
 #include "hybridbrdf/ggx.hpp"
