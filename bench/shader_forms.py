@@ -1,0 +1,237 @@
+#!/usr/bin/env python3
+"""How the generated network's code form changes its speed under lavapipe: the same
+model's hbrdf_eval with the MLP written in other forms, timed in one run (AVX2-only
+lavapipe by default, as a machine without AVX-512 runs it), each checked against the
+default form's output. Also probes whether lavapipe fuses multiply-adds.
+
+Forms (all exact to the model within float rounding):
+- unrolled: the generator's default, one expression per neuron, ``b + w0*x0 + w1*x1 ...``;
+- fma: the same chain as nested ``fma(w, x, acc)`` calls;
+- tree: each neuron's terms summed as a balanced tree (short dependency chains);
+- acc4: each neuron's terms in 4 interleaved partial sums;
+- rows4: blocks of 4 neurons accumulated input by input (k outer);
+- mat4: layers as mat4 * vec4 products of literal matrices (16x fewer SPIR-V operations);
+- pairs4: 4 direction pairs per invocation, the MLP on vec4 lanes (one literal per weight
+  serves 4 evaluations).
+
+    python bench/shader_forms.py [MODEL] [--pairs 1048576] [--host-simd]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+
+import hybridbrdf as hb  # noqa: E402
+import hybridbrdf.codegen as cg  # noqa: E402
+from hybridbrdf.codegen import eval_compute_shader, float_literal as lit, generate, material_constant  # noqa: E402
+from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
+
+RUNNER = ROOT / "build" / "hbrdf_vk_runner"
+LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
+DEFAULT_MODEL = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
+ACT4 = "vec4 hbrdf_act4(vec4 x) { return x * clamp((x + 1.5f) * 0.333333343f, 0.0f, 1.0f); }\n"
+
+
+def _inputs(index, n_in):
+    return [f"x[{k}]" for k in range(n_in)] if index == 0 else [f"h{index - 1}_{k}" for k in range(n_in)]
+
+
+def _weights(layer):
+    return (np.asarray(layer["weight"], dtype=np.float32).reshape(layer["n_out"], layer["n_in"]),
+            np.asarray(layer["bias"], dtype=np.float32))
+
+
+def _neuron(index, j, last, expr):
+    return f"o[{j}] = {expr};" if last else f"float h{index}_{j} = hbrdf_activation({expr});"
+
+
+def _tree(terms):
+    while len(terms) > 1:
+        terms = [f"({terms[i]} + {terms[i + 1]})" if i + 1 < len(terms) else terms[i] for i in range(0, len(terms), 2)]
+    return terms[0]
+
+
+def form_fma(layer, index, last, fp16=False):
+    w, b = _weights(layer)
+    out = []
+    for j in range(w.shape[0]):
+        e = lit(b[j])
+        for k, x in enumerate(_inputs(index, w.shape[1])):
+            e = f"fma({lit(w[j, k])}, {x}, {e})"
+        out.append(_neuron(index, j, last, e))
+    return out
+
+
+def form_tree(layer, index, last, fp16=False, parts=None):
+    w, b = _weights(layer)
+    out = []
+    for j in range(w.shape[0]):
+        terms = [lit(b[j])] + [f"{lit(w[j, k])} * {x}" for k, x in enumerate(_inputs(index, w.shape[1]))]
+        if parts:
+            terms = [f"({' + '.join(terms[a::parts])})" for a in range(parts) if terms[a::parts]]
+        out.append(_neuron(index, j, last, _tree(terms)))
+    return out
+
+
+def form_rows4(layer, index, last, fp16=False):
+    w, b = _weights(layer)
+    x, out = _inputs(index, w.shape[1]), []
+    for j0 in range(0, w.shape[0], 4):
+        js = range(j0, min(w.shape[0], j0 + 4))
+        out += [f"float a{index}_{j} = {lit(b[j])};" for j in js]
+        out += [f"a{index}_{j} += {lit(w[j, k])} * {x[k]};" for k in range(w.shape[1]) for j in js]
+        out += [_neuron(index, j, last, f"a{index}_{j}") for j in js]
+    return out
+
+
+def form_mat4(layer, index, last, fp16=False):
+    w, b = _weights(layer)
+    n_out, n_in = w.shape
+    out = []
+    if index == 0:
+        for kb in range(0, n_in, 4):
+            out.append(f"vec4 v0_{kb // 4} = vec4({', '.join(f'x[{k}]' if k < n_in else '0.0f' for k in range(kb, kb + 4))});")
+        src = [f"v0_{kb // 4}" for kb in range(0, n_in, 4)]
+    else:
+        src = [f"g{index - 1}_{kb // 4}" for kb in range(0, n_in, 4)]
+    at = lambda a, j, k: lit(a[j, k]) if j < n_out and k < n_in else "0.0f"  # noqa: E731
+    for jb in range(0, n_out, 4):
+        terms = [f"vec4({', '.join(lit(b[j]) if j < n_out else '0.0f' for j in range(jb, jb + 4))})"]
+        for kb, s in zip(range(0, n_in, 4), src):  # mat4 is column-major: column = input k
+            terms.append(f"mat4({', '.join(at(w, j, k) for k in range(kb, kb + 4) for j in range(jb, jb + 4))}) * {s}")
+        if last:
+            out.append(f"vec4 ov_{jb // 4} = {' + '.join(terms)};")
+            out += [f"o[{j}] = ov_{jb // 4}[{j - jb}];" for j in range(jb, min(jb + 4, n_out))]
+        else:
+            out.append(f"vec4 g{index}_{jb // 4} = hbrdf_act4({' + '.join(terms)});")
+    return out
+
+
+def pairs4_shader(glsl, material):
+    """The generated file with a vec4-lane copy of hbrdf_mlp, and a kernel evaluating 4 pairs
+    per invocation (hybrid models: f = exp(o) + sigmoid(g) f_a)."""
+    s = glsl.index("void hbrdf_mlp(")
+    e = glsl.index("\n}\n", s) + 3
+    body = glsl[s:e].replace("void hbrdf_mlp(const float x[", "void hbrdf_mlp4(const vec4 x[")
+    body = body.replace("out float o[", "out vec4 o[").replace("float h", "vec4 h").replace("hbrdf_activation(", "hbrdf_act4(")
+    model = glsl[:e] + ACT4 + body + glsl[e:]
+    kernel = f"""#version 450
+#extension GL_GOOGLE_include_directive : require
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer In {{ float data_in[]; }};
+layout(std430, binding = 1) writeonly buffer Out {{ float data_out[]; }};
+#include "model.glsl"
+void main() {{
+    uint base = 4u * gl_GlobalInvocationID.x;
+    vec4 x[10]; vec3 fa[4]; bool ok[4];
+    for (int s = 0; s < 4; ++s) {{
+        uint i = base + uint(s);
+        vec3 wi = vec3(data_in[6 * i], data_in[6 * i + 1], data_in[6 * i + 2]);
+        vec3 wo = vec3(data_in[6 * i + 3], data_in[6 * i + 4], data_in[6 * i + 5]);
+        wi *= hbrdf_inverse_length(wi); wo *= hbrdf_inverse_length(wo);
+        ok[s] = wi.z > 0.0f && wo.z > 0.0f;
+        fa[s] = hbrdf_eval_analytic(wi, wo, {material});
+        x[0][s] = wi.x; x[1][s] = wi.y; x[2][s] = wi.z; x[3][s] = wo.x; x[4][s] = wo.y; x[5][s] = wo.z;
+        for (int k = 0; k < 4; ++k) x[6 + k][s] = {material}.z[k];
+    }}
+    vec4 o[6];
+    hbrdf_mlp4(x, o);
+    for (int s = 0; s < 4; ++s) {{
+        uint i = base + uint(s);
+        vec3 f = vec3(hbrdf_exp_clamped(o[0][s]) + fa[s].x / (1.0f + exp(-o[3][s])),
+                      hbrdf_exp_clamped(o[1][s]) + fa[s].y / (1.0f + exp(-o[4][s])),
+                      hbrdf_exp_clamped(o[2][s]) + fa[s].z / (1.0f + exp(-o[5][s])));
+        if (!ok[s]) f = vec3(0.0f);
+        data_out[3 * i] = f.x; data_out[3 * i + 1] = f.y; data_out[3 * i + 2] = f.z;
+    }}
+}}
+"""
+    return model, kernel
+
+
+def run(d, model_glsl, kernel, items, floats_per_item, env):
+    d = pathlib.Path(d)
+    (d / "model.glsl").write_text(model_glsl)
+    (d / "w.comp").write_text(kernel)
+    subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(d / "w.comp"), "-o",
+                    str(d / "w.spv")], check=True, capture_output=True)
+    r = subprocess.run([str(RUNNER), str(d / "w.spv"), str(d / "in.bin"), str(d / "out.bin"), str(items),
+                        str(floats_per_item), "--repeat", "7"], check=True, capture_output=True, text=True,
+                       env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
+    ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
+    return ms, np.fromfile(d / "out.bin", dtype=np.float32).reshape(-1, 3)
+
+
+def fusion_probe(d, env):
+    """fma(a, b, c) for a = b = 1 + 2^-23, c = -(1 + 2^-22): 2^-46 fused, 0 unfused."""
+    a = np.float32(1 + 2 ** -23)
+    np.array([a, a, -(1 + 2 ** -22)] * 64, dtype=np.float32).tofile(pathlib.Path(d) / "in.bin")
+    kernel = """#version 450
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer In { float data_in[]; };
+layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    data_out[3 * i] = fma(data_in[3 * i], data_in[3 * i + 1], data_in[3 * i + 2]);
+    data_out[3 * i + 1] = 0.0f; data_out[3 * i + 2] = 0.0f;
+}
+"""
+    _, out = run(d, "", kernel, 64, 3, env)
+    return float(out[0, 0])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("model", nargs="?", default=DEFAULT_MODEL, help=f"a hybrid model (default {DEFAULT_MODEL})")
+    ap.add_argument("--pairs", type=int, default=1 << 20)
+    ap.add_argument("--host-simd", action="store_true", help="let lavapipe use AVX-512 where the CPU has it")
+    args = ap.parse_args()
+    env = {} if args.host_simd else {"GALLIUM_OVERRIDE_CPU_CAPS": "avx"}
+    model = hb.load_model(args.model if pathlib.Path(args.model).exists() else ROOT / args.model)
+    mat = model.materials[0]
+    mc = material_constant(mat)
+    n = args.pairs
+    rng = np.random.default_rng(7)
+    pairs = np.concatenate([cosine_hemisphere(rng, n), cosine_hemisphere(rng, n)], axis=1).astype(np.float32)
+    default = cg.unrolled_layer
+    forms = {"unrolled": default, "fma": form_fma, "tree": form_tree,
+             "acc4": lambda *a, **k: form_tree(*a, **k, parts=4), "rows4": form_rows4, "mat4": form_mat4}
+    with tempfile.TemporaryDirectory() as d:
+        fused = fusion_probe(d, env)
+        pairs.tofile(pathlib.Path(d) / "in.bin")
+        results = {}
+        try:
+            for name, form in forms.items():
+                cg.unrolled_layer = form
+                glsl = generate(model, "glsl", [mat])
+                if name == "mat4":
+                    glsl = glsl.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1)
+                results[name] = run(d, glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), n, 3, env)
+            cg.unrolled_layer = default
+            results["pairs4"] = run(d, *pairs4_shader(generate(model, "glsl", [mat]), mc), n // 4, 12, env)
+        finally:
+            cg.unrolled_layer = default
+    ref = results["unrolled"][1]
+    print(f"{model.kind} {model.arch['width']}x{model.arch['depth']} ({pathlib.Path(args.model).name}, {mat}), {n} pairs, "
+          f"lavapipe {'host SIMD' if args.host_simd else 'AVX2 only (GALLIUM_OVERRIDE_CPU_CAPS=avx)'}, 2 cores")
+    print(f"fma(1 + 2^-23, 1 + 2^-23, -(1 + 2^-22)) = {fused:.3g} under lavapipe "
+          f"({'fused' if fused != 0 else 'not fused: every multiply-add is a multiply and an add'})")
+    print(f"{'form':10s} {'M/s':>7s} {'vs unrolled':>11s} {'max rel diff':>12s}")
+    for name, (ms, out) in results.items():
+        rel = np.max(np.abs(out - ref) / np.maximum(np.abs(ref), 1e-6))
+        print(f"{name:10s} {n / ms / 1e3:7.2f} {results['unrolled'][0] / ms:10.2f}x {rel:12.2e}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
