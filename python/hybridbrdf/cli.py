@@ -129,11 +129,15 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     import os
 
     from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf import distributed as dd
     from hybridbrdf.fitting import fit, format_table, frozen_arch_settings
     from hybridbrdf.model_file import load_model
 
     settings = settings_from_args(args)
     settings.check()
+    # Under torchrun (WORLD_SIZE > 1): a data-parallel fit, rank 0 writes the files.
+    ranks = dd.Ranks(world=dd.launched_world_size())
+    dd.check_batch_split(settings.batch, ranks)
     # Whatever can fail without the sources fails before they are opened and evaluated (which,
     # with the training itself, is the expensive part): outputs, the frozen model, the checkpoint.
     _check_fit_outputs(args)
@@ -145,12 +149,25 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     sources = _open_all(args.sources)
     _check_out_is_no_source(args.out, sources)
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    ranks = dd.join(settings.device)
     try:
+        settings.device = dd.rank_device(settings.device, ranks)
+        if ranks.distributed and ranks.main:
+            log(f"data-parallel fit on {ranks.world} ranks: {settings.batch // ranks.world} pairs of each "
+                f"{settings.batch}-pair batch per rank")
         model = fit(sources, settings, frozen=frozen, checkpoint=args.checkpoint,
                     checkpoint_every=args.checkpoint_every, resume=args.resume, progress=not args.quiet, log=log,
-                    compile_step=args.compile)
+                    compile_step=args.compile, ranks=ranks)
+    except KeyboardInterrupt:
+        if not ranks.main:
+            return 130  # rank 0 says where the checkpoint is
+        raise
     except MemoryError:
         raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
+    finally:
+        dd.leave(ranks)
+    if not ranks.main:
+        return 0
     model.save(args.out)
     rows = [dict(material=m["name"], origin=m["origin"], **m["metrics"]) for m in model.material_info]
     print(format_table(rows, settings.eval_pairs))
@@ -498,14 +515,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    from hybridbrdf.distributed import RankLostError
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except KeyboardInterrupt:
-        print(f"hbrdf {args.command}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        # A fit stopped between steps says how far it got and where its checkpoint is.
+        print(f"hbrdf {args.command}: {exc if str(exc) else 'interrupted'}", file=sys.stderr)
         return 130
-    except (ValueError, KeyError, OSError, FloatingPointError) as exc:
+    except (ValueError, KeyError, OSError, FloatingPointError, RankLostError) as exc:
         from hybridbrdf.errors import one_line_text
 
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)

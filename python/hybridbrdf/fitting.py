@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
@@ -31,6 +32,7 @@ import numpy as np
 import torch
 
 from hybridbrdf import checkpoint as ckpt
+from hybridbrdf import distributed as dd
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.metrics import cmae, cosine_hemisphere, metric_directions, smape
 from hybridbrdf.model_file import HybridModel
@@ -299,6 +301,17 @@ def _save_checkpoint(path: str, module, opt, sched, step: int, settings: FitSett
                      "train_seconds": float(train_seconds), "timed_from_step": int(timed_from_step)})
 
 
+class FitInterrupted(KeyboardInterrupt):
+    """A fit stopped by SIGINT or SIGTERM after a finished step: ``step`` steps done, written to
+    ``checkpoint`` when there is one. ``str()`` says what to do next, in one line."""
+
+    def __init__(self, step: int, checkpoint: Optional[str]):
+        self.step, self.checkpoint = step, checkpoint
+        super().__init__(f"interrupted after step {step}; " + (
+            f"checkpoint {checkpoint} written: continue with the same command and --resume" if checkpoint
+            else "nothing saved (no --checkpoint)"))
+
+
 def frozen_arch_settings(settings: FitSettings, frozen: HybridModel) -> FitSettings:
     """Set ``settings``' network fields (arch, width, depth, latent, activation) to those of the
     frozen model a sparse fit keeps; returns ``settings``."""
@@ -311,7 +324,8 @@ def frozen_arch_settings(settings: FitSettings, frozen: HybridModel) -> FitSetti
 def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel] = None,
         checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
         progress: bool = True, log: Callable[[str], None] = print,
-        stop_after: Optional[int] = None, compile_step: bool = False) -> Optional[HybridModel]:
+        stop_after: Optional[int] = None, compile_step: bool = False,
+        ranks: Optional[dd.Ranks] = None) -> Optional[HybridModel]:
     """Fit ``sources`` jointly; returns the fitted :class:`HybridModel` (with per-material metrics).
 
     ``checkpoint``: file written every ``checkpoint_every`` steps (atomically);
@@ -328,7 +342,19 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     Before any source is evaluated, ``checkpoint`` must be writable and, when resumed, pass
     every check of :mod:`hybridbrdf.checkpoint` (checksum, structure, settings, step, finite
     values, shapes); otherwise :class:`~hybridbrdf.errors.InputFileError` naming the file.
+
+    ``ranks``: this process's place in a data-parallel fit (:func:`hybridbrdf.distributed.join`
+    under torchrun): every rank trains on its share of the same global batch, gradients are
+    averaged by DistributedDataParallel, and only rank 0 logs, writes checkpoints and returns
+    the model (the others return None). SIGINT or SIGTERM stops the fit after the step in
+    progress on every rank; with ``checkpoint`` rank 0 writes it first; then
+    :class:`FitInterrupted` is raised. A rank that loses the others raises
+    :class:`~hybridbrdf.distributed.RankLostError`; neither writes a model.
     """
+    ranks = ranks or dd.Ranks()
+    dd.check_batch_split(settings.batch, ranks)
+    if not ranks.main:
+        progress, log = False, (lambda msg: None)
     if stop_after is not None and not checkpoint:
         raise ValueError("stop_after needs a checkpoint file to stop into")
     settings.check()
@@ -345,7 +371,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
               if frozen is not None and settings.sparse_init == "nearest" else 1)
     if starts > 1 and checkpoint:
         raise ValueError("--sparse-starts above 1 fits without --checkpoint (a sparse fit is minutes long)")
-    if checkpoint:
+    if checkpoint and ranks.main:
         check_writable(checkpoint, "checkpoint")
     saved = None
     if resume and checkpoint and os.path.exists(checkpoint):
@@ -407,8 +433,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         log("sparse fit starts from " + ", ".join(
             f"{n} <- {' | '.join(start_names[m * starts:(m + 1) * starts])}" for m, n in enumerate(names)))
 
+    net = dd.wrap(module, ranks, settings.device)  # DistributedDataParallel under torchrun
+
     def batch_loss(wi: torch.Tensor, wo: torch.Tensor, ref: torch.Tensor) -> torch.Tensor:
-        f_t, f_a = module(wi, wo)
+        f_t, f_a = net(wi, wo)
         return training_loss(ref, f_t, f_a if has_analytic else None, wi[:, 2], eps, eps_analytic,
                              settings.loss_cos, settings.analytic_expectile).sum()
 
@@ -416,37 +444,61 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         # Every batch has the same shapes, so one static graph serves the whole fit.
         batch_loss = torch.compile(batch_loss, dynamic=False)
     compile_seconds = None
+    saved_step = start if saved is not None else None  # the step of the newest checkpoint on disk
     t0 = time.perf_counter()
-    for step in range(start, settings.steps):
-        idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen).to(settings.device)
-        wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
-        loss = batch_loss(wi, wo, ref)
-        if not torch.isfinite(loss):
-            raise FloatingPointError(f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_([p for p in module.parameters() if p.requires_grad], settings.clip)
-        opt.step()
-        sched.step()
-        if compile_step and compile_seconds is None:
-            # The first compiled step builds the graphs; the throughput counts the steps after it.
-            compile_seconds = time.perf_counter() - t0
-        if bar is not None:
-            bar.update(1)
-            if step % 20 == 0:
-                bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
-        stopping = stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps
-        if checkpoint and (stopping or ((step + 1) % checkpoint_every == 0 and step + 1 < settings.steps)):
-            # Once per step even where stop_after falls on a regular checkpoint.
-            _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
-                             earlier_seconds + time.perf_counter() - t0, timed_from, gen)
-        if stopping:
+    stop = dd.StopRequest().__enter__()
+    try:
+        for step in range(start, settings.steps):
+            # Every rank draws the same global batch and trains on its share of it.
+            idx = torch.randint(0, settings.pool, (settings.batch,), generator=gen)
+            idx = dd.share(idx, ranks).to(settings.device)
+            wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
+            try:
+                loss = batch_loss(wi, wo, ref)
+                if not torch.isfinite(loss):
+                    raise FloatingPointError(
+                        f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
+                opt.zero_grad(set_to_none=True)
+                loss.backward()  # under DistributedDataParallel: gradients averaged over the ranks
+                stopping_now = dd.any_rank(stop.requested is not None, ranks, settings.device)
+            except RuntimeError as exc:
+                if not ranks.distributed or isinstance(exc, FloatingPointError):
+                    raise
+                # gloo's "[file.cc:537] Read error [addr]:port: Connection reset by peer. This is ..." -> its gist
+                reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+                reason = re.sub(r"^\[[^\]]*\]\s*", "", reason).split(". ")[0]
+                kept = f"checkpoint {checkpoint} (step {saved_step})" if saved_step is not None else "no checkpoint"
+                raise dd.RankLostError(f"rank {ranks.rank} of {ranks.world}: lost the other ranks at step {step} "
+                                       f"({reason}); kept: {kept}, no model written") from None
+            torch.nn.utils.clip_grad_norm_([p for p in module.parameters() if p.requires_grad], settings.clip)
+            opt.step()
+            sched.step()
+            if compile_step and compile_seconds is None:
+                # The first compiled step builds the graphs; the throughput counts the steps after it.
+                compile_seconds = time.perf_counter() - t0
             if bar is not None:
-                bar.close()
-            return None
-    if bar is not None:
-        bar.close()
+                bar.update(1)
+                if step % 20 == 0:
+                    bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
+            stopping = stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps
+            if checkpoint and (stopping or stopping_now or
+                               ((step + 1) % checkpoint_every == 0 and step + 1 < settings.steps)):
+                # Once per step even where stop_after falls on a regular checkpoint.
+                if ranks.main:
+                    _save_checkpoint(checkpoint, module, opt, sched, step + 1, settings, names,
+                                     earlier_seconds + time.perf_counter() - t0, timed_from, gen)
+                saved_step = step + 1
+            if stopping_now:
+                raise FitInterrupted(step + 1, checkpoint)
+            if stopping:
+                return None
+    finally:
+        stop.__exit__()
+        if bar is not None:
+            bar.close()
     elapsed = time.perf_counter() - t0
+    if not ranks.main:
+        return None
     if starts > 1:
         keep = best_starts(module, pool, starts, eps, eps_analytic, settings)
         module = _keep_materials(module, keep, settings, iso)

@@ -1,0 +1,159 @@
+"""Data-parallel fitting on torch.distributed (docs/FITTING.md, "Fitting on several processes").
+
+``hbrdf fit`` started by ``torchrun`` (which sets RANK, WORLD_SIZE, MASTER_ADDR, ...) joins
+the process group torchrun describes: gloo on CPU, NCCL on CUDA (each rank on the GPU of
+its LOCAL_RANK). Every rank holds the whole training pool and the same generator of pool
+indices, so all ranks draw the same global batch of ``--batch`` pairs and each trains on
+its own contiguous share of it; PyTorch's DistributedDataParallel averages the gradients,
+which is then the gradient of the whole batch, and the optimiser steps agree on every rank.
+A fit on k ranks is therefore the 1-rank fit with the same global batch and seed up to the
+order of float additions, and a checkpoint (global step, generator state, optimiser) resumes
+on any number of ranks that divides the batch. Rank 0 alone logs, writes checkpoints and the
+model file.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import signal
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+
+#: How long a rank waits in a collective for the others before it gives up (a rank that died
+#: mid-step is usually noticed at once, when its sockets close; this bounds the other cases).
+COLLECTIVE_TIMEOUT = datetime.timedelta(minutes=5)
+
+
+class RankLostError(RuntimeError):
+    """Another rank stopped answering (it died or was killed): the fit cannot go on."""
+
+
+@dataclass
+class Ranks:
+    """This process's place in a data-parallel fit: rank 0 of 1 when not under torchrun."""
+
+    rank: int = 0
+    world: int = 1
+    local_rank: int = 0
+
+    @property
+    def main(self) -> bool:
+        """Rank 0: the one that logs and writes files."""
+        return self.rank == 0
+
+    @property
+    def distributed(self) -> bool:
+        return self.world > 1
+
+
+def launched_world_size() -> int:
+    """WORLD_SIZE as torchrun sets it (1 without torchrun); ValueError for a malformed value."""
+    raw = os.environ.get("WORLD_SIZE", "1")
+    try:
+        world = int(raw)
+    except ValueError:
+        raise ValueError(f"WORLD_SIZE={raw!r} is not a number of ranks") from None
+    if world < 1:
+        raise ValueError(f"WORLD_SIZE={world} is not a number of ranks")
+    return world
+
+
+def join(device: str) -> Ranks:
+    """Join torchrun's process group when WORLD_SIZE > 1 (gloo for a CPU ``device``, NCCL for
+    CUDA) and return this process's :class:`Ranks`; a plain ``Ranks()`` otherwise. With CUDA
+    each rank uses the device of its LOCAL_RANK."""
+    world = launched_world_size()
+    if world == 1:
+        return Ranks()
+    import torch.distributed as dist
+
+    local = int(os.environ.get("LOCAL_RANK", "0"))
+    if not dist.is_initialized():
+        cuda = device.startswith("cuda")
+        if cuda:
+            torch.cuda.set_device(local)
+        dist.init_process_group("nccl" if cuda else "gloo", timeout=COLLECTIVE_TIMEOUT)
+    return Ranks(dist.get_rank(), dist.get_world_size(), local)
+
+
+def leave(ranks: Ranks) -> None:
+    """Leave the process group (a no-op for a single process)."""
+    if ranks.distributed:
+        import torch.distributed as dist
+
+        if dist.is_initialized():
+            dist.destroy_process_group()
+
+
+def rank_device(device: str, ranks: Ranks) -> str:
+    """``cuda`` becomes ``cuda:<local rank>`` under torchrun; other devices are kept."""
+    return f"cuda:{ranks.local_rank}" if ranks.distributed and device == "cuda" else device
+
+
+def check_batch_split(batch: int, ranks: Ranks) -> None:
+    """Every rank trains on batch / world pairs of each global batch: it must divide."""
+    if batch % ranks.world:
+        raise ValueError(f"--batch {batch} does not split over {ranks.world} ranks "
+                         f"(a multiple of {ranks.world} keeps every rank's share equal)")
+
+
+def share(idx: torch.Tensor, ranks: Ranks) -> torch.Tensor:
+    """This rank's contiguous share of a global batch of pool indices."""
+    n = idx.shape[0] // ranks.world
+    return idx[ranks.rank * n:(ranks.rank + 1) * n]
+
+
+def wrap(module: torch.nn.Module, ranks: Ranks, device: str) -> torch.nn.Module:
+    """``module`` under DistributedDataParallel (gradients averaged over the ranks in
+    backward), or ``module`` itself for a single process."""
+    if not ranks.distributed:
+        return module
+    from torch.nn.parallel import DistributedDataParallel
+
+    ids = [torch.device(device).index] if device.startswith("cuda") else None
+    return DistributedDataParallel(module, device_ids=ids)
+
+
+def any_rank(flag: bool, ranks: Ranks, device: str) -> bool:
+    """True on every rank when ``flag`` is true on any (so that all stop at the same step)."""
+    if not ranks.distributed:
+        return flag
+    import torch.distributed as dist
+
+    t = torch.tensor([1.0 if flag else 0.0], device=device)
+    dist.all_reduce(t, op=dist.ReduceOp.MAX)
+    return bool(t.item() > 0)
+
+
+class StopRequest:
+    """SIGINT and SIGTERM (torchrun passes Ctrl-C on as SIGTERM) ask the fit to stop after the
+    step in progress instead of killing it mid-way, so that a checkpoint of a finished step can
+    be written. A second signal stops at once. Installed only in the main thread."""
+
+    def __init__(self) -> None:
+        self.requested: Optional[int] = None
+        self._previous = {}
+
+    def __enter__(self) -> "StopRequest":
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested is not None:
+            raise KeyboardInterrupt
+        self.requested = signum
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
+__all__ = ["COLLECTIVE_TIMEOUT", "RankLostError", "Ranks", "StopRequest", "any_rank", "check_batch_split", "join",
+           "launched_world_size", "leave", "rank_device", "share", "wrap"]

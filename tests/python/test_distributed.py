@@ -1,0 +1,129 @@
+"""Data-parallel fitting under torchrun (hybridbrdf.distributed, docs/FITTING.md "Fitting on
+several processes"): two local ranks over loopback (gloo) give the 1-rank model, Ctrl-C leaves a
+checkpoint that resumes on another number of ranks, a rank that dies ends the run with one line
+and leaves the checkpoint and an existing --out alone, and a batch that does not split is refused."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import hybridbrdf as hb
+from hybridbrdf import checkpoint as ckpt
+
+FIT = ["fit", "synthetic:gold", "synthetic:plastic", "--mlp", "16x2", "--batch", "256", "--pool", "8192",
+       "--eval-pairs", "20000", "--seed", "3", "--quiet"]
+ENV = dict(os.environ, OMP_NUM_THREADS="1")
+
+
+def hbrdf_cmd(*args):
+    return [sys.executable, "-m", "hybridbrdf.cli", *args]
+
+
+def torchrun_cmd(ranks, *args):
+    return [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}",
+            "-m", "hybridbrdf.cli", *args]
+
+
+def run(cmd, cwd, timeout=300):
+    return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=timeout)
+
+
+def max_weight_difference(a, b):
+    return max(float(np.max(np.abs(a.tensors[k] - b.tensors[k]))) for k in a.tensors)
+
+
+def smapes(model):
+    return np.array([m["metrics"]["smape"] for m in model.material_info])
+
+
+def test_two_ranks_fit_the_one_rank_model(tmp_path):
+    one = run(hbrdf_cmd(*FIT, "--steps", "300", "--out", "one.safetensors"), tmp_path)
+    assert one.returncode == 0, one.stderr
+    two = run(torchrun_cmd(2, *[a for a in FIT if a != "--quiet"], "--steps", "300", "--out", "two.safetensors"),
+              tmp_path)
+    assert two.returncode == 0, two.stderr
+    assert "data-parallel fit on 2 ranks: 128 pairs of each 256-pair batch per rank" in two.stderr
+    assert two.stdout.count("wrote two.safetensors") == 1  # rank 0 alone reports and writes
+    a, b = hb.load_model(tmp_path / "one.safetensors"), hb.load_model(tmp_path / "two.safetensors")
+    # Same global batches, gradients averaged: only the order of float additions differs
+    # (measured: 1.5e-6 after 300 steps).
+    assert max_weight_difference(a, b) < 1e-4
+    assert np.allclose(smapes(a), smapes(b), rtol=1e-5)
+    # A second rank that did not train would leave the weights where the first rank's half-batches take them.
+    solo = run(hbrdf_cmd(*FIT, "--steps", "300", "--batch", "128", "--out", "half.safetensors"), tmp_path)
+    assert solo.returncode == 0, solo.stderr
+    assert max_weight_difference(a, hb.load_model(tmp_path / "half.safetensors")) > 1e-3
+
+
+def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path):
+    args = [*FIT, "--steps", "4000", "--checkpoint", "ck.pt", "--checkpoint-every", "100"]
+    proc = subprocess.Popen(hbrdf_cmd(*args, "--out", "m.safetensors"), cwd=tmp_path, env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (tmp_path / "ck.pt").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    assert (tmp_path / "ck.pt").exists(), proc.communicate()[1]
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("hbrdf fit: interrupted after step ") and "checkpoint ck.pt written" in line, line
+    stopped = int(line.split("after step ")[1].split(";")[0])
+    state, _ = ckpt.read(tmp_path / "ck.pt")
+    assert state["step"] == stopped  # the step the fit had finished, not the last regular checkpoint
+    assert not (tmp_path / "m.safetensors").exists()
+    resumed = run(torchrun_cmd(2, *args, "--resume", "--out", "m.safetensors"), tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    full = run(hbrdf_cmd(*FIT, "--steps", "4000", "--out", "full.safetensors"), tmp_path)
+    assert full.returncode == 0, full.stderr
+    m, f = hb.load_model(tmp_path / "m.safetensors"), hb.load_model(tmp_path / "full.safetensors")
+    assert m.training["resumed_at_step"] == stopped
+    # Thousands of Adam steps amplify the rounding differences of the rank split; the fits agree in accuracy.
+    assert np.allclose(smapes(m), smapes(f), rtol=0.02, atol=1e-4), (smapes(m), smapes(f))
+
+
+def test_a_rank_that_dies_ends_the_run_and_keeps_the_files(tmp_path):
+    (tmp_path / "m.safetensors").write_bytes(b"the previous model")
+    args = [*FIT, "--steps", "100000", "--checkpoint", "ck.pt", "--checkpoint-every", "100", "--out", "m.safetensors"]
+    proc = subprocess.Popen(torchrun_cmd(2, *args), cwd=tmp_path, env=ENV, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.time() + 120
+        while not (tmp_path / "ck.pt").exists() and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.2)
+        assert (tmp_path / "ck.pt").exists(), proc.communicate()[1]
+        # The worker processes of this torchrun: rank 1 is killed outright.
+        workers = [int(p) for p in subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
+                                                  text=True).stdout.split()]
+        assert len(workers) == 2, workers
+        rank1 = [p for p in workers if "RANK=1" in open(f"/proc/{p}/environ", "rb").read().decode(errors="replace")
+                 .split("\0")]
+        assert rank1, workers
+        os.kill(rank1[0], signal.SIGKILL)
+        _, err = proc.communicate(timeout=240)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode != 0
+    lines = [ln for ln in err.splitlines() if ln.startswith("hbrdf fit: error:")]
+    assert len(lines) == 1 and "rank 0 of 2: lost the other ranks at step" in lines[0], err[-2000:]
+    assert "kept: checkpoint ck.pt (step" in lines[0] and "no model written" in lines[0]
+    assert (tmp_path / "m.safetensors").read_bytes() == b"the previous model"
+    state, checksummed = ckpt.read(tmp_path / "ck.pt")
+    assert checksummed and state["step"] > 0
+
+
+@pytest.mark.parametrize("world,problem", [("3", "--batch 256 does not split over 3 ranks"),
+                                           ("two", "WORLD_SIZE='two' is not a number of ranks")])
+def test_a_batch_that_does_not_split_or_a_bad_world_size_is_one_line(tmp_path, world, problem):
+    r = subprocess.run(hbrdf_cmd(*FIT, "--steps", "10", "--out", "m.safetensors"), cwd=tmp_path,
+                       env=dict(ENV, WORLD_SIZE=world), capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"hbrdf fit: error: {problem}"), r.stderr
+    assert not (tmp_path / "m.safetensors").exists()
