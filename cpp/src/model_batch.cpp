@@ -94,7 +94,7 @@ __attribute__((target("avx2,fma"))) HBRDF_KERNEL_INLINE __m256 act8(__m256 x, Ac
     HBRDF_ACT_BODY(ps, _mm256_set1_ps, _mm256_max_ps, _mm256_min_ps, _mm256_mul_ps, _mm256_fmadd_ps)
 }
 
-// exp(x) on 8 lanes for the combine step, as expf computes it to within 2 ulp: Cody-Waite
+// exp(x) on 8 lanes for the combine step, within about 1 ulp of the exact value: Cody-Waite
 // reduction x = n ln2 + r (ln2 split in a 9-bit head and a tail, so n * head is exact),
 // Cephes' degree-6 polynomial for e^r on |r| <= ln2/2, and 2^n applied as two halves so that
 // results in the denormal range (x down to -103.9) and the overflow to +inf (x > 88.72) come
