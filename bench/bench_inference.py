@@ -59,7 +59,8 @@ RUNNER = ROOT / "build" / "hbrdf_vk_runner"
 FMA_PEAK = ROOT / "build" / "hbrdf_fma_peak"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
 SIZES = [(16, 2), (16, 3), (32, 2), (32, 3), (64, 2), (64, 3)]
-RGL_MODELS = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_fast.safetensors"
+RGL_MODELS = ("results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_hybrid_16x2_e09_100k_refit01.safetensors,"
+              "results/rgl54_fast.safetensors")
 # Lavapipe runs: the host's own SIMD path, and AVX2+FMA only (Mesa hides AVX-512 from LLVM).
 VK_RUNS = {"host": {}, "avx2": {"GALLIUM_OVERRIDE_CPU_CAPS": "avx"}}
 FLOAT = 4  # bytes

@@ -35,7 +35,8 @@ from hybridbrdf.render import render
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
 NAMES = ("cc_ibiza_sunset_rgb", "cg_sunflower_rgb", "colodur_napoli_4f_rgb", "paper_white_rgb", "vch_golden_yellow_rgb")
-MODELS = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_fast.safetensors"
+MODELS = ("results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_hybrid_16x2_e09_100k_refit01.safetensors,"
+          "results/rgl54_fast.safetensors")
 
 
 def example_scene(material, spp, seed):
