@@ -137,7 +137,8 @@ class StopRequest:
         self.requested: Optional[int] = None
         self._previous = {}
 
-    def __enter__(self) -> "StopRequest":
+    def install(self) -> "StopRequest":
+        """Take over SIGINT and SIGTERM until :meth:`restore` (main thread only)."""
         import threading
 
         if threading.current_thread() is threading.main_thread():
@@ -145,14 +146,21 @@ class StopRequest:
                 self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
+    def restore(self) -> None:
+        """Give the signals back to the handlers they had before."""
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
     def _handle(self, signum, frame) -> None:
         if self.requested is not None:
             raise KeyboardInterrupt
         self.requested = signum
 
+    __enter__ = install
+
     def __exit__(self, *exc) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+        self.restore()
 
 
 __all__ = ["COLLECTIVE_TIMEOUT", "RankLostError", "Ranks", "StopRequest", "any_rank", "check_batch_split", "join",

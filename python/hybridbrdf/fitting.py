@@ -446,7 +446,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     compile_seconds = None
     saved_step = start if saved is not None else None  # the step of the newest checkpoint on disk
     t0 = time.perf_counter()
-    stop = dd.StopRequest().__enter__()
+    stop = dd.StopRequest().install()
     try:
         for step in range(start, settings.steps):
             # Every rank draws the same global batch and trains on its share of it.
@@ -462,7 +462,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
                 loss.backward()  # under DistributedDataParallel: gradients averaged over the ranks
                 stopping_now = dd.any_rank(stop.requested is not None, ranks, settings.device)
             except RuntimeError as exc:
-                if not ranks.distributed or isinstance(exc, FloatingPointError):
+                if not ranks.distributed:
                     raise
                 # gloo's "[file.cc:537] Read error [addr]:port: Connection reset by peer. This is ..." -> its gist
                 reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
@@ -493,7 +493,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
             if stopping:
                 return None
     finally:
-        stop.__exit__()
+        stop.restore()
         if bar is not None:
             bar.close()
     elapsed = time.perf_counter() - t0
