@@ -61,7 +61,7 @@ def test_two_ranks_fit_the_one_rank_model(tmp_path):
 
 
 def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path):
-    args = [*FIT, "--steps", "4000", "--checkpoint", "ck.pt", "--checkpoint-every", "100"]
+    args = [*FIT, "--steps", "1500", "--checkpoint", "ck.pt", "--checkpoint-every", "100"]
     proc = subprocess.Popen(hbrdf_cmd(*args, "--out", "m.safetensors"), cwd=tmp_path, env=ENV,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
@@ -79,7 +79,7 @@ def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path):
     assert not (tmp_path / "m.safetensors").exists()
     resumed = run(torchrun_cmd(2, *args, "--resume", "--out", "m.safetensors"), tmp_path)
     assert resumed.returncode == 0, resumed.stderr
-    full = run(hbrdf_cmd(*FIT, "--steps", "4000", "--out", "full.safetensors"), tmp_path)
+    full = run(hbrdf_cmd(*FIT, "--steps", "1500", "--out", "full.safetensors"), tmp_path)
     assert full.returncode == 0, full.stderr
     m, f = hb.load_model(tmp_path / "m.safetensors"), hb.load_model(tmp_path / "full.safetensors")
     assert m.training["resumed_at_step"] == stopped
