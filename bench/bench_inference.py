@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import pathlib
 import subprocess
@@ -202,13 +203,13 @@ def alternatives(n_pairs=1_000_000, seed=7):
             for k, v in scores.items()}
 
 
-def plot(rows, path_png, title):
+def plot(rows, path_png, title, released_cmae=None):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.4))
     for ax, key, label in ((axes[0], ("cpp", "avx2+fma"), "C++ batched, 1 core, AVX2"),
                            (axes[1], ("vk", "avx2"), "GLSL under lavapipe, 2 cores, AVX2")):
         for arch, marker in (("analytic", "s"), ("hybrid", "o"), ("neural", "^")):
@@ -226,6 +227,24 @@ def plot(rows, path_png, title):
         ax.set_ylabel("mean SMAPE (size sweep)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
+    # The five raw RGL rows: the fitted models against the alternatives, bytes per material noted.
+    ax = axes[2]
+    for r in rows:
+        if "rgl" not in r or not r["cpp"].get("avx2+fma"):
+            continue
+        x, y = 1e9 / r["cpp"]["avx2+fma"], r["rgl"]["cmae"]
+        ax.plot([x], [y], marker="o" if r["arch"] == "rgl" else "D", linestyle="")
+        per_material = r["mat_bytes"] + r["net_bytes"] // r["materials"]
+        ax.annotate(f"{r['name'].split(' (')[0][:24]}\n{per_material:,} B/material", (x, y), textcoords="offset points",
+                    xytext=(4, 4), fontsize=7)
+    if released_cmae is not None:
+        ax.axhline(released_cmae, color="grey", linestyle="--", linewidth=1)
+        ax.annotate("released model", (ax.get_xlim()[0], released_cmae), textcoords="offset points", xytext=(4, 3),
+                    fontsize=7, color="grey")
+    ax.set_xscale("log")
+    ax.set_xlabel("ns per evaluation (C++, 1 core, AVX2)")
+    ax.set_ylabel("mean cMAE, five raw RGL rows")
+    ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path_png, dpi=120)
@@ -241,7 +260,7 @@ def main() -> int:
                     help="comma-separated fitted RGL models to time and score on the five raw RGL rows "
                          f"(default {RGL_MODELS}; missing files are skipped)")
     ap.add_argument("--no-lavapipe", action="store_true", help="skip the GLSL-under-lavapipe columns")
-    ap.add_argument("--out", default="", help="write OUT.txt (the table) and OUT.png (the plot)")
+    ap.add_argument("--out", default="", help="write OUT.txt (the table), OUT.json (its rows) and OUT.png (the plot)")
     args = ap.parse_args()
     n = args.pairs
     rng = np.random.default_rng(7)
@@ -376,8 +395,13 @@ def main() -> int:
     if args.out:
         pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         pathlib.Path(args.out + ".txt").write_text(text + "\n")
-        plot(rows, args.out + ".png", lines[0][:110] + "\n" + lines[1][:160])
-        print(f"wrote {args.out}.txt and {args.out}.png")
+        json_rows = [{k: v for k, v in r.items()} for r in rows]
+        pathlib.Path(args.out + ".json").write_text(json.dumps({"title": lines[:2], "rows": json_rows}, indent=1) + "\n")
+        from rgl_paper_comparison import PAPER
+
+        plot(rows, args.out + ".png", lines[0][:160] + "\n" + lines[1][:160],
+             float(np.mean([v[2] for v in PAPER.values()])))
+        print(f"wrote {args.out}.txt, {args.out}.json and {args.out}.png")
     return 0
 
 
