@@ -33,6 +33,21 @@ def run(cmd, cwd, timeout=300):
     return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=timeout)
 
 
+def children(pid):
+    """The processes whose parent is ``pid`` (from /proc: no procps needed)."""
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    stat = f.read()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:  # field 4, after "pid (comm) state"
+                out.append(int(entry))
+    return out
+
+
 def max_weight_difference(a, b):
     return max(float(np.max(np.abs(a.tensors[k] - b.tensors[k]))) for k in a.tensors)
 
@@ -98,8 +113,7 @@ def test_a_rank_that_dies_ends_the_run_and_keeps_the_files(tmp_path):
             time.sleep(0.2)
         assert (tmp_path / "ck.pt").exists(), proc.communicate()[1]
         # The worker processes of this torchrun: rank 1 is killed outright.
-        workers = [int(p) for p in subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
-                                                  text=True).stdout.split()]
+        workers = children(proc.pid)
         assert len(workers) == 2, workers
         rank1 = [p for p in workers if "RANK=1" in open(f"/proc/{p}/environ", "rb").read().decode(errors="replace")
                  .split("\0")]
