@@ -160,20 +160,23 @@ def _cmd_fit(args: argparse.Namespace) -> int:
                     compile_step=args.compile, ranks=ranks)
     except KeyboardInterrupt:
         if not ranks.main:
-            return 130  # rank 0 says where the checkpoint is
+            dd.leave(ranks)
+            dd.end_process(130)  # rank 0 says where the checkpoint is
         raise
     except MemoryError:
         raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
     finally:
         dd.leave(ranks)
     if not ranks.main:
-        return 0
+        dd.end_process(0)
     model.save(args.out)
     rows = [dict(material=m["name"], origin=m["origin"], **m["metrics"]) for m in model.material_info]
     print(format_table(rows, settings.eval_pairs))
     rate = model.training.get("pairs_x_materials_per_second")
     print(f"trained {settings.steps} steps in {model.training['train_seconds']:.1f} s"
           + (f" ({rate:,.0f} pairs x materials / s)" if rate else "") + f"; wrote {args.out}")
+    if ranks.distributed:
+        dd.end_process(0)
     return 0
 
 

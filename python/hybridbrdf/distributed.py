@@ -88,6 +88,18 @@ def leave(ranks: Ranks) -> None:
             dist.destroy_process_group()
 
 
+def end_process(code: int) -> None:
+    """End a rank's process once its work is done and the process group is left: flush the
+    standard streams, then ``os._exit`` without the interpreter's teardown, where gloo's worker
+    threads can still hold references and abort the process (SIGABRT, "terminate called
+    without an active exception"; seen in a test, and pytorch/pytorch#179291 describes it)."""
+    import sys
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 def rank_device(device: str, ranks: Ranks) -> str:
     """``cuda`` becomes ``cuda:<local rank>`` under torchrun; other devices are kept."""
     return f"cuda:{ranks.local_rank}" if ranks.distributed and device == "cuda" else device
@@ -163,5 +175,5 @@ class StopRequest:
         self.restore()
 
 
-__all__ = ["COLLECTIVE_TIMEOUT", "RankLostError", "Ranks", "StopRequest", "any_rank", "check_batch_split", "join",
+__all__ = ["COLLECTIVE_TIMEOUT", "RankLostError", "Ranks", "StopRequest", "any_rank", "check_batch_split", "end_process", "join",
            "launched_world_size", "leave", "rank_device", "share", "wrap"]
