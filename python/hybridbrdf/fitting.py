@@ -325,7 +325,8 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
         progress: bool = True, log: Callable[[str], None] = print,
         stop_after: Optional[int] = None, compile_step: bool = False,
-        ranks: Optional[dd.Ranks] = None) -> Optional[HybridModel]:
+        ranks: Optional[dd.Ranks] = None,
+        observe: Optional[Callable[[int, torch.nn.Module], None]] = None) -> Optional[HybridModel]:
     """Fit ``sources`` jointly; returns the fitted :class:`HybridModel` (with per-material metrics).
 
     ``checkpoint``: file written every ``checkpoint_every`` steps (atomically);
@@ -350,6 +351,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     progress on every rank; with ``checkpoint`` rank 0 writes it first; then
     :class:`FitInterrupted` is raised. A rank that loses the others raises
     :class:`~hybridbrdf.distributed.RankLostError`; neither writes a model.
+
+    ``observe(step, module)``: called on rank 0 after every optimiser step (``step`` steps done)
+    with the module being fitted, e.g. to snapshot it for a time-to-accuracy curve
+    (bench/bench_fit_time.py); it must not change the module.
     """
     ranks = ranks or dd.Ranks()
     dd.check_batch_split(settings.batch, ranks)
@@ -473,6 +478,8 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
             torch.nn.utils.clip_grad_norm_([p for p in module.parameters() if p.requires_grad], settings.clip)
             opt.step()
             sched.step()
+            if observe is not None and ranks.main:
+                observe(step + 1, module)
             if compile_step and compile_seconds is None:
                 # The first compiled step builds the graphs; the throughput counts the steps after it.
                 compile_seconds = time.perf_counter() - t0

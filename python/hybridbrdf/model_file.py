@@ -293,6 +293,8 @@ class HybridModel:
             with open(probe, "rb") as fh:
                 data = fh.read()
         atomic_write_bytes(path, data)
+        # save() pointed this model at the probe, which is gone: point it at the file written.
+        self.path, self._cpp = os.fspath(path), None
         checked.path = os.fspath(path)
         return checked
 

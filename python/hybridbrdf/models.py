@@ -84,7 +84,13 @@ class MLP(nn.Module):
         self._act = activation_fn(activation)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        for layer in self.hidden:
+        return self.forward_from(self.hidden[0](x))
+
+    def forward_from(self, pre: torch.Tensor) -> torch.Tensor:
+        """The network from the first hidden layer's pre-activation ``pre`` on (a caller that
+        computes the first layer by parts: HybridBRDF._first_layer)."""
+        x = self._act(pre)
+        for layer in self.hidden[1:]:
             x = self._act(layer(x))
         return self.out(x)
 
@@ -195,13 +201,27 @@ class HybridBRDF(nn.Module):
         m, b = kd.shape[0], wi.shape[0]
         wi_n, wo_n, valid = _unit_pair(wi, wo)
         f_a = eval_analytic(wi_n[None], wo_n[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
-        # Input layout (spec/model.json): direction inputs, latent code, extra inputs.
-        x = [wi_n[None].expand(m, b, 3), wo_n[None].expand(m, b, 3), z[:, None].expand(m, b, self.latent_dim)]
-        if spec.ARCHS[self.arch]["extra"] == "log1p_fa":
-            x.append(torch.log1p(f_a))
-        o = self.mlp(torch.cat(x, dim=-1))
+        extra = torch.log1p(f_a) if spec.ARCHS[self.arch]["extra"] == "log1p_fa" else None
+        o = self.mlp.forward_from(self._first_layer(torch.cat([wi_n, wo_n], dim=-1), z, extra))
         f_t = self.combine(o, f_a)
         return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
+
+    def _first_layer(self, directions: torch.Tensor, z: torch.Tensor, extra: Optional[torch.Tensor]) -> torch.Tensor:
+        """The first hidden layer's pre-activation (M, B, width) for the input layout of
+        spec/model.json (direction inputs, latent code, extra inputs), computed by parts.
+
+        The direction inputs (B, 6) are shared by every material and the latent code (M, l) by
+        every pair, so W [d; z; e] + b = (W_d d) + (W_z z + b) [+ W_e e]: a (B x 6) and an
+        (M x l) product broadcast-added instead of one (M B x (6 + l)) product of a concatenated
+        input. Same function, rounded differently; it spares a joint fit the (M, B, 6 + l) input
+        tensor and, in the backward pass, that tensor's gradient (docs/FITTING.md, "Training speed")."""
+        first = self.mlp.hidden[0]
+        n_dir, l = directions.shape[-1], self.latent_dim
+        w_dir, w_z, w_extra = first.weight[:, :n_dir], first.weight[:, n_dir:n_dir + l], first.weight[:, n_dir + l:]
+        pre = (directions @ w_dir.t())[None] + (z @ w_z.t() + first.bias)[:, None]
+        if extra is not None:
+            pre = pre + extra @ w_extra.t()
+        return pre
 
     def combine(self, o: torch.Tensor, f_a: torch.Tensor) -> torch.Tensor:
         """The network output o and f_a -> f_t, by the architecture's combine rule (spec.COMBINES)."""

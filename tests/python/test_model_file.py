@@ -136,3 +136,15 @@ def test_saved_files_get_ordinary_permissions(tmp_path):
     finally:
         os.umask(old)
     assert (path.stat().st_mode & 0o777) == 0o644
+
+
+def test_a_model_saved_checked_evaluates_from_the_file_written(tmp_path):
+    # save_checked writes a probe first; the model must end up pointing at the file it wrote,
+    # not at the probe, which is deleted (the C++ evaluation would then fail to open it).
+    _, model = random_model("hybrid", latent=4, isotropic=[True, False, True])
+    path = tmp_path / "checked.safetensors"
+    back = model.save_checked(path)
+    assert model.path == str(path) and back.path == str(path)
+    wi, wo = np.array([[0.3, 0.1, 0.95]]), np.array([[-0.2, 0.3, 0.93]])
+    for m in model.materials:
+        assert np.array_equal(model.eval(wi, wo, m), back.eval(wi, wo, m))
