@@ -89,13 +89,15 @@ class OutOfTime(Exception):
 
 @dataclass
 class Snapshot:
+    """A curve point: the module's state mid-phase, or the phase's finished model."""
     seconds: float
     phase: str
     step: int
-    state: Dict[str, torch.Tensor]
+    state: Optional[Dict[str, torch.Tensor]] = None
+    model: Optional[HybridModel] = None
 
 
-def run_schedule(name: str, phases: List[Phase], sources, names, budget: float, every: float,
+def run_schedule(name: str, phases: List[Phase], sources, budget: float, every: float,
                  log, device: str = "cpu") -> (List[Snapshot], Optional[HybridModel], float):
     """Run ``phases`` until done or ``budget`` seconds; returns the snapshots, the final model
     (None when cut off) and the clock at the end."""
@@ -132,7 +134,7 @@ def run_schedule(name: str, phases: List[Phase], sources, names, budget: float, 
             return snaps, None, clock()
         # The phase's last state is a curve point too (fit() evaluated it on 1000 pairs only).
         t = time.perf_counter()
-        snaps.append(Snapshot(clock(), phase.label, settings.steps, {"__model__": model}))
+        snaps.append(Snapshot(clock(), phase.label, settings.steps, model=model))
         paused += time.perf_counter() - t
         log(f"  {name}/{phase.label}: done at {snaps[-1].seconds:.0f} s "
             f"(compile {model.training.get('compile_seconds', 0):.0f} s)")
@@ -151,8 +153,8 @@ class Evaluator:
         self.origins = [s.origin for s in sources]
 
     def model_of(self, snap: Snapshot) -> HybridModel:
-        if "__model__" in snap.state:
-            return snap.state["__model__"]
+        if snap.model is not None:
+            return snap.model
         module = build_model("hybrid", len(self.names), COMMON["width"], COMMON["depth"], COMMON["latent"],
                              COMMON["activation"], self.iso)
         module.load_state_dict(snap.state)
@@ -221,7 +223,7 @@ def main() -> int:
         phases = [dataclasses.replace(p, settings={**p.settings, "steps": max(1, round(p.settings["steps"] * args.steps_scale))})
                   for p in SCHEDULES[name]]
         log(f"\nschedule {name}:")
-        snaps, model, end = run_schedule(name, phases, sources, names, args.budget, args.snapshot_every, log,
+        snaps, model, end = run_schedule(name, phases, sources, args.budget, args.snapshot_every, log,
                                          args.device)
         if model is not None and args.save_model and not results:
             model.save_checked(args.save_model)
