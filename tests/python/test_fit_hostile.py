@@ -388,13 +388,31 @@ def test_every_writer_goes_through_the_atomic_write():
 
 
 WRITER = """
-import sys
+import faulthandler, signal, sys
 from hybridbrdf.util import atomic_write_bytes
-data = bytes(range(256)) * (1 << 16)  # 16 MiB: most of the loop's time is spent inside a write
+faulthandler.register(signal.SIGUSR1)  # the test asks for our stack if we do not end
+data = bytes(range(256)) * (1 << 14)  # 4 MiB: most of the loop's time is spent inside a write
 print("ready", flush=True)
 while True:
     atomic_write_bytes(sys.argv[1], data)
 """
+
+# How long a signalled writer may take to end. The writes fsync, and on a busy VM disk (the CI
+# suite writes checkpoints at the same time) one fsync has been seen to stall for tens of
+# seconds; a writer that is really stuck shows its stack in the failure.
+WRITER_EXIT_S = 240
+
+
+def _wait_or_show_stack(p):
+    try:
+        p.wait(timeout=WRITER_EXIT_S)
+    except subprocess.TimeoutExpired:
+        p.send_signal(signal.SIGUSR1)  # faulthandler: the Python stack to stderr
+        time.sleep(1.0)
+        p.kill()
+        _, err = p.communicate()
+        pytest.fail(f"the writer did not end within {WRITER_EXIT_S} s of the signal; "
+                    f"its stack:\n{err.decode(errors='replace')}")
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
@@ -407,12 +425,12 @@ def test_a_writer_stopped_by_a_signal_leaves_no_temporary(tmp_path, sig):
         assert p.stdout.readline().strip() == b"ready"
         time.sleep(delay)
         p.send_signal(sig)
-        p.wait(timeout=60)
+        _wait_or_show_stack(p)
         # The process still ends as the signal ends it (Python re-raises an uncaught Ctrl-C too).
         assert p.returncode == -sig, p.stderr.read()
         assert sorted(os.listdir(tmp_path)) == (["out.bin"] if dest.exists() else [])
         if dest.exists():
-            assert dest.read_bytes() == bytes(range(256)) * (1 << 16)
+            assert dest.read_bytes() == bytes(range(256)) * (1 << 14)
 
 
 # ---- gradients -----------------------------------------------------------------------
