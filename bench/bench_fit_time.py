@@ -80,6 +80,8 @@ SCHEDULES = {
             Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
     "new": [Phase("joint", dict(steps=58_000, lr=4e-2)),
             Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
+    "exp": [Phase("joint", dict(steps=58_000, lr=4e-2, lr_schedule="exponential", lr_final=0.01)),
+            Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
 }
 
 

@@ -21,6 +21,11 @@ ACTIVATIONS = tuple(spec.ACTIVATIONS)
 #: Starting points of sparse fitting (FitSettings.sparse_init).
 SPARSE_INITS = ("nearest", "neutral")
 
+#: Learning-rate decays over a fit's steps (FitSettings.lr_schedule): ``cosine`` from lr to 0 (the
+#: paper's), ``exponential`` from lr to lr * lr_final at a constant rate, which spends a larger
+#: share of the steps at small rates (docs/FITTING.md, "The learning-rate decay").
+LR_SCHEDULES = ("cosine", "exponential")
+
 #: Named sets of defaults (``--recipe``). ``hybridbrdf``, the default, is the field defaults of
 #: :class:`FitSettings`, each chosen on a measured figure (docs/FITTING.md, "Defaults and the
 #: figures they come from"); ``paper`` reproduces the paper's Sec. 3.3 settings (AdamW at
@@ -130,6 +135,7 @@ NON_NEGATIVE = Number(float, 0.0, math.inf)
 UNIT = Number(float, 0.0, 1.0)
 EXPECTILE = Number(float, 0.5, 1.0, hi_open=True)
 SPECULAR_ALPHA = Number(float, 0.0, 1.0, lo_open=True)
+LR_FINAL = Number(float, 0.0, 1.0, lo_open=True)
 #: f_c starts at exp(fc_init): above the pre-exp clamp it would be clamped, below -80 it is 0 in float32.
 FC_INIT = Number(float, -spec.PRE_EXP_MAX_LIMIT, spec.PRE_EXP_MAX)
 
@@ -170,8 +176,16 @@ class FitSettings:
                           type=STEPS)
     batch: int = _setting(1024, "direction pairs per step (default: %(default)s)", "training", "--batch",
                           type=BATCH)
-    lr: float = _setting(5e-3, "AdamW learning rate, cosine-decayed (default: %(default)s)", "training", "--lr",
-                         type=POSITIVE)
+    lr: float = _setting(5e-3, "AdamW learning rate at the first step, decayed by --lr-schedule (default: "
+                         "%(default)s)", "training", "--lr", type=POSITIVE)
+    lr_schedule: str = _setting("cosine", "decay of the learning rate over --steps: cosine (to 0) or exponential "
+                                "(to --lr times --lr-final) (default: %(default)s)", "training", "--lr-schedule",
+                                choices=LR_SCHEDULES)
+    #: The exponential decay's last rate as a fraction of ``lr``. 0.01: two decades, so that a
+    #: rate 8x the default's (--recipe fast) ends below the default cosine's rate over its last
+    #: third.
+    lr_final: float = _setting(0.01, "with --lr-schedule exponential: the last step's learning rate as a fraction "
+                               "of --lr (default: %(default)s)", "training", "--lr-final", type=LR_FINAL)
     clip: float = _setting(0.01, "gradient-norm clipping (the paper's 0.01)", "training")
     #: 0: decoupled decay shrinks a network shared by many materials by exp(-wd sum(lr)); without it
     #: the sparse-added RGL files went from 3 of 5 to 4 of 5 wins at 60k steps (docs/FITTING.md,
@@ -275,7 +289,7 @@ class FitSettings:
         if problem:
             raise ValueError(f"clip {problem}")
         for name, choices in (("arch", ARCHS), ("activation", ACTIVATIONS), ("sparse_init", SPARSE_INITS),
-                              ("recipe", RECIPE_NAMES)):
+                              ("recipe", RECIPE_NAMES), ("lr_schedule", LR_SCHEDULES)):
             if getattr(self, name) not in choices:
                 raise ValueError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
 

@@ -206,9 +206,17 @@ def _optimizer(module, settings: FitSettings, frozen: bool):
         groups = [{"params": net, "weight_decay": settings.weight_decay},
                   {"params": per_material, "weight_decay": 0.0}]
     opt = torch.optim.AdamW(groups, lr=settings.lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda step: 0.5 * (1.0 + math.cos(math.pi * min(step, settings.steps) / settings.steps)))
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: lr_factor(settings, step))
     return opt, sched
+
+
+def lr_factor(settings: FitSettings, step: int) -> float:
+    """The learning rate of step ``step`` (0-based) as a fraction of ``settings.lr``:
+    cosine, 1/2 (1 + cos(pi t)), or exponential, lr_final^t, with t = step / steps."""
+    t = min(step, settings.steps) / settings.steps
+    if settings.lr_schedule == "exponential":
+        return settings.lr_final ** t
+    return 0.5 * (1.0 + math.cos(math.pi * t))
 
 
 def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, eps_analytic,

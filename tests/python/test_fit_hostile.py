@@ -307,12 +307,12 @@ def test_a_read_only_folder_fails_before_training(tmp_path, capsys):
 
 INT_FLAGS = ["--steps", "--batch", "--pool", "--eval-pairs", "--latent", "--seed", "--checkpoint-every"]
 FLOAT_FLAGS = ["--lr", "--weight-decay", "--loss-eps", "--analytic-loss-eps", "--analytic-expectile", "--specular",
-               "--specular-alpha", "--fc-init"]
+               "--specular-alpha", "--fc-init", "--lr-final"]
 
 
 OUT_OF_RANGE = {"--lr": ["0", "-1"], "--weight-decay": ["-1e-9"], "--loss-eps": ["0"], "--analytic-loss-eps": ["0"],
                 "--analytic-expectile": ["1", "0.4"], "--specular": ["1.5", "-0.1"], "--specular-alpha": ["0", "2"],
-                "--fc-init": ["100", "-1e30"]}
+                "--fc-init": ["100", "-1e30"], "--lr-final": ["0", "1.5", "-0.01"]}
 
 
 @pytest.mark.parametrize("flag", INT_FLAGS + FLOAT_FLAGS)

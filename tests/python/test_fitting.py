@@ -392,3 +392,47 @@ def test_fitting_is_stable_on_every_shared_material():
     assert np.isfinite(t["materials.z"]).all()
     assert ((t["materials.alpha"] >= np.float32(hb.ALPHA_MIN)) & (t["materials.alpha"] <= 1)).all()
     assert ((t["materials.eta"] >= 1) & (t["materials.eta"] <= 10)).all()
+
+
+def _applied_rates(settings):
+    """The learning rate the optimiser applies at each step of a fit with ``settings``."""
+    from hybridbrdf.fitting import _optimizer
+
+    module = torch.nn.Module()
+    module.register_parameter("z", torch.nn.Parameter(torch.zeros(3)))
+    opt, sched = _optimizer(module, settings, frozen=False)
+    rates = []
+    for _ in range(settings.steps):
+        rates.append(opt.param_groups[0]["lr"])
+        opt.step()
+        sched.step()
+    return np.array(rates)
+
+
+def test_learning_rate_schedules_follow_their_formulas():
+    cos = _applied_rates(quick(steps=1000, lr=0.04))
+    assert cos[0] == pytest.approx(0.04) and cos[500] == pytest.approx(0.02, rel=1e-9)
+    assert cos[-1] < 0.04 * 1e-5 and np.all(np.diff(cos) < 0)
+    exp = _applied_rates(quick(steps=1000, lr=0.04, lr_schedule="exponential", lr_final=0.01))
+    # A constant rate of decay: log lr is a straight line from log 0.04 to log 4e-4 over the fit.
+    log_lr = np.log(exp)
+    assert exp[0] == pytest.approx(0.04) and exp[500] == pytest.approx(0.004, rel=1e-9)
+    assert np.abs(np.diff(log_lr, 2)).max() < 1e-9
+    assert exp[-1] == pytest.approx(0.04 * 0.01 ** (999 / 1000), rel=1e-9)
+    # The point of the exponential decay: more of the steps at small rates than the cosine.
+    assert (exp < 0.004).sum() > 2 * (cos < 0.004).sum()
+
+
+def test_an_exponential_schedule_trains_and_is_recorded(tmp_path):
+    m = fit(sources(), quick(lr=0.02, lr_schedule="exponential", lr_final=0.05), progress=False)
+    untrained = fit(sources(), quick(steps=1), progress=False)
+    assert m.training["lr_schedule"] == "exponential" and m.training["lr_final"] == 0.05
+    for a, b in zip(untrained.material_info, m.material_info):
+        assert b["metrics"]["cmae"] < 0.5 * a["metrics"]["cmae"], a["name"]
+    ck = str(tmp_path / "ck.pt")
+    fit(sources(), quick(steps=60, pool=1 << 12), checkpoint=ck, progress=False, stop_after=30)
+    with pytest.raises(hb.InputFileError, match="other settings"):
+        fit(sources(), quick(steps=60, pool=1 << 12, lr_schedule="exponential"), checkpoint=ck, resume=True,
+            progress=False)
+    with pytest.raises(ValueError, match="lr_schedule"):
+        quick(lr_schedule="linear").check()
