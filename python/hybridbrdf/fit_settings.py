@@ -181,9 +181,9 @@ class FitSettings:
     lr_schedule: str = _setting("cosine", "decay of the learning rate over --steps: cosine (to 0) or exponential "
                                 "(to --lr times --lr-final) (default: %(default)s)", "training", "--lr-schedule",
                                 choices=LR_SCHEDULES)
-    #: The exponential decay's last rate as a fraction of ``lr``. 0.01: two decades, so that a
-    #: rate 8x the default's (--recipe fast) ends below the default cosine's rate over its last
-    #: third.
+    #: The exponential decay's last rate as a fraction of ``lr``. 0.01, two decades: from --recipe
+    #: fast's 0.04 it spends the last 44% of the steps below 3e-3, the rates at which the default
+    #: schedule's golden-yellow highlight converged (docs/FITTING.md, "The learning-rate decay").
     lr_final: float = _setting(0.01, "with --lr-schedule exponential: the last step's learning rate as a fraction "
                                "of --lr (default: %(default)s)", "training", "--lr-final", type=LR_FINAL)
     clip: float = _setting(0.01, "gradient-norm clipping (the paper's 0.01)", "training")
