@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""Lavapipe speed of a candidate model's generated GLSL against a baseline's, in one run
+(issue 18, item 1: a model as accurate as the released 32x2 whose GLSL is >= 2x the
+project's 32x2).
+
+Lavapipe's throughput of one shader varies by up to +-20% from one process to the next
+(docs/BENCHMARKS.md, "Evaluation cost"), more than a single pair of runs can settle a 2x
+threshold with. So the two shaders run alternately, ``--rounds`` lavapipe processes each,
+once on the host's own SIMD path and once AVX2 only (``GALLIUM_OVERRIDE_CPU_CAPS=avx``);
+every round prints both rates and their ratio, and the summary gives the median ratio and
+the ratio of the best rates. Each shader is the default generated form (unrolled network,
+literal weights) for one material, compiled by glslang and run by ``hbrdf_vk_runner`` over
+the same ``--pairs`` cosine-weighted pairs; the SPIR-V instruction count per evaluation
+(after ``spirv-opt -O``) is printed next to it, since lavapipe is only a proxy for a GPU.
+Accuracy is not measured here: ``bench/rgl_paper_comparison.py MODEL`` gives the five rows.
+
+    python bench/fast_model_speed.py CANDIDATE [--baseline results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors]
+        [--material vch_golden_yellow_rgb.rgl] [--rounds 5] [--pairs 1048576]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import statistics
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+
+import hybridbrdf as hb  # noqa: E402
+from bench_inference import LVP, RUNNER, VK_RUNS, spirv_counts  # noqa: E402
+from hybridbrdf.codegen import eval_compute_shader, generate, material_constant  # noqa: E402
+from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
+
+BASELINE = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
+
+
+def compile_eval(model_path: str, material: str, d: pathlib.Path, tag: str) -> pathlib.Path:
+    """SPIR-V of the eval kernel running the generated GLSL hbrdf_eval for ``material``."""
+    model = hb.load_model(model_path)
+    if material not in model.materials:
+        raise SystemExit(f"{model_path}: no material {material!r} (pass --material)")
+    (d / f"{tag}.glsl").write_text(generate(model, "glsl", [material]))
+    src = d / f"{tag}.comp"
+    src.write_text(eval_compute_shader("hbrdf_eval", material_constant(material), f"{tag}.glsl"))
+    spv = d / f"{tag}.spv"
+    subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
+                   check=True, capture_output=True)
+    return spv
+
+
+def lavapipe_rate(spv: pathlib.Path, n: int, d: pathlib.Path, env: dict) -> float:
+    """Evaluations per second of one lavapipe process (best of its 3 x 7 timed dispatches)."""
+    r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
+                       check=True, capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
+    ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
+    return n / (ms / 1000.0)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("candidate", help="the model to time (.safetensors)")
+    ap.add_argument("--baseline", default=BASELINE, help=f"the model it is compared with (default {BASELINE})")
+    ap.add_argument("--material", default="vch_golden_yellow_rgb.rgl",
+                    help="material both shaders are generated for (default vch_golden_yellow_rgb.rgl, the raw measurement)")
+    ap.add_argument("--rounds", type=int, default=5, help="lavapipe processes per shader and SIMD path (default 5)")
+    ap.add_argument("--pairs", type=int, default=1 << 20, help="direction pairs per dispatch (default 2^20)")
+    args = ap.parse_args()
+    if args.rounds < 1 or args.pairs < 64:
+        raise SystemExit("--rounds must be >= 1 and --pairs >= 64")
+    if not (RUNNER.exists() and os.path.exists(LVP)):
+        raise SystemExit(f"needs {RUNNER} (cmake --build build) and lavapipe ({LVP})")
+    rng = np.random.default_rng(7)
+    wi, wo = (cosine_hemisphere(rng, args.pairs).astype(np.float32) for _ in range(2))
+    with tempfile.TemporaryDirectory() as tmp:
+        d = pathlib.Path(tmp)
+        np.concatenate([wi, wo], axis=1).astype(np.float32).tofile(d / "in.bin")
+        spv = {tag: compile_eval(path, args.material, d, tag)
+               for tag, path in (("baseline", args.baseline), ("candidate", args.candidate))}
+        for tag, path in (("baseline", args.baseline), ("candidate", args.candidate)):
+            instr, fma = spirv_counts(spv[tag], d)
+            m = hb.load_model(path)
+            print(f"{tag}: {path} ({m.arch['kind']} {m.arch['width']}x{m.arch['depth']}, latent {m.arch['latent']}); "
+                  f"SPIR-V {instr} instructions per evaluation, {fma} fma")
+        print(f"material {args.material}, {args.pairs} cosine-weighted pairs, {args.rounds} alternating rounds; "
+              "M/s = million evaluations per second")
+        for run, env in VK_RUNS.items():
+            rates = {"baseline": [], "candidate": []}
+            for k in range(args.rounds):
+                for tag in ("baseline", "candidate") if k % 2 == 0 else ("candidate", "baseline"):
+                    rates[tag].append(lavapipe_rate(spv[tag], args.pairs, d, env))
+                b, c = rates["baseline"][-1], rates["candidate"][-1]
+                print(f"  {run:5s} round {k + 1}: baseline {b / 1e6:7.2f} M/s, candidate {c / 1e6:7.2f} M/s, "
+                      f"ratio {c / b:.2f}x")
+            ratios = [c / b for b, c in zip(rates["baseline"], rates["candidate"])]
+            print(f"{run}: median ratio {statistics.median(ratios):.2f}x (min {min(ratios):.2f}x, max "
+                  f"{max(ratios):.2f}x); best rates {max(rates['candidate']) / 1e6:.2f} / "
+                  f"{max(rates['baseline']) / 1e6:.2f} M/s = {max(rates['candidate']) / max(rates['baseline']):.2f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
