@@ -69,12 +69,14 @@ VK_RUNS = {"host": {}, "avx2": {"GALLIUM_OVERRIDE_CPU_CAPS": "avx"}}
 FLOAT = 4  # bytes
 
 
-def compile_shader(model, fn, d, **generate_options):
-    """SPIR-V of the eval kernel running the generated GLSL ``fn`` for the model's first material."""
-    (pathlib.Path(d) / "model.glsl").write_text(generate(model, "glsl", [model.materials[0]], **generate_options))
-    src = pathlib.Path(d) / "w.comp"
-    src.write_text(eval_compute_shader(fn, material_constant(model.materials[0]), "model.glsl"))
-    spv = pathlib.Path(d) / "w.spv"
+def compile_shader(model, fn, d, material=None, tag="w", **generate_options):
+    """SPIR-V of the eval kernel running the generated GLSL ``fn`` for ``material`` (default:
+    the model's first), written as d/TAG.spv (TAG keeps several shaders apart in one folder)."""
+    material = model.materials[0] if material is None else material
+    (pathlib.Path(d) / f"{tag}.glsl").write_text(generate(model, "glsl", [material], **generate_options))
+    src = pathlib.Path(d) / f"{tag}.comp"
+    src.write_text(eval_compute_shader(fn, material_constant(material), f"{tag}.glsl"))
+    spv = pathlib.Path(d) / f"{tag}.spv"
     subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
                    check=True, capture_output=True)
     return spv
@@ -100,16 +102,18 @@ def spirv_counts(spv, d):
     return sum(ops.values()), ops["Fma"]
 
 
+def lavapipe_rate(spv, n, d, env):
+    """Evaluations per second of one lavapipe process with the extra environment ``env``
+    (best of its 3 x 7 timed dispatches; inputs already in d/in.bin)."""
+    r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
+                       check=True, capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
+    ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
+    return n / (ms / 1000.0)
+
+
 def lavapipe_rates(spv, n, d):
-    """Evaluations per second under lavapipe for each of VK_RUNS (inputs already in d/in.bin)."""
-    rates = {}
-    for run, env in VK_RUNS.items():
-        r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
-                           check=True, capture_output=True, text=True,
-                           env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
-        ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
-        rates[run] = n / (ms / 1000.0)
-    return rates
+    """Evaluations per second under lavapipe for each of VK_RUNS."""
+    return {run: lavapipe_rate(spv, n, d, env) for run, env in VK_RUNS.items()}
 
 
 def fma_peak_gflops(core: int) -> float:

@@ -15,7 +15,7 @@ the same ``--pairs`` cosine-weighted pairs; the SPIR-V instruction count per eva
 Accuracy is not measured here: ``bench/rgl_paper_comparison.py MODEL`` gives the five rows.
 
     python bench/fast_model_speed.py CANDIDATE [--baseline results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors]
-        [--material vch_golden_yellow_rgb.rgl] [--rounds 5] [--pairs 1048576]
+        [--material vch_golden_yellow_rgb.rgl] [--rounds 9] [--pairs 1048576]
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ import argparse
 import os
 import pathlib
 import statistics
-import subprocess
 import sys
 import tempfile
 
@@ -34,33 +33,10 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
-from bench_inference import LVP, RUNNER, VK_RUNS, spirv_counts  # noqa: E402
-from hybridbrdf.codegen import eval_compute_shader, generate, material_constant  # noqa: E402
+from bench_inference import LVP, RUNNER, VK_RUNS, compile_shader, lavapipe_rate, spirv_counts  # noqa: E402
 from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
 
 BASELINE = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
-
-
-def compile_eval(model_path: str, material: str, d: pathlib.Path, tag: str) -> pathlib.Path:
-    """SPIR-V of the eval kernel running the generated GLSL hbrdf_eval for ``material``."""
-    model = hb.load_model(model_path)
-    if material not in model.materials:
-        raise SystemExit(f"{model_path}: no material {material!r} (pass --material)")
-    (d / f"{tag}.glsl").write_text(generate(model, "glsl", [material]))
-    src = d / f"{tag}.comp"
-    src.write_text(eval_compute_shader("hbrdf_eval", material_constant(material), f"{tag}.glsl"))
-    spv = d / f"{tag}.spv"
-    subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
-                   check=True, capture_output=True)
-    return spv
-
-
-def lavapipe_rate(spv: pathlib.Path, n: int, d: pathlib.Path, env: dict) -> float:
-    """Evaluations per second of one lavapipe process (best of its 3 x 7 timed dispatches)."""
-    r = subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", "7"],
-                       check=True, capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
-    ms = float([ln for ln in r.stdout.splitlines() if ln.startswith("best_ms")][0].split()[1])
-    return n / (ms / 1000.0)
 
 
 def main() -> int:
@@ -69,7 +45,7 @@ def main() -> int:
     ap.add_argument("--baseline", default=BASELINE, help=f"the model it is compared with (default {BASELINE})")
     ap.add_argument("--material", default="vch_golden_yellow_rgb.rgl",
                     help="material both shaders are generated for (default vch_golden_yellow_rgb.rgl, the raw measurement)")
-    ap.add_argument("--rounds", type=int, default=5, help="lavapipe processes per shader and SIMD path (default 5)")
+    ap.add_argument("--rounds", type=int, default=9, help="lavapipe processes per shader and SIMD path (default 9)")
     ap.add_argument("--pairs", type=int, default=1 << 20, help="direction pairs per dispatch (default 2^20)")
     args = ap.parse_args()
     if args.rounds < 1 or args.pairs < 64:
@@ -81,11 +57,15 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         d = pathlib.Path(tmp)
         np.concatenate([wi, wo], axis=1).astype(np.float32).tofile(d / "in.bin")
-        spv = {tag: compile_eval(path, args.material, d, tag)
-               for tag, path in (("baseline", args.baseline), ("candidate", args.candidate))}
-        for tag, path in (("baseline", args.baseline), ("candidate", args.candidate)):
+        models = {tag: hb.load_model(path) for tag, path in (("baseline", args.baseline), ("candidate", args.candidate))}
+        spv = {}
+        for tag, m in models.items():
+            if args.material not in m.materials:
+                raise SystemExit(f"{getattr(args, tag)}: no material {args.material!r} (pass --material)")
+            spv[tag] = compile_shader(m, "hbrdf_eval", d, material=args.material, tag=tag)
+        for tag, m in models.items():
             instr, fma = spirv_counts(spv[tag], d)
-            m = hb.load_model(path)
+            path = getattr(args, tag)
             print(f"{tag}: {path} ({m.arch['kind']} {m.arch['width']}x{m.arch['depth']}, latent {m.arch['latent']}); "
                   f"SPIR-V {instr} instructions per evaluation, {fma} fma")
         print(f"material {args.material}, {args.pairs} cosine-weighted pairs, {args.rounds} alternating rounds; "
