@@ -69,13 +69,15 @@ VK_RUNS = {"host": {}, "avx2": {"GALLIUM_OVERRIDE_CPU_CAPS": "avx"}}
 FLOAT = 4  # bytes
 
 
-def compile_shader(model, fn, d, material=None, tag="w", **generate_options):
+def compile_shader(model, fn, d, material=None, tag="w", directions="buffer", **generate_options):
     """SPIR-V of the eval kernel running the generated GLSL ``fn`` for ``material`` (default:
-    the model's first), written as d/TAG.spv (TAG keeps several shaders apart in one folder)."""
+    the model's first), written as d/TAG.spv (TAG keeps several shaders apart in one folder);
+    ``directions``: the kernel reads its pairs ("buffer") or makes them ("synthetic", see
+    codegen.eval_compute_shader)."""
     material = model.materials[0] if material is None else material
     (pathlib.Path(d) / f"{tag}.glsl").write_text(generate(model, "glsl", [material], **generate_options))
     src = pathlib.Path(d) / f"{tag}.comp"
-    src.write_text(eval_compute_shader(fn, material_constant(material), f"{tag}.glsl"))
+    src.write_text(eval_compute_shader(fn, material_constant(material), f"{tag}.glsl", directions=directions))
     spv = pathlib.Path(d) / f"{tag}.spv"
     subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", str(src), "-o", str(spv)],
                    check=True, capture_output=True)

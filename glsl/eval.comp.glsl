@@ -1,10 +1,14 @@
 {# Jinja2 template, rendered by hybridbrdf.codegen.eval_compute_shader (docs: glsl/README.md).
-   include: the generated model file; function: hbrdf_eval or hbrdf_eval_analytic;
+   include: the generated model file; function: hbrdf_eval, hbrdf_eval_analytic or hbrdf_harness_only;
    material: an HBRDF_MATERIAL_<NAME> constant; n: pair count, or none for no guard. #}
 #version 450
 #extension GL_GOOGLE_include_directive : require
 {% include "compute_io.glsl" %}
 #include "{{ include }}"
+{% if function == "hbrdf_harness_only" %}
+// The kernel without the BRDF: what reading and writing the pairs costs (bench/fast_model_speed.py).
+vec3 hbrdf_harness_only(vec3 wi, vec3 wo, HbrdfMaterial m) { return wi * wo + m.kd; }
+{% endif %}
 void main() {
     uint i = gl_GlobalInvocationID.x;
 {% if n is not none %}

@@ -513,6 +513,10 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
                 x[9 * side + k] = dot(Vec3<float>(fr[3 * k], fr[3 * k + 1], fr[3 * k + 2]), side ? wo : wi);
     } else {
         x[0] = wi.x, x[1] = wi.y, x[2] = wi.z, x[3] = wo.x, x[4] = wo.y, x[5] = wo.z;
+        if (as.directions == spec::DirectionInputs::LocalHalf) {
+            const HalfVectorT<float> hv = half_vector(wi, wo);
+            x[6] = hv.h.z, x[7] = hv.cos_d;
+        }
     }
     std::copy(mat.latent.begin(), mat.latent.end(), x + as.direction_count);
     const Vec3<float> fa = as.analytic ? analytic_[m].eval(wi, wo) : Vec3<float>(0.f);

@@ -266,9 +266,11 @@ struct ModelBatchKernels {
             if (brdf) {
                 analytic_rows(*brdf, D, D + 6 * kChunk);
                 std::copy(D, D + 6 * kChunk, X);
+                if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(D, X + 6 * kChunk);
                 if (as.extra == spec::ExtraInputs::Log1pFa)
                     for (int c = 0; c < 3; ++c)
-                        for (int i = 0; i < kChunk; ++i) X[(6 + c) * kChunk + i] = std::log1p(D[(6 + c) * kChunk + i]);
+                        for (int i = 0; i < kChunk; ++i)
+                            X[(as.direction_count + c) * kChunk + i] = std::log1p(D[(6 + c) * kChunk + i]);
             } else {
                 // Neural: wi and wo in the material's 3 precomputed frames (t, b, n each).
                 for (int side = 0; side < 2; ++side)
@@ -321,6 +323,18 @@ struct ModelBatchKernels {
                 D[c * kChunk + i] = wi[c];
                 D[(3 + c) * kChunk + i] = wo[c];
             }
+        }
+    }
+
+    // cos theta_h and cos theta_d (two rows) of the normalised rows' half vectors, by the
+    // function f_a uses (analytic.hpp's half_vector): the hybrid-half network inputs.
+    HBRDF_KERNEL_INLINE static void half_angle_rows(const float* __restrict d, float* __restrict x) {
+        for (int i = 0; i < kChunk; ++i) {
+            const Vec3<float> wi(d[i], d[kChunk + i], d[2 * kChunk + i]);
+            const Vec3<float> wo(d[3 * kChunk + i], d[4 * kChunk + i], d[5 * kChunk + i]);
+            const HalfVectorT<float> hv = half_vector(wi, wo);
+            x[i] = hv.h.z;
+            x[kChunk + i] = hv.cos_d;
         }
     }
 

@@ -369,7 +369,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     n_in, latent_in = a["n_in"], latent
     if fold_latent and latent:
         # One material: its latent inputs are constants, so W0[:, z] z joins the first bias.
-        z_start = 18 if model.kind == "neural" else 6
+        z_start = spec.ARCHS[model.kind]["direction_count"]
         w0 = t["mlp.hidden.0.weight"].astype(np.float64)
         z = t["materials.z"][model.index(names[0])].astype(np.float64)
         bias = (t["mlp.hidden.0.bias"].astype(np.float64) + w0[:, z_start:z_start + latent] @ z).astype(np.float32)
@@ -463,15 +463,28 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
 
 
 def eval_compute_shader(function: str, material_constant_name: str, include: str, target: str = "glsl",
-                        n: Optional[int] = None) -> str:
+                        n: Optional[int] = None, directions: str = "buffer") -> str:
     """A compute shader (64 invocations per workgroup, GLSL or HLSL for glslang's HLSL front end)
     that includes the generated file ``include`` and writes ``function(wi, wo, MATERIAL)``
     (hbrdf_eval or hbrdf_eval_analytic) for pairs read from binding 0 (6 floats each) to
     binding 1 (3 floats each); with ``n`` set, invocations past the n-th pair return early.
     The kernel of spirv_size, bench/bench_inference.py and the shader conformance tests; its
-    source is glsl/eval.comp.glsl or glsl/eval.comp.hlsl."""
+    source is glsl/eval.comp.glsl or glsl/eval.comp.hlsl.
+
+    ``directions="synthetic"`` (GLSL only, for speed measurements) makes each invocation's pair
+    in the shader from a hash of its index instead of reading it (glsl/eval_synthetic.comp.glsl):
+    under lavapipe the six per-lane buffer loads cost about as much as 700 multiply-adds, which
+    is the harness's cost, not the BRDF's. There ``function`` may also be "hbrdf_harness_only"
+    (the kernel without the BRDF)."""
     if target not in ("glsl", "hlsl"):
         raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")
+    if directions not in ("buffer", "synthetic"):
+        raise ValueError(f"eval_compute_shader: directions must be buffer or synthetic, got {directions!r}")
+    if directions == "synthetic":
+        if target != "glsl" or n is not None:
+            raise ValueError("eval_compute_shader: synthetic directions are GLSL only and take no pair count")
+        return render_shader("eval_synthetic.comp.glsl", include=include, function=function,
+                             material=material_constant_name)
     return render_shader(f"eval.comp.{target}", include=include, function=function,
                          material=material_constant_name, n=n)
 

@@ -68,8 +68,9 @@ def network_tensor_shapes(arch: Dict[str, Any]) -> Dict[str, tuple]:
 def input_description(kind: str, latent: int) -> str:
     """The network input of an architecture in words (recorded as ``arch.input``)."""
     a = spec.ARCHS[kind]
-    directions = ("wi.x wi.y wi.z wo.x wo.y wo.z" if a["directions"] == "local"
-                  else "wi and wo in 3 predicted frames (t, b, n each; 18 values)")
+    directions = {"local": "wi.x wi.y wi.z wo.x wo.y wo.z",
+                  "local_half": "wi.x wi.y wi.z wo.x wo.y wo.z cos_theta_h cos_theta_d"}.get(
+        a["directions"], "wi and wo in 3 predicted frames (t, b, n each; 18 values)")
     extra = " log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)" if a["extra"] == "log1p_fa" else ""
     return directions + "".join(f" z_{i}" for i in range(latent)) + extra
 

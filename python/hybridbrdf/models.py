@@ -39,7 +39,7 @@ from torch import nn
 
 from hybridbrdf import spec
 from hybridbrdf.fit_settings import parse_mlp  # noqa: F401  (re-exported)
-from hybridbrdf.torch_brdf import _normalize, eval_analytic
+from hybridbrdf.torch_brdf import _normalize, eval_analytic, half_angle_cosines
 
 ARCHS = tuple(spec.ARCHS)
 ACTIVATIONS = tuple(spec.ACTIVATIONS)
@@ -132,7 +132,7 @@ class HybridBRDF(nn.Module):
     ):
         super().__init__()
         if arch not in ARCHS or not spec.ARCHS[arch]["analytic"]:
-            raise ValueError(f"HybridBRDF arch must be one of hybrid, additive, logmul, analytic-input; got {arch!r}")
+            raise ValueError(f"HybridBRDF arch must be one of {', '.join(a for a in ARCHS if spec.ARCHS[a]['analytic'])}; got {arch!r}")
         if latent < 0:
             raise ValueError(f"latent dimension must be >= 0, got {latent}")
         self.arch = arch
@@ -202,7 +202,10 @@ class HybridBRDF(nn.Module):
         wi_n, wo_n, valid = _unit_pair(wi, wo)
         f_a = eval_analytic(wi_n[None], wo_n[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
         extra = torch.log1p(f_a) if spec.ARCHS[self.arch]["extra"] == "log1p_fa" else None
-        o = self.mlp.forward_from(self._first_layer(torch.cat([wi_n, wo_n], dim=-1), z, extra))
+        directions = [wi_n, wo_n]
+        if spec.ARCHS[self.arch]["directions"] == "local_half":
+            directions.append(half_angle_cosines(wi_n, wo_n))
+        o = self.mlp.forward_from(self._first_layer(torch.cat(directions, dim=-1), z, extra))
         f_t = self.combine(o, f_a)
         return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
 

@@ -55,7 +55,11 @@ COMBINES = {'gated': 'f_t = exp(min(o[0:3], pre_exp_max)) + sigmoid(o[3:6]) * f_
  'exp': 'f_t = exp(min(o[0:3], pre_exp_max))   (fully neural baseline: no analytic part)'}
 #: Direction inputs: name -> (count, description).
 DIRECTION_INPUTS = {'local': (6, 'wi.x wi.y wi.z wo.x wo.y wo.z (unit, local frame)'),
- 'frames': (18, 'wi then wo expressed in the 3 predicted shading frames (t, b, n each)')}
+ 'frames': (18, 'wi then wo expressed in the 3 predicted shading frames (t, b, n each)'),
+ 'local_half': (8,
+                'wi.x wi.y wi.z wo.x wo.y wo.z, then cos theta_h = h.z and cos theta_d = (wi.h + wo.h) / 2 '
+                'of the half vector h = normalize(wi + wo) (+z where wi + wo cannot be normalised), as f_a '
+                'computes them')}
 #: Extra inputs after the latent code: name -> (count, description).
 EXTRA_INPUTS = {'none': (0, ''), 'log1p_fa': (3, 'log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)')}
 #: Architectures; network input = direction inputs, latent code, extra inputs.
@@ -98,7 +102,17 @@ ARCHS = {'hybrid': {'directions': 'local',
                     'n_out': 6,
                     'combine': 'gated',
                     'analytic': True,
-                    'doc': 'ablation: as hybrid, with log1p(f_a) appended to the network input'}}
+                    'doc': 'ablation: as hybrid, with log1p(f_a) appended to the network input'},
+ 'hybrid-half': {'directions': 'local_half',
+                 'direction_count': 8,
+                 'extra': 'none',
+                 'extra_count': 0,
+                 'n_out': 6,
+                 'combine': 'gated',
+                 'analytic': True,
+                 'doc': "the paper's model with the half vector's cos theta_h and cos theta_d as two more "
+                        'network inputs: a small network shapes highlights and thin-film colour from them '
+                        'instead of spending neurons on the products that make them'}}
 #: Fields of a model file's ``arch`` object, checked in this order by both loaders.
 ARCH_FIELDS = [{'key': 'kind', 'type': 'enum', 'values': 'archs'},
  {'key': 'width', 'type': 'int', 'min': 1, 'max': 256},

@@ -152,6 +152,16 @@ def eval_analytic(
     return torch.where(valid[..., None], f, torch.zeros_like(f))
 
 
+def half_angle_cosines(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
+    """(cos theta_h, cos theta_d) = (h.z, (wi.h + wo.h) / 2) of the half vector h = normalize(wi + wo)
+    for unit wi, wo, shape (..., 2): the extra network inputs of the hybrid-half architecture
+    (spec/model.json, direction_inputs local_half), computed as eval_analytic computes them (h = +z
+    where wi + wo cannot be normalised; the symmetric mean keeps the input reciprocal)."""
+    h, _ = _normalize(wi + wo)
+    c = 0.5 * ((wo * h).sum(-1) + (wi * h).sum(-1))
+    return torch.stack([h[..., 2], c], dim=-1)
+
+
 # ---- importance sampling (the library's three strategies, in PyTorch) --------
 
 MIS_MIN_LOBE_PROBABILITY = _core.MIS_MIN_LOBE_PROBABILITY

@@ -24,7 +24,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
 
 ARCHS = [("hybrid", "hardgelu"), ("hybrid", "relu"), ("neural", "hardgelu"), ("additive", "relu"),
-         ("logmul", "hardgelu"), ("analytic-input", "hardgelu")]
+         ("logmul", "hardgelu"), ("analytic-input", "hardgelu"), ("hybrid-half", "hardgelu")]
 
 DRIVER = r"""
 #include <cstdio>

@@ -15,7 +15,7 @@ from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
 
-ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input"]
+ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"]
 
 
 @pytest.mark.parametrize("arch", ARCHS)
@@ -169,3 +169,46 @@ def test_batched_exp_over_its_whole_range(tmp_path):
             assert np.abs(got - ref)[~normal].max() < 3e-41, kernel
     finally:
         _core.limit_model_simd("avx512")
+
+
+def _numpy_hybrid_half(model_tensors, arch, wi, wo, m):
+    """hybrid-half in NumPy float64 from the textbook forms: h = (wi + wo) / |wi + wo|, the
+    network input [wi, wo, h.z, wi.h, z], hardGeLU layers, f_t = exp(o[0:3]) + sigmoid(o[3:6]) f_a
+    with reference.textbook_fa: an oracle independent of the library's and the model's code."""
+    from hybridbrdf.reference import textbook_fa
+    t = {k: np.asarray(v, dtype=np.float64) for k, v in model_tensors.items()}
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    z = np.broadcast_to(t["materials.z"][m], (len(wi), arch["latent"]))
+    x = np.concatenate([wi, wo, h[:, 2:3], (wi * h).sum(1, keepdims=True), z], axis=1)
+    for i in range(arch["depth"]):
+        x = x @ t[f"mlp.hidden.{i}.weight"].T + t[f"mlp.hidden.{i}.bias"]
+        x = x * np.clip((x + 1.5) / 3.0, 0.0, 1.0)
+    o = x @ t["mlp.out.weight"].T + t["mlp.out.bias"]
+    fa = textbook_fa(wi, wo, t["materials.kd"][m], t["materials.eta"][m], t["materials.alpha"][m])
+    return np.exp(np.minimum(o[:, :3], arch["pre_exp_max"])) + fa / (1.0 + np.exp(-o[:, 3:]))
+
+
+def test_hybrid_half_matches_a_numpy_oracle(tmp_path):
+    """The half-vector inputs are cos theta_h and cos theta_d in every implementation: the
+    library's batched and scalar paths and the PyTorch model against a float64 NumPy oracle, and
+    a model whose two half-vector weight columns are nonzero differs from one where they are zero
+    (so the inputs are really read)."""
+    _, model = random_model("hybrid-half", latent=4, width=16, depth=2, isotropic=[True, False, True])
+    assert model.arch["n_in"] == 8 + 4
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    py, cpp = hb.load_model(path), _core.Model(str(path))
+    rng = np.random.default_rng(11)
+    wi = cosine_directions(rng, 5000).astype(np.float32).astype(np.float64)
+    wo = cosine_directions(rng, 5000).astype(np.float32).astype(np.float64)
+    for m in range(3):
+        ref = _numpy_hybrid_half(py.tensors, py.arch, wi, wo, m)
+        for got in (cpp.eval(wi, wo, m), cpp.eval_scalar(wi, wo, m), py.eval(wi, wo, m, dtype=torch.float64)):
+            rel = np.abs(np.asarray(got, np.float64) - ref) / np.maximum(np.abs(ref), 1e-12)
+            assert rel.max() < 2e-4, rel.max()
+    w = py.tensors["mlp.hidden.0.weight"].copy()
+    w[:, 6:8] = 0.0
+    zeroed = dict(py.tensors, **{"mlp.hidden.0.weight": w})
+    assert not np.allclose(_numpy_hybrid_half(zeroed, py.arch, wi, wo, 0), _numpy_hybrid_half(py.tensors, py.arch, wi, wo, 0),
+                           rtol=1e-3)

@@ -512,7 +512,7 @@ def test_gradients_on_valid_rows_match_finite_differences(fn):
     assert torch.autograd.gradcheck(f, (wi, wo, kd, eta, alpha), eps=1e-7, atol=1e-6, rtol=1e-4)
 
 
-@pytest.mark.parametrize("arch", ["hybrid", "additive", "logmul", "analytic-input", "neural"])
+@pytest.mark.parametrize("arch", ["hybrid", "additive", "logmul", "analytic-input", "hybrid-half", "neural"])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_models_forward_and_backward_stay_finite_on_hard_rows(arch, dtype):
     wi_np, wo_np = _hard_batch(dtype)

@@ -299,7 +299,7 @@ def test_resume_refuses_a_checkpoint_from_other_settings(tmp_path):
         fit(sources(), quick(steps=60, pool=1 << 12, lr=1e-3), checkpoint=ck, resume=True, progress=False)
 
 
-@pytest.mark.parametrize("arch,latent", [("neural", 12), ("additive", 4), ("logmul", 4), ("analytic-input", 4)])
+@pytest.mark.parametrize("arch,latent", [("neural", 12), ("additive", 4), ("logmul", 4), ("analytic-input", 4), ("hybrid-half", 4)])
 def test_every_architecture_trains_without_nan(arch, latent):
     model = fit(sources(), quick(arch=arch, latent=latent, steps=150, activation="relu"), progress=False)
     for info in model.material_info:

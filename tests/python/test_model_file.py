@@ -14,7 +14,7 @@ from hybridbrdf.random_model import random_model
 from helpers import hard_pairs, valid_upper
 
 
-@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
+@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"])
 def test_save_then_load_is_bit_exact(tmp_path, arch):
     mod, model = random_model(arch, latent=12 if arch == "neural" else 4, isotropic=[True, False, True])
     path = tmp_path / "m.safetensors"
@@ -111,7 +111,7 @@ def test_unknown_material_name():
         model.eval(np.zeros((1, 3)), np.zeros((1, 3)), "nope")
 
 
-@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input"])
+@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"])
 def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
     _, model = random_model(arch, latent=12 if arch == "neural" else 4)
     wi, wo = hard_pairs()

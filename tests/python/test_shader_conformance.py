@@ -33,7 +33,7 @@ def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
 
 
 CASES = [("hybrid", "hardgelu", 32, 3), ("hybrid", "relu", 16, 2), ("neural", "hardgelu", 16, 2),
-         ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2)]
+         ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2), ("hybrid-half", "hardgelu", 16, 2)]
 
 
 # The network as straight-line code with literal weights (the shader default) and as loops over

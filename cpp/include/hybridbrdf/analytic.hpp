@@ -14,6 +14,24 @@
 
 namespace hbrdf {
 
+/// The half vector h = normalize(wi + wo) of two unit directions above the horizon and
+/// cos theta_d = wi.h = wo.h, as f_a uses them. Both directions above the horizon =>
+/// (wi + wo).z > 0; if its length underflows (wi ~ -wo at grazing angles) the limit of h
+/// is +z. wo.h and wi.h are equal in exact arithmetic; averaging them makes f(wi, wo) ==
+/// f(wo, wi) bit for bit in floating point too. The hybrid-half architecture feeds h.z and
+/// cos_d to its network (spec/model.json, direction_inputs local_half), from this function.
+template <typename T> struct HalfVectorT {
+    Vec3<T> h;
+    T cos_d;
+};
+
+template <typename T> HBRDF_INLINE HalfVectorT<T> half_vector(const Vec3<T>& wi, const Vec3<T>& wo) {
+    const Vec3<T> s = wi + wo;
+    const T inv_len_s = inverse_length_or_zero(s);
+    const Vec3<T> h(s.x * inv_len_s, s.y * inv_len_s, inv_len_s > T(0) ? s.z * inv_len_s : T(1));
+    return {h, T(0.5) * (dot(wo, h) + dot(wi, h))};
+}
+
 /// f_a with its parameters folded into the constants evaluation needs.
 /// Construction clamps the parameters into their valid box (see clamped()),
 /// so eval() is finite and >= 0 for any parameters and any input.
@@ -38,15 +56,10 @@ public:
         const Vec3<T> wo = wo_in * inverse_length_or_zero(wo_in);
         // Invalid inputs became 0 (or NaN): "z > 0" rejects both.
         const bool valid = wi.z > T(0) && wo.z > T(0);
-        // Both directions above the horizon => (wi + wo).z > 0; if its length
-        // underflows (wi ~ -wo at grazing angles) the limit of h is +z.
-        const Vec3<T> s = wi + wo;
-        const T inv_len_s = inverse_length_or_zero(s);
-        const Vec3<T> h(s.x * inv_len_s, s.y * inv_len_s, inv_len_s > T(0) ? s.z * inv_len_s : T(1));
+        const HalfVectorT<T> hv = half_vector(wi, wo);
+        const Vec3<T>& h = hv.h;
         const T DG = ggx_D(h, alpha_) * smith_g1_over_2cos(wi, alpha_) * smith_g1_over_2cos(wo, alpha_);
-        // wo.h and wi.h are equal in exact arithmetic; averaging them makes
-        // f(wi, wo) == f(wo, wi) bit for bit in floating point too.
-        const T c = T(0.5) * (dot(wo, h) + dot(wi, h));
+        const T c = hv.cos_d;
         const T r = kd_over_pi_.x + fresnel_dielectric(c, eta2_minus_1_.x) * DG;
         const T g = kd_over_pi_.y + fresnel_dielectric(c, eta2_minus_1_.y) * DG;
         const T b = kd_over_pi_.z + fresnel_dielectric(c, eta2_minus_1_.z) * DG;

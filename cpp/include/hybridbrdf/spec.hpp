@@ -85,9 +85,9 @@ inline constexpr int kCombineCount = 4;
 //   exp: f_t = exp(min(o[0:3], pre_exp_max))   (fully neural baseline: no analytic part)
 
 /// What the network sees of wi and wo.
-enum class DirectionInputs { Local, Frames };
-inline constexpr const char* kDirectionInputsNames[] = {"local", "frames"};
-inline constexpr int kDirectionInputsCount = 2;
+enum class DirectionInputs { Local, Frames, LocalHalf };
+inline constexpr const char* kDirectionInputsNames[] = {"local", "frames", "local_half"};
+inline constexpr int kDirectionInputsCount = 3;
 
 /// Inputs appended after the latent code.
 enum class ExtraInputs { None, Log1pFa };
@@ -95,9 +95,9 @@ inline constexpr const char* kExtraInputsNames[] = {"none", "log1p_fa"};
 inline constexpr int kExtraInputsCount = 2;
 
 /// Architectures (arch.kind).
-enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput };
-inline constexpr const char* kModelKindNames[] = {"hybrid", "neural", "additive", "logmul", "analytic-input"};
-inline constexpr int kModelKindCount = 5;
+enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput, HybridHalf };
+inline constexpr const char* kModelKindNames[] = {"hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"};
+inline constexpr int kModelKindCount = 6;
 
 /// One architecture: network input = direction inputs, latent code, extra inputs (in that order).
 struct ArchSpec {
@@ -117,6 +117,7 @@ inline constexpr ArchSpec kArchs[] = {
     {"additive", ModelKind::Additive, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::Additive, true},  // ablation: f_t = max(f_a + o, 0)
     {"logmul", ModelKind::LogMul, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::LogMul, true},  // ablation: f_t = f_a exp(o)
     {"analytic-input", ModelKind::AnalyticInput, DirectionInputs::Local, 6, ExtraInputs::Log1pFa, 3, 6, Combine::Gated, true},  // ablation: as hybrid, with log1p(f_a) appended to the network input
+    {"hybrid-half", ModelKind::HybridHalf, DirectionInputs::LocalHalf, 8, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model with the half vector's cos theta_h and cos theta_d as two more network inputs: a small network shapes highlights and thin-film colour from them instead of spending neurons on the products that make them
 };
 inline constexpr const ArchSpec& arch_spec(ModelKind k) { return kArchs[static_cast<int>(k)]; }
 
