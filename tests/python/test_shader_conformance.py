@@ -78,3 +78,46 @@ def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target, mlp_form):
     assert np.isfinite(got).all() and np.array_equal(got == 0, ref == 0)
     assert (np.abs(got[big] - ref[big]) / np.abs(ref[big])).max() < 1e-4
     assert half.materials == model.materials
+
+
+def _synthetic_pairs(n):
+    """The pairs glsl/eval_synthetic.comp.glsl makes, rebuilt in NumPy: the PCG hash (Jarzynski &
+    Olano 2020) of 2i and 2i + 1, 10/10/12 bits each to x, y in [-1, 1] and z in [0.02, 1.02]."""
+    def pcg(v):
+        state = v * np.uint32(747796405) + np.uint32(2891336453)
+        word = ((state >> ((state >> np.uint32(28)) + np.uint32(4))) ^ state) * np.uint32(277803737)
+        return (word >> np.uint32(22)) ^ word
+
+    def direction(bits):
+        f = np.float32
+        u = np.stack([(bits & 1023).astype(f) * f(1.0 / 1023.0), ((bits >> 10) & 1023).astype(f) * f(1.0 / 1023.0),
+                      (bits >> 20).astype(f) * f(1.0 / 4095.0)], axis=1)
+        return np.stack([f(2) * u[:, 0] - f(1), f(2) * u[:, 1] - f(1), u[:, 2] + f(0.02)], axis=1)
+
+    i = np.arange(n, dtype=np.uint32)
+    with np.errstate(over="ignore"):
+        return direction(pcg(np.uint32(2) * i)), direction(pcg(np.uint32(2) * i + np.uint32(1)))
+
+
+def test_synthetic_direction_kernel_makes_the_pairs_it_documents(tmp_path):
+    """The speed benchmark's kernel (pairs made in the shader, bench/fast_model_speed.py) evaluates
+    what it says: its kernel-only output wi * wo + kd equals the NumPy rebuild of its pairs, and its
+    hbrdf_eval equals the library's on those pairs."""
+    path, model = saved_random_model(tmp_path, "hybrid-half", width=16, depth=2)
+    name = model.materials[1]
+    (tmp_path / "model.glsl").write_text(generate(model, "glsl", [name]))
+    n = 64 * 256
+    wi, wo = _synthetic_pairs(n)
+    out = {}
+    for fn in ("hbrdf_harness_only", "hbrdf_eval"):
+        src = tmp_path / f"{fn}.comp"
+        src.write_text(eval_compute_shader(fn, material_constant(name), "model.glsl", directions="synthetic"))
+        spv = tmp_path / f"{fn}.spv"
+        compile_spirv(src, spv, include_dir=tmp_path)
+        out[fn] = run_on_lavapipe(spv, np.zeros((n, 6), np.float32))
+    kd = np.asarray(model.tensors["materials.kd"][1], np.float32)
+    assert np.allclose(out["hbrdf_harness_only"], wi * wo + kd, rtol=1e-6, atol=1e-7)
+    ref = _core.Model(str(path)).eval(wi.astype(np.float64), wo.astype(np.float64), 1)
+    assert np.isfinite(out["hbrdf_eval"]).all() and (ref > 0).all()
+    rel = np.abs(out["hbrdf_eval"] - ref) / ref
+    assert np.quantile(rel, 0.999) < 1e-4 and rel.max() < 1e-2, (np.quantile(rel, 0.999), rel.max())
