@@ -1,15 +1,8 @@
 {# Jinja2 template, rendered by hybridbrdf.codegen.eval_compute_shader(..., directions="synthetic")
-   (docs: glsl/README.md). include: the generated model file; function: hbrdf_eval,
-   hbrdf_eval_analytic or hbrdf_harness_only; material: an HBRDF_MATERIAL_<NAME> constant.
-   Speed only: the pairs are made in the shader, so nothing is read from binding 0. #}
-#version 450
-#extension GL_GOOGLE_include_directive : require
-{% include "compute_io.glsl" %}
-#include "{{ include }}"
-{% if function == "hbrdf_harness_only" %}
-// The kernel without the BRDF: what the harness itself costs per pair.
-vec3 hbrdf_harness_only(vec3 wi, vec3 wo, HbrdfMaterial m) { return wi * wo + m.kd; }
-{% endif %}
+   (docs: glsl/README.md): eval.comp.glsl with each invocation's pair made in the shader, for speed
+   measurements only; nothing is read from binding 0, n is none (dispatch a multiple of 64 pairs). #}
+{% extends "eval.comp.glsl" %}
+{% block helpers %}
 // 32 well-mixed bits of an index (the PCG hash of Jarzynski & Olano 2020, "Hash Functions for
 // GPU Rendering"): a handful of integer operations, where lavapipe spends about as much on six
 // per-lane buffer loads as on 700 multiply-adds (docs/CODEGEN.md).
@@ -25,12 +18,8 @@ vec3 bench_direction(uint bits) {
                   float(bits >> 20u) * (1.0 / 4095.0));
     return vec3(2.0 * u.x - 1.0, 2.0 * u.y - 1.0, u.z + 0.02);
 }
-void main() {
-    uint i = gl_GlobalInvocationID.x;
+{% endblock %}
+{% block pairs %}
     vec3 wi = bench_direction(bench_hash(2u * i));
     vec3 wo = bench_direction(bench_hash(2u * i + 1u));
-    vec3 f = {{ function }}(wi, wo, {{ material }});
-    data_out[3 * i] = f.x;
-    data_out[3 * i + 1] = f.y;
-    data_out[3 * i + 2] = f.z;
-}
+{% endblock %}

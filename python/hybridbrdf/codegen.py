@@ -484,7 +484,7 @@ def eval_compute_shader(function: str, material_constant_name: str, include: str
         if target != "glsl" or n is not None:
             raise ValueError("eval_compute_shader: synthetic directions are GLSL only and take no pair count")
         return render_shader("eval_synthetic.comp.glsl", include=include, function=function,
-                             material=material_constant_name)
+                             material=material_constant_name, n=None)
     return render_shader(f"eval.comp.{target}", include=include, function=function,
                          material=material_constant_name, n=n)
 
