@@ -17,8 +17,8 @@ Two kernels (``--harness``): ``synthetic`` makes each pair in the shader from a 
 invocation index, as a renderer hands the BRDF directions it already holds in registers;
 ``buffer`` reads 6 floats per pair from a storage buffer (the same cosine-weighted pairs for
 both shaders), the kernel of the conformance tests. Lavapipe turns those reads into per-lane,
-bounds-checked scalar loads that cost about as much as 700 multiply-adds, a fixed cost a GPU
-does not have and that shrinks every ratio; each summary line gives the rate of the kernel
+bounds-checked scalar loads, a fixed cost (about a quarter of the 32x2's time with AVX2 only)
+that a GPU does not have and that shrinks every ratio; each summary line gives the rate of the kernel
 without the BRDF (``hbrdf_harness_only``) so that cost stays visible.
 Accuracy is not measured here: ``bench/rgl_paper_comparison.py MODEL`` gives the five rows.
 

@@ -4,8 +4,8 @@
 {% extends "eval.comp.glsl" %}
 {% block helpers %}
 // 32 well-mixed bits of an index (the PCG hash of Jarzynski & Olano 2020, "Hash Functions for
-// GPU Rendering"): a handful of integer operations, where lavapipe spends about as much on six
-// per-lane buffer loads as on 700 multiply-adds (docs/CODEGEN.md).
+// GPU Rendering"): a handful of integer operations, where lavapipe's six per-lane buffer loads
+// take about a quarter of a 32x2's evaluation time with AVX2 only (docs/CODEGEN.md).
 uint bench_hash(uint v) {
     uint state = v * 747796405u + 2891336453u;
     uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;

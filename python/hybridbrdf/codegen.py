@@ -473,8 +473,8 @@ def eval_compute_shader(function: str, material_constant_name: str, include: str
 
     ``directions="synthetic"`` (GLSL only, for speed measurements) makes each invocation's pair
     in the shader from a hash of its index instead of reading it (glsl/eval_synthetic.comp.glsl):
-    under lavapipe the six per-lane buffer loads cost about as much as 700 multiply-adds, which
-    is the harness's cost, not the BRDF's. There ``function`` may also be "hbrdf_harness_only"
+    under lavapipe (AVX2 only) the six per-lane buffer loads take about a quarter of a 32x2's
+    evaluation time (docs/CODEGEN.md), which is the harness's cost, not the BRDF's. There ``function`` may also be "hbrdf_harness_only"
     (the kernel without the BRDF)."""
     if target not in ("glsl", "hlsl"):
         raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")

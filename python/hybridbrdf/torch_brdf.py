@@ -119,6 +119,15 @@ def smith_g1_over_2cos(w: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> t
     return 1.0 / (wz + torch.sqrt(wz * wz + ax * ax * wx * wx + ay * ay * wy * wy))
 
 
+def half_vector(wi: torch.Tensor, wo: torch.Tensor):
+    """(h, cos theta_d) for unit wi, wo above the horizon: h = normalize(wi + wo) and
+    cos theta_d = (wi.h + wo.h) / 2 (libhybridbrdf's half_vector). Both above the horizon =>
+    (wi + wo).z > 0; an underflowing length (wi ~ -wo at grazing angles) has the limit h = +z,
+    which _normalize gives. The symmetric mean keeps f(wi, wo) = f(wo, wi) exactly."""
+    h, _ = _normalize(wi + wo)
+    return h, 0.5 * ((wo * h).sum(-1) + (wi * h).sum(-1))
+
+
 def eval_analytic(
     wi: torch.Tensor, wo: torch.Tensor, kd: torch.Tensor, eta: torch.Tensor, alpha: torch.Tensor
 ) -> torch.Tensor:
@@ -142,23 +151,18 @@ def eval_analytic(
     wi_n = torch.where(valid[..., None], wi_n, up)
     wo_n = torch.where(valid[..., None], wo_n, up)
 
-    # Both above the horizon => (wi + wo).z > 0; an underflowing length
-    # (wi ~ -wo at grazing angles) has the limit h = +z, which _normalize gives.
-    h, _ = _normalize(wi_n + wo_n)
+    h, c = half_vector(wi_n, wo_n)
     dg = _ggx_D_upper(h, ax, ay) * smith_g1_over_2cos(wi_n, ax, ay) * smith_g1_over_2cos(wo_n, ax, ay)
-    c = 0.5 * ((wo_n * h).sum(-1) + (wi_n * h).sum(-1))  # symmetric: exact reciprocity
     F = fresnel_dielectric(c[..., None], eta * eta - 1.0)
     f = kd * INV_PI + F * dg[..., None]
     return torch.where(valid[..., None], f, torch.zeros_like(f))
 
 
 def half_angle_cosines(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
-    """(cos theta_h, cos theta_d) = (h.z, (wi.h + wo.h) / 2) of the half vector h = normalize(wi + wo)
-    for unit wi, wo, shape (..., 2): the extra network inputs of the hybrid-half architecture
-    (spec/model.json, direction_inputs local_half), computed as eval_analytic computes them (h = +z
-    where wi + wo cannot be normalised; the symmetric mean keeps the input reciprocal)."""
-    h, _ = _normalize(wi + wo)
-    c = 0.5 * ((wo * h).sum(-1) + (wi * h).sum(-1))
+    """(cos theta_h, cos theta_d) of unit wi, wo, shape (..., 2): the extra network inputs of the
+    hybrid-half architecture (spec/model.json, direction_inputs local_half), from the half vector
+    eval_analytic uses."""
+    h, c = half_vector(wi, wo)
     return torch.stack([h[..., 2], c], dim=-1)
 
 
