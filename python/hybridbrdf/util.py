@@ -6,8 +6,8 @@ import contextlib
 import os
 import pathlib
 import re
+import secrets
 import signal
-import tempfile
 import threading
 
 from hybridbrdf.errors import InputFileError
@@ -114,14 +114,19 @@ def _sigterm_cleans_up():
         raise KeyboardInterrupt("SIGTERM")  # reached only where the signal is blocked
 
 
-def _new_temporary(path: str, folder: str):
-    """(fd, name) of a new temporary for ``path`` with the permissions open() would give."""
-    fd, tmp = tempfile.mkstemp(prefix=f"{_temp_prefix(path)}{os.getpid()}-", dir=folder)
-    # mkstemp creates 0600; give the file the permissions open() would (0666 less the umask).
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
-    return fd, tmp
+def _temporary_name(path: str, folder: str) -> str:
+    """A fresh temporary name for ``path``: its prefix, this process's pid and 64 random bits.
+
+    The name is chosen before the file exists so that a caller can hold it in its cleanup
+    before creating the file: a signal between the file's creation and the caller learning
+    its name would otherwise leave it behind (mkstemp returns the name only after creating)."""
+    return os.path.join(folder, f"{_temp_prefix(path)}{os.getpid()}-{secrets.token_hex(8)}")
+
+
+def _create_temporary(tmp: str) -> int:
+    """Create ``tmp`` exclusively for writing, with the permissions open() would give (0666
+    less the umask); returns its descriptor."""
+    return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
 
 
 def _fsync_folder(folder: str) -> None:
@@ -145,9 +150,9 @@ def atomic_write_bytes(path, data: bytes) -> None:
     os.makedirs(folder, exist_ok=True)
     remove_stale_temporaries(path)
     with _sigterm_cleans_up():
-        tmp = None
+        tmp = _temporary_name(path, folder)  # known to the cleanup before the file exists
         try:
-            fd, tmp = _new_temporary(path, folder)
+            fd = _create_temporary(tmp)
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
                 fh.flush()
@@ -185,8 +190,8 @@ def check_writable(path, what: str = "output") -> None:
         raise InputFileError(path, f"cannot create its folder {exc.filename or folder}: "
                                    f"{exc.strerror or exc}") from None
     try:
-        fd, tmp = _new_temporary(path, folder)
-        os.close(fd)
+        tmp = _temporary_name(path, folder)
+        os.close(_create_temporary(tmp))
         os.unlink(tmp)
     except OSError as exc:
         raise InputFileError(path, f"cannot write the {what} into {folder}: {exc.strerror or exc}") from None
