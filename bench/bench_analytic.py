@@ -40,13 +40,21 @@ TARGET_EVALS_PER_S = 50e6
 
 
 def cpu_name() -> str:
+    """The CPU's model name with its family and model numbers (a bare "AMD EPYC" names Zen 4
+    and Zen 5 alike, whose AVX-512 throughput differs twofold)."""
+    info = {}
     try:
         for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
+            key, _, value = line.partition(":")
+            info.setdefault(key.strip(), value.strip())
+            if not line.strip():
+                break
     except OSError:
         pass
-    return platform.processor() or "unknown"
+    name = info.get("model name") or platform.processor() or "unknown"
+    if "cpu family" in info and "model" in info:
+        name += f" (family {info['cpu family']}, model {info['model']})"
+    return name
 
 
 def best_rate(fn, n: int, repeats: int) -> float:

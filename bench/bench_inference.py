@@ -8,9 +8,11 @@ its bytes per material and per collection; writes a table and a PNG plot (error 
 cost).
 
 - FLOPs per evaluation count the network's multiply-adds (2 per weight); the achieved
-  GFLOP/s is set against one core's FMA peak measured in the same run by
-  ``hbrdf_fma_peak`` on the same pinned core (on Zen 4 the AVX2 and AVX-512 peaks are
-  equal: AVX-512 runs on the same 256-bit pipes).
+  GFLOP/s is set against one core's FMA peak *of the kernel's instruction set*, measured in
+  the same run on the same pinned core by ``_core.fma_peak_gflops`` (the hbrdf_fma_peak
+  loops, inside the Python module so that an installed package measures it too). On Zen 4
+  the AVX2 and AVX-512 peaks are equal (AVX-512 runs on 256-bit pipes); on Zen 5 the
+  AVX-512 peak is twice the AVX2 one.
 - Lavapipe runs the generated shader (default form: unrolled network with literal
   weights) as a compute shader over ``--pairs`` pairs, 64 invocations per workgroup,
   once as the host allows and once with ``GALLIUM_OVERRIDE_CPU_CAPS=avx`` (Mesa's switch
@@ -59,7 +61,6 @@ from hybridbrdf.random_model import random_model  # noqa: E402
 from bench_analytic import best_rate  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"
-FMA_PEAK = ROOT / "build" / "hbrdf_fma_peak"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
 SIZES = [(16, 2), (16, 3), (32, 2), (32, 3), (64, 2), (64, 3)]
 RGL_MODELS = ("results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors,results/rgl54_hybrid_16x2_e09_100k_refit01.safetensors,"
@@ -118,9 +119,17 @@ def lavapipe_rates(spv, n, d):
     return {run: lavapipe_rate(spv, n, d, env) for run, env in VK_RUNS.items()}
 
 
-def fma_peak_gflops(core: int) -> float:
-    r = subprocess.run(["taskset", "-c", str(core), str(FMA_PEAK), "2"], check=True, capture_output=True, text=True)
-    return float([ln for ln in r.stdout.splitlines() if ln.startswith("peak_gflops")][0].split()[1])
+def fma_peak_gflops(core: int) -> dict:
+    """One core's FMA peak in GFLOP/s per kernel name ("avx2+fma", "avx512"), measured on
+    ``core`` by the Python module itself (``_core.fma_peak_gflops``: the hbrdf_fma_peak
+    loops), so that an installed package measures it too; nan where the probe is missing."""
+    previous = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {core})
+    try:
+        p = _core.fma_peak_gflops(2.0)
+    finally:
+        os.sched_setaffinity(0, previous)
+    return {k: (p[key] if p[key] > 0 else float("nan")) for k, key in (("avx2+fma", "avx2_fma"), ("avx512", "avx512"))}
 
 
 def campaign_smape(models_dir):
@@ -278,7 +287,7 @@ def main() -> int:
     all_cores = os.sched_getaffinity(0)
     core = sorted(all_cores)[0]
     smapes, campaign, where = campaign_smape(args.models_dir)
-    peak = fma_peak_gflops(core) if FMA_PEAK.exists() else float("nan")
+    peak = fma_peak_gflops(core)
     kernels = ["avx2+fma"] + (["avx512"] if _core.model_simd_path() == "avx512" else [])
     os.sched_setaffinity(0, {core})  # the C++ path on one core
 
@@ -358,7 +367,7 @@ def main() -> int:
     kernel_cols = " ".join(f"{'C++ ' + k[:6]:>11s} {'%peak':>6s}" for k in kernels)
     vk_cols = " ".join(f"{'vk ' + r:>9s}" for r in VK_RUNS)
     lines = [f"{n} cosine-weighted pairs; C++ batched on 1 core (kernels {', '.join(kernels)}; one-core FMA peak "
-             f"{peak:.1f} GFLOP/s measured by hbrdf_fma_peak); GLSL under lavapipe, 64 invocations per workgroup, "
+             f"{', '.join(f'{k} {peak[k]:.1f}' for k in kernels)} GFLOP/s measured by _core.fma_peak_gflops); GLSL under lavapipe, 64 invocations per workgroup, "
              f"{len(all_cores)} cores, host SIMD path and AVX2 only (GALLIUM_OVERRIDE_CPU_CAPS=avx)",
              f"SMAPE of the size sweep (mean over the campaign's materials, {where or 'none'}): "
              f"{campaign or 'no fitting campaign found'}",
@@ -371,7 +380,7 @@ def main() -> int:
         cols = []
         for k in kernels:
             rate = r["cpp"].get(k)
-            pct = 100 * rate * r["flops"] / 1e9 / peak if rate and r["flops"] else None
+            pct = 100 * rate * r["flops"] / 1e9 / peak[k] if rate and r["flops"] else None
             cols.append((f"{rate / 1e6:11.2f}" if rate else f"{'-':>11s}") + " " +
                         (f"{pct:5.1f}%" if pct else f"{'-':>6s}"))
         vk = " ".join(f"{r['vk'][run] / 1e6:9.2f}" if r["vk"].get(run) else f"{'-':>9s}" for run in VK_RUNS)

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Runs every test: sets up first (idempotent), then
 #   1. the C++ unit tests and the installed-package consumer (ctest, Release),
-#   2. the C++ unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer,
-#   3. the Python suite (pytest).
+#   2. the speed guard: the kernels' speed ratios in one run against their floors
+#      (bench/speed_guard.py; fails when a kernel stops vectorising),
+#   3. the C++ unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer,
+#   4. the Python suite (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,6 +16,9 @@ echo "== C++ tests (Release) =="
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build build -j "$JOBS" > /dev/null
 ctest --test-dir build --output-on-failure
+
+echo "== Speed guard (Release build, one core) =="
+"$PY" bench/speed_guard.py
 
 echo "== C++ tests under ASan + UBSan =="
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null

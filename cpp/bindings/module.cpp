@@ -10,6 +10,10 @@
 
 #include "checks.hpp"
 #include "hybridbrdf/hybridbrdf.hpp"
+#if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
+#include "../tools/fma_peak.hpp"
+#define HBRDF_HAVE_FMA_PEAK 1
+#endif
 
 namespace py = pybind11;
 using hbrdf_bindings::check_material;
@@ -238,6 +242,26 @@ PYBIND11_MODULE(_core, m) {
           "Cap the kernel of Model.eval: avx512 (no cap), avx2+fma or baseline; for tests and benchmarks.");
     m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),
           "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
+    m.def("fma_peak_gflops", [](double seconds) {
+        if (!(seconds > 0.0 && seconds <= 60.0)) throw py::value_error("fma_peak_gflops: seconds must be in (0, 60]");
+        py::dict out;
+#ifdef HBRDF_HAVE_FMA_PEAK
+        hbrdf::fma_peak::Peak p;
+        {
+            py::gil_scoped_release release;
+            p = hbrdf::fma_peak::measure(seconds);
+        }
+        out["avx2_fma"] = p.avx2_fma;
+        out["avx512"] = p.avx512;
+        out["peak"] = p.peak();
+#else
+        out["avx2_fma"] = out["avx512"] = out["peak"] = 0.0;
+#endif
+        return out;
+    }, py::arg("seconds") = 1.0,
+          "One core's single-precision FMA peak in GFLOP/s on the calling thread: {avx2_fma, avx512, peak} "
+          "(0 for an instruction set the CPU lacks, or on a non-x86 build). The denominator of the "
+          "benchmarks' fraction-of-peak figures; pin the process to one core first.");
 
     bind_tabulated(m);  // after Model, which TabulatedSampler.build_model takes
     bind_baselines(m);

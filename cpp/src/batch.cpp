@@ -8,6 +8,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+#include "simd_env.hpp"
 
 #if defined(__GNUC__)
 #define HBRDF_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -37,6 +42,7 @@ HBRDF_ALWAYS_INLINE void eval_soa_kernel(const AnalyticBrdf brdf, std::size_t n,
                                          const float* __restrict ox, const float* __restrict oy,
                                          const float* __restrict oz, float* __restrict fr, float* __restrict fg,
                                          float* __restrict fb) {
+    // vectorises: eval_soa (tests/python/test_vectorisation.py)
     for (std::size_t i = 0; i < n; ++i) {
         const Vec3<float> v = brdf.eval(Vec3<float>(ix[i], iy[i], iz[i]), Vec3<float>(ox[i], oy[i], oz[i]));
         fr[i] = v.x;
@@ -60,6 +66,7 @@ HBRDF_ALWAYS_INLINE void eval_aos_body(const AnalyticBrdf& brdf, std::size_t n, 
         const std::size_t m = std::min(kChunk, n - start);
         const float* a = wi + 3 * start;
         const float* b = wo + 3 * start;
+        // vectorises: aos_to_soa (tests/python/test_vectorisation.py)
         for (std::size_t i = 0; i < m; ++i) {
             buf[0][i] = a[3 * i + 0];
             buf[1][i] = a[3 * i + 1];
@@ -71,6 +78,7 @@ HBRDF_ALWAYS_INLINE void eval_aos_body(const AnalyticBrdf& brdf, std::size_t n, 
         eval_soa_body(brdf, m, ConstSoA3{buf[0], buf[1], buf[2]}, ConstSoA3{buf[3], buf[4], buf[5]},
                       SoA3{buf[6], buf[7], buf[8]});
         float* out = f + 3 * start;
+        // vectorises: soa_to_aos (tests/python/test_vectorisation.py)
         for (std::size_t i = 0; i < m; ++i) {
             out[3 * i + 0] = buf[6][i];
             out[3 * i + 1] = buf[7][i];
@@ -136,10 +144,28 @@ HBRDF_DEFINE_KERNELS(avx2, HBRDF_TARGET_AVX2)
 
 std::atomic<bool> g_force_baseline{false};
 
+}  // namespace
+
+int simd_environment_cap() {
+    static const int cap = [] {
+        const char* v = std::getenv("HBRDF_SIMD");
+        if (v == nullptr || *v == '\0' || std::strcmp(v, "avx512") == 0) return 2;
+        if (std::strcmp(v, "avx2+fma") == 0) return 1;
+        if (std::strcmp(v, "baseline") == 0) return 0;
+        // Read lazily inside the kernels' dispatch, where throwing would surprise every caller:
+        // one line on stderr, and the variable is ignored.
+        std::fprintf(stderr, "hybridbrdf: HBRDF_SIMD='%.40s' is not avx512, avx2+fma or baseline; ignored\n", v);
+        return 2;
+    }();
+    return cap;
+}
+
+namespace {
+
 bool use_avx2() {
 #if HBRDF_HAVE_AVX2_PATH
     static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    return has && !g_force_baseline.load(std::memory_order_relaxed);
+    return has && simd_environment_cap() >= 1 && !g_force_baseline.load(std::memory_order_relaxed);
 #else
     return false;
 #endif

@@ -514,8 +514,8 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
     } else {
         x[0] = wi.x, x[1] = wi.y, x[2] = wi.z, x[3] = wo.x, x[4] = wo.y, x[5] = wo.z;
         if (as.directions == spec::DirectionInputs::LocalHalf) {
-            const HalfVectorT<float> hv = half_vector(wi, wo);
-            x[6] = hv.h.z, x[7] = hv.cos_d;
+            const Vec3<float> h = half_vector(wi, wo);
+            x[6] = h.z, x[7] = cos_theta_d(wi, wo, h);
         }
     }
     std::copy(mat.latent.begin(), mat.latent.end(), x + as.direction_count);

@@ -20,6 +20,7 @@
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/model.hpp"
 #include "model_math.hpp"
+#include "simd_env.hpp"
 
 #if defined(__GNUC__)
 #define HBRDF_KERNEL_INLINE inline __attribute__((always_inline))
@@ -50,6 +51,7 @@ struct DensePortable {
             for (int k = 0; k < n_in; ++k) {
                 const float wk = w[j * n_in + k];
                 const float* x = in + k * kChunk;
+                // vectorises: dense_portable (tests/python/test_vectorisation.py)
                 for (int i = 0; i < kChunk; ++i) acc[i] += wk * x[i];
             }
             float* o = out + j * kChunk;
@@ -279,6 +281,7 @@ struct ModelBatchKernels {
                             const float* e = frames + 9 * fr + 3 * axis;
                             float* x = X + (9 * side + 3 * fr + axis) * kChunk;
                             const float* w = D + 3 * side * kChunk;
+                            // vectorises: neural_frames (tests/python/test_vectorisation.py)
                             for (int i = 0; i < kChunk; ++i)
                                 x[i] = e[0] * w[i] + e[1] * w[kChunk + i] + e[2] * w[2 * kChunk + i];
                         }
@@ -304,6 +307,7 @@ struct ModelBatchKernels {
                     }
             }
             float* out = f_aos + 3 * start;
+            // vectorises: soa_to_aos (tests/python/test_vectorisation.py)
             for (int i = 0; i < cnt; ++i)
                 for (int c = 0; c < 3; ++c) out[3 * i + c] = F[c * kChunk + i];
         }
@@ -313,6 +317,7 @@ struct ModelBatchKernels {
     // wi and wo (rows 0-5 of D) normalised in place, valid[i] = 1 where both are above the
     // horizon: branch-free per lane, so the compiler vectorises it for the kernel's target.
     HBRDF_KERNEL_INLINE static void normalise_rows(float* __restrict D, float* __restrict valid) {
+        // vectorises: normalise_rows (tests/python/test_vectorisation.py)
         for (int i = 0; i < kChunk; ++i) {
             Vec3<float> wi(D[i], D[kChunk + i], D[2 * kChunk + i]);
             Vec3<float> wo(D[3 * kChunk + i], D[4 * kChunk + i], D[5 * kChunk + i]);
@@ -327,14 +332,15 @@ struct ModelBatchKernels {
     }
 
     // cos theta_h and cos theta_d (two rows) of the normalised rows' half vectors, by the
-    // function f_a uses (analytic.hpp's half_vector): the hybrid-half network inputs.
+    // functions f_a uses (analytic.hpp's half_vector, cos_theta_d): the hybrid-half network inputs.
     HBRDF_KERNEL_INLINE static void half_angle_rows(const float* __restrict d, float* __restrict x) {
+        // vectorises: half_angle_rows (tests/python/test_vectorisation.py)
         for (int i = 0; i < kChunk; ++i) {
             const Vec3<float> wi(d[i], d[kChunk + i], d[2 * kChunk + i]);
             const Vec3<float> wo(d[3 * kChunk + i], d[4 * kChunk + i], d[5 * kChunk + i]);
-            const HalfVectorT<float> hv = half_vector(wi, wo);
-            x[i] = hv.h.z;
-            x[kChunk + i] = hv.cos_d;
+            const Vec3<float> h = half_vector(wi, wo);
+            x[i] = h.z;
+            x[kChunk + i] = cos_theta_d(wi, wo, h);
         }
     }
 
@@ -342,6 +348,7 @@ struct ModelBatchKernels {
     // registers, restrict-qualified rows), vectorised the same way.
     HBRDF_KERNEL_INLINE static void analytic_rows(const AnalyticBrdf brdf, const float* __restrict d,
                                                   float* __restrict fa) {
+        // vectorises: analytic_rows (tests/python/test_vectorisation.py)
         for (int i = 0; i < kChunk; ++i) {
             const Vec3<float> v = brdf.eval(Vec3<float>(d[i], d[kChunk + i], d[2 * kChunk + i]),
                                             Vec3<float>(d[3 * kChunk + i], d[4 * kChunk + i], d[5 * kChunk + i]));
@@ -384,7 +391,7 @@ int model_kernel_level() {
 #if HBRDF_MB_X86
     if (std::string_view(simd_path()) == "avx2+fma") level = cpu_has_avx512() ? 2 : 1;  // "baseline" when forced
 #endif
-    return std::min(level, g_model_simd_limit.load(std::memory_order_relaxed));
+    return std::min({level, g_model_simd_limit.load(std::memory_order_relaxed), simd_environment_cap()});
 }
 }  // namespace
 

@@ -14,22 +14,26 @@
 
 namespace hbrdf {
 
-/// The half vector h = normalize(wi + wo) of two unit directions above the horizon and
-/// cos theta_d = wi.h = wo.h, as f_a uses them. Both directions above the horizon =>
-/// (wi + wo).z > 0; if its length underflows (wi ~ -wo at grazing angles) the limit of h
-/// is +z. wo.h and wi.h are equal in exact arithmetic; averaging them makes f(wi, wo) ==
-/// f(wo, wi) bit for bit in floating point too. The hybrid-half architecture feeds h.z and
-/// cos_d to its network (spec/model.json, direction_inputs local_half), from this function.
-template <typename T> struct HalfVectorT {
-    Vec3<T> h;
-    T cos_d;
-};
-
-template <typename T> HBRDF_INLINE HalfVectorT<T> half_vector(const Vec3<T>& wi, const Vec3<T>& wo) {
+/// The half vector h = normalize(wi + wo) of two unit directions above the horizon, as f_a
+/// uses it. Both directions above the horizon => (wi + wo).z > 0; if its length underflows
+/// (wi ~ -wo at grazing angles) the limit of h is +z. The hybrid-half architecture feeds h.z
+/// and cos_theta_d to its network (spec/model.json, direction_inputs local_half), from these
+/// two functions, so that the network's inputs and f_a cannot drift apart.
+///
+/// Two functions returning a vector and a scalar, not one returning a struct {h, cos_d}: GCC
+/// 12 copies such a struct as an aggregate, and an aggregate copy in the loop body stops the
+/// batched kernels from vectorising (7x slower f_a; tests/python/test_vectorisation.py).
+template <typename T> HBRDF_INLINE Vec3<T> half_vector(const Vec3<T>& wi, const Vec3<T>& wo) {
     const Vec3<T> s = wi + wo;
     const T inv_len_s = inverse_length_or_zero(s);
-    const Vec3<T> h(s.x * inv_len_s, s.y * inv_len_s, inv_len_s > T(0) ? s.z * inv_len_s : T(1));
-    return {h, T(0.5) * (dot(wo, h) + dot(wi, h))};
+    return Vec3<T>(s.x * inv_len_s, s.y * inv_len_s, inv_len_s > T(0) ? s.z * inv_len_s : T(1));
+}
+
+/// cos theta_d = wi.h = wo.h of the half vector h of (wi, wo). The two dot products are
+/// equal in exact arithmetic; averaging them makes f(wi, wo) == f(wo, wi) bit for bit in
+/// floating point too.
+template <typename T> HBRDF_INLINE T cos_theta_d(const Vec3<T>& wi, const Vec3<T>& wo, const Vec3<T>& h) {
+    return T(0.5) * (dot(wo, h) + dot(wi, h));
 }
 
 /// f_a with its parameters folded into the constants evaluation needs.
@@ -56,10 +60,9 @@ public:
         const Vec3<T> wo = wo_in * inverse_length_or_zero(wo_in);
         // Invalid inputs became 0 (or NaN): "z > 0" rejects both.
         const bool valid = wi.z > T(0) && wo.z > T(0);
-        const HalfVectorT<T> hv = half_vector(wi, wo);
-        const Vec3<T>& h = hv.h;
+        const Vec3<T> h = half_vector(wi, wo);
         const T DG = ggx_D(h, alpha_) * smith_g1_over_2cos(wi, alpha_) * smith_g1_over_2cos(wo, alpha_);
-        const T c = hv.cos_d;
+        const T c = cos_theta_d(wi, wo, h);
         const T r = kd_over_pi_.x + fresnel_dielectric(c, eta2_minus_1_.x) * DG;
         const T g = kd_over_pi_.y + fresnel_dielectric(c, eta2_minus_1_.y) * DG;
         const T b = kd_over_pi_.z + fresnel_dielectric(c, eta2_minus_1_.z) * DG;

@@ -45,7 +45,8 @@ void pdf_aos(Strategy strategy, const AnalyticParams& params, std::size_t n, con
              float* pdf);
 
 /// Name of the instruction set the batched kernels run with on this CPU:
-/// "avx2+fma" or "baseline".
+/// "avx2+fma" or "baseline". The environment variable HBRDF_SIMD (baseline, avx2+fma or
+/// avx512, read once per process) caps it and model_simd_path() below what the CPU offers.
 const char* simd_path();
 
 /// Forces the baseline (non-AVX2) kernels, for tests and benchmarks that
