@@ -470,7 +470,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
                 loss = batch_loss(wi, wo, ref)
                 if not torch.isfinite(loss):
                     raise FloatingPointError(
-                        f"loss became {float(loss)} at step {step}; lower --lr or check the sources")
+                        f"loss became {loss.item()} at step {step}; lower --lr or check the sources")
                 opt.zero_grad(set_to_none=True)
                 loss.backward()  # under DistributedDataParallel: gradients averaged over the ranks
                 stopping_now = dd.any_rank(stop.requested is not None, ranks, settings.device)
@@ -494,7 +494,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
             if bar is not None:
                 bar.update(1)
                 if step % 20 == 0:
-                    bar.set_postfix(loss=f"{float(loss) / len(sources):.4g}")
+                    bar.set_postfix(loss=f"{loss.item() / len(sources):.4g}")  # .item(): no autograd warning
             stopping = stop_after is not None and step + 1 == stop_after and step + 1 < settings.steps
             if checkpoint and (stopping or stopping_now or
                                ((step + 1) % checkpoint_every == 0 and step + 1 < settings.steps)):
