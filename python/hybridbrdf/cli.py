@@ -105,6 +105,8 @@ def _check_fit_outputs(args: argparse.Namespace) -> None:
     from hybridbrdf.util import check_writable
 
     check_writable(args.out, "model")
+    if getattr(args, "preview_path", None):
+        check_writable(args.preview_path, "preview")
     if args.checkpoint:
         if os.path.realpath(args.checkpoint) == os.path.realpath(args.out):
             raise InputFileError(args.out, "--out and --checkpoint name the same file")
@@ -135,6 +137,11 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
     settings = settings_from_args(args)
     settings.check()
+    args.preview_path = None if args.no_preview else (args.preview or os.path.splitext(args.out)[0] + ".png")
+    if args.preview_path and os.path.abspath(args.preview_path) == os.path.abspath(args.out):
+        from hybridbrdf.errors import InputFileError
+
+        raise InputFileError(args.out, "--out and --preview name the same file")
     # Under torchrun (WORLD_SIZE > 1): a data-parallel fit, rank 0 writes the files.
     ranks = dd.Ranks(world=dd.launched_world_size())
     dd.check_batch_split(settings.batch, ranks)
@@ -175,9 +182,27 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     rate = model.training.get("pairs_x_materials_per_second")
     print(f"trained {settings.steps} steps in {model.training['train_seconds']:.1f} s"
           + (f" ({rate:,.0f} pairs x materials / s)" if rate else "") + f"; wrote {args.out}")
+    if args.preview_path:
+        _write_preview(args.out, args.sources, args.preview_path)
     if ranks.distributed:
         dd.end_process(0)
     return 0
+
+
+def _write_preview(model_path: str, sources, png: str) -> None:
+    """The picture that ends `hbrdf fit`. The model is written by then: a preview that cannot be
+    rendered (a build without the renderer, a source the tracer's reader refuses) is reported in
+    one line and does not fail the command."""
+    from hybridbrdf.preview import ROWS, render_preview
+
+    try:
+        info = render_preview(model_path, sources, png)
+    except (RuntimeError, ValueError, OSError) as exc:
+        print(f"preview not written: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", file=sys.stderr)
+        return
+    shown = len(info["materials"])
+    print(f"wrote {png}: {shown} material{'s' if shown != 1 else ''} as spheres, rows "
+          f"{' | '.join(label for label, _ in ROWS)} (rendered in {info['seconds']:.1f} s)")
 
 
 def _cmd_add(args: argparse.Namespace) -> int:
@@ -422,6 +447,11 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--checkpoint-every", type=positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
     fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
     fit.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
+    fit.add_argument("--preview", metavar="PNG",
+                     help="picture of the fitted materials to write: spheres under the example scene's sky, the exact "
+                          "material beside the hybrid beside its f_a alone, rendered by the path tracer (the first "
+                          "8 materials; default: --out with .png)")
+    fit.add_argument("--no-preview", action="store_true", help="write no preview picture")
     fit.set_defaults(func=_cmd_fit)
 
     ad = sub.add_parser("add", help="add BRDF sources to a model without retraining its network",

@@ -617,16 +617,22 @@ def format_extended_table(rows: List[Dict[str, object]]) -> str:
 
 
 def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:
-    """The per-material table `hbrdf fit` and `hbrdf eval` print."""
+    """The per-material table `hbrdf fit` and `hbrdf eval` print. A model metric worse than its
+    own analytic part's is marked "!" and a note under the table says what to do about it."""
     has_a = any("smape_analytic" in r for r in rows)
     head = f"{'material':28s} {'reference':32s} " + (
         f"{'SMAPE analytic':>14s} {'SMAPE model':>12s} {'cMAE analytic':>14s} {'cMAE model':>11s}" if has_a
         else f"{'SMAPE model':>12s} {'cMAE model':>11s}")
     lines = [f"metrics on {n_pairs} cosine-weighted pairs (seed 7); negatives in references clamped to 0", head]
+    worse = []
     for r in rows:
         if has_a:
+            mark_s = "!" if r["smape"] > r["smape_analytic"] else " "
+            mark_c = "!" if r["cmae"] > r["cmae_analytic"] else " "
+            if mark_s + mark_c != "  ":
+                worse.append(str(r["material"]))
             lines.append(f"{r['material'][:28]:28s} {str(r['origin'])[:32]:32s} {r['smape_analytic']:14.4f} "
-                         f"{r['smape']:12.4f} {r['cmae_analytic']:14.5f} {r['cmae']:11.5f}")
+                         f"{r['smape']:11.4f}{mark_s} {r['cmae_analytic']:14.5f} {r['cmae']:10.5f}{mark_c}")
         else:
             lines.append(f"{r['material'][:28]:28s} {str(r['origin'])[:32]:32s} {r['smape']:12.4f} {r['cmae']:11.5f}")
     if rows:
@@ -636,4 +642,9 @@ def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:
                          f"{mean('cmae_analytic'):14.5f} {mean('cmae'):11.5f}")
         else:
             lines.append(f"{'mean':28s} {'':32s} {mean('smape'):12.4f} {mean('cmae'):11.5f}")
+    if worse:
+        shown = ", ".join(worse[:6]) + (f" and {len(worse) - 6} more" if len(worse) > 6 else "")
+        lines.append(f"! the model is less accurate than its own analytic part on {shown}: the network's correction "
+                     f"has not converged there (fit longer: --steps), or the material needs no correction (render it "
+                     f"with f_a alone: a scene material with \"evaluate\": \"analytic\", docs/RENDERING.md)")
     return "\n".join(lines)

@@ -5,9 +5,9 @@ libhybridbrdf's path tracer and labelled (``hbrdf fit`` writes one next to the m
     from hybridbrdf.preview import render_preview
     render_preview("out/synthetic.safetensors", ["synthetic:all"], "out/synthetic.png")
 
-The spheres are rendered in one scene, a grid seen from far away (a narrow field of view, so
-every sphere is seen from nearly the same direction); the measured reference goes through its
-Python reader (docs/RENDERING.md, "measured"), which dominates the time.
+Each sphere is a scene of its own (in one shared scene the spheres would shadow and light each
+other), seen from far away through a narrow field of view; the measured reference goes through
+its Python reader (docs/RENDERING.md, "measured"), which dominates the time.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -30,43 +30,58 @@ ROWS = (("exact", None), ("hybrid", "full"), ("f_a alone", "analytic"))
 #: get too small to see and the measured readers' time grows with every material.
 MAX_MATERIALS = 8
 
-_SPACING = 2.3       # sphere centres (radius 1)
-_DISTANCE = 60.0     # camera distance: the view directions over the grid differ by < 10 degrees
+_FRAME = 2.3        # world units across one sphere's square image (radius 1: a small margin)
+_DISTANCE = 60.0     # camera distance: the view directions over a sphere differ by < 2 degrees
 
 
-def preview_scene(model_path: str, materials: Sequence[str], sources: Sequence[Optional[str]],
-                  pixels_per_sphere: int = 72, spp: int = 16) -> Dict[str, object]:
-    """The scene of a preview: one column per material, rows as :data:`ROWS`. ``sources[i]``
-    is the measured source of ``materials[i]`` (a path or synthetic:NAME) or None, whose
-    "exact" sphere is then left out."""
+def sphere_scene(material: Dict[str, object], pixels: int = 72, spp: int = 16) -> Dict[str, object]:
+    """One sphere of ``material`` (a scene material: model, measured or analytic) under the
+    example sky, framed by a square image of ``pixels``. Each sphere is a scene of its own: in
+    one shared scene the spheres would shadow and light each other, differently by position."""
+    fov = 2.0 * math.degrees(math.atan(0.5 * _FRAME / _DISTANCE))
+    return {
+        "camera": {"position": [0, 0, _DISTANCE], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_deg": fov,
+                   "width": pixels, "height": pixels},
+        "environment": dict(EXAMPLE_SKY),
+        "materials": {"sphere": material},
+        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "sphere"}],
+        "spp": spp, "max_depth": 3, "sampler": "mis", "seed": 0, "threads": 0,
+    }
+
+
+def preview_scenes(model_path: str, materials: Sequence[str], sources: Sequence[Optional[str]],
+                   pixels_per_sphere: int = 72, spp: int = 16) -> List[Tuple[int, int, Dict[str, object]]]:
+    """(row, column, scene) of each sphere of a preview: one column per material, rows as
+    :data:`ROWS`. ``sources[i]`` is the measured source of ``materials[i]`` (a path or
+    synthetic:NAME) or None, whose "exact" sphere is then left out."""
     if len(materials) != len(sources):
         raise ValueError(f"preview: {len(materials)} materials but {len(sources)} sources")
-    cols, rows = len(materials), len(ROWS)
-    height_world = rows * _SPACING
-    fov = 2.0 * math.degrees(math.atan(0.5 * height_world / _DISTANCE))
-    scene_materials: Dict[str, object] = {}
-    objects: List[Dict[str, object]] = []
+    out = []
     for c, (name, source) in enumerate(zip(materials, sources)):
-        x = (c - 0.5 * (cols - 1)) * _SPACING
         for r, (_, evaluate) in enumerate(ROWS):
-            y = (0.5 * (rows - 1) - r) * _SPACING
-            key = f"m{c}_{r}"
             if evaluate is None:
                 if source is None:
                     continue
-                scene_materials[key] = {"type": "measured", "source": source}
+                material: Dict[str, object] = {"type": "measured", "source": source}
             else:
-                scene_materials[key] = {"type": "model", "file": os.path.abspath(model_path), "material": name,
-                                        "evaluate": evaluate}
-            objects.append({"type": "sphere", "center": [x, y, 0], "radius": 1, "material": key})
-    return {
-        "camera": {"position": [0, 0, _DISTANCE], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_deg": fov,
-                   "width": cols * pixels_per_sphere, "height": rows * pixels_per_sphere},
-        "environment": dict(EXAMPLE_SKY),
-        "materials": scene_materials,
-        "objects": objects,
-        "spp": spp, "max_depth": 3, "sampler": "mis", "seed": 0, "threads": 0,
-    }
+                material = {"type": "model", "file": os.path.abspath(model_path), "material": name,
+                            "evaluate": evaluate}
+            out.append((r, c, sphere_scene(material, pixels_per_sphere, spp)))
+    return out
+
+
+def render_grid(model_path: str, materials: Sequence[str], sources: Sequence[Optional[str]],
+                pixels_per_sphere: int = 72, spp: int = 16) -> np.ndarray:
+    """The preview's linear radiance image (rows x pixels, columns x pixels, 3); a left-out
+    sphere's square is black."""
+    from hybridbrdf.render import render
+
+    n = pixels_per_sphere
+    image = np.zeros((len(ROWS) * n, len(materials) * n, 3), dtype=np.float32)
+    for r, c, scene in preview_scenes(model_path, materials, sources, pixels_per_sphere, spp):
+        tile, _ = render(scene)
+        image[r * n:(r + 1) * n, c * n:(c + 1) * n] = np.asarray(tile)
+    return image
 
 
 def render_preview(model_path: str, sources: Sequence[str], png_path: str, pixels_per_sphere: int = 72,
@@ -86,7 +101,7 @@ def render_preview(model_path: str, sources: Sequence[str], png_path: str, pixel
     import matplotlib.pyplot as plt
 
     from hybridbrdf.model_file import load_model
-    from hybridbrdf.render import render, write_png
+    from hybridbrdf.render import write_png
     from hybridbrdf.sources import expand_sources, open_source
 
     model = load_model(model_path)
@@ -102,7 +117,7 @@ def render_preview(model_path: str, sources: Sequence[str], png_path: str, pixel
             by_name.setdefault(open_source(spec).name, spec)
         exact = [by_name.get(n) for n in names]
     t0 = time.perf_counter()
-    image, _ = render(preview_scene(model_path, names, exact, pixels_per_sphere, spp))
+    image = render_grid(model_path, names, exact, pixels_per_sphere, spp)
     seconds = time.perf_counter() - t0
 
     with tempfile.TemporaryDirectory(prefix="hbrdf_preview_") as tmp:

@@ -212,3 +212,44 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes_with_the_papers_valu
     with pytest.raises(ckpt.CheckpointError, match=r"specular: 0.0 -> 0.1") as err:
         ckpt.load(str(path), ours)
     assert "sparse_starts" not in str(err.value)  # absent: 1 then, 1 now
+
+
+def _readme_main_job():
+    """The README's main job: the `hbrdf fit ...` of its first command block, as words."""
+    readme = (ROOT / "README.md").read_text()
+    line = next(ln.strip() for ln in readme.splitlines() if ln.strip().startswith("bash scripts/setup.sh && hbrdf fit"))
+    return line.split("&&", 1)[1].split()
+
+
+def test_the_readme_main_job_prints_no_warning_and_ends_with_a_picture(tmp_path):
+    """A newcomer's first run (issue 35), shortened: the README's command with fewer steps. Its
+    output holds no warning (Python's, PyTorch's or the project's), and it writes and names a PNG
+    of the fitted materials next to the model."""
+    words = _readme_main_job()
+    assert words[:2] == ["hbrdf", "fit"] and "--steps" in words and "--out" in words, words
+    words[words.index("--steps") + 1] = "200"
+    out = tmp_path / "synthetic.safetensors"
+    words[words.index("--out") + 1] = str(out)
+    r = run_cli(*words[1:], "--pool", "16384", "--eval-pairs", "20000")
+    assert r.returncode == 0, r.stderr[-2000:]
+    both = r.stdout + r.stderr
+    assert "warning" not in both.lower(), [ln for ln in both.splitlines() if "warning" in ln.lower()]
+    png = out.with_suffix(".png")
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
+    assert f"wrote {png}: 8 materials as spheres" in r.stdout
+
+
+def test_fit_preview_flags(tmp_path):
+    out = tmp_path / "m.safetensors"
+    common = ("fit", "synthetic:plastic", "--mlp", "8x1", "--steps", "20", "--pool", "4096", "--eval-pairs", "2000")
+    r = run_cli(*common, "--out", str(out), "--no-preview", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert not list(tmp_path.glob("*.png")) and "as spheres" not in r.stdout
+    pic = tmp_path / "pics" / "plastic.png"
+    r = run_cli(*common, "--out", str(out), "--preview", str(pic), "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert pic.read_bytes()[:4] == b"\x89PNG" and f"wrote {pic}: 1 material as spheres" in r.stdout
+    r = run_cli(*common, "--out", str(out), "--preview", str(out), "--quiet")
+    assert r.returncode == 1 and "--out and --preview name the same file" in r.stderr
+    assert r.stderr.strip().count("\n") == 0
