@@ -36,7 +36,7 @@ def load_spec(path: pathlib.Path = SPEC) -> dict:
 
     for f in spec["arch_fields"]:
         for key in ("min", "max", "default"):
-            if key in f:
+            if key in f and not (f["type"] == "enum" and key == "default"):  # an enum's default is one of its names
                 f[key] = resolve(f[key])
     for r in spec["material_ranges"]:
         r["min"], r["max"] = resolve(r["min"]), resolve(r["max"])
@@ -96,6 +96,7 @@ def cpp_header(spec: dict) -> str:
     enum("DirectionInputs", spec["direction_inputs"], "What the network sees of wi and wo.")
     enum("ExtraInputs", spec["extra_inputs"], "Inputs appended after the latent code.")
     enum("ModelKind", spec["archs"], "Architectures (arch.kind).")
+    enum("OutputLayer", spec["output_layers"], "Whose output layer a material uses (arch.output_layer).")
     out += ["/// One architecture: network input = direction inputs, latent code, extra inputs (in that order).",
             "struct ArchSpec {", "    const char* name;", "    ModelKind kind;", "    DirectionInputs directions;",
             "    int direction_count;  ///< inputs before the latent code (= the latent code's offset)",
@@ -118,12 +119,15 @@ def cpp_header(spec: dict) -> str:
     for f in spec["arch_fields"]:
         typ = {"int": "Int", "number": "Number", "enum": "Enum"}[f["type"]]
         vals = "nullptr, 0"
+        default = float(f.get("default", 0)) if f["type"] != "enum" else 0.0
         if f["type"] == "enum":
-            enum_name = {"archs": "ModelKind", "activations": "Activation"}[f["values"]]
+            enum_name = {"archs": "ModelKind", "activations": "Activation", "output_layers": "OutputLayer"}[f["values"]]
             vals = f"k{enum_name}Names, k{enum_name}Count"
+            if "default" in f:  # an enum's default: the index of its name
+                default = float(list(spec[f["values"]]).index(f["default"]))
         out.append(f"    {{\"{f['key']}\", FieldType::{typ}, {_cpp_number(float(f.get('min', 0)))}, "
                    f"{_cpp_number(float(f.get('max', 0)))}, {_cpp_number('default' in f)}, "
-                   f"{_cpp_number(float(f.get('default', 0)))}, {vals}}},")
+                   f"{_cpp_number(default)}, {vals}}},")
     out += ["};", "", "/// Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.",
             "struct MaterialRange {", "    const char* tensor;  ///< materials.<tensor>, shape (M, components)",
             "    int components;", "    double min, max;", "};", "inline constexpr MaterialRange kMaterialRanges[] = {"]
@@ -154,6 +158,8 @@ def python_module(spec: dict) -> str:
               "DIRECTION_INPUTS = " + pprint.pformat({k: (v["count"], v["doc"]) for k, v in spec["direction_inputs"].items()}, width=110, sort_dicts=False),
               "#: Extra inputs after the latent code: name -> (count, description).",
               "EXTRA_INPUTS = " + pprint.pformat({k: (v["count"], v["doc"]) for k, v in spec["extra_inputs"].items()}, width=110, sort_dicts=False),
+              "#: Output layers: name -> description (arch.output_layer).",
+              "OUTPUT_LAYERS = " + pprint.pformat({k: v["doc"] for k, v in spec["output_layers"].items()}, width=110, sort_dicts=False),
               "#: Architectures; network input = direction inputs, latent code, extra inputs.",
               "ARCHS = " + pprint.pformat(archs, width=110, sort_dicts=False),
               "#: Fields of a model file's ``arch`` object, checked in this order by both loaders.",

@@ -208,12 +208,22 @@ PYBIND11_MODULE(_core, m) {
             };
             const auto& layers = md.layers();
             for (std::size_t l = 0; l < layers.size(); ++l) {
-                const std::string name = l + 1 == layers.size() ? "mlp.out" : "mlp.hidden." + std::to_string(l);
+                const std::string name = int(l) == md.depth() ? "mlp.out" : "mlp.hidden." + std::to_string(l);
                 out[py::str(name + ".weight")] = array(layers[l].weight, {layers[l].n_out, layers[l].n_in});
                 out[py::str(name + ".bias")] = array(layers[l].bias, {layers[l].n_out});
             }
             const auto& mats = md.materials();
             const py::ssize_t n = py::ssize_t(mats.size()), l = md.latent_dim();
+            if (md.output_layer_kind() == hbrdf::OutputLayer::Material) {
+                std::vector<float> hw, hb;
+                for (const auto& mat : mats) {
+                    hw.insert(hw.end(), mat.head.weight.begin(), mat.head.weight.end());
+                    hb.insert(hb.end(), mat.head.bias.begin(), mat.head.bias.end());
+                }
+                const py::ssize_t n_out = mats.empty() ? 0 : mats[0].head.n_out;
+                out["materials.head_weight"] = array(hw, {n, n_out, py::ssize_t(md.width())});
+                out["materials.head_bias"] = array(hb, {n, n_out});
+            }
             std::vector<float> z, kd, eta, alpha;
             for (const auto& mat : mats) {
                 z.insert(z.end(), mat.latent.begin(), mat.latent.end());

@@ -242,7 +242,7 @@ std::string shader_constant_key(const std::string& name) {
 // network_overflow_problem computes the same): inputs bounded, |W| b + |bias| per layer,
 // relu and hardGeLU never grow a magnitude. Empty when the network cannot overflow float32.
 std::string network_overflow_problem(const std::map<std::string, Tensor>& tensors, const spec::ArchSpec& as,
-                                     int depth, int latent) {
+                                     int depth, int latent, OutputLayer output_layer) {
     const Tensor& z = tensors.at("materials.z");
     std::vector<double> z_bound(latent, 0.0);
     for (std::size_t k = 0; k < z.data.size(); ++k)
@@ -274,13 +274,26 @@ std::string network_overflow_problem(const std::map<std::string, Tensor>& tensor
     std::vector<double> b(as.direction_count, 1.0);
     b.insert(b.end(), z_bound.begin(), z_bound.end());
     b.insert(b.end(), as.extra_count, std::log1p(double(std::numeric_limits<float>::max())));
-    for (int i = 0; i <= depth; ++i) {
-        const std::string prefix = i < depth ? "mlp.hidden." + std::to_string(i) : std::string("mlp.out");
+    for (int i = 0; i < depth; ++i) {
+        const std::string prefix = "mlp.hidden." + std::to_string(i);
         b = layer(prefix, b);
         const std::string problem = message(prefix + ".weight", b);
         if (!problem.empty()) return problem;
     }
-    return {};
+    if (output_layer == OutputLayer::Material) {
+        // Every material's head on the shared bound of the last hidden layer; the largest output counts.
+        const Tensor& w = tensors.at("materials.head_weight");
+        const Tensor& bias = tensors.at("materials.head_bias");
+        const std::size_t rows = std::size_t(w.shape[0] * w.shape[1]), n_in = std::size_t(w.shape[2]);
+        std::vector<double> out(rows);
+        for (std::size_t r = 0; r < rows; ++r) {
+            double sum = 0.0;
+            for (std::size_t i = 0; i < n_in; ++i) sum += std::fabs(double(w.data[r * n_in + i])) * b[i];
+            out[r] = sum + std::fabs(double(bias.data[r]));
+        }
+        return message("materials.head_weight", out);
+    }
+    return message("mlp.out.weight", layer("mlp.out", b));
 }
 
 std::string join_names(const std::vector<std::string>& names) {
@@ -337,6 +350,7 @@ HybridModel HybridModel::load(const std::string& path) {
     model.n_in_ = int(field.at("n_in"));
     model.n_out_ = int(field.at("n_out"));
     model.pre_exp_max_ = float(field.at("pre_exp_max"));
+    model.output_layer_ = static_cast<OutputLayer>(int(field.at("output_layer")));
     const spec::ArchSpec& as = model.arch();
     const int expected_in = as.direction_count + model.latent_ + as.extra_count;
     if (model.n_in_ != expected_in || model.n_out_ != as.n_out)
@@ -387,8 +401,16 @@ HybridModel HybridModel::load(const std::string& path) {
         expected[prefix + ".bias"] = {model.width_};
         n_in = model.width_;
     }
-    expected["mlp.out.weight"] = {model.n_out_, model.width_};
-    expected["mlp.out.bias"] = {model.n_out_};
+    if (model.output_layer_ == OutputLayer::Shared) {
+        expected["mlp.out.weight"] = {model.n_out_, model.width_};
+        expected["mlp.out.bias"] = {model.n_out_};
+    } else {
+        if (!as.analytic)
+            throw ModelFileError(path, std::string("arch.output_layer 'material' is for architectures with an analytic "
+                                                   "part, not ") + as.name);
+        expected["materials.head_weight"] = {n_mat, model.n_out_, model.width_};
+        expected["materials.head_bias"] = {n_mat, model.n_out_};
+    }
     if (as.directions == spec::DirectionInputs::Frames) {
         expected["frames.weight"] = {6 * spec::kNeuralFrames, model.latent_};
         expected["frames.bias"] = {6 * spec::kNeuralFrames};
@@ -413,7 +435,7 @@ HybridModel HybridModel::load(const std::string& path) {
     }
 
     // Shared network.
-    const std::string overflow = network_overflow_problem(tensors, as, model.depth_, model.latent_);
+    const std::string overflow = network_overflow_problem(tensors, as, model.depth_, model.latent_, model.output_layer_);
     auto layer = [&](const std::string& prefix) {
         DenseLayer l;
         const Tensor& w = tensors.at(prefix + ".weight");
@@ -424,13 +446,25 @@ HybridModel HybridModel::load(const std::string& path) {
         return l;
     };
     for (int i = 0; i < model.depth_; ++i) model.layers_.push_back(layer("mlp.hidden." + std::to_string(i)));
-    model.layers_.push_back(layer("mlp.out"));
+    if (model.output_layer_ == OutputLayer::Shared) model.layers_.push_back(layer("mlp.out"));
     if (as.directions == spec::DirectionInputs::Frames) model.frames_ = layer("frames");
 
     // Per-material values.
     const Tensor& z = tensors.at("materials.z");
     for (std::int64_t i = 0; i < n_mat; ++i)
         model.materials_[i].latent.assign(z.data.begin() + i * model.latent_, z.data.begin() + (i + 1) * model.latent_);
+    if (model.output_layer_ == OutputLayer::Material) {
+        const Tensor& hw = tensors.at("materials.head_weight");
+        const Tensor& hb = tensors.at("materials.head_bias");
+        const std::size_t nw = std::size_t(model.n_out_) * model.width_;
+        for (std::int64_t i = 0; i < n_mat; ++i) {
+            DenseLayer& h = model.materials_[i].head;
+            h.n_in = model.width_;
+            h.n_out = model.n_out_;
+            h.weight.assign(hw.data.begin() + i * nw, hw.data.begin() + (i + 1) * nw);
+            h.bias.assign(hb.data.begin() + i * model.n_out_, hb.data.begin() + (i + 1) * model.n_out_);
+        }
+    }
     if (as.analytic) {
         for (std::int64_t i = 0; i < n_mat; ++i) {
             ModelMaterial& mat = model.materials_[i];
@@ -470,13 +504,12 @@ void HybridModel::check_material(int m) const {
                                 std::to_string(materials_.size()) + ")");
 }
 
-void HybridModel::run_mlp(const float* x, float* out) const {
+void HybridModel::run_mlp(int m, const float* x, float* out) const {
     float a[kMaxLayerWidth], b[kMaxLayerWidth];
     std::copy(x, x + n_in_, a);
-    const std::size_t n_layers = layers_.size();
-    for (std::size_t l = 0; l < n_layers; ++l) {
-        const DenseLayer& L = layers_[l];
-        const bool last = l + 1 == n_layers;
+    for (int l = 0; l <= depth_; ++l) {
+        const bool last = l == depth_;
+        const DenseLayer& L = last ? output_layer(m) : layers_[l];
         float* dst = last ? out : b;
         for (int j = 0; j < L.n_out; ++j) {
             const float* w = L.weight.data() + static_cast<std::size_t>(j) * L.n_in;
@@ -522,7 +555,7 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
     const Vec3<float> fa = as.analytic ? analytic_[m].eval(wi, wo) : Vec3<float>(0.f);
     if (as.extra == spec::ExtraInputs::Log1pFa)
         for (int c = 0; c < 3; ++c) x[as.direction_count + latent_ + c] = std::log1p(fa[c]);
-    run_mlp(x, o);
+    run_mlp(m, x, o);
     Vec3<float> f;
     for (int c = 0; c < 3; ++c)
         f[c] = detail::combine(as.combine, o[c], as.n_out == 6 ? o[3 + c] : 0.f, fa[c], pre_exp_max_);
@@ -562,8 +595,9 @@ void HybridModel::prepare_batch() {
 
 double HybridModel::flops_per_eval() const {
     double fl = 2.0 * width_ * n_dir_inputs_;
-    for (std::size_t l = 1; l < layers_.size(); ++l) fl += 2.0 * layers_[l].n_in * layers_[l].n_out;
-    return fl;
+    for (int l = 1; l < depth_; ++l) fl += 2.0 * layers_[l].n_in * layers_[l].n_out;
+    const DenseLayer& out = output_layer(0);  // every material's has the same shape
+    return fl + 2.0 * out.n_in * out.n_out;
 }
 
 }  // namespace hbrdf

@@ -288,10 +288,11 @@ struct ModelBatchKernels {
             }
             // The network: first layer from the varying inputs with the folded bias, then the rest.
             Dense::run(md.w0_dirs_.data(), bias0.data(), n_dir, width, X, A, a, false);
-            const std::size_t n_layers = md.layers_.size();
-            for (std::size_t l = 1; l < n_layers; ++l) {
-                const DenseLayer& L = md.layers_[l];
-                const bool last = l + 1 == n_layers;
+            // Hidden layers 1 .. depth-1, then the output layer (shared, or material m's own).
+            const int depth = md.depth_;
+            for (int l = 1; l <= depth; ++l) {
+                const bool last = l == depth;
+                const DenseLayer& L = last ? md.output_layer(m) : md.layers_[l];
                 Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? O : B, a, last);
                 if (!last) std::swap(A, B);
             }

@@ -17,6 +17,7 @@ from hybridbrdf import spec
 
 ARCHS = tuple(spec.ARCHS)
 ACTIVATIONS = tuple(spec.ACTIVATIONS)
+OUTPUT_LAYERS = tuple(spec.OUTPUT_LAYERS)
 
 #: Starting points of sparse fitting (FitSettings.sparse_init).
 SPARSE_INITS = ("nearest", "neutral")
@@ -163,6 +164,11 @@ class FitSettings:
                            "--latent", type=LATENT)
     activation: str = _setting("hardgelu", "hidden activation (default: %(default)s)", "network", "--activation",
                                choices=ACTIVATIONS)
+    #: "material": each material its own output layer, 6 x width + 6 floats (spec/model.json, output_layers).
+    output_layer: str = _setting("shared", "output layer: shared by every material (the paper's model) or each "
+                                 "material's own ('material': 6 x width + 6 more floats per material, the same "
+                                 "multiply-adds per evaluation; hybrid architectures; docs/FITTING.md) (default: "
+                                 "%(default)s)", "network", "--output-layer", choices=OUTPUT_LAYERS)
     #: the named set of defaults the settings started from (RECIPES); a label only: the values
     #: themselves are what a checkpoint compares.
     recipe: str = _setting("hybridbrdf", "defaults to start from: hybridbrdf (this project's measured best), paper "
@@ -288,7 +294,10 @@ class FitSettings:
         problem = POSITIVE.problem(self.clip)
         if problem:
             raise ValueError(f"clip {problem}")
-        for name, choices in (("arch", ARCHS), ("activation", ACTIVATIONS), ("sparse_init", SPARSE_INITS),
+        if self.output_layer == "material" and not spec.ARCHS.get(self.arch, {}).get("analytic", True):
+            raise ValueError(f"output_layer 'material' is for architectures with an analytic part, not {self.arch}")
+        for name, choices in (("arch", ARCHS), ("activation", ACTIVATIONS), ("output_layer", OUTPUT_LAYERS),
+                              ("sparse_init", SPARSE_INITS),
                               ("recipe", RECIPE_NAMES), ("lr_schedule", LR_SCHEDULES)):
             if getattr(self, name) not in choices:
                 raise ValueError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")

@@ -33,6 +33,7 @@ import torch
 
 from hybridbrdf import checkpoint as ckpt
 from hybridbrdf import distributed as dd
+from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.metrics import cmae, cosine_hemisphere, metric_directions, smape
 from hybridbrdf.model_file import HybridModel
@@ -250,7 +251,8 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
         for lo in range(0, n_cand, chunk):
             c = {k: v[lo:lo + chunk] for k, v in cand.items()}
             if "kd" in c:
-                f_t, f_a = module.evaluate(wi, wo, c["kd"], c["eta"], c["alpha"], c["z"])
+                head = (c["head_weight"], c["head_bias"]) if "head_weight" in c else None
+                f_t, f_a = module.evaluate(wi, wo, c["kd"], c["eta"], c["alpha"], c["z"], head)
             else:
                 f_t, f_a = module.evaluate(wi, wo, c["z"])
             k = f_t.shape[0]
@@ -264,6 +266,9 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
             if "kd" in cand:
                 module.set_analytic(m, cand["kd"][k], cand["eta"][k], cand["alpha"][k])
             module.z[m] = cand["z"][k]
+            if "head_weight" in cand:
+                module.head_weight[m] = cand["head_weight"][k]
+                module.head_bias[m] = cand["head_bias"][k]
     return best
 
 
@@ -290,7 +295,7 @@ def best_starts(module, pool: "TrainingPool", starts: int, eps, eps_analytic, se
 def _keep_materials(module, rows: List[int], settings: FitSettings, iso: List[bool]):
     """A module of the same network holding only the per-material parameters of ``rows``."""
     kept = build_model(settings.arch, len(rows), settings.width, settings.depth, settings.latent,
-                       settings.activation, iso)
+                       settings.activation, iso, output_layer=settings.output_layer)
     index = torch.tensor(rows, device=next(module.parameters()).device)
     shared = ("mlp.", "frames.")
     kept.load_state_dict({k: (v if k.startswith(shared) else v[index]) for k, v in module.state_dict().items()})
@@ -321,11 +326,13 @@ class FitInterrupted(KeyboardInterrupt):
 
 
 def frozen_arch_settings(settings: FitSettings, frozen: HybridModel) -> FitSettings:
-    """Set ``settings``' network fields (arch, width, depth, latent, activation) to those of the
-    frozen model a sparse fit keeps; returns ``settings``."""
+    """Set ``settings``' network fields (arch, width, depth, latent, activation, output layer) to
+    those of the frozen model a sparse fit keeps; returns ``settings``. With material output
+    layers each new material gets (and fits) a head of its own on the frozen hidden layers."""
     a = frozen.arch
     settings.arch, settings.width, settings.depth = a["kind"], a["width"], a["depth"]
     settings.latent, settings.activation = a["latent"], a["activation"]
+    settings.output_layer = a.get("output_layer", "shared")
     return settings
 
 
@@ -393,13 +400,18 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         if not checksummed:
             log(f"{checkpoint}: checkpoint from an earlier hybridbrdf has no checksum; damage cannot be detected")
     module = build_model(settings.arch, len(sources) * starts, settings.width, settings.depth, settings.latent,
-                         settings.activation, [i for i in iso for _ in range(starts)])
-    if settings.arch in ("hybrid", "analytic-input") and frozen is None:
-        with torch.no_grad():
-            module.mlp.out.bias[0:3] = settings.fc_init
+                         settings.activation, [i for i in iso for _ in range(starts)], output_layer=settings.output_layer)
+    if spec.ARCHS[settings.arch]["combine"] == "gated" and frozen is None:
+        module.set_output_bias(slice(0, 3), settings.fc_init)
     if frozen is not None:
         state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
         module.load_state_dict(state, strict=False)
+        if "materials.head_weight" in frozen.tensors:
+            # A new material's head starts as the mean of the frozen model's (sparse_init
+            # "nearest" then replaces it with the nearest material's).
+            with torch.no_grad():
+                module.head_weight[:] = torch.from_numpy(frozen.tensors["materials.head_weight"].mean(axis=0))
+                module.head_bias[:] = torch.from_numpy(frozen.tensors["materials.head_bias"].mean(axis=0))
 
     module.to(settings.device)
     opt, sched = _optimizer(module, settings, frozen is not None)

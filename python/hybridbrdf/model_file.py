@@ -14,9 +14,11 @@ header's ``__metadata__`` holds one entry, ``"hybridbrdf"``, a JSON document:
     training             settings of the fit (steps, batch, lr, seed, sources, ...)
 
 Tensors (float32): ``mlp.hidden.<i>.weight`` (out, in), ``mlp.hidden.<i>.bias``,
-``mlp.out.weight``, ``mlp.out.bias``; ``frames.weight``/``frames.bias`` (neural only);
-per material ``materials.kd`` (M,3), ``materials.eta`` (M,3), ``materials.alpha`` (M,2)
-(hybrid kinds only) and ``materials.z`` (M,l). Values are evaluation-ready (not the
+``mlp.out.weight``, ``mlp.out.bias`` (``arch.output_layer`` "shared", the default);
+``frames.weight``/``frames.bias`` (neural only); per material ``materials.kd`` (M,3),
+``materials.eta`` (M,3), ``materials.alpha`` (M,2) (hybrid kinds only), ``materials.z`` (M,l)
+and, with ``arch.output_layer`` "material", each material's own output layer
+``materials.head_weight`` (M, n_out, width) and ``materials.head_bias`` (M, n_out). Values are evaluation-ready (not the
 optimiser's raw parameters), so saving then loading is bit-exact.
 
 The contract (architectures, the fields of ``arch`` with their types and bounds, the
@@ -57,8 +59,9 @@ def network_tensor_shapes(arch: Dict[str, Any]) -> Dict[str, tuple]:
     for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
         shapes[f"mlp.hidden.{i}.weight"] = (b, a)
         shapes[f"mlp.hidden.{i}.bias"] = (b,)
-    shapes["mlp.out.weight"] = (arch["n_out"], arch["width"])
-    shapes["mlp.out.bias"] = (arch["n_out"],)
+    if arch.get("output_layer", "shared") == "shared":
+        shapes["mlp.out.weight"] = (arch["n_out"], arch["width"])
+        shapes["mlp.out.bias"] = (arch["n_out"],)
     if spec.ARCHS[arch["kind"]]["directions"] == "frames":
         shapes["frames.weight"] = (6 * spec.NEURAL_FRAMES, arch["latent"])
         shapes["frames.bias"] = (6 * spec.NEURAL_FRAMES,)
@@ -79,8 +82,9 @@ def arch_description(module) -> Dict[str, Any]:
     kind = module.arch
     latent = module.latent_dim
     return {"kind": kind, "width": module.width, "depth": module.depth, "activation": module.activation,
-            "latent": latent, "n_in": module.mlp.hidden[0].in_features, "n_out": module.mlp.out.out_features,
-            "pre_exp_max": module.pre_exp_max, "input": input_description(kind, latent)}
+            "latent": latent, "n_in": module.mlp.hidden[0].in_features, "n_out": module.n_out,
+            "pre_exp_max": module.pre_exp_max, "output_layer": module.output_layer,
+            "input": input_description(kind, latent)}
 
 
 def encode(tensors: Dict[str, np.ndarray], metadata: Dict[str, str]) -> bytes:
@@ -204,10 +208,11 @@ class HybridModel:
         if dtype not in self._modules:
             a = self.arch
             mod = build_model(a["kind"], 1, a["width"], a["depth"], a["latent"], a["activation"],
-                              pre_exp_max=a["pre_exp_max"])
+                              pre_exp_max=a["pre_exp_max"], output_layer=a.get("output_layer", "shared"))
             state = {k: torch.from_numpy(v) for k, v in self.tensors.items() if not k.startswith("materials.")}
             missing = mod.load_state_dict(state, strict=False)
-            unexpected = [k for k in missing.missing_keys if not k.startswith(("kd_raw", "eta_raw", "alpha_raw", "z", "isotropic"))]
+            unexpected = [k for k in missing.missing_keys
+                          if not k.startswith(("kd_raw", "eta_raw", "alpha_raw", "z", "isotropic", "head_"))]
             if unexpected:
                 raise ModelFileError(self.path, f"network tensors missing: {', '.join(unexpected)}")
             self._modules[dtype] = mod.to(dtype).eval()
@@ -261,7 +266,8 @@ class HybridModel:
             if self.kind == "neural":
                 f, fa = mod.evaluate(wi_t, wo_t, m["z"])
             else:
-                f, fa = mod.evaluate(wi_t, wo_t, m["kd"], m["eta"], m["alpha"], m["z"])
+                head = (m["head_weight"], m["head_bias"]) if "head_weight" in m else None
+                f, fa = mod.evaluate(wi_t, wo_t, m["kd"], m["eta"], m["alpha"], m["z"], head)
         out = f[0].double().numpy()
         return out, (fa[0].double().numpy() if fa is not None else None)
 
@@ -419,6 +425,11 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
     expected["materials.z"] = (n_mat, arch["latent"])
     if a["analytic"]:
         expected.update({f"materials.{r['tensor']}": (n_mat, r["components"]) for r in spec.MATERIAL_RANGES})
+    if arch["output_layer"] == "material":
+        if not a["analytic"]:
+            fail(f"arch.output_layer 'material' is for architectures with an analytic part, not {arch['kind']}")
+        expected["materials.head_weight"] = (n_mat, arch["n_out"], arch["width"])
+        expected["materials.head_bias"] = (n_mat, arch["n_out"])
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))
     if missing:
@@ -473,10 +484,20 @@ def network_overflow_problem(arch: Dict[str, Any], tensors: Dict[str, np.ndarray
             return _overflow_message("frames.weight", raw.max())
     extra = np.full(a["extra_count"], float(np.log1p(np.float64(np.finfo(np.float32).max))))
     b = np.concatenate([np.ones(a["direction_count"]), z_bound, extra])
-    for prefix in [f"mlp.hidden.{i}" for i in range(arch["depth"])] + ["mlp.out"]:
+    for prefix in [f"mlp.hidden.{i}" for i in range(arch["depth"])]:
         b = layer(prefix, b)
         if b.max(initial=0.0) > limit:
             return _overflow_message(prefix + ".weight", b.max())
+    if arch.get("output_layer", "shared") == "material":
+        # Every material's head on the shared bound of the last hidden layer; the largest output counts.
+        w = np.abs(tensors["materials.head_weight"].astype(np.float64))
+        out = (w * b[None, None, :]).sum(axis=2) + np.abs(tensors["materials.head_bias"].astype(np.float64))
+        if out.max(initial=0.0) > limit:
+            return _overflow_message("materials.head_weight", out.max())
+        return None
+    b = layer("mlp.out", b)
+    if b.max(initial=0.0) > limit:
+        return _overflow_message("mlp.out.weight", b.max())
     return None
 
 

@@ -89,10 +89,15 @@ class MLP(nn.Module):
     def forward_from(self, pre: torch.Tensor) -> torch.Tensor:
         """The network from the first hidden layer's pre-activation ``pre`` on (a caller that
         computes the first layer by parts: HybridBRDF._first_layer)."""
+        return self.out(self.features_from(pre))
+
+    def features_from(self, pre: torch.Tensor) -> torch.Tensor:
+        """The last hidden layer's activations, from the first one's pre-activation ``pre``: what
+        an output layer (shared, or a material's own) reads."""
         x = self._act(pre)
         for layer in self.hidden[1:]:
             x = self._act(layer(x))
-        return self.out(x)
+        return x
 
     def layers(self) -> List[nn.Linear]:
         return list(self.hidden) + [self.out]
@@ -129,8 +134,11 @@ class HybridBRDF(nn.Module):
         activation: str = "hardgelu",
         isotropic: Optional[Sequence[bool]] = None,
         pre_exp_max: float = PRE_EXP_MAX,
+        output_layer: str = "shared",
     ):
         super().__init__()
+        if output_layer not in spec.OUTPUT_LAYERS:
+            raise ValueError(f"unknown output layer {output_layer!r}; expected one of {', '.join(spec.OUTPUT_LAYERS)}")
         if arch not in ARCHS or not spec.ARCHS[arch]["analytic"]:
             raise ValueError(f"HybridBRDF arch must be one of {', '.join(a for a in ARCHS if spec.ARCHS[a]['analytic'])}; got {arch!r}")
         if latent < 0:
@@ -162,10 +170,34 @@ class HybridBRDF(nn.Module):
                 self.mlp.out.bias[3:6] = 2.0
             else:
                 self.mlp.out.bias.zero_()
+        self.output_layer = output_layer
+        if output_layer == "material":
+            # Each material's own output layer (spec/model.json, output_layers), started as copies of
+            # the shared one; the shared one is then gone (the file holds the heads only).
+            self.head_weight = nn.Parameter(self.mlp.out.weight.detach().clone().expand(n_materials, -1, -1).contiguous())
+            self.head_bias = nn.Parameter(self.mlp.out.bias.detach().clone().expand(n_materials, -1).contiguous())
+            self.mlp.out = None
 
     @property
     def n_materials(self) -> int:
         return self.kd_raw.shape[0]
+
+    @property
+    def n_out(self) -> int:
+        return self.head_bias.shape[1] if self.output_layer == "material" else self.mlp.out.out_features
+
+    def set_output_bias(self, channels: slice, value: float) -> None:
+        """Sets the output bias of ``channels`` (the shared layer's, or every material's head) to
+        ``value``: how a fit starts f_c (FitSettings.fc_init)."""
+        with torch.no_grad():
+            if self.output_layer == "material":
+                self.head_bias[:, channels] = value
+            else:
+                self.mlp.out.bias[channels] = value
+
+    def heads(self, idx: torch.Tensor):
+        """(weight (M, n_out, width), bias (M, n_out)) of materials ``idx``, or None (shared layer)."""
+        return (self.head_weight[idx], self.head_bias[idx]) if self.output_layer == "material" else None
 
     # ---- analytic parameters -------------------------------------------------
     def kd(self) -> torch.Tensor:
@@ -190,11 +222,12 @@ class HybridBRDF(nn.Module):
     # ---- evaluation ------------------------------------------------------------
     def forward(self, wi: torch.Tensor, wo: torch.Tensor, material: Optional[torch.Tensor] = None):
         idx = torch.arange(self.n_materials, device=wi.device) if material is None else material
-        return self.evaluate(wi, wo, self.kd()[idx], self.eta()[idx], self.alpha()[idx], self.z[idx])
+        return self.evaluate(wi, wo, self.kd()[idx], self.eta()[idx], self.alpha()[idx], self.z[idx], self.heads(idx))
 
-    def evaluate(self, wi, wo, kd, eta, alpha, z):
+    def evaluate(self, wi, wo, kd, eta, alpha, z, head=None):
         """(f_t, f_a), each (M, B, 3), for explicit per-material values kd, eta (M,3),
-        alpha (M,2), z (M,l) on shared directions wi, wo (B,3).
+        alpha (M,2), z (M,l) on shared directions wi, wo (B,3), and with material output
+        layers, ``head`` = (weight (M, n_out, width), bias (M, n_out)).
 
         The network sees unit directions; f_t is 0 where either direction is below
         the horizon or invalid (as f_a is), so f_c cannot leak light there."""
@@ -205,7 +238,14 @@ class HybridBRDF(nn.Module):
         directions = [wi_n, wo_n]
         if spec.ARCHS[self.arch]["directions"] == "local_half":
             directions.append(half_angle_cosines(wi_n, wo_n))
-        o = self.mlp.forward_from(self._first_layer(torch.cat(directions, dim=-1), z, extra))
+        pre = self._first_layer(torch.cat(directions, dim=-1), z, extra)
+        if self.output_layer == "material":
+            if head is None:
+                raise ValueError("a model with material output layers needs each material's head")
+            # o[m, b] = W_m x[m, b] + b_m: one batched matrix product over the materials.
+            o = torch.baddbmm(head[1][:, None, :], self.mlp.features_from(pre), head[0].transpose(1, 2))
+        else:
+            o = self.mlp.forward_from(pre)
         f_t = self.combine(o, f_a)
         return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
 
@@ -239,12 +279,16 @@ class HybridBRDF(nn.Module):
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         """Evaluation-ready per-material values: kd, eta, alpha, z (float32, detached)."""
-        return {
+        out = {
             "kd": self.kd().detach().float(),
             "eta": self.eta().detach().float(),
             "alpha": self.alpha().detach().float(),
             "z": self.z.detach().float(),
         }
+        if self.output_layer == "material":
+            out["head_weight"] = self.head_weight.detach().float()
+            out["head_bias"] = self.head_bias.detach().float()
+        return out
 
 
 class NeuralBRDF(nn.Module):
@@ -267,6 +311,7 @@ class NeuralBRDF(nn.Module):
                  pre_exp_max: float = PRE_EXP_MAX):
         super().__init__()
         self.arch = "neural"
+        self.output_layer = "shared"  # material output layers are for the analytic architectures
         self.width, self.depth, self.latent_dim, self.activation = width, depth, latent, activation
         self.pre_exp_max = float(pre_exp_max)
         self.frames = nn.Linear(latent, self.N_FRAMES * 6)
@@ -281,6 +326,10 @@ class NeuralBRDF(nn.Module):
     @property
     def n_materials(self) -> int:
         return self.z.shape[0]
+
+    @property
+    def n_out(self) -> int:
+        return self.mlp.out.out_features
 
     def shading_frames(self, z: torch.Tensor):
         """(M, 3 frames, 3 axes t, b, n, 3) orthonormal frames from latent codes (M, L)."""
@@ -311,10 +360,14 @@ class NeuralBRDF(nn.Module):
 
 
 def build_model(arch: str, n_materials: int, width: int, depth: int, latent: int, activation: str,
-                isotropic: Optional[Sequence[bool]] = None, pre_exp_max: float = PRE_EXP_MAX) -> nn.Module:
-    """A fresh model of architecture ``arch`` for ``n_materials`` materials."""
+                isotropic: Optional[Sequence[bool]] = None, pre_exp_max: float = PRE_EXP_MAX,
+                output_layer: str = "shared") -> nn.Module:
+    """A fresh model of architecture ``arch`` for ``n_materials`` materials; ``output_layer``
+    "material" gives each material its own output layer (architectures with an analytic part)."""
     if arch not in ARCHS:
         raise ValueError(f"unknown architecture {arch!r}; expected one of {', '.join(ARCHS)}")
     if spec.ARCHS[arch]["directions"] == "frames":
+        if output_layer != "shared":
+            raise ValueError("material output layers are for architectures with an analytic part, not neural")
         return NeuralBRDF(n_materials, width, depth, latent, activation, isotropic, pre_exp_max)
-    return HybridBRDF(n_materials, arch, width, depth, latent, activation, isotropic, pre_exp_max)
+    return HybridBRDF(n_materials, arch, width, depth, latent, activation, isotropic, pre_exp_max, output_layer)

@@ -62,6 +62,12 @@ DIRECTION_INPUTS = {'local': (6, 'wi.x wi.y wi.z wo.x wo.y wo.z (unit, local fra
                 'computes them')}
 #: Extra inputs after the latent code: name -> (count, description).
 EXTRA_INPUTS = {'none': (0, ''), 'log1p_fa': (3, 'log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)')}
+#: Output layers: name -> description (arch.output_layer).
+OUTPUT_LAYERS = {'shared': 'one output layer for every material: mlp.out.weight (n_out, width), mlp.out.bias (n_out) (the '
+           "paper's model)",
+ 'material': "each material its own output layer (its 'head'): materials.head_weight (M, n_out, width), "
+             'materials.head_bias (M, n_out), and no mlp.out; the hidden layers stay shared. The latent code '
+             'still enters the first layer. Architectures with an analytic part only.'}
 #: Architectures; network input = direction inputs, latent code, extra inputs.
 ARCHS = {'hybrid': {'directions': 'local',
             'direction_count': 6,
@@ -121,7 +127,8 @@ ARCH_FIELDS = [{'key': 'kind', 'type': 'enum', 'values': 'archs'},
  {'key': 'latent', 'type': 'int', 'min': 0, 'max': 64},
  {'key': 'n_in', 'type': 'int', 'min': 1, 'max': 256},
  {'key': 'n_out', 'type': 'int', 'min': 1, 'max': 6},
- {'key': 'pre_exp_max', 'type': 'number', 'min': 0.0, 'max': 80.0, 'default': 16.0}]
+ {'key': 'pre_exp_max', 'type': 'number', 'min': 0.0, 'max': 80.0, 'default': 16.0},
+ {'key': 'output_layer', 'type': 'enum', 'values': 'output_layers', 'default': 'shared'}]
 #: Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.
 MATERIAL_RANGES = [{'tensor': 'kd', 'components': 3, 'min': 0.0, 'max': 1.0},
  {'tensor': 'eta', 'components': 3, 'min': 1.0, 'max': 10.0},

@@ -47,6 +47,7 @@ private:
 /// Architectures and activations are declared once, in the model contract (spec/model.json).
 using ModelKind = spec::ModelKind;
 using Activation = spec::Activation;
+using OutputLayer = spec::OutputLayer;
 
 /// Widest layer and longest input the scalar path keeps on the stack.
 inline constexpr int kMaxLayerWidth = spec::kMaxWidth;
@@ -64,6 +65,7 @@ struct ModelMaterial {
     bool isotropic = true;
     AnalyticParams params;     ///< unused by the neural baseline
     std::vector<float> latent; ///< z
+    DenseLayer head;           ///< the material's own output layer (OutputLayer::Material), else empty
 };
 
 class HybridModel {
@@ -81,8 +83,15 @@ public:
     /// The architecture's row of the model contract: input layout, output count, combine rule.
     const spec::ArchSpec& arch() const { return spec::arch_spec(kind_); }
     int conventions_version() const { return conventions_version_; }
+    /// Shared (the paper's model) or one output layer per material (spec/model.json, output_layers).
+    OutputLayer output_layer_kind() const { return output_layer_; }
     const std::vector<ModelMaterial>& materials() const { return materials_; }
+    /// The shared layers: the hidden layers, then the output layer when it is shared.
     const std::vector<DenseLayer>& layers() const { return layers_; }
+    /// The output layer material m evaluates with: its own, or the shared one.
+    const DenseLayer& output_layer(int m) const {
+        return output_layer_ == OutputLayer::Material ? materials_[m].head : layers_.back();
+    }
     /// Index of a material by name, or -1.
     int find(const std::string& name) const;
 
@@ -102,14 +111,15 @@ public:
 private:
     HybridModel() = default;
     void check_material(int m) const;
-    // Runs the shared MLP on `x` (n_in values); writes n_out values to `out`.
-    void run_mlp(const float* x, float* out) const;
+    // Runs material m's network on `x` (n_in values); writes n_out values to `out`.
+    void run_mlp(int m, const float* x, float* out) const;
 
     ModelKind kind_ = ModelKind::Hybrid;
     Activation activation_ = Activation::HardGelu;
+    OutputLayer output_layer_ = OutputLayer::Shared;
     int width_ = 0, depth_ = 0, latent_ = 0, n_in_ = 0, n_out_ = 0, conventions_version_ = 0;
     float pre_exp_max_ = float(spec::kPreExpMax);
-    std::vector<DenseLayer> layers_;  ///< hidden layers then the output layer
+    std::vector<DenseLayer> layers_;  ///< hidden layers, then the output layer when shared
     DenseLayer frames_;               ///< neural baseline: latent -> 3 frames (18 values)
     std::vector<ModelMaterial> materials_;
     std::vector<AnalyticBrdf> analytic_;  ///< per material, prepared once

@@ -99,6 +99,11 @@ enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput, HybridHa
 inline constexpr const char* kModelKindNames[] = {"hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"};
 inline constexpr int kModelKindCount = 6;
 
+/// Whose output layer a material uses (arch.output_layer).
+enum class OutputLayer { Shared, Material };
+inline constexpr const char* kOutputLayerNames[] = {"shared", "material"};
+inline constexpr int kOutputLayerCount = 2;
+
 /// One architecture: network input = direction inputs, latent code, extra inputs (in that order).
 struct ArchSpec {
     const char* name;
@@ -141,6 +146,7 @@ inline constexpr ArchField kArchFields[] = {
     {"n_in", FieldType::Int, 1.0, 256.0, false, 0.0, nullptr, 0},
     {"n_out", FieldType::Int, 1.0, 6.0, false, 0.0, nullptr, 0},
     {"pre_exp_max", FieldType::Number, 0.0, 80.0, true, 16.0, nullptr, 0},
+    {"output_layer", FieldType::Enum, 0.0, 0.0, true, 0.0, kOutputLayerNames, kOutputLayerCount},
 };
 
 /// Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.
