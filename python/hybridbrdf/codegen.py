@@ -183,6 +183,17 @@ def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool 
     return lines
 
 
+def unrolled_head(width: int, n_out: int, depth: int) -> List[str]:
+    """The output layer of a model with material output layers, read from the material:
+    ``o[j] = m.head_b[j] + m.head_w[j * width + k] * h<depth-1>_k + ...`` with constant indices
+    (shader compilers then address the material's constants directly, no dynamic indexing)."""
+    lines = []
+    for j in range(n_out):
+        terms = [f"m.head_b[{j}]"] + [f"+ m.head_w[{j * width + k}] * h{depth - 1}_{k}" for k in range(width)]
+        lines.append(f"o[{j}] = {' '.join(terms)};")
+    return lines
+
+
 def _unrolled_frames(tensors) -> List[str]:
     """``raw_frames[j] = b + W z`` for the neural baseline's 18 frame outputs, weights as literals."""
     w = np.asarray(tensors["frames.weight"], dtype=np.float32)
@@ -309,7 +320,7 @@ def load_scene(scene, model: HybridModel, model_path=None) -> Dict[str, object]:
 
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
              model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
-             precision: str = "fp32", mlp_form: str = "auto") -> str:
+             precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None) -> str:
     """Source code of ``model`` for ``target`` (glsl, hlsl, cpp or brdfexplorer), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
     default values; kd, eta, alpha and the latent code become sliders.
@@ -364,8 +375,20 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     for i in range(a["depth"]):
         w = t[f"mlp.hidden.{i}.weight"]
         layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t[f"mlp.hidden.{i}.bias"]})
-    w = t["mlp.out.weight"]
-    layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t["mlp.out.bias"]})
+    # The output layer: the shared one; with material output layers (spec/model.json) each
+    # material's own, held in HbrdfMaterial as engines hold per-material constants, or as
+    # literals where one material is emitted for a scene (or literal_head names it).
+    heads = a.get("output_layer", "shared") == "material"
+    head_in_material = False
+    if not heads:
+        w = t["mlp.out.weight"]
+        layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t["mlp.out.bias"]})
+    elif literal_head is not None or (fold_latent and not analytic_only):
+        i = model.index(literal_head if literal_head is not None else names[0])
+        w = t["materials.head_weight"][i]
+        layers.append({"n_in": w.shape[1], "n_out": w.shape[0], "weight": w.ravel(), "bias": t["materials.head_bias"][i]})
+    elif not analytic_only:
+        head_in_material = True
     n_in, latent_in = a["n_in"], latent
     if fold_latent and latent:
         # One material: its latent inputs are constants, so W0[:, z] z joins the first bias.
@@ -380,8 +403,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         _check_half_range(layers)
     for i, layer in enumerate(layers):
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
-        layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1, precision == "fp16")
-                             if unrolled else [])
+        layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1 and not head_in_material,
+                                            precision == "fp16") if unrolled else [])
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
@@ -392,6 +415,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
             kd, eta, alpha = t["materials.kd"][i], t["materials.eta"][i], t["materials.alpha"][i]
         mats.append({"const_name": c, "kd": [float_literal(v) for v in kd], "eta": [float_literal(v) for v in eta],
                      "alpha": [float_literal(v) for v in alpha], "z": z,
+                     "head_w": t["materials.head_weight"][i].ravel() if head_in_material else [],
+                     "head_b": t["materials.head_bias"][i] if head_in_material else [],
                      "analytic_only": "true" if flags.get(n, False) else "false"})
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(_template_dir())), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True)
@@ -404,7 +429,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         not_emitted=[comment_text(n) for n in (scene or {}).get("not_emitted", [])], neural_max_depth=neural_max_depth,
         depth_limited=neural_max_depth != NO_DEPTH_LIMIT,
         isotropic_only=isotropic_only, fold_latent=fold_latent, fp16=precision == "fp16", unrolled=unrolled,
-        mixed=mixed,
+        mixed=mixed, head_in_material=head_in_material,
+        head_unrolled=unrolled_head(a["width"], a["n_out"], a["depth"]) if head_in_material and unrolled else [],
         material_names=[comment_text(n) for n in names], materials=mats, layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),
         pre_exp_max=float_literal(a["pre_exp_max"]),
         frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
@@ -425,7 +451,10 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
     check_material_selection(model, names)
     default = model.index(names[0])
     # The GLSL body without material constants; BRDF Explorer's GLSL takes no 'f' suffixes.
-    body = generate(model, "glsl", [names[0]], model_path, extra_args)
+    # A model with material output layers: the default material's head as literals (the sliders
+    # move p and z; a head has 6 x width numbers, no slider's worth).
+    literal = names[0] if model.arch.get("output_layer", "shared") == "material" else None
+    body = generate(model, "glsl", [names[0]], model_path, extra_args, literal_head=literal)
     body = "\n".join(line for line in body.splitlines()
                       if not line.startswith(("const HbrdfMaterial", "// hybridbrdf generated", "//   hbrdf-codegen")))
     body = _F_SUFFIX.sub("", body)

@@ -91,10 +91,12 @@ def tracer_scene(model_path, materials, extra_materials=None, **settings):
                         for i, k in enumerate(mats)], **settings}
 
 
-@pytest.mark.parametrize("arch,activation,mlp_form", [(a, act, "auto") for a, act in ARCHS] + [
-    ("hybrid", "hardgelu", "unrolled"), ("neural", "relu", "unrolled")])
-def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form):
-    path, model = saved_random_model(tmp_path, arch, activation)
+@pytest.mark.parametrize("arch,activation,mlp_form,output_layer", [(a, act, "auto", "shared") for a, act in ARCHS] + [
+    ("hybrid", "hardgelu", "unrolled", "shared"), ("neural", "relu", "unrolled", "shared"),
+    ("hybrid", "hardgelu", "auto", "material"), ("hybrid", "relu", "unrolled", "material"),
+    ("hybrid-half", "hardgelu", "auto", "material"), ("additive", "hardgelu", "unrolled", "material")])
+def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form, output_layer):
+    path, model = saved_random_model(tmp_path, arch, activation, output_layer=output_layer)
     exe = _build_driver(tmp_path, generate(model, "cpp", mlp_form=mlp_form), model.materials)
     rng = np.random.default_rng(8)
     n = 20000

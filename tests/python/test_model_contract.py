@@ -41,10 +41,10 @@ def test_python_and_cpp_read_the_same_contract():
         _core.ALPHA_MIN, _core.ALPHA_MAX, _core.ETA_MIN, _core.ETA_MAX)
 
 
-def base_model(base=TABLE["base"]) -> HybridModel:
+def base_model(base=TABLE["base"], output_layer="shared") -> HybridModel:
     torch.manual_seed(0)
     mod = build_model(base["arch"], base["materials"], base["width"], base["depth"], base["latent"], "hardgelu",
-                      base["isotropic"])
+                      base["isotropic"], output_layer=output_layer)
     with torch.no_grad():
         for p in mod.parameters():
             p.add_(torch.randn_like(p) * 0.3)
@@ -112,16 +112,26 @@ def write_case(case, good: pathlib.Path, bad: pathlib.Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def good_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("contract") / "good.safetensors"
-    base_model().save(path)
-    return path
+def good_files(tmp_path_factory):
+    """The table's base file, with the shared output layer and with material output layers (a
+    case with "output_layer": "material" starts from the second)."""
+    folder = tmp_path_factory.mktemp("contract")
+    out = {}
+    for output_layer in ("shared", "material"):
+        out[output_layer] = folder / f"good_{output_layer}.safetensors"
+        base_model(output_layer=output_layer).save(out[output_layer])
+    return out
+
+
+@pytest.fixture(scope="module")
+def good_file(good_files):
+    return good_files["shared"]
 
 
 @pytest.mark.parametrize("case", TABLE["cases"], ids=[c["name"] for c in TABLE["cases"]])
-def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_file, case):
+def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_files, case):
     bad = tmp_path / "bad.safetensors"
-    write_case(case, good_file, bad)
+    write_case(case, good_files[case.get("output_layer", "shared")], bad)
     with pytest.raises(hb.ModelFileError) as py_err:
         hb.load_model(bad)
     with pytest.raises(hb.ModelFileError) as cpp_err:  # libhybridbrdf's errors are the same type
@@ -137,19 +147,24 @@ def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_file, case
             assert case["contains"][lang] in problem, (lang, problem)
 
 
-def test_the_base_file_of_the_table_is_valid(good_file):
-    assert hb.load_model(good_file).materials == _core.Model(str(good_file)).materials
+def test_the_base_files_of_the_table_are_valid(good_files):
+    for path in good_files.values():
+        assert hb.load_model(path).materials == _core.Model(str(path)).materials
+    heads = hb.load_model(good_files["material"])
+    assert heads.arch["output_layer"] == "material" and "mlp.out.weight" not in heads.tensors
 
 
 def test_a_file_written_by_the_safetensors_package_is_read_by_cpp_bit_exactly(tmp_path):
-    for arch in ("hybrid", "analytic-input", "neural"):
+    for arch, output_layer in (("hybrid", "shared"), ("analytic-input", "shared"), ("neural", "shared"),
+                               ("hybrid", "material")):
         torch.manual_seed(1)
-        mod = build_model(arch, 4, 8, 3, 12 if arch == "neural" else 4, "relu", [True, False, False, True])
+        mod = build_model(arch, 4, 8, 3, 12 if arch == "neural" else 4, "relu", [True, False, False, True],
+                          output_layer=output_layer)
         with torch.no_grad():
             for p in mod.parameters():
                 p.add_(torch.randn_like(p))
         model = HybridModel.from_module(mod, list("abcd"), ["t"] * 4, {})
-        path = tmp_path / f"{arch}.safetensors"
+        path = tmp_path / f"{arch}_{output_layer}.safetensors"
         model.save(path)
         read = _core.Model(str(path)).tensors()
         expected = {k: v for k, v in model.tensors.items() if not k.startswith("frames.")}

@@ -33,19 +33,21 @@ def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
 
 
 CASES = [("hybrid", "hardgelu", 32, 3), ("hybrid", "relu", 16, 2), ("neural", "hardgelu", 16, 2),
-         ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2), ("hybrid-half", "hardgelu", 16, 2)]
+         ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2), ("hybrid-half", "hardgelu", 16, 2),
+         # material output layers (issue 37): the head in HbrdfMaterial, read with constant indices
+         ("hybrid", "hardgelu", 32, 2, "material"), ("hybrid-half", "relu", 16, 2, "material")]
 
 
 # The network as straight-line code with literal weights (the shader default) and as loops over
 # constant arrays (the C++ default, and the form fp16 uses), both against the library.
 FORMS = [(case, target, "unrolled") for case in CASES for target in ("glsl", "hlsl")] + [
-    (CASES[0], "glsl", "loops"), (CASES[2], "hlsl", "loops")]
+    (CASES[0], "glsl", "loops"), (CASES[2], "hlsl", "loops"), (CASES[7], "glsl", "loops"), (CASES[7], "hlsl", "loops")]
 
 
 @pytest.mark.parametrize("case,target,mlp_form", FORMS)
 def test_shader_matches_the_library_under_lavapipe(tmp_path, case, target, mlp_form):
-    arch, activation, width, depth = case
-    path, model = saved_random_model(tmp_path, arch, activation, width, depth)
+    arch, activation, width, depth, output_layer = (tuple(case) + ("shared",))[:5]
+    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer)
     rng = np.random.default_rng(11)
     hwi, hwo = hard_pairs()
     wi = np.concatenate([cosine_directions(rng, 100_000), hwi]).astype(np.float32)
