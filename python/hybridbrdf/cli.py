@@ -310,10 +310,14 @@ def _cmd_info(args: argparse.Namespace) -> int:
     written_by = getattr(model, "written_by", None)
     print(f"{args.model}: hybridbrdf model, format {spec.FORMAT_VERSION}, conventions {spec.CONVENTIONS_VERSION}"
           + (f", written by hybridbrdf {_shown(written_by)}" if written_by is not None else ""))
+    heads = a.get("output_layer", "shared") == "material"
     print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "
-          f"{a['n_in']} inputs -> {a['n_out']} outputs")
+          f"{a['n_in']} inputs -> {a['n_out']} outputs"
+          + (", output layer per material" if heads else ""))
     n_net = sum(v.size for k, v in model.tensors.items() if not k.startswith("materials."))
-    print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32)")
+    n_mat = sum(v[0].size for k, v in model.tensors.items() if k.startswith("materials."))
+    print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32); per material: {n_mat} floats "
+          f"({4 * n_mat} bytes" + (f", {a['n_out'] * (a['width'] + 1)} of them its output layer)" if heads else ")"))
     t = model.training if isinstance(model.training, dict) else {}
     if t:
         sections = ("training", "run") + (("sparse",) if t.get("frozen_from") else ())  # sparse_init: sparse fits only

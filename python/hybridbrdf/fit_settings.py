@@ -40,9 +40,9 @@ RECIPES = {
     "hybridbrdf": {},
     "paper": dict(width=32, depth=3, latent=4, steps=200_000, batch=1024, lr=5e-3, clip=0.01, weight_decay=0.01,
                   loss_eps=1.0, loss_eps_relative=False, analytic_loss_eps=None, loss_cos=True,
-                  analytic_expectile=0.5, specular=0.0),
+                  analytic_expectile=0.5, specular=0.0, output_layer="shared"),
     "fast": dict(width=32, depth=2, latent=4, steps=58_000, batch=1024, lr=4e-2, lr_schedule="exponential",
-                 lr_final=0.01, loss_eps=0.01, analytic_expectile=0.9, specular=0.1),
+                 lr_final=0.01, loss_eps=0.01, analytic_expectile=0.9, specular=0.1, output_layer="shared"),
 }
 RECIPE_NAMES = tuple(RECIPES)
 
@@ -165,10 +165,13 @@ class FitSettings:
     activation: str = _setting("hardgelu", "hidden activation (default: %(default)s)", "network", "--activation",
                                choices=ACTIVATIONS)
     #: "material": each material its own output layer, 6 x width + 6 floats (spec/model.json, output_layers).
-    output_layer: str = _setting("shared", "output layer: shared by every material (the paper's model) or each "
-                                 "material's own ('material': 6 x width + 6 more floats per material, the same "
-                                 "multiply-adds per evaluation; hybrid architectures; docs/FITTING.md) (default: "
-                                 "%(default)s)", "network", "--output-layer", choices=OUTPUT_LAYERS)
+    #: The default since issue 37: on the eight synthetic materials (3,000 steps) mean SMAPE 0.118 vs
+    #: 0.152 and the exact-f_a control (plastic) no longer worse than its f_a (docs/FITTING.md).
+    output_layer: str = _setting("material", "output layer: each material's own ('material': 6 x width + 6 more floats "
+                                 "per material, the same multiply-adds per evaluation; the neural baseline always shares its) or one "
+                                 "shared by every material ('shared': the paper's model; the paper and fast recipes) "
+                                 "(default: %(default)s; docs/FITTING.md)", "network", "--output-layer",
+                                 choices=OUTPUT_LAYERS)
     #: the named set of defaults the settings started from (RECIPES); a label only: the values
     #: themselves are what a checkpoint compares.
     recipe: str = _setting("hybridbrdf", "defaults to start from: hybridbrdf (this project's measured best), paper "
@@ -277,6 +280,11 @@ class FitSettings:
             raise ValueError(f"recipe must be one of {', '.join(RECIPE_NAMES)}, got {recipe!r}")
         return cls(**{**RECIPES[recipe], **values, "recipe": recipe})
 
+    def network_output_layer(self) -> str:
+        """The output layer the fit builds: ``output_layer``, except for the neural baseline, whose
+        output layer is always shared (material output layers belong to the analytic architectures)."""
+        return self.output_layer if spec.ARCHS.get(self.arch, {}).get("analytic", True) else "shared"
+
     def check(self) -> None:
         """Raise ValueError naming the first setting out of its range (the flags' own ranges,
         :class:`Number`, and the model contract's size limits)."""
@@ -294,8 +302,6 @@ class FitSettings:
         problem = POSITIVE.problem(self.clip)
         if problem:
             raise ValueError(f"clip {problem}")
-        if self.output_layer == "material" and not spec.ARCHS.get(self.arch, {}).get("analytic", True):
-            raise ValueError(f"output_layer 'material' is for architectures with an analytic part, not {self.arch}")
         for name, choices in (("arch", ARCHS), ("activation", ACTIVATIONS), ("output_layer", OUTPUT_LAYERS),
                               ("sparse_init", SPARSE_INITS),
                               ("recipe", RECIPE_NAMES), ("lr_schedule", LR_SCHEDULES)):

@@ -295,7 +295,7 @@ def best_starts(module, pool: "TrainingPool", starts: int, eps, eps_analytic, se
 def _keep_materials(module, rows: List[int], settings: FitSettings, iso: List[bool]):
     """A module of the same network holding only the per-material parameters of ``rows``."""
     kept = build_model(settings.arch, len(rows), settings.width, settings.depth, settings.latent,
-                       settings.activation, iso, output_layer=settings.output_layer)
+                       settings.activation, iso, output_layer=settings.network_output_layer())
     index = torch.tensor(rows, device=next(module.parameters()).device)
     shared = ("mlp.", "frames.")
     kept.load_state_dict({k: (v if k.startswith(shared) else v[index]) for k, v in module.state_dict().items()})
@@ -400,7 +400,8 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         if not checksummed:
             log(f"{checkpoint}: checkpoint from an earlier hybridbrdf has no checksum; damage cannot be detected")
     module = build_model(settings.arch, len(sources) * starts, settings.width, settings.depth, settings.latent,
-                         settings.activation, [i for i in iso for _ in range(starts)], output_layer=settings.output_layer)
+                         settings.activation, [i for i in iso for _ in range(starts)],
+                         output_layer=settings.network_output_layer())
     if spec.ARCHS[settings.arch]["combine"] == "gated" and frozen is None:
         module.set_output_bias(slice(0, 3), settings.fc_init)
     if frozen is not None:
@@ -628,9 +629,25 @@ def format_extended_table(rows: List[Dict[str, object]]) -> str:
     return "\n".join(lines)
 
 
+#: A model metric counts as worse than its analytic part's (the table's "!") beyond these margins:
+#: 10% of the analytic part's value plus a floor, SMAPE 0.001 (0.1% relative error) and cMAE 5e-5
+#: (a twentieth of a percent of a mid-grey diffuse value), below which two fits of the same exact
+#: material differ by their optimiser's noise alone.
+WORSE_MARGIN = {"smape": (0.1, 1e-3), "cmae": (0.1, 5e-5)}
+
+
+def worse_than_analytic(row: Dict[str, object], metric: str) -> bool:
+    """True when the model's ``metric`` (smape or cmae) is worse than its analytic part's beyond
+    :data:`WORSE_MARGIN`."""
+    rel, floor = WORSE_MARGIN[metric]
+    a = float(row[metric + "_analytic"])
+    return float(row[metric]) > a + rel * a + floor
+
+
 def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:
     """The per-material table `hbrdf fit` and `hbrdf eval` print. A model metric worse than its
-    own analytic part's is marked "!" and a note under the table says what to do about it."""
+    own analytic part's (beyond :data:`WORSE_MARGIN`) is marked "!" and a note under the table
+    says what to do about it."""
     has_a = any("smape_analytic" in r for r in rows)
     head = f"{'material':28s} {'reference':32s} " + (
         f"{'SMAPE analytic':>14s} {'SMAPE model':>12s} {'cMAE analytic':>14s} {'cMAE model':>11s}" if has_a
@@ -639,8 +656,8 @@ def format_table(rows: List[Dict[str, object]], n_pairs: int) -> str:
     worse = []
     for r in rows:
         if has_a:
-            mark_s = "!" if r["smape"] > r["smape_analytic"] else " "
-            mark_c = "!" if r["cmae"] > r["cmae_analytic"] else " "
+            mark_s = "!" if worse_than_analytic(r, "smape") else " "
+            mark_c = "!" if worse_than_analytic(r, "cmae") else " "
             if mark_s + mark_c != "  ":
                 worse.append(str(r["material"]))
             lines.append(f"{r['material'][:28]:28s} {str(r['origin'])[:32]:32s} {r['smape_analytic']:14.4f} "

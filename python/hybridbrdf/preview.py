@@ -30,6 +30,9 @@ ROWS = (("exact", None), ("hybrid", "full"), ("f_a alone", "analytic"))
 #: get too small to see and the measured readers' time grows with every material.
 MAX_MATERIALS = 8
 
+#: Samples per pixel of an exact (measured) sphere relative to the model's spheres (see preview_scenes).
+EXACT_SPP_FACTOR = 4
+
 _FRAME = 2.3        # world units across one sphere's square image (radius 1: a small margin)
 _DISTANCE = 60.0     # camera distance: the view directions over a sphere differ by < 2 degrees
 
@@ -59,14 +62,18 @@ def preview_scenes(model_path: str, materials: Sequence[str], sources: Sequence[
     out = []
     for c, (name, source) in enumerate(zip(materials, sources)):
         for r, (_, evaluate) in enumerate(ROWS):
+            samples = spp
             if evaluate is None:
                 if source is None:
                     continue
                 material: Dict[str, object] = {"type": "measured", "source": source}
+                # A measured material is sampled by cosine (docs/RENDERING.md): its glossy lobes are
+                # noisy at the models' spp, so it gets EXACT_SPP_FACTOR times as many samples.
+                samples = spp * EXACT_SPP_FACTOR
             else:
                 material = {"type": "model", "file": os.path.abspath(model_path), "material": name,
                             "evaluate": evaluate}
-            out.append((r, c, sphere_scene(material, pixels_per_sphere, spp)))
+            out.append((r, c, sphere_scene(material, pixels_per_sphere, samples)))
     return out
 
 

@@ -94,7 +94,7 @@ def _set(path_keys, value):
 
 
 def _nan_weight(s):
-    s["module"]["mlp.out.weight"][0, 0] = float("nan")
+    s["module"]["mlp.hidden.0.weight"][0, 0] = float("nan")
 
 
 def _other_arch(s):
@@ -141,7 +141,7 @@ def damaged_checkpoints(data: bytes, state):
         ("other names", _edited(state, _set(["names"], ["plain", "other"])), "other materials"),
         ("other settings", _edited(state, _set(["settings", "lr"], 1e-3)), "other settings (lr: 0.001"),
         ("settings hold a tensor", _edited(state, _set(["settings", "lr"], torch.ones(2))), "not plain values"),
-        ("NaN weights", _edited(state, _nan_weight), "'mlp.out.weight' holds NaN"),
+        ("NaN weights", _edited(state, _nan_weight), "'mlp.hidden.0.weight' holds NaN"),
         ("Inf moment", _edited(state, _set(["optimizer", "state", 0, "exp_avg"], torch.full((8, 10), float("inf")))),
          "exp_avg 0 holds NaN or Inf"),
         ("negative second moment", _edited(state, _set(["optimizer", "state", 1, "exp_avg_sq"], -torch.ones(8))),
