@@ -118,3 +118,29 @@ def test_the_neural_baseline_keeps_one_output_layer():
     assert FitSettings(arch="neural").network_output_layer() == "shared"
     assert FitSettings(arch="hybrid-half").network_output_layer() == "material"
     assert FitSettings.from_recipe("paper").output_layer == FitSettings.from_recipe("fast").output_layer == "shared"
+
+
+def test_generated_code_takes_a_scenes_one_head_as_literals(tmp_path):
+    """Specialised for a scene of one material, the head becomes literals (no head_w in
+    HbrdfMaterial) and the header still computes what the library computes; BRDF Explorer files
+    hold the default material's head as literals too."""
+    from test_codegen import _build_driver, _run_driver, tracer_scene
+
+    from hybridbrdf.codegen import generate, load_scene
+    from helpers import saved_random_model
+
+    path, model = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    general = generate(model, "cpp")
+    assert "float head_w[96];" in general  # 6 x 16
+    scene = load_scene(tracer_scene(path, {"one": "mat-1"}), model)
+    text = generate(model, "cpp", scene=scene)
+    assert "head_w" not in text and "folded into the first layer" in text
+    rng = np.random.default_rng(9)
+    wi = cosine_directions(rng, 3000).astype(np.float32)
+    wo = cosine_directions(rng, 3000).astype(np.float32)
+    u = rng.random((3000, 2)).astype(np.float32)
+    got = _run_driver(_build_driver(tmp_path, text, ["mat-1"]), wi, wo, u, 1)[0]
+    ref = _core.Model(str(path)).eval_scalar(wi, wo, 1)
+    assert np.allclose(got[:, :3], ref, rtol=1e-5, atol=1e-9)
+    explorer = generate(model, "brdfexplorer")
+    assert "head_w" not in explorer and "hbrdf_mlp(x, o)" in explorer
