@@ -167,7 +167,8 @@ def network_bytes(model) -> int:
 
 
 def material_bytes(model) -> int:
-    """float32 bytes one material holds: analytic parameters (kd, eta, alpha) and latent code."""
+    """float32 bytes one material holds: analytic parameters (kd, eta, alpha), latent code and, with
+    material output layers, its head (6 x width + 6)."""
     return FLOAT * sum(int(np.asarray(v)[0].size) for k, v in model.tensors.items() if k.startswith("materials."))
 
 

@@ -177,9 +177,10 @@ def test_recipe_paper_sets_the_papers_values_and_flags_still_win():
     # fast: the schedule bench/bench_fit_time.py measured (docs/FITTING.md, "Fitting in 30 minutes").
     fast = parsed("--recipe", "fast")
     assert (fast.recipe, fast.width, fast.depth, fast.latent, fast.steps, fast.lr, fast.lr_schedule, fast.lr_final,
-            fast.loss_eps, fast.analytic_expectile, fast.specular, fast.weight_decay) == \
-        ("fast", 32, 2, 4, 58_000, 0.04, "exponential", 0.01, 0.01, 0.9, 0.1, 0.0)
-    assert parsed("--recipe", "fast", "--mlp", "16x2").width == 16
+            fast.loss_eps, fast.analytic_expectile, fast.specular, fast.weight_decay, fast.output_layer) == \
+        ("fast", 16, 2, 4, 58_000, 0.04, "exponential", 0.01, 0.01, 0.9, 0.1, 0.0, "material")
+    assert parsed("--recipe", "fast", "--mlp", "32x2").width == 32
+    assert parsed("--recipe", "fast", "--output-layer", "shared").output_layer == "shared"
     # hbrdf add: a sparse fit's steps, whatever the recipe, unless given.
     from hybridbrdf.fit_settings import ADD_STEPS
 
