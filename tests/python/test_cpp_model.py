@@ -15,14 +15,22 @@ from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
 
-ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"]
+# "ARCH:material": the architecture with material output layers (issue 37).
+ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half", "hybrid:material",
+         "hybrid-half:material", "logmul:material"]
+
+
+def _random(arch_spec, **kwargs):
+    """random_model for an ARCHS entry: (module, HybridModel) and the bare architecture name."""
+    arch, _, output_layer = arch_spec.partition(":")
+    _, model = random_model(arch, latent=12 if arch == "neural" else 4, output_layer=output_layer or "shared", **kwargs)
+    return model, arch
 
 
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize("activation", ["hardgelu", "relu"])
 def test_cpp_model_agrees_with_float64_torch(tmp_path, arch, activation):
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=32, depth=3,
-                            isotropic=[True, False, True])
+    model, arch = _random(arch, width=32, depth=3, isotropic=[True, False, True])
     model.arch["activation"] = activation
     path = tmp_path / "m.safetensors"
     model.save(path)
@@ -52,7 +60,7 @@ def test_cpp_model_agrees_with_float64_torch(tmp_path, arch, activation):
 
 @pytest.mark.parametrize("arch", ARCHS)
 def test_cpp_model_hard_cases(tmp_path, arch):
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4)
+    model, arch = _random(arch)
     path = tmp_path / "m.safetensors"
     model.save(path)
     cpp = _core.Model(str(path))
