@@ -66,6 +66,10 @@ def main() -> int:
         wins += ok
         print(f"{name[:24]:24s} {row['smape']:10.4f} {ref[0]:7.4f} {row['cmae']:10.5f} {ref[2]:8.5f}   "
               f"{row['smape_analytic']:13.4f} {ref[1]:8.4f} {row['cmae_analytic']:12.5f} {ref[3]:8.5f}  {verdict(ok)}")
+    mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
+    paper = lambda k: sum(v[k] for v in PAPER.values()) / len(PAPER)  # noqa: E731
+    print(f"{'mean':24s} {mean('smape'):10.4f} {paper(0):7.4f} {mean('cmae'):10.5f} {paper(2):8.5f}   "
+          f"{mean('smape_analytic'):13.4f} {paper(1):8.4f} {mean('cmae_analytic'):12.5f} {paper(3):8.5f}")
     print(f"hybrid beats the released model on both SMAPE and cMAE for {wins} of {len(PAPER)} materials")
     return 0
 

@@ -31,7 +31,7 @@ import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
-from typing import Callable, Dict, List
+from typing import Callable, List
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BUILD = ROOT / "build"
@@ -39,19 +39,12 @@ LIBRARY = BUILD / "libhybridbrdf.a"
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2_fast58k_exp_refit005.safetensors"
 MATERIAL = "cc_ibiza_sunset_rgb.rgl"
 
-Rates = Dict[str, float]
-
-
 @dataclass(frozen=True)
 class Ratio:
     name: str
     value: Callable[[dict], float]
     floor: float
     why: str
-
-
-def _rate(key):
-    return lambda r: r["rates"][key]
 
 
 def _ratio(a, b):
@@ -87,7 +80,8 @@ RATIOS: List[Ratio] = [
 
 def library_flags() -> List[str]:
     """The Release flags CMake compiles libhybridbrdf with: -O3 -DNDEBUG plus the target's
-    PRIVATE options, read from CMakeLists.txt so that the guard follows a change of them."""
+    PRIVATE options, read from CMakeLists.txt so that the guard (and tests/python/test_vectorisation.py)
+    follow a change of them."""
     text = (ROOT / "CMakeLists.txt").read_text()
     m = re.search(r"target_compile_options\(hybridbrdf PRIVATE ([^)]*)\)", text)
     if not m:
