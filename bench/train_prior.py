@@ -4,7 +4,7 @@
 materials: 142), written into the package (python/hybridbrdf/data/prior.safetensors).
 
     python bench/train_prior.py [--steps 20000] [--batch 512] [--mlp 32x2] [--latent 8]
-        [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
+        [--output-layer shared|material] [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
 
 --leave-out NAME drops a material in every form (raw file and reconstruction): the prior of
 issue 16's hold-out (protocol (a) with the prior's recipe), e.g. all five raw RGL files, then
@@ -36,6 +36,9 @@ def main() -> int:
     ap.add_argument("--mlp", default="32x2")
     ap.add_argument("--latent", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--output-layer", choices=("shared", "material"), default="material",
+                    help="the network's output layer: one shared, or each material's own (issue 37; "
+                         "the prior shipped before it is 'shared')")
     ap.add_argument("--leave-out", action="append", default=[], metavar="NAME",
                     help="leave this material out in every form (repeatable)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
@@ -53,7 +56,7 @@ def main() -> int:
     width, depth = parse_mlp(args.mlp)
     # Sources recorded relative to the data folder: the file ships, the machine's paths do not.
     settings = FitSettings(width=width, depth=depth, latent=args.latent, steps=args.steps, batch=args.batch,
-                           seed=args.seed, eval_pairs=100_000,
+                           seed=args.seed, eval_pairs=100_000, output_layer=args.output_layer,
                            sources=[os.path.relpath(p, args.shared) for p in specs])
     t0 = time.time()
     model = fit(sources, settings, checkpoint=args.checkpoint, resume=args.checkpoint is not None,
@@ -63,7 +66,7 @@ def main() -> int:
     model.save(args.out)
     met = [m["metrics"] for m in model.material_info]
     print(f"prior: {len(sources)} materials ({', '.join(FOLDERS)}; left out: {', '.join(args.leave_out) or 'none'}), "
-          f"{args.mlp}, latent {args.latent}, {args.steps} steps x {args.batch} pairs per material, "
+          f"{args.mlp} ({args.output_layer} output layer), latent {args.latent}, {args.steps} steps x {args.batch} pairs per material, "
           f"{time.time() - t0:.0f} s (training {model.training['train_seconds']:.0f} s)")
     print(f"its own fit (10^5 pairs): mean SMAPE {sum(m['smape'] for m in met) / len(met):.4f}, "
           f"mean cMAE {sum(m['cmae'] for m in met) / len(met):.5f}")

@@ -1,5 +1,6 @@
-"""Adding measured materials to a fitted collection without retraining its network
-(``hbrdf add``; the paper's sparse fitting, Sec. 4.2).
+"""Adding measured materials to a fitted network (``hbrdf add``): onto the shipped prior a
+fine-tune (the prior as a starting point: its network trained further with the new materials),
+onto a collection the paper's sparse fitting (Sec. 4.2, the network kept).
 
     model = hybridbrdf.add(["new_paint.bsdf"], to="collection.safetensors", out="collection+paint.safetensors")
 
@@ -79,19 +80,32 @@ def merge(base: HybridModel, added: HybridModel, keep_base_materials: bool = Tru
 
 def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = None,
         out: Optional[Union[str, os.PathLike]] = None, settings: Optional[FitSettings] = None,
-        progress: bool = True, log: Callable[[str], None] = lambda msg: None) -> HybridModel:
-    """Sparse-fit ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects)
-    onto the frozen network of the model file ``to`` and return the merged model (``to``'s
-    materials, then the new ones); with ``out``, also write it there (atomically; ``out`` may be
-    ``to`` itself, which is then replaced only once the fit has succeeded). Without ``to``, the
-    network is the shipped prior's (:mod:`hybridbrdf.prior`) and the model holds the new
-    materials only.
+        progress: bool = True, log: Callable[[str], None] = lambda msg: None,
+        keep_network: bool = False, finetune_steps: Optional[int] = None,
+        prior: Optional[Union[str, os.PathLike]] = None) -> HybridModel:
+    """Add ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects) to a
+    fitted network and return the model; with ``out``, also write it there (atomically; ``out``
+    may be ``to`` itself, which is then replaced only once the fit has succeeded).
+
+    Onto the shipped prior (``to`` None, :mod:`hybridbrdf.prior`), by default a **fine-tune**:
+    the sparse fit below gives each source its (p, z) on the prior's frozen network, then
+    ``finetune_steps`` (default :data:`~hybridbrdf.fit_settings.FINETUNE_STEPS`) steps train the
+    network together with them (:func:`~hybridbrdf.fitting.fit` with ``init=``); the model holds
+    the new materials with a network of their own. ``keep_network``: stop after the sparse fit
+    (the network bit-identical to the prior's, for engines that already ship it).
+
+    Onto a model file ``to``: the sparse fit (paper Sec. 4.2), ``to``'s network kept bit-exact and
+    its materials followed by the new ones.
+
+    ``prior``: another prior's file in place of the shipped one (a prior trained without the
+    materials being added, for an honest hold-out: bench/prior_heldout.py).
 
     ``settings``: the fit's training, loss and sparse settings (:class:`FitSettings`; its
     network fields are taken from ``to``); default: the default recipe with
-    :data:`~hybridbrdf.fit_settings.ADD_STEPS` steps. Raises InputFileError / ModelFileError /
-    ValueError, one line naming the input, before any training for every input that can be checked."""
-    from hybridbrdf.fit_settings import ADD_STEPS
+    :data:`~hybridbrdf.fit_settings.ADD_STEPS` sparse steps. Raises InputFileError /
+    ModelFileError / ValueError, one line naming the input, before any training for every input
+    that can be checked."""
+    from hybridbrdf.fit_settings import ADD_STEPS, FINETUNE_STEPS, STEPS
     from hybridbrdf.fitting import fit, frozen_arch_settings
     from hybridbrdf.prior import prior_path
     from hybridbrdf.util import check_writable
@@ -99,10 +113,16 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     if out is not None:
         check_writable(out, "model")
     on_prior = to is None
-    to = prior_path() if on_prior else to
+    to = (prior if prior is not None else prior_path()) if on_prior else to
+    finetune = on_prior and not keep_network
+    finetune_steps = FINETUNE_STEPS if finetune_steps is None else finetune_steps
+    if finetune:
+        problem = STEPS.problem(finetune_steps)
+        if problem:
+            raise ValueError(f"finetune steps {problem}")
     base = load_model(to)
     settings = dataclasses.replace(settings) if settings is not None else FitSettings(steps=ADD_STEPS)
-    settings.frozen_from = os.fspath(to)
+    settings.frozen_from, settings.init_from = os.fspath(to), None
     frozen_arch_settings(settings, base)
     settings.check()
     opened = _open(sources)
@@ -115,7 +135,21 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         check_additions(base, opened)
     settings.sources = [s.path or s.name for s in opened]
     added = fit(opened, settings, frozen=base, progress=progress, log=log)
-    merged = merge(base, added, keep_base_materials=not on_prior)
+    if finetune:
+        tuned_settings = dataclasses.replace(settings, steps=finetune_steps, frozen_from=None,
+                                             init_from="prior" if prior is None else os.fspath(to))
+        log(f"fine-tune: the network and the new materials' (p, z) together, {finetune_steps} steps")
+        tuned = fit(opened, tuned_settings, init=added, progress=progress, log=log)
+        # The record: the fine-tune's settings and time, and the sparse fit it started from.
+        tuned.training["mode"] = "fine-tune"
+        tuned.training["sparse_fit"] = dict(added.training)
+        for info, start in zip(tuned.material_info, added.material_info):
+            info["sparse_fit"] = {"metrics": start["metrics"], **({"start": start["sparse_start"]}
+                                                                  if "sparse_start" in start else {})}
+        merged = tuned
+    else:
+        added.training["mode"] = "sparse"
+        merged = merge(base, added, keep_base_materials=not on_prior)
     if out is not None:
         merged = merged.save_checked(out)
     return merged

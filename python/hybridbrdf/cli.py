@@ -149,8 +149,16 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     # with the training itself, is the expensive part): outputs, the frozen model, the checkpoint.
     _check_fit_outputs(args)
     frozen = load_model(settings.frozen_from) if settings.frozen_from else None
-    if frozen is not None:
-        frozen_arch_settings(settings, frozen)
+    if frozen is not None and settings.init_from:
+        raise ValueError("--frozen keeps MODEL's network and --init trains it further: give one of them")
+    init = None
+    if settings.init_from:
+        from hybridbrdf.prior import prior_path
+
+        init = load_model(prior_path() if settings.init_from == "prior" else settings.init_from)
+    for start_model in (frozen, init):
+        if start_model is not None:
+            frozen_arch_settings(settings, start_model)
     if args.resume and os.path.exists(args.checkpoint):
         ckpt.load(args.checkpoint, settings)  # fit() restores it; this only fails early
     sources = _open_all(args.sources)
@@ -162,7 +170,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         if ranks.distributed and ranks.main:
             log(f"data-parallel fit on {ranks.world} ranks: {settings.batch // ranks.world} pairs of each "
                 f"{settings.batch}-pair batch per rank")
-        model = fit(sources, settings, frozen=frozen, checkpoint=args.checkpoint,
+        model = fit(sources, settings, frozen=frozen, init=init, checkpoint=args.checkpoint,
                     checkpoint_every=args.checkpoint_every, resume=args.resume, progress=not args.quiet, log=log,
                     compile_step=args.compile, ranks=ranks)
     except KeyboardInterrupt:
@@ -210,17 +218,28 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from hybridbrdf.fitting import format_table
 
     settings = settings_from_args(args, sparse=True)
+    if args.to is not None and (args.keep_network or args.finetune_steps is not None):
+        raise ValueError("--keep-network and --finetune-steps are for adding to the shipped prior; with --to BASE "
+                         "the fit is sparse (BASE's network kept)")
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     try:
-        model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log)
+        model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log,
+                    keep_network=args.keep_network, finetune_steps=args.finetune_steps)
     except MemoryError:
         raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
-    added = set(model.training["additions"][-1]["materials"])
-    new = [m for m in model.material_info if m["name"] in added]
+    if model.training.get("mode") == "fine-tune":
+        new = model.material_info
+        seconds = model.training["sparse_fit"].get("train_seconds", 0.0) + model.training.get("train_seconds", 0.0)
+        how = (f"fine-tuned the shipped prior's network with them ({settings.steps} sparse + "
+               f"{model.training['steps']} fine-tune steps)")
+    else:
+        added = set(model.training["additions"][-1]["materials"])
+        new = [m for m in model.material_info if m["name"] in added]
+        seconds = model.training["additions"][-1].get("train_seconds", 0.0)
+        how = f"sparse fit on {args.to or 'the shipped prior'}'s network, kept bit-exact"
     print(format_table([dict(material=m["name"], origin=m.get("origin", ""), **m["metrics"]) for m in new],
                        settings.eval_pairs))
-    seconds = model.training["additions"][-1].get("train_seconds", 0.0)
-    print(f"added {len(new)} material(s) to {args.to or 'the shipped prior'} in {seconds:.1f} s; wrote {args.out} "
+    print(f"added {len(new)} material(s) in {seconds:.1f} s of training: {how}; wrote {args.out} "
           f"({len(model.materials)} materials)")
     return 0
 
@@ -323,6 +342,12 @@ def _cmd_info(args: argparse.Namespace) -> int:
         sections = ("training", "run") + (("sparse",) if t.get("frozen_from") else ())  # sparse_init: sparse fits only
         print(_settings_line("training", t, sections, RECORDED_TIMINGS))
         print(_settings_line("loss", t, ("loss",)))
+        if t.get("mode") == "fine-tune" and isinstance(t.get("sparse_fit"), dict):
+            print(f"added by fine-tuning the network of {_shown(t.get('init_from'))} (the training line above) "
+                  f"after a sparse fit on it:")
+            print(_settings_line("sparse fit", t["sparse_fit"], ("training", "sparse"), RECORDED_TIMINGS))
+        elif t.get("init_from"):
+            print(f"warm start: the network of {_shown(t['init_from'])}, trained further")
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
         line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {_shown(m.get('origin', ''))}"
@@ -458,18 +483,26 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--no-preview", action="store_true", help="write no preview picture")
     fit.set_defaults(func=_cmd_fit)
 
-    ad = sub.add_parser("add", help="add BRDF sources to a model without retraining its network",
-                        description="Sparse fitting (paper Sec. 4.2): fit only the analytic parameters and latent "
-                                    "code of each source against BASE's frozen network (default: the shipped prior), "
-                                    "and write a model holding BASE's materials followed by the new ones (the new "
-                                    "ones only on the prior). Inputs are checked before any training; --out is "
-                                    "written only when the fit succeeds.", epilog=EPILOG)
+    ad = sub.add_parser("add", help="add BRDF sources to the shipped prior (fine-tuned) or to a model (network kept)",
+                        description="Onto the shipped prior (no --to): each source's analytic parameters and latent "
+                                    "code are fitted on the prior's frozen network (paper Sec. 4.2), then the network "
+                                    "is trained further together with them (--finetune-steps); the model holds the "
+                                    "new materials and their own network. --keep-network stops after the first part. "
+                                    "With --to BASE: the sparse fit only, BASE's network kept bit-exact, and the model "
+                                    "holds BASE's materials followed by the new ones. Inputs are checked before any "
+                                    "training; --out is written only when the fit succeeds.", epilog=EPILOG)
     ad.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
     ad.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
                                                  "shipped prior, hybridbrdf.prior; the model then holds the new "
                                                  "materials only)")
     ad.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
-    add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from",))
+    add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
+    ad.add_argument("--keep-network", action="store_true",
+                    help="onto the shipped prior: fit only the sources' parameters and latent codes, the network "
+                         "bit-identical to the prior's (for engines that already ship it)")
+    ad.add_argument("--finetune-steps", type=positive_int, default=None,
+                    help="onto the shipped prior: steps of the fine-tune after the --steps sparse steps "
+                         "(default: 5000; --lr, --network-lr and the loss flags apply to both)")
     ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     ad.set_defaults(func=_cmd_add)
 

@@ -52,6 +52,10 @@ RECIPE_NAMES = tuple(RECIPES)
 #: "Adding measurements later"), and 5,000 keep a material well inside the 2 minutes issue 16 allows.
 ADD_STEPS = 5000
 
+#: Steps of ``hbrdf add``'s fine-tune onto the shipped prior (after its ADD_STEPS sparse steps):
+#: the network trained together with the new materials (docs/FITTING.md, "Adding to the prior").
+FINETUNE_STEPS = 5000
+
 
 def _setting(default, help: str, section: str, flag: Optional[str] = None, **cli):
     """A FitSettings field with what the command line, ``hbrdf info`` and the docs say of it:
@@ -268,6 +272,18 @@ class FitSettings:
                                   "N best-scoring materials at once and keep the fit with the lowest training loss "
                                   "(costs N times the steps' work) (default: %(default)s)", "sparse",
                                   "--sparse-starts", type=Number(int, 1, 64), metavar="N")
+    #: A warm start (``fit(init=...)``, ``hbrdf fit --init``, and the fine-tune of ``hbrdf add``):
+    #: MODEL's network, every weight trained; each source starts from MODEL's material of the same
+    #: name, else (sparse_init "nearest") from its best-fitting one. See docs/FITTING.md, "Warm starts".
+    init_from: Optional[str] = _setting(None, "start from MODEL's network (trained further) and, per source, "
+                                        "MODEL's material of the same name or else its best-fitting one; "
+                                        "'prior' names the shipped prior; the network settings are MODEL's",
+                                        "training", "--init", metavar="MODEL")
+    #: The network's learning rate as a fraction of ``lr`` (per-material parameters keep ``lr``): a
+    #: warm start that moves a fitted network slower than the new materials' (p, z).
+    network_lr: float = _setting(1.0, "the network's learning rate as a fraction of --lr; the per-material "
+                                 "parameters keep --lr (default: %(default)s)", "training", "--network-lr",
+                                 type=POSITIVE)
     device: str = _setting("cpu", "torch device (default: cuda when available, else cpu)", "run", "--device", metavar="DEVICE")
     sources: List[str] = _setting([], "the sources' specs as given", "run")
     frozen_from: Optional[str] = _setting(None, "sparse fitting: keep MODEL's network, fit only (p, z) of the "

@@ -204,7 +204,7 @@ def _optimizer(module, settings: FitSettings, frozen: bool):
             p.requires_grad_(False)
         groups = [{"params": per_material, "weight_decay": 0.0}]
     else:
-        groups = [{"params": net, "weight_decay": settings.weight_decay},
+        groups = [{"params": net, "weight_decay": settings.weight_decay, "lr": settings.lr * settings.network_lr},
                   {"params": per_material, "weight_decay": 0.0}]
     opt = torch.optim.AdamW(groups, lr=settings.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: lr_factor(settings, step))
@@ -221,7 +221,8 @@ def lr_factor(settings: FitSettings, step: int) -> float:
 
 
 def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, eps_analytic,
-                       settings: FitSettings, n_pairs: int = 8192, chunk: int = 64, starts: int = 1) -> List[int]:
+                       settings: FitSettings, n_pairs: int = 8192, chunk: int = 64, starts: int = 1,
+                       rows: Optional[Sequence[int]] = None) -> List[int]:
     """Sparse fitting's starting point (FitSettings.sparse_init = "nearest"): give every new
     material the (p, z) of the frozen model's material with the lowest training loss on the
     new material's pool values, and return those materials' indices. With ``starts`` = k > 1
@@ -233,7 +234,8 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
     magnitude while z wanders through codes the network never saw. A collection that holds a
     similar material already knows a (p, z) the network decodes well. Scoring all of them
     costs one forward pass per candidate on ``n_pairs`` pool pairs (spread over the cosine and
-    specular parts of the pool), a few training steps' worth."""
+    specular parts of the pool), a few training steps' worth. ``rows``: set only these
+    materials (a warm start keeps the others' own (p, z)); every material is scored."""
     dev = pool.wi.device
     step = max(1, pool.wi.shape[0] // n_pairs)
     idx = torch.arange(0, pool.wi.shape[0], step, device=dev)[:n_pairs]
@@ -263,6 +265,8 @@ def start_from_nearest(module, frozen: HybridModel, pool: "TrainingPool", eps, e
         order = torch.argsort(losses, dim=1, stable=True)
         best = [int(order[m, m % starts]) for m in range(n_new)]
         for m, k in enumerate(best):
+            if rows is not None and m not in rows:
+                continue
             if "kd" in cand:
                 module.set_analytic(m, cand["kd"][k], cand["eta"][k], cand["alpha"][k])
             module.z[m] = cand["z"][k]
@@ -337,7 +341,7 @@ def frozen_arch_settings(settings: FitSettings, frozen: HybridModel) -> FitSetti
 
 
 def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel] = None,
-        checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
+        init: Optional[HybridModel] = None, checkpoint: Optional[str] = None, checkpoint_every: int = 1000, resume: bool = False,
         progress: bool = True, log: Callable[[str], None] = print,
         stop_after: Optional[int] = None, compile_step: bool = False,
         ranks: Optional[dd.Ranks] = None,
@@ -358,6 +362,12 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     Before any source is evaluated, ``checkpoint`` must be writable and, when resumed, pass
     every check of :mod:`hybridbrdf.checkpoint` (checksum, structure, settings, step, finite
     values, shapes); otherwise :class:`~hybridbrdf.errors.InputFileError` naming the file.
+
+    ``init``: a warm start from a fitted model (FitSettings.init_from names its file): its
+    network is loaded and trained further (at ``lr * network_lr``), each source starts from
+    ``init``'s material of the same name, else (sparse_init "nearest") from the one whose
+    (p, z) fits it best, as a sparse fit starts; the network settings are ``init``'s. A model
+    fitted with ``frozen=`` and then continued with ``init=`` is ``hbrdf add``'s fine-tune.
 
     ``ranks``: this process's place in a data-parallel fit (:func:`hybridbrdf.distributed.join`
     under torchrun): every rank trains on its share of the same global batch, gradients are
@@ -384,8 +394,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     torch.manual_seed(settings.seed)
     iso = [bool(s.isotropic) for s in sources]
 
-    if frozen is not None:
-        frozen_arch_settings(settings, frozen)
+    if frozen is not None and init is not None:
+        raise ValueError("a fit keeps a frozen network or starts from one (init), not both")
+    start_model = frozen if frozen is not None else init  # whose network the fit starts from
+    if start_model is not None:
+        frozen_arch_settings(settings, start_model)
     # Sparse fitting from several starts: every new material k times over (rows m k + j).
     starts = (min(settings.sparse_starts, len(frozen.materials))
               if frozen is not None and settings.sparse_init == "nearest" else 1)
@@ -402,17 +415,31 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     module = build_model(settings.arch, len(sources) * starts, settings.width, settings.depth, settings.latent,
                          settings.activation, [i for i in iso for _ in range(starts)],
                          output_layer=settings.network_output_layer())
-    if spec.ARCHS[settings.arch]["combine"] == "gated" and frozen is None:
+    if spec.ARCHS[settings.arch]["combine"] == "gated" and start_model is None:
         module.set_output_bias(slice(0, 3), settings.fc_init)
-    if frozen is not None:
-        state = {k: torch.from_numpy(v) for k, v in frozen.tensors.items() if not k.startswith("materials.")}
+    own_rows: List[int] = []  # warm start: the sources that start from init's material of their name
+    if start_model is not None:
+        state = {k: torch.from_numpy(v) for k, v in start_model.tensors.items() if not k.startswith("materials.")}
         module.load_state_dict(state, strict=False)
-        if "materials.head_weight" in frozen.tensors:
+        if "materials.head_weight" in start_model.tensors:
             # A new material's head starts as the mean of the frozen model's (sparse_init
             # "nearest" then replaces it with the nearest material's).
             with torch.no_grad():
-                module.head_weight[:] = torch.from_numpy(frozen.tensors["materials.head_weight"].mean(axis=0))
-                module.head_bias[:] = torch.from_numpy(frozen.tensors["materials.head_bias"].mean(axis=0))
+                module.head_weight[:] = torch.from_numpy(start_model.tensors["materials.head_weight"].mean(axis=0))
+                module.head_bias[:] = torch.from_numpy(start_model.tensors["materials.head_bias"].mean(axis=0))
+    if init is not None:
+        own_rows = [m for m, n in enumerate(names) if n in init.materials]
+        with torch.no_grad():
+            for m in own_rows:
+                k = init.materials.index(names[m])
+                row = {key[len("materials."):]: torch.from_numpy(v[k]) for key, v in init.tensors.items()
+                       if key.startswith("materials.")}
+                if "kd" in row:
+                    module.set_analytic(m, row["kd"], row["eta"], row["alpha"])
+                module.z[m] = row["z"]
+                if "head_weight" in row:
+                    module.head_weight[m] = row["head_weight"]
+                    module.head_bias[m] = row["head_bias"]
 
     module.to(settings.device)
     opt, sched = _optimizer(module, settings, frozen is not None)
@@ -453,6 +480,10 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     eps_analytic = (settings.loss_eps if settings.analytic_loss_eps is None else settings.analytic_loss_eps) * scale
 
     start_names: Optional[List[str]] = None
+    if init is not None and start == 0 and settings.sparse_init == "nearest" and len(own_rows) < len(names):
+        rest = [m for m in range(len(names)) if m not in own_rows]
+        chosen = start_from_nearest(module, init, pool, eps, eps_analytic, settings, rows=rest)
+        log("warm start: " + ", ".join(f"{names[m]} <- {init.materials[chosen[m]]}" for m in rest))
     if frozen is not None and start == 0 and settings.sparse_init == "nearest":
         chosen = start_from_nearest(module, frozen, pool, eps, eps_analytic, settings, starts=starts)
         start_names = [frozen.materials[k] for k in chosen]

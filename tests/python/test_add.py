@@ -1,6 +1,7 @@
 """hbrdf add / hybridbrdf.add: new materials on a frozen network, merged into one model file."""
 
 import os
+import pathlib
 import re
 import time
 
@@ -11,7 +12,7 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf.adding import merge
 from hybridbrdf.fit_settings import FitSettings
-from hybridbrdf.fitting import fit
+from hybridbrdf.fitting import evaluate, fit
 from hybridbrdf.sources import open_source
 
 from helpers import run_cli
@@ -118,12 +119,13 @@ def test_add_takes_only_the_settings_that_apply():
         assert not re.search(rf"^\s+{flag}\b", r.stdout, re.M), flag
 
 
-def test_add_without_to_uses_the_shipped_prior_and_writes_the_new_materials_only(base_file, tmp_path, monkeypatch):
+def test_keep_network_on_the_prior_writes_the_new_materials_only_on_its_network(base_file, tmp_path, monkeypatch):
     import hybridbrdf.prior as prior_module
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)  # a small stand-in for the shipped prior
     out = tmp_path / "mine.safetensors"
-    added = hb.add(["synthetic:velvet", "synthetic:gold"], out=out, settings=FitSettings(**TINY), progress=False)
+    added = hb.add(["synthetic:velvet", "synthetic:gold"], out=out, settings=FitSettings(**TINY), progress=False,
+                   keep_network=True)
     prior = hb.load_model(base_file)
     # gold is a material of the prior too: on the prior that is no clash, its materials are not written.
     assert added.materials == ["velvet", "gold"] and hb.load_model(out).materials == ["velvet", "gold"]
@@ -133,6 +135,95 @@ def test_add_without_to_uses_the_shipped_prior_and_writes_the_new_materials_only
         else:
             assert added.tensors[key].shape[0] == 2
     assert added.training["additions"][-1]["frozen_from"] == str(base_file)
+    assert added.training["additions"][-1]["mode"] == "sparse"
+    # --keep-network is the sparse fit as it was before the fine-tune became the default: bit for bit.
+    alone = fit([open_source("synthetic:velvet"), open_source("synthetic:gold")],
+                FitSettings(frozen_from=str(base_file), **TINY), frozen=prior, progress=False, log=lambda m: None)
+    for key in alone.tensors:
+        np.testing.assert_array_equal(added.tensors[key], alone.tensors[key])
+
+
+def _file_digest(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+
+
+def test_add_on_the_prior_fine_tunes_its_network_and_leaves_the_prior_file_alone(base_file, tmp_path, monkeypatch):
+    """The default onto the prior: the sparse fit, then the network trained with the new material.
+    Its training loss must end below the sparse fit's (the network's extra freedom is used) and
+    the prior's file is never written."""
+    import hybridbrdf.prior as prior_module
+
+    monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
+    before = _file_digest(base_file)
+    settings = FitSettings(**{**TINY, "steps": 300, "eval_pairs": 20_000})
+    sparse = hb.add(["synthetic:velvet"], settings=settings, progress=False, keep_network=True)
+    tuned = hb.add(["synthetic:velvet"], out=tmp_path / "tuned.safetensors", settings=settings, progress=False,
+                   finetune_steps=300)
+    assert _file_digest(base_file) == before
+    prior = hb.load_model(base_file)
+    moved = [k for k in prior.tensors if not k.startswith("materials.")
+             and not np.array_equal(prior.tensors[k], tuned.tensors[k])]
+    assert moved, "the fine-tune left the network as it was"
+    assert tuned.materials == ["velvet"] and hb.load_model(tmp_path / "tuned.safetensors").materials == ["velvet"]
+    assert tuned.training["mode"] == "fine-tune" and tuned.training["steps"] == 300
+    assert tuned.training["init_from"] == "prior" and tuned.training["sparse_fit"]["frozen_from"] == str(base_file)
+    # Metrics of a held sample of pairs (not the training pool): the fine-tune must not lose to its own start.
+    src = open_source("synthetic:velvet")
+    (s_row,) = evaluate(sparse, [src], n_pairs=50_000, seed=11)
+    (t_row,) = evaluate(tuned, [src], n_pairs=50_000, seed=11)
+    assert t_row["cmae"] < s_row["cmae"], (t_row, s_row)
+    assert tuned.material_info[0]["sparse_fit"]["metrics"]["cmae"] == pytest.approx(
+        sparse.material_info[0]["metrics"]["cmae"], rel=1e-6)  # the start it records is the sparse fit's
+    r = run_cli("info", str(tmp_path / "tuned.safetensors"))
+    assert r.returncode == 0 and "added by fine-tuning the network of prior" in r.stdout, r.stdout
+
+
+def test_fine_tune_flags_belong_to_the_prior(base_file, tmp_path):
+    out = tmp_path / "x.safetensors"
+    r = run_cli("add", "synthetic:velvet", "--to", str(base_file), "--keep-network", "--out", str(out))
+    assert r.returncode == 1 and "--keep-network and --finetune-steps are for adding to the shipped prior" in r.stderr
+    assert not out.exists()
+
+
+def test_warm_start_copies_materials_by_name_and_starts_the_rest_from_the_nearest(base_file):
+    """fit(init=M): M's network and M's (p, z) for sources of the same name; at a vanishing
+    learning rate the fitted model is M's, row for row; a source M lacks gets M's best-fitting material."""
+    base = hb.load_model(base_file)
+    logs = []
+    settings = FitSettings(**{**TINY, "steps": 2, "lr": 1e-12}, init_from=str(base_file))
+    warm = fit([open_source("synthetic:plastic"), open_source("synthetic:velvet")], settings, init=base,
+               progress=False, log=logs.append)
+    assert warm.materials == ["plastic", "velvet"]
+    for key, value in base.tensors.items():
+        got = warm.tensors[key]
+        want = value[1] if key.startswith("materials.") else value  # plastic is the base's second material
+        np.testing.assert_allclose(got[0] if key.startswith("materials.") else got, want, rtol=1e-5, atol=1e-6)
+    assert any(line.startswith("warm start: velvet <- ") for line in logs), logs
+    nearest = logs[-1].split("<- ")[1].split(",")[0]
+    k = base.materials.index(nearest)
+    np.testing.assert_allclose(warm.tensors["materials.z"][1], base.tensors["materials.z"][k], rtol=1e-5, atol=1e-6)
+
+
+def test_warm_start_and_frozen_are_exclusive(base_file, tmp_path):
+    r = run_cli("fit", "synthetic:velvet", "--frozen", str(base_file), "--init", str(base_file),
+                "--out", str(tmp_path / "x.safetensors"))
+    assert r.returncode == 1 and "give one of them" in r.stderr, r.stderr
+
+
+def test_warm_started_fit_resumes_its_checkpoint_exactly(base_file, tmp_path):
+    """An --init fit checkpoints and resumes like any fit: stopped and resumed, it equals the uninterrupted run."""
+    base = hb.load_model(base_file)
+    srcs = [open_source("synthetic:velvet"), open_source("synthetic:gold")]
+    settings = FitSettings(**{**TINY, "steps": 40}, init_from=str(base_file))
+    whole = fit(srcs, settings, init=base, progress=False, log=lambda m: None)
+    ck = tmp_path / "ck.pt"
+    assert fit(srcs, settings, init=base, checkpoint=str(ck), checkpoint_every=10, stop_after=20,
+               progress=False, log=lambda m: None) is None
+    resumed = fit(srcs, settings, init=base, checkpoint=str(ck), resume=True, progress=False, log=lambda m: None)
+    for key in whole.tensors:
+        np.testing.assert_array_equal(resumed.tensors[key], whole.tensors[key])
 
 
 def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch):
