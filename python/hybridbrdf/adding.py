@@ -20,7 +20,7 @@ from typing import Callable, List, Optional, Sequence, Union
 import numpy as np
 
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.fit_settings import FitSettings
+from hybridbrdf.fit_settings import MAX_DRIFT, FitSettings
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.names import names_problem
 from hybridbrdf.sources.base import BRDFSource
@@ -82,7 +82,8 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         out: Optional[Union[str, os.PathLike]] = None, settings: Optional[FitSettings] = None,
         progress: bool = True, log: Callable[[str], None] = lambda msg: None,
         keep_network: bool = False, finetune_steps: Optional[int] = None,
-        prior: Optional[Union[str, os.PathLike]] = None) -> HybridModel:
+        prior: Optional[Union[str, os.PathLike]] = None, refine: bool = False,
+        max_drift: float = MAX_DRIFT) -> HybridModel:
     """Add ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects) to a
     fitted network and return the model; with ``out``, also write it there (atomically; ``out``
     may be ``to`` itself, which is then replaced only once the fit has succeeded).
@@ -95,7 +96,13 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     (the network bit-identical to the prior's, for engines that already ship it).
 
     Onto a model file ``to``: the sparse fit (paper Sec. 4.2), ``to``'s network kept bit-exact and
-    its materials followed by the new ones.
+    its materials followed by the new ones. With ``refine``: after the sparse fit, ``to``'s
+    network is trained further (``finetune_steps``) with the new materials and ``to``'s own,
+    which are replayed against ``to``'s outputs (:class:`~hybridbrdf.sources.model.ModelMaterialSource`:
+    no original measurement needed) with their (p, z) free. Each of ``to``'s materials then
+    records its drift (``refine_drift``: SMAPE and cMAE of the refined model against ``to`` on
+    the metric pairs); a drift in SMAPE above ``max_drift`` raises :class:`RefineDriftError`
+    naming the material, and nothing is written.
 
     ``prior``: another prior's file in place of the shipped one (a prior trained without the
     materials being added, for an honest hold-out: bench/prior_heldout.py).
@@ -114,7 +121,14 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         check_writable(out, "model")
     on_prior = to is None
     to = (prior if prior is not None else prior_path()) if on_prior else to
-    finetune = on_prior and not keep_network
+    if refine and on_prior:
+        raise ValueError("--refine refines the network of --to BASE; onto the shipped prior the network is "
+                         "fine-tuned by default")
+    if refine and keep_network:
+        raise ValueError("--refine trains the network; --keep-network keeps it: give one of them")
+    if not max_drift > 0:
+        raise ValueError(f"max drift must be > 0, got {max_drift}")
+    finetune = (on_prior and not keep_network) or refine
     finetune_steps = FINETUNE_STEPS if finetune_steps is None else finetune_steps
     if finetune:
         problem = STEPS.problem(finetune_steps)
@@ -135,7 +149,9 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         check_additions(base, opened)
     settings.sources = [s.path or s.name for s in opened]
     added = fit(opened, settings, frozen=base, progress=progress, log=log)
-    if finetune:
+    if refine:
+        merged = _refine(base, added, opened, settings, finetune_steps, max_drift, os.fspath(to), progress, log)
+    elif finetune:
         tuned_settings = dataclasses.replace(settings, steps=finetune_steps, frozen_from=None,
                                              init_from="prior" if prior is None else os.fspath(to))
         log(f"fine-tune: the network and the new materials' (p, z) together, {finetune_steps} steps")
@@ -143,9 +159,7 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         # The record: the fine-tune's settings and time, and the sparse fit it started from.
         tuned.training["mode"] = "fine-tune"
         tuned.training["sparse_fit"] = dict(added.training)
-        for info, start in zip(tuned.material_info, added.material_info):
-            info["sparse_fit"] = {"metrics": start["metrics"], **({"start": start["sparse_start"]}
-                                                                  if "sparse_start" in start else {})}
+        _record_sparse_starts(tuned.material_info, added.material_info)
         merged = tuned
     else:
         added.training["mode"] = "sparse"
@@ -153,3 +167,46 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     if out is not None:
         merged = merged.save_checked(out)
     return merged
+
+
+def _record_sparse_starts(infos, sparse_infos) -> None:
+    """Each fine-tuned material keeps the metrics of the sparse fit it started from."""
+    for info, start in zip(infos, sparse_infos):
+        info["sparse_fit"] = {"metrics": start["metrics"], **({"start": start["sparse_start"]}
+                                                              if "sparse_start" in start else {})}
+
+
+class RefineDriftError(ValueError):
+    """``--refine`` moved one of the base's materials further than ``--max-drift`` allows;
+    ``str()`` names the material and the drift, and nothing was written."""
+
+
+def _refine(base: HybridModel, added: HybridModel, opened: List[BRDFSource], settings: FitSettings, steps: int,
+            max_drift: float, base_path: str, progress: bool, log: Callable[[str], None]) -> HybridModel:
+    """``hbrdf add --to BASE --refine``: BASE's network trained further with the new materials
+    (started from their sparse fit) and BASE's own (replayed against BASE's outputs, their
+    (p, z) free); each BASE material's drift measured against BASE on the metric pairs."""
+    from hybridbrdf.fitting import fit
+    from hybridbrdf.sources.model import ModelMaterialSource
+
+    start = merge(base, added)  # every material's starting point, by name
+    replayed = [ModelMaterialSource(base, name) for name in base.materials]
+    tuned_settings = dataclasses.replace(settings, steps=steps, frozen_from=None, init_from=base_path,
+                                         sources=[f"{base_path}:{n}" for n in base.materials] + settings.sources)
+    log(f"refine: {base_path}'s network with its {len(base.materials)} materials (replayed against its own "
+        f"output) and {len(opened)} new, {steps} steps")
+    refined = fit(replayed + opened, tuned_settings, init=start, progress=progress, log=log)
+    worst = (0.0, None)
+    for info, src in zip(refined.material_info, replayed):
+        # fit() scored each replayed material against its source, BASE's own output: that is its drift.
+        info["refine_drift"] = {"smape": info["metrics"]["smape"], "cmae": info["metrics"]["cmae"]}
+        info["origin"] = base.material_info[base.index(src.name)].get("origin", "")
+        worst = max(worst, (info["refine_drift"]["smape"], src.name), key=lambda t: t[0])
+    refined.training.update(mode="refine", sparse_fit=dict(added.training), max_drift=max_drift,
+                            base_training=dict(base.training) if isinstance(base.training, dict) else {})
+    _record_sparse_starts(refined.material_info[len(base.materials):], added.material_info)
+    if worst[0] > max_drift:
+        raise RefineDriftError(f"--refine moved {worst[1]} by SMAPE {worst[0]:.4f} against {base_path} (above "
+                               f"--max-drift {max_drift:g}); nothing written (fewer --finetune-steps, a lower "
+                               f"--network-lr, or add without --refine)")
+    return refined

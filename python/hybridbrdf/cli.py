@@ -218,16 +218,31 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from hybridbrdf.fitting import format_table
 
     settings = settings_from_args(args, sparse=True)
-    if args.to is not None and (args.keep_network or args.finetune_steps is not None):
-        raise ValueError("--keep-network and --finetune-steps are for adding to the shipped prior; with --to BASE "
-                         "the fit is sparse (BASE's network kept)")
+    if args.to is not None and (args.keep_network or (args.finetune_steps is not None and not args.refine)):
+        raise ValueError("--keep-network and --finetune-steps are for adding to the shipped prior or with --refine; "
+                         "with --to BASE alone the fit is sparse (BASE's network kept)")
+    if args.refine and args.to is None:
+        raise ValueError("--refine refines the network of --to BASE; onto the shipped prior the network is "
+                         "fine-tuned by default")
+    if args.max_drift is not None and not args.refine:
+        raise ValueError("--max-drift applies to --refine only")
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     try:
         model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log,
-                    keep_network=args.keep_network, finetune_steps=args.finetune_steps)
+                    keep_network=args.keep_network, finetune_steps=args.finetune_steps, refine=args.refine,
+                    **({} if args.max_drift is None else {"max_drift": args.max_drift}))
     except MemoryError:
         raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
-    if model.training.get("mode") == "fine-tune":
+    if model.training.get("mode") == "refine":
+        n_base = sum("refine_drift" in m for m in model.material_info)
+        new = model.material_info[n_base:]
+        seconds = model.training["sparse_fit"].get("train_seconds", 0.0) + model.training.get("train_seconds", 0.0)
+        drift = [(m["refine_drift"]["smape"], m["refine_drift"]["cmae"], m["name"]) for m in model.material_info[:n_base]]
+        worst = max(drift)
+        how = (f"refined {args.to}'s network with them and its {n_base} materials ({settings.steps} sparse + "
+               f"{model.training['steps']} refine steps); its materials moved by SMAPE {sum(d[0] for d in drift) / n_base:.4f} "
+               f"on average against {args.to}, at most {worst[0]:.4f} ({worst[2]}; --max-drift {model.training['max_drift']:g})")
+    elif model.training.get("mode") == "fine-tune":
         new = model.material_info
         seconds = model.training["sparse_fit"].get("train_seconds", 0.0) + model.training.get("train_seconds", 0.0)
         how = (f"fine-tuned the shipped prior's network with them ({settings.steps} sparse + "
@@ -502,7 +517,15 @@ def build_parser() -> argparse.ArgumentParser:
                          "bit-identical to the prior's (for engines that already ship it)")
     ad.add_argument("--finetune-steps", type=positive_int, default=None,
                     help="onto the shipped prior: steps of the fine-tune after the --steps sparse steps "
-                         "(default: 5000; --lr, --network-lr and the loss flags apply to both)")
+                         "(default: 5000; --lr, --network-lr and the loss flags apply to both); with --refine, "
+                         "the refinement's steps")
+    ad.add_argument("--refine", action="store_true",
+                    help="with --to BASE: after the sparse fit, train BASE's network further with the new materials "
+                         "and BASE's own, replayed against BASE's outputs with their (p, z) free; each BASE "
+                         "material's drift (SMAPE and cMAE against BASE) is printed and recorded")
+    ad.add_argument("--max-drift", type=float, default=None, metavar="X",
+                    help="with --refine: the largest drift (SMAPE against BASE's own output) a BASE material may "
+                         "take; above it nothing is written (default: 0.05)")
     ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     ad.set_defaults(func=_cmd_add)
 

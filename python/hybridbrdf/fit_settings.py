@@ -56,6 +56,10 @@ ADD_STEPS = 5000
 #: the network trained together with the new materials (docs/FITTING.md, "Adding to the prior").
 FINETUNE_STEPS = 5000
 
+#: ``hbrdf add --refine``'s limit on how far a base material may move: SMAPE of the refined
+#: model against the base's own output on the metric pairs (docs/FITTING.md, "Refining a collection").
+MAX_DRIFT = 0.05
+
 
 def _setting(default, help: str, section: str, flag: Optional[str] = None, **cli):
     """A FitSettings field with what the command line, ``hbrdf info`` and the docs say of it:

@@ -302,3 +302,50 @@ def test_several_starts_pick_the_better_fit_when_the_nearest_is_not_it(base_file
                                                             **dict(TINY, steps=1, lr=1e-9)),
                 frozen=base, progress=False, log=lambda m: None)
     assert model.material_info[0]["sparse_start"]["material"] == "gold"
+
+
+def test_refine_trains_the_base_network_and_records_each_base_materials_drift(base_file, tmp_path):
+    """--refine: BASE's network moves, BASE's materials are replayed against BASE's output, and the
+    drift each records is the SMAPE / cMAE of the refined model against BASE, recomputed here."""
+    from hybridbrdf.metrics import cmae, metric_directions, smape
+
+    out = tmp_path / "refined.safetensors"
+    settings = FitSettings(**{**TINY, "eval_pairs": 20_000})
+    refined = hb.add(["synthetic:velvet"], to=base_file, out=out, settings=settings, progress=False, refine=True,
+                     finetune_steps=150, max_drift=10.0)
+    base = hb.load_model(base_file)
+    assert refined.materials == ["gold", "plastic", "velvet"] and refined.training["mode"] == "refine"
+    assert any(not np.array_equal(base.tensors[k], refined.tensors[k]) for k in base.tensors
+               if not k.startswith("materials."))
+    wi, wo = metric_directions(20_000, 7)
+    for name in ("gold", "plastic"):
+        info = refined.material_info[refined.index(name)]
+        was = base.eval(wi, wo, name, dtype=torch.float64)
+        now = refined.eval(wi, wo, name, dtype=torch.float32)
+        assert info["refine_drift"]["smape"] == pytest.approx(smape(was, now), rel=1e-3, abs=1e-6)
+        assert info["refine_drift"]["cmae"] == pytest.approx(cmae(was, now, wi[:, 2]), rel=1e-3, abs=1e-8)
+        assert info["origin"] == base.material_info[base.index(name)]["origin"]
+    assert "refine_drift" not in refined.material_info[2]
+
+
+def test_refine_at_a_vanishing_rate_leaves_the_base_where_it_was(base_file):
+    refined = hb.add(["synthetic:velvet"], to=base_file, settings=FitSettings(**{**TINY, "lr": 1e-12}),
+                     progress=False, refine=True, finetune_steps=5)
+    for info in refined.material_info[:2]:
+        assert info["refine_drift"]["smape"] < 1e-5, info
+
+
+def test_refine_above_max_drift_writes_nothing_and_names_the_material(base_file, tmp_path):
+    out = tmp_path / "out.safetensors"
+    out.write_bytes(b"previous file")
+    r = run_cli("add", "synthetic:velvet", "--to", str(base_file), "--refine", "--max-drift", "1e-9",
+                "--steps", "50", "--finetune-steps", "50", "--pool", "2048", "--eval-pairs", "2000",
+                "--out", str(out), "--quiet")
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert re.search(r"--refine moved (gold|plastic) by SMAPE [0-9.]+ against .* \(above --max-drift 1e-09\); "
+                     r"nothing written", r.stderr), r.stderr
+    assert out.read_bytes() == b"previous file"
+    for argv, words in ((["--refine"], "--refine refines the network of --to BASE"),
+                        (["--max-drift", "0.1"], "--max-drift applies to --refine only")):
+        r = run_cli("add", "synthetic:velvet", *argv, "--out", str(out))
+        assert r.returncode == 1 and words in r.stderr, r.stderr
