@@ -14,7 +14,7 @@ The target is the accuracy of ``results/rgl54_hybrid_32x2_e09_120k_refit01.safet
 (evaluated here on the same pairs): its mean SMAPE and mean cMAE over the 54 materials, and a
 win over the authors' released model on both metrics for each of the five raw RGL rows.
 
-    python bench/bench_fit_time.py [--schedules new,old] [--budget 1800] [--threads 2]
+    python bench/bench_fit_time.py [--schedules new,old] [--budget 1800] [--threads 2] [--init-prior MODEL]
         [--snapshot-every 150] [--eval-pairs 1000000] [--device cpu|cuda] [--out docs/figures/fit_time]
         [--save-model results/rgl54_hybrid_32x2_fast58k_exp_refit005.safetensors]
 
@@ -63,12 +63,17 @@ class Phase:
     label: str
     settings: Dict[str, object]
     refit: bool = False
+    #: a warm start (``hbrdf fit --init PRIOR``) from the ``--init-prior`` model; the network
+    #: settings are then the prior's.
+    init: bool = False
 
     def command(self) -> str:
         merged = {**COMMON, **self.settings}
         flags = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in self.settings.items() if k not in ("width", "depth"))
         if self.refit:
             return f"hbrdf fit --frozen PREV ../shared/data/rgl ../shared/data/nbrdf/rgl {flags} --compile"
+        if self.init:
+            return f"hbrdf fit --init PRIOR ../shared/data/rgl ../shared/data/nbrdf/rgl {flags} --compile"
         return (f"hbrdf fit ../shared/data/rgl ../shared/data/nbrdf/rgl --mlp {merged['width']}x{merged['depth']} "
                 f"--latent 4 --output-layer {merged['output_layer']} {flags} --compile")
 
@@ -90,6 +95,13 @@ SCHEDULES = {
                Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
     "heads": [Phase("joint", dict(width=16, output_layer="material", steps=58_000, lr=4e-2,
                                   lr_schedule="exponential", lr_final=0.01))],
+    # Issue 36 (c): a warm start from a prior that never saw an RGL material (--init-prior;
+    # bench/train_prior.py --folders nbrdf/merl,nbrdf/nielsen: 32x2, latent 8, material output
+    # layers) against the cold start of the same network ("heads32"), both on the fast loss.
+    "warm": [Phase("joint", dict(steps=8000, lr=1e-2, lr_schedule="exponential", lr_final=0.01,
+                                 output_layer="material"), init=True)],
+    "heads32": [Phase("joint", dict(latent=8, output_layer="material", steps=15_000, lr=4e-2,
+                                    lr_schedule="exponential", lr_final=0.01))],
 }
 
 
@@ -105,10 +117,12 @@ class Snapshot:
     step: int
     state: Optional[Dict[str, torch.Tensor]] = None
     model: Optional[HybridModel] = None
+    settings: Optional[FitSettings] = None  # the network the state belongs to
 
 
 def run_schedule(name: str, phases: List[Phase], sources, budget: float, every: float,
-                 log, device: str = "cpu") -> (List[Snapshot], Optional[HybridModel], float):
+                 log, device: str = "cpu", init: Optional[HybridModel] = None
+                 ) -> (List[Snapshot], Optional[HybridModel], float):
     """Run ``phases`` until done or ``budget`` seconds; returns the snapshots, the final model
     (None when cut off) and the clock at the end."""
     snaps: List[Snapshot] = []
@@ -124,7 +138,8 @@ def run_schedule(name: str, phases: List[Phase], sources, budget: float, every: 
         if now >= next_at[0] or now >= budget:
             t = time.perf_counter()
             snaps.append(Snapshot(now, current["phase"], step,
-                                  {k: v.detach().cpu().clone() for k, v in module.state_dict().items()}))
+                                  {k: v.detach().cpu().clone() for k, v in module.state_dict().items()},
+                                  settings=dataclasses.replace(current["settings"])))
             while next_at[0] <= now:
                 next_at[0] += every
             paused += time.perf_counter() - t
@@ -135,9 +150,13 @@ def run_schedule(name: str, phases: List[Phase], sources, budget: float, every: 
     for phase in phases:
         current["phase"] = phase.label
         settings = FitSettings(**{**COMMON, **phase.settings, "eval_pairs": 1000, "device": device})
+        current["settings"] = settings  # fit() sets a warm start's network fields to the prior's
+        if phase.init and init is None:
+            raise SystemExit(f"schedule {name} starts from a prior: give --init-prior")
         log(f"  {name}/{phase.label}: {phase.command()}")
         try:
-            model = fit(sources, settings, frozen=model if phase.refit else None, progress=False,
+            model = fit(sources, settings, frozen=model if phase.refit else None,
+                        init=init if phase.init else None, progress=False,
                         log=lambda msg: None, compile_step=True, observe=observe)
         except OutOfTime:
             log(f"  {name}: budget of {budget:.0f} s spent in phase {phase.label} at step {snaps[-1].step}")
@@ -165,8 +184,9 @@ class Evaluator:
     def model_of(self, snap: Snapshot) -> HybridModel:
         if snap.model is not None:
             return snap.model
-        module = build_model("hybrid", len(self.names), COMMON["width"], COMMON["depth"], COMMON["latent"],
-                             COMMON["activation"], self.iso)
+        st = snap.settings
+        module = build_model(st.arch, len(self.names), st.width, st.depth, st.latent, st.activation, self.iso,
+                             output_layer=st.network_output_layer())
         module.load_state_dict(snap.state)
         return HybridModel.from_module(module.eval(), self.names, self.origins, {})
 
@@ -202,6 +222,7 @@ def main() -> int:
     ap.add_argument("--save-model", metavar="PATH", help="write the first schedule's final model there")
     ap.add_argument("--device", default="cpu",
                     help="torch device of the fits, e.g. cuda (default: cpu; the metrics are computed on the CPU)")
+    ap.add_argument("--init-prior", metavar="MODEL", help="the prior of the warm-start schedule 'warm'")
     ap.add_argument("--steps-scale", type=float, default=1.0,
                     help="multiply every phase's steps (a quick check of the script; default: 1)")
     args = ap.parse_args()
@@ -234,7 +255,7 @@ def main() -> int:
                   for p in SCHEDULES[name]]
         log(f"\nschedule {name}:")
         snaps, model, end = run_schedule(name, phases, sources, args.budget, args.snapshot_every, log,
-                                         args.device)
+                                         args.device, hb.load_model(args.init_prior) if args.init_prior else None)
         if model is not None and args.save_model and not results:
             model.save_checked(args.save_model)
             log(f"  wrote {args.save_model}")

@@ -4,7 +4,7 @@
 materials: 142), written into the package (python/hybridbrdf/data/prior.safetensors).
 
     python bench/train_prior.py [--steps 20000] [--batch 512] [--mlp 32x2] [--latent 8]
-        [--output-layer shared|material] [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
+        [--output-layer shared|material] [--folders F,...] [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
 
 --leave-out NAME drops a material in every form (raw file and reconstruction): the prior of
 issue 16's hold-out (protocol (a) with the prior's recipe), e.g. all five raw RGL files, then
@@ -39,6 +39,9 @@ def main() -> int:
     ap.add_argument("--output-layer", choices=("shared", "material"), default="material",
                     help="the network's output layer: one shared, or each material's own (issue 37; "
                          "the prior shipped before it is 'shared')")
+    ap.add_argument("--folders", default=",".join(FOLDERS),
+                    help="folders of --shared to train on, comma-separated (default: %(default)s; "
+                         "nbrdf/merl,nbrdf/nielsen: a prior that never saw an RGL material, for warm-start tests)")
     ap.add_argument("--leave-out", action="append", default=[], metavar="NAME",
                     help="leave this material out in every form (repeatable)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
@@ -46,10 +49,11 @@ def main() -> int:
     ap.add_argument("--checkpoint", help="checkpoint file (resumed if it exists)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the training steps")
     args = ap.parse_args()
-    specs = [p for p in hb.expand_sources([os.path.join(args.shared, f) for f in FOLDERS])
+    folders = tuple(f for f in args.folders.split(",") if f)
+    specs = [p for p in hb.expand_sources([os.path.join(args.shared, f) for f in folders])
              if pathlib.Path(p).stem not in set(args.leave_out)]
     missing = set(args.leave_out) - {pathlib.Path(p).stem for p in hb.expand_sources(
-        [os.path.join(args.shared, f) for f in FOLDERS])}
+        [os.path.join(args.shared, f) for f in folders])}
     if missing:
         ap.error(f"--leave-out names no material of the data: {', '.join(sorted(missing))}")
     sources = [hb.open_source(p) for p in specs]
@@ -61,11 +65,11 @@ def main() -> int:
     t0 = time.time()
     model = fit(sources, settings, checkpoint=args.checkpoint, resume=args.checkpoint is not None,
                 progress=False, log=print, compile_step=args.compile)
-    model.training["prior"] = {"collection": list(FOLDERS), "left_out": sorted(args.leave_out)}
+    model.training["prior"] = {"collection": list(folders), "left_out": sorted(args.leave_out)}
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     model.save(args.out)
     met = [m["metrics"] for m in model.material_info]
-    print(f"prior: {len(sources)} materials ({', '.join(FOLDERS)}; left out: {', '.join(args.leave_out) or 'none'}), "
+    print(f"prior: {len(sources)} materials ({', '.join(folders)}; left out: {', '.join(args.leave_out) or 'none'}), "
           f"{args.mlp} ({args.output_layer} output layer), latent {args.latent}, {args.steps} steps x {args.batch} pairs per material, "
           f"{time.time() - t0:.0f} s (training {model.training['train_seconds']:.0f} s)")
     print(f"its own fit (10^5 pairs): mean SMAPE {sum(m['smape'] for m in met) / len(met):.4f}, "
