@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+#include <sys/stat.h>
 
 #include "hybridbrdf/version.hpp"
 #include "model_math.hpp"
@@ -46,6 +47,17 @@ std::string shape_str(const std::vector<std::int64_t>& s) {
 // Reads the safetensors container: metadata map and float32 tensors.
 void read_safetensors(const std::string& path, std::map<std::string, std::string>& metadata,
                       std::map<std::string, Tensor>& tensors) {
+    // What the file is, before opening it (python/hybridbrdf/inputs.py, the same words): opening a
+    // FIFO blocks until a writer comes, and a device such as /dev/zero never ends.
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0) {
+        if (S_ISDIR(st.st_mode)) throw ModelFileError(path, "is a folder, not a model file");
+        if (S_ISFIFO(st.st_mode)) throw ModelFileError(path, "is a FIFO, not a regular file");
+        if (S_ISCHR(st.st_mode)) throw ModelFileError(path, "is a character device, not a regular file");
+        if (S_ISBLK(st.st_mode)) throw ModelFileError(path, "is a block device, not a regular file");
+        if (S_ISSOCK(st.st_mode)) throw ModelFileError(path, "is a socket, not a regular file");
+        if (!S_ISREG(st.st_mode)) throw ModelFileError(path, "is not a regular file");
+    }
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) throw ModelFileError(path, "no such file or not readable");
     const std::streamoff file_size = in.tellg();
@@ -211,6 +223,48 @@ std::string describe_character(const std::string& s, std::size_t& i) {
     return buf;
 }
 
+// Deepest nesting of arrays and objects in JSON `text`, brackets inside strings not counted
+// (python/hybridbrdf/inputs.py json_depth, the same rule): the contract bounds it
+// (spec::kMaxJsonDepth) so that both loaders refuse the same files, and before parsing, as
+// Python's parser recurses once per level. On malformed text it is a bound the parser then
+// rejects for another reason.
+int json_depth(const std::string& text) {
+    int depth = 0, deepest = 0;
+    bool in_string = false, escaped = false;
+    for (char c : text) {
+        if (in_string) {
+            if (escaped) escaped = false;
+            else if (c == '\\') escaped = true;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            deepest = std::max(deepest, ++depth);
+        } else if (c == ']' || c == '}') {
+            --depth;
+        }
+    }
+    return deepest;
+}
+
+// <NAME> of the shader constant HBRDF_MATERIAL_<NAME> (python/hybridbrdf/names.py): upper case,
+// each run of characters other than ASCII letters and digits one '_', none at either end, so the
+// constant never holds "__" (reserved in GLSL, an error in GLSL ES, and in C++).
+std::string shader_constant_key(const std::string& name) {
+    std::string key;
+    bool gap = false;
+    for (unsigned char c : name) {
+        if (c < 0x80 && std::isalnum(c)) {
+            if (gap && !key.empty()) key += '_';
+            key += char(std::toupper(c));
+            gap = false;
+        } else {
+            gap = true;
+        }
+    }
+    return key;
+}
+
 // The material-name rule (spec::kNameRule; python/hybridbrdf/names.py): empty when valid.
 // Characters first, so that a length is only ever counted over ASCII (bytes = characters).
 std::string name_problem(const std::string& name) {
@@ -228,14 +282,9 @@ std::string name_problem(const std::string& name) {
     }
     if (name.size() > std::size_t(spec::kMaxNameLength))
         return "name is " + std::to_string(name.size()) + " characters long; a name is " + spec::kNameRule;
+    if (shader_constant_key(name).empty())
+        return "name has no letter or digit, so it gives no shader constant HBRDF_MATERIAL_<NAME>";
     return {};
-}
-
-// <NAME> of the shader constant HBRDF_MATERIAL_<NAME> (python/hybridbrdf/names.py).
-std::string shader_constant_key(const std::string& name) {
-    std::string key;
-    for (unsigned char c : name) key += std::isalnum(c) && c < 0x80 ? char(std::toupper(c)) : '_';
-    return key;
 }
 
 // Interval bound of every network value (spec::kMaxNetworkValue; the Python loader's
@@ -315,6 +364,9 @@ HybridModel HybridModel::load(const std::string& path) {
     auto meta = metadata.find(key);
     if (meta == metadata.end())
         throw ModelFileError(path, "safetensors file without '" + key + "' metadata: not a hybridbrdf model");
+    if (json_depth(meta->second) > spec::kMaxJsonDepth)
+        throw ModelFileError(path, "'" + key + "' metadata: JSON nested deeper than " +
+                                       std::to_string(spec::kMaxJsonDepth) + " levels");
     json doc;
     try {
         doc = json::parse(meta->second);

@@ -30,13 +30,13 @@ import hashlib
 import io
 import math
 import os
-import stat
 from typing import Any, Dict, List, Tuple
 
 import torch
 
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit_settings import FitSettings
+from hybridbrdf.inputs import check_input_file, read_input_bytes
 from hybridbrdf.util import atomic_write_bytes
 
 #: The header's first words; the version follows, then the checksum.
@@ -80,16 +80,11 @@ def save(path, state: Dict[str, Any]) -> None:
 
 
 def _read_bytes(path: str) -> bytes:
-    try:
-        st = os.stat(path)
-        if stat.S_ISDIR(st.st_mode):
-            raise CheckpointError(path, "is a folder, not a checkpoint file")
-        if not stat.S_ISREG(st.st_mode):  # a FIFO or a device could block or never end
-            raise CheckpointError(path, "is not a regular file")
-        with open(path, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise CheckpointError(path, f"cannot read the checkpoint: {exc.strerror or exc}") from None
+    # A FIFO or a device could block or never end: hybridbrdf.inputs refuses them before opening.
+    # No size bound beyond the file's own: a checkpoint holds the optimiser's state of up to
+    # spec.MAX_MATERIALS materials, gigabytes by design, and a regular file's size is what it holds.
+    size = check_input_file(path, "checkpoint file", None, CheckpointError)
+    return read_input_bytes(path, "checkpoint file", size, CheckpointError)
 
 
 def _payload(path: str, data: bytes) -> Tuple[bytes, bool]:

@@ -309,8 +309,14 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         raise ValueError(f"--pairs {problem}")
     # eval writes no file: its inputs are checked by load_model and the readers.
     model = load_model(args.model)
+    # The sources are read outside the --pairs advice below: a reader's failure is the reader's
+    # (each refuses files larger than its format, so memory is the machine's limit, not --pairs').
     try:
-        rows = evaluate(model, _open_all(args.sources), n_pairs=args.pairs, extended=args.all_metrics)
+        sources = _open_all(args.sources)
+    except MemoryError:
+        raise ValueError("out of memory while reading the sources") from None
+    try:
+        rows = evaluate(model, sources, n_pairs=args.pairs, extended=args.all_metrics)
     except MemoryError:
         raise ValueError(f"out of memory for {args.pairs} pairs; lower --pairs") from None
     print(format_table(rows, args.pairs))

@@ -30,6 +30,7 @@ import numpy as np
 
 from hybridbrdf import _core, spec
 from hybridbrdf.errors import InputFileError, one_line_text
+from hybridbrdf.inputs import refuse_output_over_input, same_file as _same_file
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.names import names_problem, shader_constant_key
 from hybridbrdf.shaders import render_shader
@@ -254,13 +255,6 @@ _F_SUFFIX = re.compile(r"(?<=[0-9.])f\b")
 
 
 NO_DEPTH_LIMIT = 2**31 - 1  # HBRDF_NEURAL_MAX_DEPTH without a scene: the network at every depth
-
-
-def _same_file(a: str, b: str) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them missing: compare the paths
-        return os.path.normpath(os.path.abspath(a)) == os.path.normpath(os.path.abspath(b))
 
 
 def load_scene(scene, model: HybridModel, model_path=None) -> Dict[str, object]:
@@ -553,6 +547,8 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:
+        # Before any work: -o naming the model or the scene (by any path) would replace it with code.
+        refuse_output_over_input(args.out, [args.model, args.scene], "-o/--out")
         model = load_model(args.model)
         materials = [m for m in args.materials.split(",") if m] if args.materials else None
         if args.scene and materials:

@@ -43,6 +43,7 @@ import torch
 
 from hybridbrdf import _core, spec
 from hybridbrdf.errors import ModelFileError
+from hybridbrdf.inputs import check_input_file, loads_json
 from hybridbrdf.models import build_model
 from hybridbrdf.names import name_problem, names_problem
 from hybridbrdf.util import atomic_write_bytes
@@ -96,7 +97,11 @@ def decode(path: str):
     """(metadata, tensors) of a safetensors file; ModelFileError for anything unreadable.
 
     The two checks before the safetensors package runs are the C++ reader's first two, with
-    its messages (they catch the commonest damage: empty and cut-off files)."""
+    its messages (they catch the commonest damage: empty and cut-off files). Before them, the
+    file must be a regular one (hybridbrdf.inputs: a FIFO would block the open, a device never
+    end); its size needs no bound here, as safetensors maps the file and reads only the header
+    and the tensors the header declares, each checked against the file's size."""
+    check_input_file(path, "model file", None, ModelFileError)
     try:
         with open(path, "rb") as fh:
             head = fh.read(8)
@@ -516,10 +521,9 @@ def load_model(path) -> HybridModel:
     metadata, tensors = decode(path)
     if METADATA_KEY not in metadata:
         raise ModelFileError(path, f"safetensors file without '{METADATA_KEY}' metadata: not a hybridbrdf model")
-    try:
-        doc = json.loads(metadata[METADATA_KEY], parse_constant=_reject_constant)
-    except (TypeError, ValueError) as exc:
-        raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not valid JSON ({exc})") from None
+    # Bounded nesting first: 5,000 levels in the free-form records would be a RecursionError.
+    doc = loads_json(metadata[METADATA_KEY], path, f"'{METADATA_KEY}' metadata", ModelFileError,
+                     parse_constant=_reject_constant)
     if not isinstance(doc, dict):
         raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not a JSON object")
     arch = _validate(path, doc, tensors)

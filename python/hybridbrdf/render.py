@@ -20,7 +20,12 @@ from typing import Any, Dict, List, Optional, Tuple, Union
 import numpy as np
 
 from hybridbrdf import _core
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.inputs import MAX_JSON_DEPTH, json_depth, read_input_text, refuse_output_over_input, same_file
 
+#: Largest scene file read (bytes). Scenes hold settings, materials and objects; meshes and
+#: environment maps are files of their own. The example scenes are about 1 KB.
+MAX_SCENE_BYTES = 16 << 20
 
 
 def settings() -> List[Dict[str, Any]]:
@@ -59,11 +64,11 @@ def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dic
     if isinstance(scene, dict):
         return copy.deepcopy(scene), os.getcwd(), "<scene dict>"
     path = os.fspath(scene)
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot open the scene file ({exc.strerror})") from None
+    # A regular file of at most MAX_SCENE_BYTES, read with that bound (a FIFO, /dev/zero ... are
+    # refused before opening), and nested no deeper than MAX_JSON_DEPTH: json.loads recurses.
+    text = read_input_text(path, "scene file", MAX_SCENE_BYTES, InputFileError)
+    if json_depth(text) > MAX_JSON_DEPTH:
+        raise InputFileError(path, f"scene file: JSON nested deeper than {MAX_JSON_DEPTH} levels")
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -73,12 +78,47 @@ def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dic
     return data, os.path.dirname(os.path.abspath(path)), path
 
 
-def _prepare_outputs(out, png) -> None:
+def scene_inputs(data: Dict[str, Any], base_dir: str) -> List[str]:
+    """The files a scene dict names (model files, measured sources, environment maps, meshes),
+    resolved against ``base_dir`` as the library resolves them. Read before the scene is
+    validated, so anything that is not a path string is passed over (the library reports it)."""
+    found: List[str] = []
+
+    def add(value) -> None:
+        if isinstance(value, str) and value and not value.startswith("synthetic:"):
+            found.append(os.path.join(base_dir, value))
+
+    def material(m) -> None:
+        if isinstance(m, dict):
+            add(m.get("file"))
+            add(m.get("source"))
+
+    materials = data.get("materials")
+    if isinstance(materials, dict):
+        for m in materials.values():
+            material(m)
+    environment = data.get("environment")
+    if isinstance(environment, dict):
+        add(environment.get("file"))
+    objects = data.get("objects")
+    if isinstance(objects, list):
+        for obj in objects:
+            if isinstance(obj, dict):
+                add(obj.get("file"))
+                material(obj.get("material"))
+    return found
+
+
+def _prepare_outputs(out, png, inputs=()) -> None:
     """Create the output files' folders, and fail now, in one line naming the path, when an output
     cannot be written: before the render, not after it. The library then checks that each file can
-    be created (``check_output_path``: not a folder, a folder that takes new files)."""
+    be created (``check_output_path``: not a folder, a folder that takes new files). An output that
+    is one of the ``inputs`` (the scene file, the files it names), or the other output, is refused
+    whatever path reaches it (symlinks followed, hard links by inode): writing it would destroy it."""
     paths = [os.fspath(p) for p in (out, png) if p]
-    if len(paths) == 2 and os.path.abspath(paths[0]) == os.path.abspath(paths[1]):
+    refuse_output_over_input(out, inputs, "the EXR output")
+    refuse_output_over_input(png, inputs, "the PNG output")
+    if len(paths) == 2 and same_file(paths[0], paths[1]):
         raise ValueError(f"{paths[0]}: the EXR and the PNG output are the same file")
     for path in paths:
         parent = os.path.dirname(os.path.abspath(path))
@@ -122,7 +162,8 @@ def render(scene: Union[str, os.PathLike, Dict[str, Any]], out: Optional[str] = 
     for key, value in (("width", width), ("height", height)):
         if value is not None:
             data.setdefault("camera", {})[key] = int(value)
-    _prepare_outputs(out, png)
+    inputs = scene_inputs(data, base_dir) + ([] if isinstance(scene, dict) else [origin])
+    _prepare_outputs(out, png, inputs)
     image, stats = _core.render_scene(json.dumps(data), base_dir, origin, measured=measured_factory or _measured_factory, quiet=quiet,
                                       exr=os.fspath(out) if out else "", png=os.fspath(png) if png else "",
                                       exposure=float(exposure), tonemap=tonemap)

@@ -35,11 +35,13 @@ MAX_DEPTH = 16
 MAX_LATENT = 64
 #: Most materials one model file may hold.
 MAX_MATERIALS = 1000000
+#: Deepest nesting of arrays and objects in a model file's metadata (and in every other JSON input the Python side reads: scenes, Keras configs). Real metadata is about 6 levels deep; without a bound Python's parser recurses once per level (5,000 levels: RecursionError). Both loaders refuse deeper metadata before parsing it: "'hybridbrdf' metadata: JSON nested deeper than 64 levels".
+MAX_JSON_DEPTH = 64
 #: Longest material name, in characters. Names become comments and constant names in generated code (HBRDF_MATERIAL_<NAME>) and keys in scenes and on command lines.
 MAX_NAME_LENGTH = 64
 #: Characters a material name may hold besides the ASCII letters and digits. Nothing that can end a comment, continue a line (backslash) or need quoting in a shell or a comma-separated --materials list.
 NAME_PUNCTUATION = '_.+-'
-#: The material-name rule in words, as both loaders and hbrdf fit state it. Names must also stay distinct once upper-cased with '.', '+' and '-' turned into '_' (the shader constant HBRDF_MATERIAL_<NAME>).
+#: The material-name rule in words, as both loaders and hbrdf fit state it. A name must also hold at least one letter or digit, and names must stay distinct once mapped to their shader constant HBRDF_MATERIAL_<NAME>: <NAME> is the name upper-cased with each run of other characters ('_', '.', '+', '-') turned into one '_' and none kept at either end ('a..b' gives A_B, '_a' gives A), so no constant holds '__', reserved in GLSL (an error in GLSL ES) and in C++. Changed in issue 33: before it, every such character became its own '_'.
 NAME_RULE = '1 to 64 characters from A-Z a-z 0-9 _ . + -'
 #: Shading frames the neural baseline predicts from its latent code (t, b, n each: 6 raw values per frame).
 NEURAL_FRAMES = 3

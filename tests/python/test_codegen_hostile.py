@@ -2,6 +2,9 @@
 generated code raw, and codegen either writes code that compiles or stops with one line."""
 
 import json
+import os
+import pathlib
+import re
 import shutil
 import subprocess
 import urllib.parse
@@ -15,7 +18,7 @@ from hybridbrdf.codegen import comment_text, float_literal, generate, main as co
 from hybridbrdf.names import name_problem, names_problem, shader_constant_key
 from hybridbrdf.random_model import random_model
 
-from helpers import compile_spirv
+from helpers import compile_spirv, run_cli
 from test_codegen import every_function_shader
 
 # A file name that, pasted raw into a '//' comment, ends it (newline), injects a directive
@@ -190,3 +193,149 @@ def test_scene_errors_with_hostile_keys_stay_one_line(tmp_path, hostile_model_fi
                          "-o", str(tmp_path / "o.h")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "\x1b" not in err, err
+
+
+# ---- issue 33: reserved identifiers, outputs over inputs, deep metadata ---------------------
+
+
+@pytest.mark.parametrize("name,constant", [
+    ("_a", "HBRDF_MATERIAL_A"), ("a..b", "HBRDF_MATERIAL_A_B"), ("a_-_b", "HBRDF_MATERIAL_A_B"),
+    ("gold-", "HBRDF_MATERIAL_GOLD"), ("+1.x", "HBRDF_MATERIAL_1_X"), ("cc_ibiza-sunset.rgl", "HBRDF_MATERIAL_CC_IBIZA_SUNSET_RGL"),
+])
+def test_shader_constants_hold_no_reserved_double_underscore(name, constant):
+    # "__" anywhere in an identifier is reserved in GLSL (an error in GLSL ES) and in C++.
+    assert name_problem(name) is None
+    got = material_constant(name)
+    assert got == constant and "__" not in got and not got[len("HBRDF_MATERIAL_"):].startswith("_")
+
+
+@pytest.mark.parametrize("name", ["-", "_", "...", "+-_."])
+def test_a_name_without_letter_or_digit_is_refused_by_the_name_rule(name):
+    problem = "name has no letter or digit, so it gives no shader constant HBRDF_MATERIAL_<NAME>"
+    assert name_problem(name) == problem
+    assert names_problem(["gold", name]) == f"material 1: {problem}"
+
+
+def test_names_that_collapse_to_one_constant_clash():
+    assert names_problem(["a_b", "a..b"]) == "materials 'a_b' and 'a..b' would share the shader constant HBRDF_MATERIAL_A_B"
+    assert names_problem(["a", "_a"]) == "materials 'a' and '_a' would share the shader constant HBRDF_MATERIAL_A"
+    assert names_problem(["gold", "GOLD"]) == ("materials 'gold' and 'GOLD' would share the shader constant "
+                                               "HBRDF_MATERIAL_GOLD")
+
+
+@pytest.mark.parametrize("names", [["a", "b..c", "_d"], ["-x-", "y+"]])
+def test_both_loaders_accept_collapsed_names_and_cpp_agrees_on_clashes(tmp_path, names):
+    _, model = random_model("hybrid", n=len(names), latent=2, width=8, depth=1)
+    for info, name in zip(model.material_info, names):
+        info["name"] = name
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    assert hb.load_model(path).materials == names
+    assert list(_core.Model(str(path)).materials) == names
+    bad = tmp_path / "bad.safetensors"
+    clash = "+" + names[0] + "."  # maps to the first name's constant
+    model.material_info[-1]["name"] = clash
+    model.save(bad)
+    key = names[0].strip("-+_.").upper()
+    words = (f"{bad}: materials '{names[0]}' and '{clash}' would share the shader constant "
+             f"HBRDF_MATERIAL_{key}")
+    for load in (hb.load_model, lambda p: _core.Model(str(p))):
+        with pytest.raises(hb.ModelFileError) as info:
+            load(bad)
+        assert str(info.value) == words
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
+def test_punctuated_names_compile_as_glsl_es(tmp_path):
+    # glslang refuses identifiers with "__" in ES profiles: the collapsed constants pass.
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    for info, name in zip(model.material_info, ["_a", "b..c", "d-"]):
+        info["name"] = name
+    text = generate(model, "glsl")
+    consts = sorted(set(re.findall(r"HBRDF_MATERIAL_\w+", text)))
+    assert consts == ["HBRDF_MATERIAL_A", "HBRDF_MATERIAL_B_C", "HBRDF_MATERIAL_D"], consts
+    src = tmp_path / "t.frag"
+    decls = "\n".join(f"const int {c} = {i};" for i, c in enumerate(consts))
+    # GLSL ES 1.00 makes "__" an error (later versions: a warning), so it is the strict judge.
+    src.write_text(f"#version 100\nprecision highp float;\n{decls}\n"
+                   f"void main() {{ gl_FragColor = vec4(float({consts[0]})); }}\n")
+    r = subprocess.run(["glslangValidator", str(src)], capture_output=True, text=True)
+    assert r.returncode == 0 and "reserved" not in r.stdout, r.stdout + r.stderr
+    src.write_text(src.read_text().replace(consts[0], "HBRDF_MATERIAL__A"))  # the old constant of "_a"
+    r = subprocess.run(["glslangValidator", str(src)], capture_output=True, text=True)
+    assert r.returncode != 0 and "reserved" in r.stdout  # the check can fail: glslang does refuse it
+
+
+def _keep(path) -> bytes:
+    return pathlib.Path(path).read_bytes()
+
+
+@pytest.mark.parametrize("how", ["same path", "symlink to the model", "hard link to the model", "scene", "scene via .."])
+def test_codegen_refuses_to_write_over_its_inputs(tmp_path, capsys, how):
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps({"camera": {"width": 8, "height": 8},
+                                 "materials": {"a": {"type": "model", "file": "m.safetensors", "material": "mat-0"}},
+                                 "objects": []}))
+    before = {p: _keep(p) for p in (path, scene)}
+    args = [str(path), "--target", "glsl"]
+    if how == "same path":
+        out = path
+    elif how == "symlink to the model":
+        out = tmp_path / "link.glsl"
+        out.symlink_to(path)
+    elif how == "hard link to the model":
+        out = tmp_path / "hard.glsl"
+        os.link(path, out)
+    else:
+        args += ["--scene", str(scene)]
+        (tmp_path / "sub").mkdir()
+        out = scene if how == "scene" else tmp_path / "sub" / ".." / "s.json"
+    assert codegen_main(args + ["-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    named = str(scene) if how.startswith("scene") else str(path)
+    assert err == (f"hbrdf-codegen: error: {out}: -o/--out names the input {named}; writing it would destroy "
+                   f"that input\n"), err
+    assert {p: _keep(p) for p in (path, scene)} == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []  # no temporary left
+
+
+def _model_with_deep_metadata(tmp_path, levels: int) -> pathlib.Path:
+    """A valid model file whose metadata holds a free-form record nested ``levels`` deep."""
+    import safetensors.numpy
+
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    good = tmp_path / "good.safetensors"
+    model.save(good)
+    with safetensors.safe_open(str(good), framework="numpy") as f:
+        meta = dict(f.metadata())
+        tensors = {k: f.get_tensor(k) for k in f.keys()}
+    meta["hybridbrdf"] = '{"deep": ' + "[" * levels + "]" * levels + ", " + meta["hybridbrdf"][1:]
+    path = tmp_path / "deep.safetensors"
+    path.write_bytes(safetensors.numpy.save(tensors, meta))
+    return path
+
+
+def test_deeply_nested_metadata_is_one_line_everywhere(tmp_path, capsys):
+    path = _model_with_deep_metadata(tmp_path, 5000)  # ~10 KB; json.loads raised RecursionError
+    words = f"{path}: 'hybridbrdf' metadata: JSON nested deeper than 64 levels"
+    with pytest.raises(hb.ModelFileError) as info:
+        hb.load_model(path)
+    assert str(info.value) == words
+    with pytest.raises(hb.ModelFileError) as info:  # libhybridbrdf refuses it in the same words
+        _core.Model(str(path))
+    assert str(info.value) == words
+    out = tmp_path / "o.glsl"
+    assert codegen_main([str(path), "--target", "glsl", "-o", str(out)]) == 1
+    assert capsys.readouterr().err == f"hbrdf-codegen: error: {words}\n"
+    assert not out.exists()
+    r = run_cli("info", str(path))
+    assert r.returncode == 1 and r.stderr == f"hbrdf info: error: {words}\n", r.stderr
+
+
+def test_metadata_at_the_depth_bound_loads_in_both_loaders(tmp_path):
+    path = _model_with_deep_metadata(tmp_path, 63)  # 64 with the object around it
+    assert hb.load_model(path).materials == ["mat-0", "mat-1", "mat-2"]
+    assert list(_core.Model(str(path)).materials) == ["mat-0", "mat-1", "mat-2"]

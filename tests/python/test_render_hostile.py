@@ -7,6 +7,7 @@ rendering (the C++ side of the same rules: tests/cpp/test_render_hostile.cpp).""
 import copy
 import json
 import os
+import re
 import select
 import signal
 import struct
@@ -331,3 +332,73 @@ def test_a_measured_factory_error_is_one_line():
         hr.render(s, measured_factory=factory)
     assert "\n" not in str(info.value)
     assert str(info.value).startswith("<scene dict>: materials.m.source: [Errno 2] No such file or directory: ")
+
+
+# ---- issue 33: outputs that are inputs, special and deeply nested scene files --------------
+
+
+def _scene_with_files(tmp_path):
+    """A scene file naming a model file, a measured source and a mesh (files that exist)."""
+    from hybridbrdf.random_model import random_model
+
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    model.save(tmp_path / "m.safetensors")
+    (tmp_path / "gold.bsdf").write_bytes(b"measured")
+    (tmp_path / "bunny.obj").write_text("v 0 0 0\n")
+    s = slow_scene()  # minutes of work; the mesh is malformed, so without the check the load fails instead
+    s["materials"]["n"] = {"type": "model", "file": "m.safetensors", "material": "mat-0"}
+    s["materials"]["g"] = {"type": "measured", "source": "gold.bsdf"}
+    s["objects"].append({"type": "mesh", "file": "bunny.obj", "material": "n"})
+    path = tmp_path / "sc.json"
+    path.write_text(json.dumps(s))
+    return path
+
+
+def _contents(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+@pytest.mark.parametrize("flag", ["out", "png"])
+@pytest.mark.parametrize("target", ["sc.json", "m.safetensors", "gold.bsdf", "bunny.obj", "link", "sub/../m.safetensors"])
+def test_render_refuses_to_write_over_its_inputs(tmp_path, flag, target):
+    scene_path = _scene_with_files(tmp_path)
+    (tmp_path / "sub").mkdir()
+    if target == "link":  # a symlink to the model: followed, as the write would follow it
+        (tmp_path / "link").symlink_to(tmp_path / "m.safetensors")
+    before = _contents(tmp_path)
+    out = str(tmp_path / target)
+    named = {"sc.json": str(scene_path), "link": str(tmp_path / "m.safetensors"),
+             "sub/../m.safetensors": str(tmp_path / "m.safetensors")}.get(target, str(tmp_path / target))
+    what = "EXR" if flag == "out" else "PNG"
+    fails_fast(str(scene_path), f"^{re.escape(out)}: the {what} output names the input {re.escape(named)}; "
+                                f"writing it would destroy that input$", **{flag: out})
+    assert _contents(tmp_path) == before
+
+
+def test_exr_and_png_through_a_symlink_are_the_same_file(tmp_path):
+    (tmp_path / "b.png").symlink_to(tmp_path / "a.exr")
+    s = scene()
+    s["materials"]["m"] = {"type": "velvet"}  # without the check the library's own error comes instead
+    fails_fast(s, "the EXR and the PNG output are the same file",
+               out=str(tmp_path / "a.exr"), png=str(tmp_path / "b.png"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.png"]
+
+
+def test_hbrdf_render_over_its_scene_is_one_line_and_leaves_it(tmp_path):
+    scene_path = _scene_with_files(tmp_path)
+    before = _contents(tmp_path)
+    r = run_cli("render", str(scene_path), "-o", str(scene_path), "--quiet")
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert r.stderr == (f"hbrdf render: error: {scene_path}: the EXR output names the input {scene_path}; "
+                        f"writing it would destroy that input\n"), r.stderr
+    assert _contents(tmp_path) == before
+
+
+def test_a_scene_nested_5000_levels_is_one_line(tmp_path):
+    path = tmp_path / "deep.json"
+    path.write_text('{"description": ' + "[" * 5000 + "]" * 5000 + "}")  # 10 KB: RecursionError before
+    fails_fast(str(path), f"^{re.escape(str(path))}: scene file: JSON nested deeper than 64 levels$")
+    r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--quiet")
+    assert r.returncode == 1 and r.stderr == (f"hbrdf render: error: {path}: scene file: JSON nested deeper than "
+                                              f"64 levels\n"), r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["deep.json"]

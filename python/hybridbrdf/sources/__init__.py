@@ -12,7 +12,10 @@ Formats, detected from the file (extension, then contents):
     .h5       NBRDF network (Sztrajman et al. 2021)           sources/nbrdf.py
     synthetic:NAME   built-in material with exact ground truth sources/synthetic.py
 
-Every problem with an input raises :class:`BRDFFormatError` naming the file.
+Every problem with an input raises :class:`BRDFFormatError` naming the file. Each file is
+checked before it is read (hybridbrdf.inputs): a regular file (a FIFO, a device or a folder is
+refused by what it is), no larger than its format holds (MERL and UTIA: their one size; RGL
+``.bsdf`` and NBRDF ``.h5``: 256 MiB; a Keras ``.json``: 1 MiB, nested at most 64 levels).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from typing import Optional
 import numpy as np
 
 from hybridbrdf.errors import InputFileError
+from hybridbrdf.inputs import read_input_bytes
 
 
 class BRDFFormatError(InputFileError):
@@ -20,14 +21,13 @@ class BRDFFormatError(InputFileError):
     """
 
 
-def read_file_bytes(spec: str, kind: str) -> bytes:
-    """The whole file ``spec``; an unreadable one raises :class:`BRDFFormatError`
-    ("cannot read <kind> file: <reason>")."""
-    try:
-        with open(spec, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise BRDFFormatError(spec, f"cannot read {kind} file: {exc.strerror or exc}") from None
+def read_file_bytes(spec: str, kind: str, limit: int) -> bytes:
+    """The bytes of the file ``spec``, a ``kind`` file ("MERL") of at most ``limit`` bytes.
+
+    Checked before it is read (hybridbrdf.inputs): a folder, a FIFO, a device (a symlink to
+    /dev/zero) or a file larger than the format can hold raises :class:`BRDFFormatError`
+    naming what it is, and no more than ``limit + 1`` bytes are ever read."""
+    return read_input_bytes(spec, f"{kind} file", limit, BRDFFormatError)
 
 
 def source_name(name: Optional[str], path: Optional[str], fallback: str) -> str:

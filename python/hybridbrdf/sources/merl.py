@@ -161,7 +161,7 @@ def read_merl_raw(path) -> np.ndarray:
     (channel, theta_h, theta_d, phi_d), unscaled. Raises :class:`BRDFFormatError`
     for an unreadable file, a wrong dims header, a wrong size or non-finite data."""
     spec = os.fspath(path)
-    data = read_file_bytes(spec, "MERL")
+    data = read_file_bytes(spec, "MERL", FILE_BYTES)  # the format has one size
     if len(data) < HEADER_BYTES:
         raise BRDFFormatError(spec, f"truncated MERL file: {len(data)} bytes, shorter than the 12-byte dims header")
     dims = tuple(int(x) for x in np.frombuffer(data, dtype="<i4", count=3))

@@ -34,13 +34,13 @@ evaluator does. Evaluation is float64 (the stored weights are float32).
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, source_name
 from hybridbrdf.sources.rusinkiewicz import half_diff_vectors
 
@@ -102,13 +102,8 @@ def _read_keras_config(json_path: str) -> Optional[List[dict]]:
     """The ``layers`` of a Keras Sequential JSON config, or None without a file."""
     if not os.path.exists(json_path):
         return None
-    try:
-        with open(json_path, "r", encoding="utf-8") as fh:
-            cfg = json.load(fh)
-    except OSError as exc:
-        raise BRDFFormatError(json_path, f"cannot read Keras config: {exc.strerror or exc}") from None
-    except ValueError as exc:
-        raise BRDFFormatError(json_path, f"Keras config is not valid JSON ({exc})") from None
+    text = read_input_text(json_path, "Keras config", MAX_CONFIG_BYTES, BRDFFormatError)
+    cfg = loads_json(text, json_path, "Keras config", BRDFFormatError)
     try:
         layers = cfg["config"]["layers"] if isinstance(cfg.get("config"), dict) else cfg["config"]
         if not isinstance(layers, list) or not all(isinstance(l, dict) and "class_name" in l for l in layers):
@@ -119,7 +114,24 @@ def _read_keras_config(json_path: str) -> Optional[List[dict]]:
                 raise TypeError
     except (KeyError, TypeError, AttributeError):
         raise BRDFFormatError(json_path, "Keras config has no list of layers under config.layers") from None
+    # The reader uses class names and layer names as text and set members: a list or an object
+    # there would surface as "unhashable type" from deep inside, not as this file's problem.
+    for i, layer in enumerate(layers):
+        if not isinstance(layer["class_name"], str):
+            raise BRDFFormatError(json_path, f"Keras config layer {i}: class_name is {_json_type(layer['class_name'])}, "
+                                             "not a string")
+        if "name" in layer["config"] and not isinstance(layer["config"]["name"], str):
+            raise BRDFFormatError(json_path, f"Keras config layer {i}: config.name is "
+                                             f"{_json_type(layer['config']['name'])}, not a string")
     return layers
+
+
+def _json_type(value) -> str:
+    """A JSON value's type as a message names it ("a list", "null")."""
+    if value is None:
+        return "null"
+    return {bool: "a boolean", int: "a number", float: "a number", str: "a string", list: "a list",
+            dict: "an object"}.get(type(value), "a " + type(value).__name__)
 
 
 def _dense_layer_names_fallback(f) -> List[str]:
@@ -128,6 +140,12 @@ def _dense_layer_names_fallback(f) -> List[str]:
     names = [k for k in f.keys() if re.fullmatch(r"dense_\d+", k)]
     return sorted(names, key=lambda k: int(k.split("_")[1]))
 
+
+#: Largest Keras .json config read (bytes): the published ones are about 2 KB.
+MAX_CONFIG_BYTES = 1 << 20
+#: Largest NBRDF .h5 file opened (bytes): the published ones are about 18 KB, and each layer is
+#: bounded by MAX_LAYER_WEIGHTS below; HDF5 reads only what it is asked for.
+MAX_H5_BYTES = 256 << 20
 
 #: Most values one kernel or bias dataset may hold. The NBRDF networks of Sztrajman et al.
 #: (6-21-21-3) have 588 kernel weights in all; this leaves room for far wider ones.
@@ -189,8 +207,8 @@ def read_nbrdf_layers(path) -> List[Tuple[str, np.ndarray, np.ndarray, str]]:
     import h5py
 
     spec = os.fspath(path)
-    if not os.path.exists(spec):
-        raise BRDFFormatError(spec, "no such file")
+    # A regular file of a sane size before HDF5 opens it: opening a FIFO would block.
+    check_input_file(spec, "NBRDF .h5 file", MAX_H5_BYTES, BRDFFormatError)
     json_path = os.path.splitext(spec)[0] + ".json"
     config = _read_keras_config(json_path)
     # Config layers that carry no weights may lack a group in the h5.

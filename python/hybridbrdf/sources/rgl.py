@@ -90,6 +90,7 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
+from hybridbrdf.inputs import read_input_bytes
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
 
 #: The 12 bytes every tensor_file starts with.
@@ -128,6 +129,9 @@ ORIGIN = "RGL measurement (raw .bsdf)"
 
 #: Largest field rank the reader takes (RGL's tables have rank 4 or 5; numpy allows 64).
 _MAX_RANK = 8
+#: Largest .bsdf file read (bytes): the published RGL files are 0.6-1.1 MB; this leaves room for
+#: far finer tables, and keeps a sparse or endless file from filling memory.
+MAX_FILE_BYTES = 256 << 20
 #: Longest field name quoted in an error message.
 _MAX_NAME_CHARS = 40
 
@@ -140,15 +144,7 @@ def read_tensor_file(path) -> Dict[str, np.ndarray]:
     truncated file, a wrong magic or version, an unknown dtype code, a
     duplicate field or a field whose data lie outside the file."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            buf = fh.read()
-    except FileNotFoundError:
-        raise BRDFFormatError(path, "no such file") from None
-    except IsADirectoryError:
-        raise BRDFFormatError(path, "is a folder, not a .bsdf file") from None
-    except OSError as err:
-        raise BRDFFormatError(path, f"cannot read the file ({err.strerror or err})") from None
+    buf = read_input_bytes(path, ".bsdf file", MAX_FILE_BYTES, BRDFFormatError)
 
     size = len(buf)
     pos = 0

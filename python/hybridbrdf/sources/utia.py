@@ -94,7 +94,7 @@ def read_utia_table(path) -> np.ndarray:
     theta_v, phi_v, RGB). Raises :class:`BRDFFormatError` for an unreadable
     file, a wrong size or non-finite values."""
     spec = os.fspath(path)
-    data = read_file_bytes(spec, "UTIA")
+    data = read_file_bytes(spec, "UTIA", FILE_BYTES)  # the format has one size
     if len(data) != FILE_BYTES:
         what = "truncated UTIA file" if len(data) < FILE_BYTES else "UTIA file too long"
         raise BRDFFormatError(spec, f"{what}: {len(data)} bytes, expected {FILE_BYTES} (3 x 6x48x6x48 float64)")
