@@ -531,7 +531,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "material's drift (SMAPE and cMAE against BASE) is printed and recorded")
     ad.add_argument("--max-drift", type=float, default=None, metavar="X",
                     help="with --refine: the largest drift (SMAPE against BASE's own output) a BASE material may "
-                         "take; above it nothing is written (default: 0.05)")
+                         "take; above it nothing is written (default: 0.75)")
     ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     ad.set_defaults(func=_cmd_add)
 

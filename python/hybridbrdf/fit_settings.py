@@ -57,8 +57,12 @@ ADD_STEPS = 5000
 FINETUNE_STEPS = 5000
 
 #: ``hbrdf add --refine``'s limit on how far a base material may move: SMAPE of the refined
-#: model against the base's own output on the metric pairs (docs/FITTING.md, "Refining a collection").
-MAX_DRIFT = 0.05
+#: model against the base's own output on the metric pairs (docs/FITTING.md, "Refining a
+#: collection"). 0.75: the NBRDF-MERL refine of issue 36 (b) moved its 42 base materials by 0.098
+#: on average and at most 0.59 (a dark phenolic, where SMAPE is most sensitive) while their render
+#: MAE changed by 6.7%; the limit refuses a refine that moves a material further than any of
+#: those (SMAPE 2 is a material replaced by another).
+MAX_DRIFT = 0.75
 
 
 def _setting(default, help: str, section: str, flag: Optional[str] = None, **cli):
