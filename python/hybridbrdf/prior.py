@@ -1,11 +1,12 @@
 """The shipped prior: a network to add new measurements to (``hbrdf add`` without ``--to``).
 
-The prior is a hybrid model whose shared network was fitted to every measured material of the
-project's data (the raw RGL files and the NBRDF reconstructions of RGL, MERL and Nielsen), with
-the default recipe; it ships inside the package (about 60 KB: the network and each
-training material's (p, z), which sparse fitting scores as starting points). A measurement added
-to it gets its own (p, z) on the prior's frozen network; the written model holds the new
-materials only (docs/FITTING.md, "The shipped prior").
+The prior is a hybrid model (32x2, latent 8, material output layers) whose network was fitted to
+every measured material of the project's data (the raw RGL files and the NBRDF reconstructions
+of RGL, MERL and Nielsen), with the default recipe; it ships inside the package (about 170 KB: the
+network and each training material's (p, z, head), which sparse fitting scores as starting
+points). ``hbrdf add`` fits a measurement's (p, z, head) on the prior's frozen network, then by
+default fine-tunes the network with it; the written model holds the new materials only
+(docs/FITTING.md, "Adding to the prior" and "The shipped prior").
 """
 
 from __future__ import annotations

@@ -151,8 +151,8 @@ def _file_digest(path) -> str:
 
 def test_add_on_the_prior_fine_tunes_its_network_and_leaves_the_prior_file_alone(base_file, tmp_path, monkeypatch):
     """The default onto the prior: the sparse fit, then the network trained with the new material.
-    Its training loss must end below the sparse fit's (the network's extra freedom is used) and
-    the prior's file is never written."""
+    Its cMAE on pairs it was not trained on must end below the sparse fit's (the network's extra
+    freedom is used), and the prior's file is never written."""
     import hybridbrdf.prior as prior_module
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
