@@ -69,13 +69,15 @@ class Phase:
 
     def command(self) -> str:
         merged = {**COMMON, **self.settings}
-        flags = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in self.settings.items() if k not in ("width", "depth"))
+        fixed = ("width", "depth", "latent", "output_layer")  # spelled out below from the merged values
+        flags = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in self.settings.items()
+                         if k not in fixed or self.refit or self.init)
         if self.refit:
             return f"hbrdf fit --frozen PREV ../shared/data/rgl ../shared/data/nbrdf/rgl {flags} --compile"
         if self.init:
             return f"hbrdf fit --init PRIOR ../shared/data/rgl ../shared/data/nbrdf/rgl {flags} --compile"
         return (f"hbrdf fit ../shared/data/rgl ../shared/data/nbrdf/rgl --mlp {merged['width']}x{merged['depth']} "
-                f"--latent 4 --output-layer {merged['output_layer']} {flags} --compile")
+                f"--latent {merged['latent']} --output-layer {merged['output_layer']} {flags} --compile")
 
 
 #: The schedules compared. "old": the commands of results/rgl54_hybrid_32x2_e09_120k_refit01
