@@ -137,7 +137,7 @@ def test_every_fit_setting_flag_reaches_fit_settings_and_hbrdf_info():
             argv += [f.metadata["flag"], value]; wanted[f.name] = value
         elif f.name == "width":
             argv += ["--mlp", "8x5"]; wanted.update(width=8, depth=5)
-        elif f.name in ("device", "frozen_from"):
+        elif f.name in ("device", "frozen_from", "init_from"):  # strings: any value
             argv += [f.metadata["flag"], "elsewhere"]; wanted[f.name] = "elsewhere"
         else:  # 7, or inside the flag's range (fit_settings.Number) where 7 is outside it
             value = 0.7 if cli["type"].problem(7) else 7

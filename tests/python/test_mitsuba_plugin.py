@@ -26,9 +26,12 @@ GLOSSY = "satin_gold_rgb"
 
 @pytest.fixture(scope="module")
 def edited_model(tmp_path_factory):
-    """The prior plus an anisotropic edit (the plugin must use Mitsuba's tangent frame)."""
+    """A prior plus an anisotropic edit (the plugin must use Mitsuba's tangent frame): the
+    shared-output prior these renders were written against (tests/data; test_editing.py says
+    why a fixed file); material output layers through the plugin: test_add.py."""
     path = tmp_path_factory.mktemp("mi") / "edited.safetensors"
-    return hb.load_prior().edit(GLOSSY, "aniso", alpha=[0.05, 0.4]).save_checked(path)
+    prior = hb.load_model(os.path.join(HERE, "..", "data", "prior_shared_20261123.safetensors"))
+    return prior.edit(GLOSSY, "aniso", alpha=[0.05, 0.4]).save_checked(path)
 
 
 @pytest.fixture(scope="module")
