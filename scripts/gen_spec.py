@@ -43,6 +43,21 @@ def load_spec(path: pathlib.Path = SPEC) -> dict:
     return spec
 
 
+def max_data_bytes(spec: dict) -> int:
+    """The largest tensor data section a model file the contract allows can have: every hidden
+    layer max_width wide (the first one's input too), the widest output layer, the neural
+    baseline's frame layer, and max_materials materials with the longest latent code and their
+    own output layers. Both loaders refuse a larger file from its size alone, before reading it
+    (a sparse file costs nothing on disk and would otherwise cost its size in memory)."""
+    c = {k: v["value"] for k, v in spec["constants"].items()}
+    width, latent = c["max_width"], c["max_latent"]
+    n_out = max(a["n_out"] for a in spec["archs"].values())
+    frames = 6 * c["neural_frames"]
+    floats = (c["max_depth"] * (width * width + width) + n_out * width + n_out + frames * latent + frames
+              + c["max_materials"] * (3 + 3 + 2 + latent + n_out * width + n_out))
+    return 4 * floats
+
+
 def _cpp_number(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -71,7 +86,10 @@ def cpp_header(spec: dict) -> str:
            f"inline constexpr int kConventionsVersion = {spec['conventions_version']};",
            f"inline constexpr const char* kMetadataKey = \"{spec['metadata_key']}\";",
            f"inline constexpr const char* kTensorDtype = \"{spec['container']['dtype']}\";",
-           f"inline constexpr std::uint64_t kMaxHeaderBytes = {spec['container']['max_header_bytes']}ull;", ""]
+           f"inline constexpr std::uint64_t kMaxHeaderBytes = {spec['container']['max_header_bytes']}ull;",
+           _cpp_comment("Largest tensor data section of a model file the contract allows (scripts/gen_spec.py "
+                        "max_data_bytes): a longer file is refused from its size, before it is read."),
+           f"inline constexpr std::uint64_t kMaxDataBytes = {max_data_bytes(spec)}ull;", ""]
     for name, c in spec["constants"].items():
         camel = "k" + "".join(p.capitalize() for p in name.split("_"))
         if isinstance(c["value"], str):
@@ -146,7 +164,10 @@ def python_module(spec: dict) -> str:
     lines = [f'"""The model contract of hybridbrdf (docs/FITTING.md, "Model files").', "", BANNER, '"""', "",
              f"FORMAT_VERSION = {spec['format_version']}", f"CONVENTIONS_VERSION = {spec['conventions_version']}",
              f"METADATA_KEY = {spec['metadata_key']!r}", f"TENSOR_DTYPE = {spec['container']['dtype']!r}",
-             f"MAX_HEADER_BYTES = {spec['container']['max_header_bytes']}", ""]
+             f"MAX_HEADER_BYTES = {spec['container']['max_header_bytes']}",
+             "#: Largest tensor data section of a model file the contract allows (scripts/gen_spec.py",
+             "#: max_data_bytes): a longer file is refused from its size, before it is read.",
+             f"MAX_DATA_BYTES = {max_data_bytes(spec)}", ""]
     for name, c in spec["constants"].items():
         lines.append(f"#: {c['doc']}")
         lines.append(f"{name.upper()} = {c['value']!r}")

@@ -15,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -44,7 +45,37 @@ std::string shape_str(const std::vector<std::int64_t>& s) {
     return o.str();
 }
 
-// Reads the safetensors container: metadata map and float32 tensors.
+// The safetensors header text as the Python loader's parser (serde_json, in the safetensors
+// package) reads it, where nlohmann-json is more lenient: it skips a UTF-8 byte-order mark and
+// stops at a NUL. Raw control characters are invalid anywhere in JSON but for the whitespace
+// \t \n \r between tokens, so refusing them all is exact. Empty when acceptable.
+std::string header_text_problem(const std::string& text) {
+    if (text.size() >= 3 && static_cast<unsigned char>(text[0]) == 0xEF &&
+        static_cast<unsigned char>(text[1]) == 0xBB && static_cast<unsigned char>(text[2]) == 0xBF)
+        return "the header starts with a UTF-8 byte-order mark";
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(text[i]);
+        if (c < 0x20 && c != '\t' && c != '\n' && c != '\r')
+            return "control character " + std::to_string(int(c)) + " at header byte " + std::to_string(i);
+    }
+    return {};
+}
+
+// A JSON array of unsigned integers, as serde reads a `usize` list: 6.0, 6.9, -0 and true are
+// not integers there (nlohmann-json would convert them). False when any element is not one.
+bool read_usize_array(const json& v, std::vector<std::uint64_t>& out) {
+    if (!v.is_array()) return false;
+    for (const auto& d : v) {
+        if (!d.is_number_unsigned()) return false;
+        out.push_back(d.get<std::uint64_t>());
+    }
+    return true;
+}
+
+// Reads the safetensors container: metadata map and float32 tensors. The header is checked
+// whole (entries, and the data section laid out exactly against the file's real size) before
+// any tensor memory is allocated, and then only the bytes the header declares are read, so a
+// file's length never sizes a buffer by itself.
 void read_safetensors(const std::string& path, std::map<std::string, std::string>& metadata,
                       std::map<std::string, Tensor>& tensors) {
     // What the file is, before opening it (python/hybridbrdf/inputs.py, the same words): opening a
@@ -57,6 +88,12 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
         if (S_ISBLK(st.st_mode)) throw ModelFileError(path, "is a block device, not a regular file");
         if (S_ISSOCK(st.st_mode)) throw ModelFileError(path, "is a socket, not a regular file");
         if (!S_ISREG(st.st_mode)) throw ModelFileError(path, "is not a regular file");
+        // The contract bounds a model's size (spec::kMaxDataBytes); the Python loader refuses a
+        // longer file with these words too (inputs.check_input_file).
+        const std::uint64_t limit = 8 + kMaxHeaderBytes + spec::kMaxDataBytes;
+        if (static_cast<std::uint64_t>(st.st_size) > limit)
+            throw ModelFileError(path, "model file too long: " + std::to_string(st.st_size) +
+                                           " bytes (a model file is at most " + std::to_string(limit) + " bytes)");
     }
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) throw ModelFileError(path, "no such file or not readable");
@@ -74,73 +111,135 @@ void read_safetensors(const std::string& path, std::map<std::string, std::string
     if (hlen > kMaxHeaderBytes || 8 + hlen > size)
         throw ModelFileError(path, "not a safetensors file or truncated (header length " + std::to_string(hlen) +
                                        ", file " + std::to_string(size) + " bytes)");
-    in.seekg(0);
-    std::vector<char> raw(static_cast<std::size_t>(size));
-    if (!in.read(raw.data(), static_cast<std::streamsize>(size)))
-        throw ModelFileError(path, "cannot read " + std::to_string(size) + " bytes (changed while reading?)");
+    std::string text(static_cast<std::size_t>(hlen), '\0');
+    if (!in.read(text.data(), static_cast<std::streamsize>(hlen)))
+        throw ModelFileError(path, "cannot read the " + std::to_string(hlen) + "-byte header (changed while reading?)");
+    // serde refuses a repeated field of a struct: "__metadata__" at the top, and "dtype", "shape"
+    // or "data_offsets" in a tensor's entry (repeated tensor names and metadata keys are a map's,
+    // the last one wins, in both parsers). Noted during the parse, reported after it.
+    std::string repeated;
+    std::set<std::string> entry_fields;
+    bool top_metadata = false, in_entry = false;
+    const json::parser_callback_t note = [&](int depth, json::parse_event_t event, json& parsed) {
+        if (event == json::parse_event_t::object_start && depth == 1) entry_fields.clear();
+        if (event == json::parse_event_t::key && parsed.is_string()) {
+            const std::string& k = parsed.get_ref<const std::string&>();
+            if (depth == 1) {
+                in_entry = k != "__metadata__";
+                if (!in_entry && top_metadata && repeated.empty()) repeated = "__metadata__";
+                top_metadata = top_metadata || !in_entry;
+            } else if (depth == 2 && in_entry && (k == "dtype" || k == "shape" || k == "data_offsets") &&
+                       !entry_fields.insert(k).second && repeated.empty()) {
+                repeated = k;
+            }
+        }
+        return true;
+    };
     json header;
     try {
-        header = json::parse(raw.begin() + 8, raw.begin() + 8 + static_cast<std::ptrdiff_t>(hlen));
+        header = json::parse(text, note);
     } catch (const json::exception& e) {
         throw ModelFileError(path, std::string("safetensors header is not valid JSON (") + e.what() + ")");
     }
+    // After the parse, so that text nlohmann-json refuses keeps its message (which byte, where).
+    if (const std::string problem = header_text_problem(text); !problem.empty())
+        throw ModelFileError(path, "not a valid safetensors file (" + problem + ")");
+    if (!repeated.empty())
+        throw ModelFileError(path, "not a valid safetensors file (the header repeats the field '" + repeated + "')");
     if (!header.is_object()) throw ModelFileError(path, "safetensors header is not a JSON object");
-    const char* data = raw.data() + 8 + hlen;
-    const std::uint64_t data_len = raw.size() - 8 - hlen;
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;  // every tensor's [start, end)
+    const std::uint64_t data_len = size - 8 - hlen;
+    struct Entry {
+        std::string name;
+        std::vector<std::int64_t> shape;
+        std::uint64_t start, end;
+    };
+    std::vector<Entry> entries;
     for (auto it = header.begin(); it != header.end(); ++it) {
         if (it.key() == "__metadata__") {
+            if (it->is_null()) continue;  // an absent map to serde, as to the Python loader
             if (!it->is_object()) throw ModelFileError(path, "__metadata__ is not an object");
-            for (auto m = it->begin(); m != it->end(); ++m)
-                if (m->is_string()) metadata[m.key()] = m->get<std::string>();
+            for (auto m = it->begin(); m != it->end(); ++m) {
+                if (!m->is_string())
+                    throw ModelFileError(path, "not a valid safetensors file (__metadata__ entry '" + m.key() + "' is " +
+                                                   (m->is_number_integer() ? std::string("an integer")
+                                                    : m->is_number()       ? std::string("a number")
+                                                    : m->is_boolean()      ? std::string("a boolean")
+                                                    : m->is_null()         ? std::string("null")
+                                                    : m->is_array()        ? std::string("an array")
+                                                                           : std::string("an object")) +
+                                                   ", not a string)");
+                metadata[m.key()] = m->get<std::string>();
+            }
             continue;
         }
         const json& info = *it;
-        Tensor t;
-        std::uint64_t start = 0, end = 0;
+        Entry e{it.key(), {}, 0, 0};
+        std::vector<std::uint64_t> dims, offsets;
         try {
             if (info.at("dtype").get<std::string>() != "F32")
                 throw ModelFileError(path, "tensor '" + it.key() + "': dtype " + info.at("dtype").get<std::string>() +
                                                ", expected F32");
-            for (const auto& d : info.at("shape")) t.shape.push_back(d.get<std::int64_t>());
-            start = info.at("data_offsets").at(0).get<std::uint64_t>();
-            end = info.at("data_offsets").at(1).get<std::uint64_t>();
+            if (!read_usize_array(info.at("shape"), dims))
+                throw ModelFileError(path, "not a valid safetensors file (tensor '" + it.key() +
+                                               "': shape is not a list of non-negative integers)");
+            if (!read_usize_array(info.at("data_offsets"), offsets) || offsets.size() != 2)
+                throw ModelFileError(path, "not a valid safetensors file (tensor '" + it.key() +
+                                               "': data_offsets is not a list of two non-negative integers)");
         } catch (const json::exception&) {
             throw ModelFileError(path, "tensor '" + it.key() + "': malformed entry in the header");
         }
+        e.start = offsets[0];
+        e.end = offsets[1];
         std::uint64_t count = 1;
-        for (auto d : t.shape) {
-            if (d < 0) throw ModelFileError(path, "tensor '" + it.key() + "': negative dimension");
+        for (auto d : dims) {
             // Element counts past the data section cannot fit it; stopping here also keeps the
             // product from wrapping around 2^64 and passing the range check below.
-            if (d != 0 && count > data_len / 4 / static_cast<std::uint64_t>(d)) {
+            if (d != 0 && count > data_len / 4 / d) {
                 count = std::numeric_limits<std::uint64_t>::max() / 8;
                 break;
             }
-            count *= static_cast<std::uint64_t>(d);
+            count *= d;
         }
-        if (!(start <= end && end <= data_len) || end - start != 4 * count)
-            throw ModelFileError(path, "tensor '" + it.key() + "': data range [" + std::to_string(start) + ", " +
-                                           std::to_string(end) + ") does not fit shape " + shape_str(t.shape) +
+        for (auto d : dims) e.shape.push_back(static_cast<std::int64_t>(std::min<std::uint64_t>(d, INT64_MAX)));
+        if (!(e.start <= e.end && e.end <= data_len) || e.end - e.start != 4 * count)
+            throw ModelFileError(path, "tensor '" + it.key() + "': data range [" + std::to_string(e.start) + ", " +
+                                           std::to_string(e.end) + ") does not fit shape " + shape_str(e.shape) +
                                            " in " + std::to_string(data_len) + " data bytes (truncated?)");
-        t.data.resize(count);
-        if (count) std::memcpy(t.data.data(), data + start, 4 * count);  // little-endian hosts only
-        tensors[it.key()] = std::move(t);
-        ranges.emplace_back(start, end);
+        entries.push_back(std::move(e));
     }
     // The safetensors format indexes its data section exactly: no overlap, no hole, nothing after
-    // the last tensor (bytes nothing reads are damage, or something hidden in the file).
-    std::sort(ranges.begin(), ranges.end());
+    // the last tensor (bytes nothing reads are damage, or something hidden in the file). Checked
+    // against the file's real size before a byte of tensor data is read or allocated.
+    std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+        return std::tie(a.start, a.end) < std::tie(b.start, b.end);
+    });
     std::uint64_t covered = 0;
-    for (const auto& [start, end] : ranges) {
-        if (start != covered)
+    for (const auto& e : entries) {
+        if (e.start != covered)
             throw ModelFileError(path, "safetensors data section is not laid out tensor after tensor (bytes " +
-                                           std::to_string(std::min(start, covered)) + " on)");
-        covered = end;
+                                           std::to_string(std::min(e.start, covered)) + " on)");
+        covered = e.end;
     }
     if (covered != data_len)
         throw ModelFileError(path, "safetensors data section has " + std::to_string(data_len - covered) +
                                        " bytes after the last tensor");
+    // Only now the data: tensor by tensor, in file order, exactly the bytes declared. A failed
+    // allocation is the file's size speaking, reported as such rather than as std::bad_alloc.
+    try {
+        for (auto& e : entries) {
+            Tensor t;
+            t.shape = std::move(e.shape);
+            t.data.resize(static_cast<std::size_t>((e.end - e.start) / 4));
+            in.seekg(static_cast<std::streamoff>(8 + hlen + e.start));
+            if (e.end > e.start &&  // little-endian hosts only
+                !in.read(reinterpret_cast<char*>(t.data.data()), static_cast<std::streamsize>(e.end - e.start)))
+                throw ModelFileError(path, "cannot read tensor '" + e.name + "' (the file changed while reading?)");
+            tensors[e.name] = std::move(t);
+        }
+    } catch (const std::bad_alloc&) {
+        throw ModelFileError(path, "needs " + std::to_string(data_len) +
+                                       " bytes of tensor data, more than this process could allocate");
+    }
 }
 
 // "%.9g": the number format of every value quoted in a message, the same in the Python loader.
@@ -356,7 +455,7 @@ std::string join_names(const std::vector<std::string>& names) {
 // The checks and their order follow the model contract (spec/model.json) and are
 // the same in the Python loader (model_file.py); tests/data/malformed_models.json
 // holds the shared table of broken files both must reject alike.
-HybridModel HybridModel::load(const std::string& path) {
+HybridModel HybridModel::load(const std::string& path) try {
     std::map<std::string, std::string> metadata;
     std::map<std::string, Tensor> tensors;
     read_safetensors(path, metadata, tensors);
@@ -542,6 +641,10 @@ HybridModel HybridModel::load(const std::string& path) {
     if (!overflow.empty()) throw ModelFileError(path, overflow);  // checked last, as in Python
     model.prepare_batch();
     return model;
+} catch (const std::bad_alloc&) {
+    // Whatever the allocation, a model's memory is proportional to its file, which the contract
+    // bounds (spec::kMaxDataBytes); what fails below that is this machine's limit, said so.
+    throw ModelFileError(path, "needs more memory than this process could allocate");
 }
 
 int HybridModel::find(const std::string& name) const {

@@ -13,7 +13,9 @@ generator's states), ``train_seconds`` and ``timed_from_step`` (see fitting.fit)
 Reading checks, in this order, and stops at the first problem with an
 :class:`~hybridbrdf.errors.InputFileError` whose one-line message names the file:
 the file (a readable regular file), the header and the checksum (byte flips, truncation),
-the payload (loadable, a dict), its structure (every key, of its type), the settings (the
+the payload's zip entries (stored as torch.save stores them, never compressed, so that what
+torch.load allocates is bounded by the file's size: no decompression bomb), the payload
+(loadable, a dict), its structure (every key, of its type), the settings (the
 fit's own), the step (0 <= step <= settings.steps; = steps: the fit is done) and every
 number (finite; Adam's second moments >= 0); then, against the model and optimiser the fit
 builds (:func:`restore`), the material names, every tensor's shape and the optimiser's
@@ -30,6 +32,7 @@ import hashlib
 import io
 import math
 import os
+import zipfile
 from typing import Any, Dict, List, Tuple
 
 import torch
@@ -108,12 +111,39 @@ def _payload(path: str, data: bytes) -> Tuple[bytes, bool]:
     return payload, True
 
 
+def _check_archive(path: str, payload: bytes) -> None:
+    """Refuse a zip payload whose entries would expand beyond the file before torch.load opens it.
+    torch.save stores every entry as is (no compression), so a checkpoint's content is never
+    larger than the file: that is the budget. A deflated entry is a decompression bomb waiting
+    to happen (1 MB of zip became 1.28 GB in torch.load before any check could run), and an
+    entry that declares more bytes than the file holds would size an allocation by a lie. Only
+    the central directory is read here (what torch's reader allocates by), not the data."""
+    if not payload.startswith(_LEGACY_MAGIC):
+        return  # not a zip: torch's other formats are not compressed either
+    try:
+        infos = zipfile.ZipFile(io.BytesIO(payload)).infolist()
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError, OSError, NotImplementedError) as exc:
+        raise CheckpointError(path, f"cannot be read as a checkpoint ({type(exc).__name__}: "
+                                    f"{(str(exc).splitlines() or [''])[0][:200]})") from None
+    total = 0
+    for info in infos:
+        if info.compress_type != zipfile.ZIP_STORED or info.file_size != info.compress_size:
+            raise CheckpointError(path, f"checkpoint entry '{info.filename[:100]}' is compressed ({info.compress_size} "
+                                        f"bytes that expand to {info.file_size}); torch.save never compresses, so "
+                                        "this is not a checkpoint hybridbrdf wrote")
+        total += info.file_size
+    if total > len(payload):
+        raise CheckpointError(path, f"checkpoint entries declare {total} bytes, more than the {len(payload)} "
+                                    "bytes of the file hold")
+
+
 def read(path) -> Tuple[Dict[str, Any], bool]:
     """(state, checksummed): the state dict of the checkpoint file ``path``, header, checksum
     and top-level type verified (not yet its content: see :func:`check`). ``checksummed`` is
     False for a checkpoint from before the header (no damage detection)."""
     path = os.fspath(path)
     payload, checksummed = _payload(path, _read_bytes(path))
+    _check_archive(path, payload)
     try:
         state = torch.load(io.BytesIO(payload), map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for bad zips and pickles; all mean "unreadable"

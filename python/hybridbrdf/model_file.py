@@ -99,9 +99,10 @@ def decode(path: str):
     The two checks before the safetensors package runs are the C++ reader's first two, with
     its messages (they catch the commonest damage: empty and cut-off files). Before them, the
     file must be a regular one (hybridbrdf.inputs: a FIFO would block the open, a device never
-    end); its size needs no bound here, as safetensors maps the file and reads only the header
-    and the tensors the header declares, each checked against the file's size."""
-    check_input_file(path, "model file", None, ModelFileError)
+    end), and no longer than the largest model the contract allows (spec.MAX_DATA_BYTES, the
+    C++ loader's bound and words too); safetensors maps the file and reads only the header and
+    the tensors the header declares, each checked against the file's size."""
+    check_input_file(path, "model file", 8 + MAX_HEADER_BYTES + spec.MAX_DATA_BYTES, ModelFileError)
     try:
         with open(path, "rb") as fh:
             head = fh.read(8)
@@ -126,6 +127,8 @@ def decode(path: str):
                 tensors[name] = np.array(f.get_tensor(name), dtype=np.float32)
     except safetensors.SafetensorError as exc:
         raise ModelFileError(path, f"not a valid safetensors file ({exc})") from None
+    except MemoryError:  # the file's declared tensors, within the contract's bound, but not this machine's
+        raise ModelFileError(path, f"needs {size - 8 - hlen} bytes of tensor data, more than this process could allocate") from None
     return metadata, tensors
 
 

@@ -8,6 +8,9 @@ CONVENTIONS_VERSION = 1
 METADATA_KEY = 'hybridbrdf'
 TENSOR_DTYPE = 'F32'
 MAX_HEADER_BYTES = 67108864
+#: Largest tensor data section of a model file the contract allows (scripts/gen_spec.py
+#: max_data_bytes): a longer file is refused from its size, before it is read.
+MAX_DATA_BYTES = 6460221536
 
 #: Default bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6 is far above any measured BRDF value and keeps float32 (and float16 products) from overflowing. A model file records the bound it was trained with (arch.pre_exp_max) and every reader uses the recorded one.
 PRE_EXP_MAX = 16.0

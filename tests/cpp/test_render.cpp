@@ -293,7 +293,7 @@ TEST_CASE("scene errors name the file and the problem") {
     CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": "x"}]})") ==
           "bad.json: objects[0].material: no material named 'x' in 'materials'");
     CHECK(message("{" + cam + R"(, "objects": [{"type": "mesh", "file": "nope.obj", "material": {"type": "analytic"}}]})") ==
-          "bad.json: objects[0].file: ./nope.obj: cannot open the mesh file");
+          "bad.json: objects[0].file: ./nope.obj: no such file");
     CHECK(message("{" + cam + R"(, "environment": {"type": "file", "file": "sky.exr"}, "objects": [{"type": "sphere", "material": {"type": "analytic"}}]})")
               .rfind("bad.json: environment.file: ./sky.exr: ", 0) == 0);
     CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": {"type": "measured", "source": "synthetic:gold"}}]})")

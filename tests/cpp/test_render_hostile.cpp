@@ -4,6 +4,7 @@
 // one-line errors naming the key before anything large is allocated; outputs
 // are checked before a render and replaced only when it completes.
 #include <doctest/doctest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
@@ -209,5 +211,49 @@ TEST_CASE("outputs: checked before a render, replaced only by a commit") {
     StagedFile staged = stage_exr(Image(2, 2), path);
     staged.commit();
     CHECK(read_image(path).width == 2);
+    std::remove(path.c_str());
+}
+
+TEST_CASE("validation: an environment too bright for float32 sums, and a film that is not finite, are errors") {
+    // 1e30 x 1: finite, but 16 samples of it through a path's throughput can reach +Inf.
+    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": 1e21})")) ==
+          "bad.json: environment: the brightest texel x scale is 1e+21, above the limit 1e+20 (a pixel's samples "
+          "would overflow float32)");
+    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": 1e20})")) == "no error");
+    // The last guard, whatever the light: render() refuses an image holding Inf or NaN.
+    Scene scene = load_scene_json(with_environment(R"({"type": "constant", "radiance": 2})"), ".", "ok.json");
+    Image img(4, 2);
+    CHECK(film_problem(img, scene).empty());
+    img.at(3, 1)[2] = std::numeric_limits<float>::infinity();
+    img.at(1, 1)[0] = std::numeric_limits<float>::quiet_NaN();
+    CHECK(film_problem(img, scene) ==
+          "the rendered image holds 2 values that are not finite (the first at pixel (1, 1)): the light along its "
+          "paths overflows float32 (the environment's brightest radiance is 2)");
+}
+
+TEST_CASE("special files: environment maps and meshes that are FIFOs or devices are refused before opening") {
+    const std::string fifo = "hbrdf_hostile_fifo.hdr";
+    std::remove(fifo.c_str());
+    REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+    const auto t0 = std::chrono::steady_clock::now();
+    CHECK_THROWS_WITH_AS(read_image(fifo), "hbrdf_hostile_fifo.hdr: is a FIFO, not a regular file", FileError);
+    CHECK_THROWS_WITH_AS(read_image("/dev/zero"), "/dev/zero: is a character device, not a regular file", FileError);
+    CHECK(load_error("{" + kCam + R"(, "objects": [{"type": "mesh", "file": "hbrdf_hostile_fifo.hdr", "material": {"type": "analytic"}}]})")
+              .find("hbrdf_hostile_fifo.hdr: is a FIFO, not a regular file") != std::string::npos);
+    CHECK(seconds_since(t0) < 10.0);  // an open() of the FIFO would have blocked for ever
+    std::remove(fifo.c_str());
+}
+
+TEST_CASE("limits: a Radiance HDR file is refused when its pixel data end early") {
+    const std::string path = "hbrdf_hostile_truncated.hdr";
+    const std::string header = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n";
+    write_file(path, header + "-Y 4096 +X 32768\n");  // 4096 x 32768 declared, no pixel present
+    CHECK_THROWS_WITH_AS(read_image(path), "hbrdf_hostile_truncated.hdr: truncated: scanline 1 of 4096", FileError);
+    std::string flat = header + "-Y 4 +X 4\n";
+    for (int i = 0; i < 16; ++i) flat += std::string("\x80\x80\x80\x81", 4);
+    write_file(path, flat);
+    CHECK(read_image(path).rgb[0] == 1.0f);
+    write_file(path, flat.substr(0, flat.size() - 20));
+    CHECK_THROWS_WITH_AS(read_image(path), "hbrdf_hostile_truncated.hdr: truncated: scanline 3 of 4", FileError);
     std::remove(path.c_str());
 }

@@ -179,6 +179,83 @@ def test_every_damaged_checkpoint_fails_fast_with_one_line(good_checkpoint, tmp_
         assert path.read_bytes() == blob, label  # a refused checkpoint is left as it was
 
 
+def _with_checksum(payload: bytes) -> bytes:
+    import hashlib
+
+    return ckpt.MAGIC + b"%d sha256=%s\n" % (ckpt.VERSION, hashlib.sha256(payload).hexdigest().encode()) + payload
+
+
+def _deflated(zip_bytes: bytes, only: str = "") -> bytes:
+    """The same zip archive with every entry whose name holds ``only`` deflated (torch.save
+    stores them as is)."""
+    import io
+    import zipfile
+
+    src = zipfile.ZipFile(io.BytesIO(zip_bytes))
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            method = zipfile.ZIP_DEFLATED if only in info.filename else zipfile.ZIP_STORED
+            dst.writestr(info.filename, src.read(info.filename), compress_type=method)
+    return out.getvalue()
+
+
+def _declared_size(zip_bytes: bytes, name: bytes, size: int) -> bytes:
+    """The zip archive with entry ``name``'s central-directory sizes (both) set to ``size``."""
+    import struct
+
+    b = bytearray(zip_bytes)
+    at = b.find(b"PK\x01\x02")
+    while at >= 0:
+        n = struct.unpack_from("<H", b, at + 28)[0]
+        if bytes(b[at + 46:at + 46 + n]).endswith(name):
+            struct.pack_into("<II", b, at + 20, size, size)
+            return bytes(b)
+        at = b.find(b"PK\x01\x02", at + 4)
+    raise AssertionError(f"no entry {name!r}")
+
+
+def test_a_decompression_bomb_checkpoint_is_refused_before_it_expands(good_checkpoint, tmp_path):
+    """1 MB of deflated zeros with a valid checksum once grew `hbrdf fit --resume` to 1.28 GB
+    before "checkpoint has no 'module'". Here 64 MB of zeros in 65 KB: refused from the zip's
+    directory, before torch.load, with the process barely growing; also the checkpoint's own
+    entries deflated, and a stored entry that declares more bytes than the file holds."""
+    import resource
+
+    _, state = good_checkpoint
+    bomb = _deflated(_bare_zip({"x": torch.zeros(16 << 20)}), only="/data/")
+    assert len(bomb) < 200_000
+    cases = [("bomb, checksummed", _with_checksum(bomb), "checkpoint entry 'archive/data/0' is compressed ("),
+             ("bomb, bare zip", bomb, "checkpoint entry 'archive/data/0' is compressed ("),
+             ("the checkpoint deflated", _with_checksum(_deflated(_bare_zip(state))), "is compressed ("),
+             ("an entry declaring 2 GB", _with_checksum(_declared_size(_bare_zip(state), b"/data/0", 2 << 30)),
+              "checkpoint entries declare ")]
+    for label, blob, words in cases:
+        path = tmp_path / "ck.pt"
+        path.write_bytes(blob)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        with pytest.raises(hb.InputFileError) as info:
+            fit(sources(Tripwire), tiny(), checkpoint=str(path), resume=True, progress=False, log=lambda m: None)
+        msg = one_line_naming(info.value, path)
+        assert words in msg, (label, msg)
+        assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - peak < 32 * 1024, label  # KiB: under 32 MB
+        assert path.read_bytes() == blob, label
+
+
+def test_the_resume_command_refuses_a_bomb_with_exit_1(tmp_path):
+    path = tmp_path / "ck.pt"
+    blob = _with_checksum(_deflated(_bare_zip({"x": torch.zeros(16 << 20)}), only="/data/"))
+    path.write_bytes(blob)
+    r = subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "fit", "synthetic:plastic", "--steps", "20",
+                        "--checkpoint", str(path), "--resume", "--out", str(tmp_path / "m.safetensors")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, (r.returncode, r.stderr[-2000:])
+    lines = [l for l in r.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and str(path) in lines[0] and "is compressed (" in lines[0], r.stderr[-2000:]
+    assert "Traceback" not in r.stderr and path.read_bytes() == blob
+    assert not (tmp_path / "m.safetensors").exists()
+
+
 def test_a_checkpoint_at_the_last_step_finishes_the_fit(good_checkpoint, tmp_path):
     _, state = good_checkpoint
 

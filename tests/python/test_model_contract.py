@@ -11,6 +11,7 @@
 
 import json
 import math
+import os
 import pathlib
 import struct
 import subprocess
@@ -58,6 +59,9 @@ def _value(v):
 
 def write_case(case, good: pathlib.Path, bad: pathlib.Path) -> None:
     """Apply one row's edits to the good file and write the result."""
+    if any(key.startswith("header_") for key in case):
+        bad.write_bytes(edit_container_header(case, good.read_bytes()))
+        return
     if "bytes" in case:
         raw = good.read_bytes()
         how = case["bytes"]
@@ -109,6 +113,43 @@ def write_case(case, good: pathlib.Path, bad: pathlib.Path) -> None:
         name, dtype = case["tensor_dtype"]
         tensors[name] = tensors[name].astype(dtype)
     bad.write_bytes(safetensors.numpy.save(tensors, meta))
+
+
+def edit_container_header(case, raw: bytes) -> bytes:
+    """The file ``raw`` with its safetensors header edited as the row says, the tensor data kept:
+    header_set [[key...], value], header_floats [key...] (a list of integers as floats) and
+    header_append [[key...], value] on the parsed header, in that order, serialised by json.dumps;
+    then header_text [[op, text...], ...] on that text: ["prefix", t], ["suffix", t] or
+    ["replace", old, new] (the first occurrence, which must exist, so a row cannot go stale)."""
+    (hlen,) = struct.unpack("<Q", raw[:8])
+    header = json.loads(raw[8:8 + hlen])
+
+    def parent(keys):
+        target = header
+        for k in keys[:-1]:
+            target = target[k]
+        return target
+
+    if "header_set" in case:
+        keys, value = case["header_set"]
+        parent(keys)[keys[-1]] = value
+    if "header_floats" in case:
+        keys = case["header_floats"]
+        parent(keys)[keys[-1]] = [float(v) for v in parent(keys)[keys[-1]]]
+    if "header_append" in case:
+        keys, value = case["header_append"]
+        parent(keys)[keys[-1]].append(value)
+    text = json.dumps(header)
+    for op, *args in case.get("header_text", []):
+        if op == "prefix":
+            text = args[0] + text
+        elif op == "suffix":
+            text = text + args[0]
+        else:
+            assert op == "replace" and args[0] in text, (op, args)
+            text = text.replace(args[0], args[1], 1)
+    data = text.encode("utf-8")
+    return struct.pack("<Q", len(data)) + data + raw[8 + hlen:]
 
 
 @pytest.fixture(scope="module")
@@ -232,3 +273,81 @@ def test_the_library_raises_the_packages_model_file_error(tmp_path):
     assert err.value.path == str(bad)
     assert "\n" not in str(err.value) and "\x01" not in err.value.problem and "\ufffd" not in err.value.problem
     str(err.value).encode("utf-8", "surrogateescape")  # printable: no raw bytes that could not be shown
+
+
+# ---- the file's size, checked before its data is read (issue 33) -------------------------
+
+_MEMORY_PROBE = r"""
+import resource, sys
+import hybridbrdf as hb
+from hybridbrdf import _core
+loader = {"python": hb.load_model, "cpp": lambda p: _core.Model(p)}[sys.argv[1]]
+if len(sys.argv) > 3:  # an address-space cap this far above what the process holds now
+    with open("/proc/self/statm") as fh:
+        held = int(fh.read().split()[0]) * resource.getpagesize()
+    cap = held + int(sys.argv[3])
+    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+try:
+    loader(sys.argv[2])
+    print("ACCEPTED")
+except hb.ModelFileError as exc:
+    print(str(exc))
+print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024)
+"""
+
+
+def _load_in_child(lang, path, address_headroom=None):
+    """(message, peak resident growth in bytes) of loading ``path`` in a fresh process."""
+    args = [sys.executable, "-c", _MEMORY_PROBE, lang, str(path)] + ([str(address_headroom)] if address_headroom else [])
+    r = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and r.stderr.strip() == "", (lang, r.returncode, r.stderr[-2000:])
+    lines = r.stdout.strip().splitlines()
+    assert len(lines) == 2, (lang, r.stdout)
+    return lines[0], int(lines[1])
+
+
+def test_a_sparse_file_much_longer_than_its_header_declares_costs_no_memory(tmp_path, good_file):
+    """1.5 GB on paper, a few KB on disk: libhybridbrdf once read it whole (1.77 GB resident)
+    before finding the data section longer than the header declares."""
+    path = tmp_path / "sparse.safetensors"
+    path.write_bytes(good_file.read_bytes())
+    extra = 1_500_000_000
+    os.truncate(path, path.stat().st_size + extra)
+    for lang in ("python", "cpp"):
+        message, grown = _load_in_child(lang, path)
+        assert message.startswith(f"{path}: "), (lang, message)
+        if lang == "cpp":
+            assert message == f"{path}: safetensors data section has {extra} bytes after the last tensor"
+        assert grown < 200_000_000, (lang, grown)
+
+
+def test_a_file_longer_than_any_model_the_contract_allows_is_refused_from_its_size(tmp_path, good_file):
+    path = tmp_path / "huge.safetensors"
+    path.write_bytes(good_file.read_bytes())
+    limit = 8 + spec.MAX_HEADER_BYTES + spec.MAX_DATA_BYTES
+    os.truncate(path, limit + 1)  # sparse: nothing is written
+    expected = f"{path}: model file too long: {limit + 1} bytes (a model file is at most {limit} bytes)"
+    for lang in ("python", "cpp"):
+        message, grown = _load_in_child(lang, path)
+        assert message == expected, (lang, message)
+        assert grown < 200_000_000, (lang, grown)
+
+
+def test_a_well_formed_file_too_big_for_the_memory_at_hand_is_an_error_not_bad_alloc(tmp_path, good_file):
+    """A header that declares 1 GiB of tensor data, laid out exactly (a sparse file), loaded with
+    only 256 MiB of address space to spare: a one-line error, never std::bad_alloc or MemoryError."""
+    raw = good_file.read_bytes()
+    (hlen,) = struct.unpack("<Q", raw[:8])
+    header = json.loads(raw[8:8 + hlen])
+    data_len = len(raw) - 8 - hlen
+    big = 1 << 30
+    header["zzz.padding"] = {"dtype": "F32", "shape": [big // 4], "data_offsets": [data_len, data_len + big]}
+    text = json.dumps(header).encode()
+    path = tmp_path / "big.safetensors"
+    path.write_bytes(struct.pack("<Q", len(text)) + text + raw[8 + hlen:])
+    os.truncate(path, 8 + len(text) + data_len + big)
+    expected = f"{path}: needs {data_len + big} bytes of tensor data, more than this process could allocate"
+    for lang in ("python", "cpp"):
+        message, _ = _load_in_child(lang, path, address_headroom=256 << 20)
+        assert message == expected, (lang, message)

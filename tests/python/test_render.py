@@ -266,5 +266,5 @@ def test_obj_mesh_white_furnace(tmp_path):
     assert stats["brdf_evals"] > 0  # the mesh was hit
     s["objects"][0]["file"] = "missing.obj"
     path.write_text(json.dumps(s))
-    with pytest.raises(ValueError, match=r"objects\[0\]\.file: .*missing\.obj: cannot open the mesh file"):
+    with pytest.raises(ValueError, match=r"objects\[0\]\.file: .*missing\.obj: no such file"):
         hr.render(str(path))

@@ -402,3 +402,92 @@ def test_a_scene_nested_5000_levels_is_one_line(tmp_path):
     assert r.returncode == 1 and r.stderr == (f"hbrdf render: error: {path}: scene file: JSON nested deeper than "
                                               f"64 levels\n"), r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["deep.json"]
+
+
+# ---- environment maps and meshes that lie, or are not files (issue 33) --------------------
+
+HDR_HEADER = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n"
+
+
+def hdr_flat(width, height, rgbe=(128, 128, 128, 129)):
+    """A Radiance file of flat pixels (stb_image reads widths below 8 so); default texel 1.0."""
+    return HDR_HEADER + b"-Y %d +X %d\n" % (height, width) + bytes(rgbe) * (width * height)
+
+
+def hdr_rle(width, height, rgbe=(128, 128, 128, 129)):
+    """A run-length encoded Radiance file (8 <= width < 32768): each channel one run per scanline."""
+    assert 8 <= width <= 127
+    line = bytes([2, 2, width >> 8, width & 255]) + b"".join(bytes([128 + width, c]) for c in rgbe)
+    return HDR_HEADER + b"-Y %d +X %d\n" % (height, width) + line * height
+
+
+def render_with_environment(tmp_path, env_bytes=None, env_name="e.hdr", mesh=None):
+    """`hbrdf render` of scene() under the map `env_bytes` (written to env_name unless None: then
+    env_name must exist already), with an extra mesh object `mesh` if given; over old outputs."""
+    if env_bytes is not None:
+        (tmp_path / env_name).write_bytes(env_bytes)
+    s = scene(spp=16)
+    s["environment"] = {"type": "file", "file": env_name}
+    if mesh:
+        s["objects"].append({"type": "mesh", "file": mesh, "material": "m"})
+    (tmp_path / "s.json").write_text(json.dumps(s))
+    exr, png = tmp_path / "o.exr", tmp_path / "o.png"
+    exr.write_bytes(b"previous exr")
+    png.write_bytes(b"previous png")
+    t0 = time.monotonic()
+    # A timeout, so that a render blocked on a FIFO fails the test rather than hangs it.
+    r = subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "render", str(tmp_path / "s.json"), "-o", str(exr),
+                        "--png", str(png), "--quiet"], capture_output=True, text=True, timeout=120)
+    assert exr.read_bytes() == b"previous exr" and png.read_bytes() == b"previous png"
+    return r, time.monotonic() - t0
+
+
+def one_line_error(r, pattern):
+    assert r.returncode == 1, (r.returncode, r.stderr[-2000:])
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert re.search(pattern, r.stderr), r.stderr
+
+
+@pytest.mark.parametrize("label, data, problem", [
+    # 52 bytes declaring 4096 x 32768 texels (the limit itself) and no pixels: stb_image allocated
+    # 3.9 GB and rendered a black sky with exit 0.
+    ("header only", HDR_HEADER + b"-Y 4096 +X 32768\n", "truncated: scanline 1 of 4096"),
+    ("flat, cut in scanline 3", hdr_flat(4, 4)[:-(4 * 4 + 3)], "truncated: scanline 3 of 4"),
+    ("flat, one byte short", hdr_flat(4, 4)[:-1], "truncated: scanline 4 of 4"),
+    ("run-length, cut in scanline 2", hdr_rle(16, 2)[:-5], "truncated: scanline 2 of 2"),
+    ("run-length, no data", hdr_rle(16, 2)[:-24], "truncated: scanline 1 of 2"),
+])
+def test_a_truncated_hdr_environment_is_an_error_not_black_texels(tmp_path, label, data, problem):
+    r, seconds = render_with_environment(tmp_path, data)
+    one_line_error(r, re.escape(f"s.json: environment.file: {tmp_path}/e.hdr: {problem}") + "$")
+    assert seconds < 60, (label, seconds)
+
+
+def test_complete_hdr_files_still_read_exactly(tmp_path):
+    for name, data in (("flat.hdr", hdr_flat(4, 4, (128, 64, 32, 130))), ("rle.hdr", hdr_rle(16, 2, (128, 64, 32, 130)))):
+        (tmp_path / name).write_bytes(data)
+        img = _core.render_read_image(str(tmp_path / name))
+        assert np.array_equal(img, np.broadcast_to(np.float32([2.0, 1.0, 0.5]), img.shape)), name
+
+
+def test_an_environment_too_bright_for_float32_sums_is_refused(tmp_path):
+    """Texels of 1.69e38 (RGBE 255 255 255 255, the format's largest) passed the old check of
+    scale x brightest texel; at 16 spp every pixel was +Inf, written with exit 0."""
+    r, _ = render_with_environment(tmp_path, hdr_flat(4, 4, (255, 255, 255, 255)))
+    one_line_error(r, re.escape(f"s.json: environment: {tmp_path}/e.hdr: the brightest texel x scale is 1.69") +
+                   r".*, above the limit 1e\+20 \(a pixel's samples would overflow float32\)$")
+
+
+@pytest.mark.parametrize("kind", ["environment", "mesh"])
+def test_fifo_and_device_inputs_are_refused_before_opening(tmp_path, kind):
+    """A FIFO blocks open() until a writer comes (hbrdf render hung); /dev/zero never ends."""
+    fifo = tmp_path / "pipe.hdr"
+    os.mkfifo(fifo)
+    (tmp_path / "e.hdr").write_bytes(hdr_flat(4, 4))
+    for target, words in ((str(fifo), "is a FIFO, not a regular file"), ("/dev/zero", "is a character device, not a regular file")):
+        if kind == "environment":
+            r, seconds = render_with_environment(tmp_path, None, env_name=target)
+        else:
+            r, seconds = render_with_environment(tmp_path, None, mesh=target)
+        one_line_error(r, re.escape(f"{target}: {words}") + "$")
+        assert seconds < 60, (kind, target, seconds)

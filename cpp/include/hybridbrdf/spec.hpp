@@ -13,6 +13,9 @@ inline constexpr int kConventionsVersion = 1;
 inline constexpr const char* kMetadataKey = "hybridbrdf";
 inline constexpr const char* kTensorDtype = "F32";
 inline constexpr std::uint64_t kMaxHeaderBytes = 67108864ull;
+/// Largest tensor data section of a model file the contract allows (scripts/gen_spec.py
+/// max_data_bytes): a longer file is refused from its size, before it is read.
+inline constexpr std::uint64_t kMaxDataBytes = 6460221536ull;
 
 /// Default bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6
 /// is far above any measured BRDF value and keeps float32 (and float16 products) from overflowing.

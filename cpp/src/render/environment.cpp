@@ -36,6 +36,11 @@ EnvironmentLight::EnvironmentLight(Image radiance, float scale, float rotation_d
     if (!is_finite(brightest * scale))
         throw std::invalid_argument("scale: " + format_number(scale) + " x the brightest texel (" +
                                     format_number(brightest) + ") overflows float");
+    if (brightest * scale > kMaxEnvironmentRadiance)
+        throw std::invalid_argument("the brightest texel x scale is " + format_number(brightest * scale) +
+                                    ", above the limit " + format_number(kMaxEnvironmentRadiance) +
+                                    " (a pixel's samples would overflow float32)");
+    brightest_ = brightest * scale;
     for (float& v : image_.rgb) v *= scale;
     const double rot = double(rotation_deg) * 3.14159265358979323846 / 180.0;
     cos_rot_ = float(std::cos(rot));

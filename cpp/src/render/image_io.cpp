@@ -7,6 +7,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <vector>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -70,6 +72,121 @@ void check_declared_size(const std::string& path, const std::string& ext) {
     if (!problem.empty()) throw FileError(path, "the image is " + problem);
 }
 
+// A byte source over a file with a 64 KB buffer, for the walk below; get() is -1 at the end.
+class ByteReader {
+public:
+    explicit ByteReader(std::FILE* f) : f_(f), buf_(1 << 16) {}
+    int get() {
+        if (pos_ == len_) {
+            len_ = std::fread(buf_.data(), 1, buf_.size(), f_);
+            pos_ = 0;
+            if (len_ == 0) return -1;
+        }
+        return buf_[pos_++];
+    }
+    // Skips n bytes; false when the file ends first.
+    bool skip(std::uint64_t n) {
+        while (n > 0) {
+            if (pos_ == len_) {
+                len_ = std::fread(buf_.data(), 1, buf_.size(), f_);
+                pos_ = 0;
+                if (len_ == 0) return false;
+            }
+            const std::uint64_t take = std::min<std::uint64_t>(n, len_ - pos_);
+            pos_ += std::size_t(take);
+            n -= take;
+        }
+        return true;
+    }
+
+private:
+    std::FILE* f_;
+    std::vector<unsigned char> buf_;
+    std::size_t pos_ = 0, len_ = 0;
+};
+
+// Walks a Radiance RGBE file's pixel data as stb_image decodes it, without decoding, and says
+// where it ends too soon: stb_image reads past the end as zeros (a truncated map renders with
+// black texels, a 41-byte header declaring 4096 x 32768 was a black sky), and a run-length
+// scanline cut short makes its decoder loop forever on those zeros. Empty when the data are
+// all there; other damage is left to the decoder's own messages. The walk follows stb's
+// layout rules exactly: widths below 8 or from 32768 are flat (4 bytes a pixel); otherwise each
+// scanline starts 2 2 hi lo, then four channels of runs (count > 128: a repeated byte) and
+// dumps (count <= 128: that many bytes); a scanline that does not start 2 2 switches the rest
+// of the image to flat pixels, from pixel 1 of the first scanline on (stb's `goto`).
+std::string hdr_truncation(const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return "";  // the decoder reports why it cannot open it
+    ByteReader in(f);
+    auto line = [&](std::string& s) {  // stb's header token: up to '\n'; false at the end
+        s.clear();
+        for (int c; (c = in.get()) >= 0;) {
+            if (c == '\n') return true;
+            s.push_back(char(c));
+        }
+        return !s.empty();
+    };
+    std::string s;
+    bool ok = line(s) && (s == "#?RADIANCE" || s == "#?RGBE");
+    while (ok && line(s) && !s.empty()) {
+    }
+    long long w = 0, h = 0;
+    if (!(ok && line(s) && std::sscanf(s.c_str(), "-Y %lld +X %lld", &h, &w) == 2 && w > 0 && h > 0)) {
+        std::fclose(f);
+        return "";  // not a header the decoder accepts: it says so
+    }
+    const std::int64_t width = w, height = h;
+    std::string problem;
+    auto flat_from = [&](std::int64_t pixel) {  // 4 bytes per pixel from `pixel` on
+        for (std::int64_t row = pixel / width; row < height && problem.empty(); ++row) {
+            const std::int64_t first = std::max(pixel, row * width);
+            if (!in.skip(std::uint64_t(4) * std::uint64_t((row + 1) * width - first)))
+                problem = "truncated: scanline " + std::to_string(row + 1) + " of " + std::to_string(height);
+        }
+    };
+    if (width < 8 || width >= 32768) {
+        flat_from(0);
+    } else {
+        for (std::int64_t row = 0; row < height && problem.empty(); ++row) {
+            const std::string cut = "truncated: scanline " + std::to_string(row + 1) + " of " + std::to_string(height);
+            int head[4];
+            for (int& b : head) b = in.get();
+            if (head[3] < 0) {
+                problem = cut;
+                break;
+            }
+            if (head[0] != 2 || head[1] != 2 || (head[2] & 0x80)) {
+                flat_from(1);  // this scanline's 4 bytes were pixel 0
+                break;
+            }
+            if (((head[2] << 8) | head[3]) != width) break;  // the decoder's "invalid decoded scanline length"
+            for (int k = 0; k < 4 && problem.empty(); ++k) {
+                for (std::int64_t i = 0; i < width;) {
+                    const int count = in.get();
+                    if (count < 0) {
+                        problem = cut;
+                        break;
+                    }
+                    if (count > 128) {
+                        if (in.get() < 0) problem = cut;
+                        i += count - 128;
+                    } else {
+                        if (!in.skip(std::uint64_t(count))) problem = cut;
+                        i += count;
+                    }
+                    if (!problem.empty()) break;
+                    if (i > width) {  // the decoder's "bad RLE data": its message, not a walk gone astray
+                        std::fclose(f);
+                        return "";
+                    }
+                }
+            }
+        }
+    }
+    std::fclose(f);
+    return problem;
+}
+
 void check_image(const Image& image, const std::string& path) {
     if (image.width <= 0 || image.height <= 0 ||
         image.rgb.size() != std::size_t(image.width) * std::size_t(image.height) * 3)
@@ -82,9 +199,28 @@ float srgb_oetf(float x) {
 
 }  // namespace
 
+void check_input_file(const std::string& path, const std::string& what) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) {  // follows symlinks: a link to /dev/zero is a device
+        if (errno == ENOENT) throw FileError(path, "no such file");
+        throw FileError(path, "cannot read the " + what + ": " + std::strerror(errno));
+    }
+    if (S_ISDIR(st.st_mode)) throw FileError(path, "is a folder, not a " + what);
+    if (S_ISFIFO(st.st_mode)) throw FileError(path, "is a FIFO, not a regular file");
+    if (S_ISCHR(st.st_mode)) throw FileError(path, "is a character device, not a regular file");
+    if (S_ISBLK(st.st_mode)) throw FileError(path, "is a block device, not a regular file");
+    if (S_ISSOCK(st.st_mode)) throw FileError(path, "is a socket, not a regular file");
+    if (!S_ISREG(st.st_mode)) throw FileError(path, "is not a regular file");
+}
+
 Image read_image(const std::string& path) {
     const std::string ext = lower_extension(path);
+    check_input_file(path, "image file");  // before anything opens it, whatever its name
     if (ext == ".exr" || ext == ".hdr") check_declared_size(path, ext);
+    if (ext == ".hdr") {
+        const std::string truncated = hdr_truncation(path);
+        if (!truncated.empty()) throw FileError(path, truncated);
+    }
     if (ext == ".exr") {
         float* rgba = nullptr;
         int w = 0, h = 0;

@@ -281,6 +281,20 @@ template <typename F> int run_workers(F& worker, int n) {
 
 }  // namespace
 
+std::string film_problem(const Image& image, const Scene& scene) {
+    std::uint64_t bad = 0, first = 0;
+    for (std::size_t i = 0; i < image.rgb.size(); ++i)
+        if (!is_finite(image.rgb[i]) && bad++ == 0) first = i / 3;
+    if (bad == 0) return "";
+    const std::uint64_t w = std::uint64_t(std::max(image.width, 1));
+    std::string problem = "the rendered image holds " + std::to_string(bad) + " values that are not finite (the first at pixel (" +
+                          std::to_string(first % w) + ", " + std::to_string(first / w) +
+                          ")): the light along its paths overflows float32";
+    // The environment is the scene's only light; name its brightness, the usual culprit.
+    problem += " (the environment's brightest radiance is " + format_number(scene.environment.brightest()) + ")";
+    return problem;
+}
+
 Image render(const Scene& scene, const RenderOptions& options, RenderStats* stats) {
     options.validate();
     if (scene.materials.empty()) throw std::invalid_argument("the scene has no materials");
@@ -326,6 +340,8 @@ Image render(const Scene& scene, const RenderOptions& options, RenderStats* stat
         std::rethrow_exception(error);
     }
     progress.finish();
+    // Single non-finite samples are dropped (add()), but a sum of finite ones can still overflow.
+    if (const std::string problem = film_problem(image, scene); !problem.empty()) throw std::invalid_argument(problem);
 
     if (stats) {
         stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -37,6 +37,7 @@ std::int64_t first_nonfinite_vertex(const TriangleMesh& mesh) {
 }
 
 TriangleMesh load_mesh(const std::string& path, bool smooth_normals) {
+    check_input_file(path, "mesh file");  // before opening: a FIFO blocks the open, a device never ends
     if (!std::ifstream(path).good()) throw FileError(path, "cannot open the mesh file");
     Assimp::Importer importer;
     unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |

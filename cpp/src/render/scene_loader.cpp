@@ -336,7 +336,7 @@ private:
             } catch (const FileError& ex) {
                 r_.fail(w + ".file", ex.what());
             }
-            return light(std::move(img), scale, rotation);
+            return light(std::move(img), scale, rotation, file);
         }
         r_.fail(w + ".type", "unknown environment type '" + type + "'; expected sky, file or constant");
     }
@@ -364,11 +364,12 @@ private:
         return make_sky_image(p);
     }
 
-    EnvironmentLight light(Image img, float scale, float rotation) {
+    // `file`: the map's path, named in the message when it is the map's values that are refused.
+    EnvironmentLight light(Image img, float scale, float rotation, const std::string& file = "") {
         try {
             return EnvironmentLight(std::move(img), scale, rotation);
         } catch (const std::invalid_argument& ex) {
-            r_.fail("environment", ex.what());
+            r_.fail("environment", file.empty() ? std::string(ex.what()) : file + ": " + ex.what());
         }
     }
 
@@ -577,6 +578,7 @@ SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_
 }
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
+    check_input_file(path, "scene file");  // a FIFO would block the open below
     std::ifstream in(path);
     if (!in) throw FileError(path, "cannot open the scene file");
     std::stringstream ss;

@@ -42,11 +42,14 @@ public:
     Vec3f uv_to_direction(const Vec2<float>& uv) const;
 
     const Image& image() const { return image_; }
+    /// The brightest texel component after the scale (<= kMaxEnvironmentRadiance).
+    float brightest() const { return brightest_; }
 
 private:
     Image image_;
     Distribution2D distribution_;
     float cos_rot_ = 1, sin_rot_ = 0;
+    float brightest_ = 0;
 };
 
 }  // namespace hbrdf::render

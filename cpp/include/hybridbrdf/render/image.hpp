@@ -45,11 +45,18 @@ struct PngOptions {
     ToneMap tonemap = ToneMap::Clamp; ///< Clamp: clip to [0, 1]; Aces: Narkowicz's ACES fit
 };
 
+/// Refuses, before anything opens it, a path that is not a regular file (FileError with
+/// python/hybridbrdf/inputs.py's words: "no such file", "is a folder, not a <what>", "is a FIFO,
+/// not a regular file", ...): opening a FIFO blocks until a writer comes, and a device such as
+/// /dev/zero never ends. `what` names the format ("mesh file").
+void check_input_file(const std::string& path, const std::string& what);
+
 /// Reads an equirectangular environment map: OpenEXR (.exr, via tinyexr) or
 /// Radiance RGBE (.hdr, via stb_image). Throws FileError naming the file,
 /// also when its header declares more than kMaxEnvironmentTexels pixels
 /// (checked before any pixel is decoded: a forged header cannot make it
-/// allocate what it says).
+/// allocate what it says), when it is not a regular file, and (.hdr) when its
+/// pixel data end before the last scanline ("truncated: scanline K of H").
 Image read_image(const std::string& path);
 
 /// An output file written under a temporary name next to its destination,

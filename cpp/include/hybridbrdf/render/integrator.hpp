@@ -74,4 +74,11 @@ bool use_network(const RenderOptions& options, int depth, const Vec3f& throughpu
 /// max_paths_per_wave paths of one tile).
 Image render(const Scene& scene, const RenderOptions& options, RenderStats* stats = nullptr);
 
+/// "" when every value of a rendered `image` is finite, else the problem, naming the light that
+/// is to blame where the scene has one that bright: "the rendered image holds 256 values that are
+/// not finite (the first at pixel (0, 0)): the light along its paths overflows float32 (the
+/// environment's brightest radiance is 1e+20)". render() throws it (std::invalid_argument)
+/// rather than return such an image, so no output is ever written from it.
+std::string film_problem(const Image& image, const Scene& scene);
+
 }  // namespace hbrdf::render

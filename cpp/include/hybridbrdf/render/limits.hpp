@@ -30,6 +30,12 @@ inline constexpr std::uint64_t kMaxEnvironmentTexels = std::uint64_t(1) << 27;
 /// sampling distribution (a float and a double per texel).
 inline constexpr double kEnvironmentBytesPerTexel = 28.0;
 
+/// Brightest radiance an environment map may hold once scaled (texel x scale): far above any
+/// real sky (the sun's disc is ~1e9 in these units), and 1.7e18 below FLT_MAX, the headroom for
+/// what a path's throughput and the sum of a pixel's samples multiply it by. Above it, a pixel
+/// that sums spp such samples in float32 can reach +Inf (1.69e38 x 16 spp did, with exit 0).
+inline constexpr float kMaxEnvironmentRadiance = 1e20f;
+
 /// Most worker threads a render may start (also the settings table's bound).
 inline constexpr int kMaxThreads = 1024;
 
