@@ -11,7 +11,16 @@ names (both loaders, then generated GLSL/HLSL/C++ for the accepted ones), measur
 NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), checkpoints
 (damaged bytes, and edited states re-encoded with a valid checksum), command-line
 flags (every typed flag of every hbrdf command) and directions (float32 bit patterns through the
-library's batched and scalar paths and torch)."""
+library's batched and scalar paths and torch).
+
+Hostile inputs, round two (issue 33), every one invalid and each bounded in time and memory
+(tests/python/fuzz_surfaces.py, check_hostile): special files (FIFO, symlink to /dev/zero, 1 TiB
+sparse file, symlink loop, folder) through every reader; structured JSON (deep nesting, wrong
+types, huge counts) as model metadata and as scene files, and tabulated scenes over the tracer's
+table budget; forged sizes (safetensors header lengths, shapes and offsets; Radiance HDR header
+dimensions); and output over input (hbrdf-codegen -o and hbrdf render -o reaching the model or
+the scene by the same path, a symlink, a hard link or a dot-dot path). The headline counts the
+inputs and violations of each of these four kinds."""
 
 from __future__ import annotations
 
@@ -183,9 +192,19 @@ def main(argv=None) -> int:
     for label in ("batched", "scalar", "analytic", "torch float32"):
         counts[f"directions: {label}"]["_seconds"] = round(time.perf_counter() - t0, 1)
 
-    total = sum(v for c in counts.values() for key, v in c.items() if not key.startswith("_"))
+    hostile_round_two(k, rng, work, seeds, docs, counts, failures)
+
+    def inputs(c):
+        return sum(v for key, v in c.items() if not key.startswith("_"))
+
+    total = sum(inputs(c) for c in counts.values())
     violations = sum(c["VIOLATION"] for c in counts.values())
-    print(f"# fuzz_scale: {total:,} inputs, {violations} violations (seed {args.seed}, scale {args.scale}; "
+    groups = []
+    for kind in HOSTILE_KINDS:
+        cs = [c for name, c in counts.items() if name.startswith(kind + ":")]
+        groups.append(f"{kind} {sum(inputs(c) for c in cs):,} ({sum(c['VIOLATION'] for c in cs)} violations)")
+    print(f"# fuzz_scale: {total:,} inputs, {violations} violations; of them {', '.join(groups)} "
+          f"(seed {args.seed}, scale {args.scale}; "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, simd {hb.simd_path()})")
     print(f"| surface | inputs | valid | rejected (one line) | violations | seconds |")
     print("|---|---:|---:|---:|---:|---:|")
@@ -195,6 +214,55 @@ def main(argv=None) -> int:
     for f in failures:
         print("VIOLATION", f)
     return 1 if violations else 0
+
+
+HOSTILE_KINDS = ("special files", "structured JSON", "forged sizes", "output over input")
+
+
+def refused(check):
+    """``check`` where every input is invalid by construction: "valid" is a violation too."""
+    def refused_check(*args):
+        outcome = check(*args)
+        if outcome != fs.REJECTED:
+            raise fs.Violation(f"{check.__name__}: a forged input was accepted")
+        return outcome
+    return refused_check
+
+
+def hostile_round_two(k, rng, work, seeds, docs, counts, failures):
+    """The inputs of issue 33, named "<kind>: <surface>" so that the headline can count each kind."""
+    hostile = work / "hostile"
+    hostile.mkdir()
+    for reader in fs.READERS:
+        run(f"special files: {reader}", int(200 * k),
+            lambda i, r=reader: (r, fs.SPECIAL_KINDS[i % len(fs.SPECIAL_KINDS)], hostile, str(i)),
+            fs.check_special_file, counts, failures)
+    archs = list(seeds)
+    scene = json.loads((ROOT / "scenes" / "sphere_env.json").read_text())
+    for kind in fs.JSON_KINDS:
+        run(f"structured JSON: model metadata, {kind}", int(3_000 * k),
+            lambda i, kd=kind: (fs.model_with_metadata_text(seeds[archs[i % 2]],
+                                                            fs.hostile_json_text(docs[archs[i % 2]], kd, rng)),
+                                work / "h.safetensors"),
+            fs.check_model_file, counts, failures)
+        run(f"structured JSON: scene files, {kind}", int(5_000 * k),
+            lambda i, kd=kind: (fs.hostile_json_text(scene, kd, rng), work / "h.json"),
+            fs.check_scene_file, counts, failures)
+    if getattr(_core, "HAVE_RENDERER", False):
+        run("structured JSON: tabulated scenes over the budget", int(300 * k),
+            lambda i: (int(rng.integers(6, 2000)), work / "t.json"), fs.check_tabulated_budget, counts, failures)
+    run("forged sizes: safetensors", int(10_000 * k),
+        lambda i: (fs.forged_safetensors(seeds[archs[i % 2]], rng), work / "f.safetensors"),
+        refused(fs.check_model_file), counts, failures)
+    if getattr(_core, "HAVE_RENDERER", False):
+        run("forged sizes: Radiance HDR header", int(3_000 * k),
+            lambda i: (fs.forged_hdr(rng), work / "f.hdr"), fs.check_hdr_file, counts, failures)
+    cases = [(c, kd, w) for c in ("codegen", "render") for kd in fs.OUTPUT_KINDS for w in ("model", "scene")
+             if c == "codegen" or getattr(_core, "HAVE_RENDERER", False)]
+    out = work / "out"
+    out.mkdir()
+    run("output over input: hbrdf-codegen -o, hbrdf render -o", int(400 * k),
+        lambda i: (*cases[i % len(cases)], out, seeds["hybrid"]), fs.check_output_over_input, counts, failures)
 
 
 if __name__ == "__main__":

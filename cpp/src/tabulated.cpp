@@ -402,6 +402,29 @@ BrdfSample TabulatedSampler::sample(const Vec3<float>& wo_in, const Vec2<float>&
     return out;
 }
 
+std::size_t TabulatedSampler::table_bytes(bool isotropic, int resolution_deg, TabulatedStorage storage) {
+    if (resolution_deg < 1 || resolution_deg > 90 || 90 % resolution_deg != 0) return 0;
+    // The sizes build() gives its vectors (kept in step with it; a test compares
+    // this with memory_bytes() of built samplers).
+    const std::size_t n_theta = std::size_t(90 / resolution_deg), n_phi = std::size_t(360 / resolution_deg);
+    const bool mirrored = isotropic && storage == TabulatedStorage::Compact;
+    const std::size_t n_col = mirrored ? n_phi / 2 : n_phi;
+    const std::size_t n_phi_o = isotropic ? 1 : std::size_t(std::max(1, int(std::lround(36.0 / resolution_deg))));
+    const std::size_t n_tables = n_theta * n_phi_o;
+    const std::size_t cdf_entry = storage == TabulatedStorage::Full ? sizeof(float) : sizeof(std::uint16_t);
+    return (n_theta + 1) * sizeof(double) + n_theta * sizeof(float) + n_tables * n_theta * sizeof(float) +
+           n_tables * n_theta * n_col * cdf_entry;
+}
+
+std::size_t TabulatedSampler::build_scratch_bytes(int resolution_deg) {
+    if (resolution_deg < 1 || resolution_deg > 90 || 90 % resolution_deg != 0) return 0;
+    const std::size_t n_theta = std::size_t(90 / resolution_deg), n_cells = n_theta * std::size_t(360 / resolution_deg);
+    const std::size_t n_pairs = n_cells * kTabulatedSubsamples;
+    const std::size_t batch = std::min(kTabulatedBuildBatch, n_pairs);
+    // wi_sub, cos_i_sub, wo_buf + f_buf, mean_g + cell_solid_angle + row_mass.
+    return 4 * n_pairs * sizeof(float) + 6 * batch * sizeof(float) + (n_cells + 2 * n_theta) * sizeof(double);
+}
+
 std::size_t TabulatedSampler::memory_bytes() const {
     return cos_bound_.size() * sizeof(double) + inv_cell_solid_angle_.size() * sizeof(float) +
            marginal_cdf_.size() * sizeof(float) + conditional_cdf_.size() * sizeof(float) +

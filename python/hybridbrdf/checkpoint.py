@@ -87,6 +87,12 @@ def _read_bytes(path: str) -> bytes:
     # No size bound beyond the file's own: a checkpoint holds the optimiser's state of up to
     # spec.MAX_MATERIALS materials, gigabytes by design, and a regular file's size is what it holds.
     size = check_input_file(path, "checkpoint file", None, CheckpointError)
+    # ... but not beyond this machine's memory: the whole file is read at once, and a sparse
+    # 1 TiB file (no disk used) raised MemoryError with no file named (the fuzz suite, issue 33).
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if size > memory:
+        raise CheckpointError(path, f"checkpoint file of {size} bytes is larger than this machine's memory "
+                                    f"({memory} bytes)")
     return read_input_bytes(path, "checkpoint file", size, CheckpointError)
 
 

@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -367,6 +368,37 @@ TEST_CASE("scene settings: one table, checked without narrowing, copied whole in
     } catch (const FileError& e) {
         CHECK(std::string(e.what()) == "s.json: camera.width: must be <= 2147483647, got 4294967312");
     }
+}
+
+TEST_CASE("tabulated sampler: one memory budget for all materials, checked before any table is built") {
+    // Anisotropic analytic materials (alpha x != y): 210 MB of tables each at 1 degree.
+    auto scene = [](int n, int deg) {
+        std::string mats, objs;
+        for (int i = 0; i < n; ++i) {
+            mats += std::string(i ? ", " : "") + "\"m" + std::to_string(i) + R"(": {"type": "analytic", "alpha": [0.1, 0.3]})";
+            objs += std::string(i ? ", " : "") + R"({"type": "sphere", "radius": 0.1, "material": "m)" + std::to_string(i) + "\"}";
+        }
+        return R"({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
+                   "sampler": "tabulated", "tabulated_resolution_deg": )" + std::to_string(deg) +
+               R"(, "materials": {)" + mats + R"(}, "objects": [)" + objs + "]}";
+    };
+    std::string msg = "no error";
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+        load_scene_json(scene(100, 1), ".", "many.json");
+    } catch (const FileError& e) {
+        msg = e.what();
+    }
+    const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    CHECK(msg == "many.json: sampler: the tabulated sampler's tables for 100 materials (100 anisotropic) at 1 degree "
+                 "need ~21 GB, above the budget of 1.1 GB (1 GiB) for all of a scene's tables; use fewer materials, "
+                 "a coarser tabulated_resolution_deg (3 fits) or another sampler");
+    CHECK(sec < 1.0);  // refused before the first table (seconds each) is built
+    // At 18 degrees 100 anisotropic tables take ~1.6 kB each: loaded, tables built.
+    const Scene ok = load_scene_json(scene(100, 18), ".", "many.json");
+    CHECK(ok.materials.size() == 100);
+    CHECK(ok.materials[0]->sampler_memory_bytes() == hbrdf::TabulatedSampler::table_bytes(false, 18));
+    CHECK(ok.materials[0]->sampler_memory_bytes() > 0);
 }
 
 TEST_CASE("sampler names: the analytic strategies' names plus tabulated") {

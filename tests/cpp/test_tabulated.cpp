@@ -523,6 +523,15 @@ TEST_CASE("tabulated: memory_bytes counts the tables") {
     CHECK(aniso.table_count() == 30 * 12);
     CHECK(!aniso.mirrored());  // no mirror symmetry without isotropy: 16-bit CDFs only
     CHECK(aniso.memory_bytes() == std::size_t(360) * (30 * 4 + 30 * 120 * 2) + 31 * 8 + 30 * 4);
+
+    // table_bytes() predicts memory_bytes() without building (the renderer's budget uses it).
+    CHECK(TabulatedSampler::table_bytes(true, 1) == iso.memory_bytes());
+    CHECK(TabulatedSampler::table_bytes(true, 1, TabulatedStorage::Full) == full.memory_bytes());
+    CHECK(TabulatedSampler::table_bytes(false, 3) == aniso.memory_bytes());
+    CHECK(TabulatedSampler::table_bytes(false, 1) == std::size_t(90 * 36) * (90 * 4 + 90 * 360 * 2) + 91 * 8 + 90 * 4);
+    CHECK(TabulatedSampler::table_bytes(true, 7) == 0);
+    // 129600 sub-sample directions and cosines, two 65536-pair batches, 32400 cell means and 2 x 90 row values.
+    CHECK(TabulatedSampler::build_scratch_bytes(1) == 129600 * 4 * 4 + 6 * 65536 * 4 + (32400 + 180) * 8);
 }
 
 // Not run by default (420 MB and tens of seconds): doctest --no-skip

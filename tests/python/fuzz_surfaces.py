@@ -386,3 +386,314 @@ SURFACES: Dict[str, Callable] = {
     "cli flags": check_cli_flag,
     "checkpoints": check_checkpoint,
 }
+
+
+# ---- hostile inputs, round two (issue 33): special files, structured JSON, forged sizes, -o ----
+#
+# Each generator below makes one input of a kind the byte and field mutations above rarely or
+# never reach; check_hostile() runs it under the invariant, in this process, and adds three
+# bounds: a time bound (a FIFO has its other end opened after FIFO_UNBLOCK_S, so a reader that
+# opens it without checking reads an empty file late and fails the time bound instead of hanging
+# the run), an address-space bound (reading /dev/zero fails at MEMORY_BOUND instead of taking the
+# machine) and the error check of expect_clean_error.
+
+#: A refusal must come within this many seconds (the checks are a stat and a few reads).
+HOSTILE_TIME_S = 2.0
+#: Seconds after which a FIFO's other end is opened (> HOSTILE_TIME_S: a waiting reader fails).
+FIFO_UNBLOCK_S = 3.0
+#: Growth of this process's address space allowed while one hostile input is read.
+MEMORY_BOUND = 1 << 30
+
+SPECIAL_KINDS = ("fifo", "dev-zero", "sparse", "symlink-loop", "folder")
+
+
+def _readers() -> Dict[str, tuple]:
+    """name -> (file name, reader(path)): every reader that opens a file a user names."""
+    from hybridbrdf import checkpoint
+    from hybridbrdf.render import load_scene_dict
+    from hybridbrdf.sources import open_source
+
+    def environment(path):  # the tracer's environment-map reader (C++), through a 4 x 4 render
+        from hybridbrdf.render import render
+
+        render({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
+                "environment": {"type": "file", "file": os.fspath(path)},
+                "objects": [{"type": "sphere", "material": {"type": "analytic"}}], "spp": 1, "threads": 1})
+
+    return {"model (Python)": ("m.safetensors", hb.load_model), "model (C++)": ("m.safetensors", _core.Model),
+            "scene": ("s.json", load_scene_dict), "checkpoint": ("ck.pt", checkpoint.read),
+            "MERL": ("x.binary", open_source), "RGL": ("x.bsdf", open_source), "UTIA": ("x.bin", open_source),
+            "NBRDF": ("x.h5", open_source), "environment map": ("e.hdr", environment)}
+
+
+READERS = tuple(_readers()) if getattr(_core, "HAVE_RENDERER", False) else \
+    tuple(r for r in _readers() if r != "environment map")
+
+
+@contextlib.contextmanager
+def _memory_bound(extra: int = MEMORY_BOUND):
+    import resource
+
+    with open("/proc/self/status") as fh:
+        used = next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:"))
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    cap = used + extra if hard == resource.RLIM_INFINITY else min(used + extra, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def check_hostile(surface: str, call: Callable[[], object], names: str, may_accept: bool = False) -> str:
+    """``call()`` must raise a clean one-line error naming ``names`` within HOSTILE_TIME_S and
+    MEMORY_BOUND; returning is a Violation too (the input is invalid by construction) unless
+    ``may_accept``, for generators that can make valid inputs."""
+    import time
+
+    t0 = time.monotonic()
+    try:
+        with _memory_bound():
+            call()
+        outcome = VALID
+    except Exception as exc:  # noqa: BLE001
+        outcome = expect_clean_error(surface, exc, names)
+    if outcome == VALID and not may_accept:
+        raise Violation(f"{surface}: accepted")
+    seconds = time.monotonic() - t0
+    if seconds > HOSTILE_TIME_S:
+        raise Violation(f"{surface}: refused after {seconds:.1f} s (read or waited on before the check)")
+    return outcome
+
+
+def make_special_file(path: pathlib.Path, kind: str) -> None:
+    """``path`` (which must not exist) as a FIFO, a symlink to /dev/zero, a sparse file of 1 TiB
+    (over every format's cap, no disk used), a symlink to itself, or a folder."""
+    if kind == "fifo":
+        import subprocess
+
+        os.mkfifo(path)
+        # Opened read-write, which does not block, and only while it is still the FIFO.
+        subprocess.Popen(["sh", "-c", 'sleep "$1"; [ -p "$2" ] && exec 3<>"$2"', "unblock", str(FIFO_UNBLOCK_S),
+                          os.fspath(path)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL)
+    elif kind == "dev-zero":
+        os.symlink("/dev/zero", path)
+    elif kind == "sparse":
+        with open(path, "wb") as fh:
+            fh.truncate(1 << 40)
+    elif kind == "symlink-loop":
+        os.symlink(path.name, path)
+    elif kind == "folder":
+        os.mkdir(path)
+    else:
+        raise ValueError(f"unknown special file kind {kind!r}")
+
+
+def _remove(path: pathlib.Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        os.rmdir(path)
+    elif os.path.lexists(path):
+        os.unlink(path)
+
+
+def check_special_file(reader: str, kind: str, workdir: pathlib.Path, tag: str = "") -> str:
+    """One reader on one special file, which is removed afterwards."""
+    name, call = _readers()[reader]
+    path = workdir / f"{kind}{tag}-{name}"
+    make_special_file(path, kind)
+    try:
+        return check_hostile(f"{reader} on a {kind}", lambda: call(str(path)), str(path))
+    finally:
+        _remove(path)
+
+
+# Structured JSON: text, not documents, so that nesting deeper than Python's own recursion limit
+# can be written at all.
+
+JSON_KINDS = ("deep nesting", "wrong types", "huge counts")
+_WRONG = [None, True, "x", 1.5, -1, [], {}, [[]], {"a": {}}, 2**64, "1e999", -0.0]
+_HUGE = [2**31, 2**32 + 1, 2**53 + 1, 2**63, 2**64, 10**30, 1e308, -(2**63), 2**40]
+
+
+def _paths(doc, prefix=()):
+    yield prefix
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            yield from _paths(v, prefix + (k,))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            yield from _paths(v, prefix + (i,))
+
+
+def hostile_json_text(seed_doc, kind: str, rng: np.random.Generator) -> str:
+    """A JSON text built from ``seed_doc``: a value nested 65 to 100000 levels deep at a random
+    place ("deep nesting"), a random value replaced by one of another type ("wrong types"), or a
+    number or list replaced by a huge count ("huge counts": 2^31 ... 1e308, or 10^5 copies)."""
+    doc = copy.deepcopy(seed_doc)
+    paths = [p for p in _paths(doc) if p]
+    path = paths[int(rng.integers(0, len(paths)))]
+    parent = doc
+    for k in path[:-1]:
+        parent = parent[k]
+    marker = "\"@@HOSTILE@@\""
+    if kind == "deep nesting":
+        depth = int(rng.choice([65, 100, 1000, 5000, 100000]))
+        opener = "[" if rng.random() < 0.5 else "{\"a\": "
+        closer = "]" if opener == "[" else "}"
+        parent[path[-1]] = "@@HOSTILE@@"
+        return json.dumps(doc).replace(marker, opener * depth + "1" + closer * depth, 1)
+    if kind == "wrong types":
+        old = parent[path[-1]]
+        choices = [v for v in _WRONG if type(v) is not type(old)]
+        parent[path[-1]] = copy.deepcopy(choices[int(rng.integers(0, len(choices)))])
+        return json.dumps(doc)
+    if kind == "huge counts":
+        old = parent[path[-1]]
+        if isinstance(old, list) and old and rng.random() < 0.5:
+            parent[path[-1]] = old * max(1, 100000 // len(old))
+        elif isinstance(old, dict) and old and rng.random() < 0.5:
+            first = next(iter(old.values()))
+            parent[path[-1]] = {f"k{i}": copy.deepcopy(first) for i in range(20000)}
+        else:
+            parent[path[-1]] = _HUGE[int(rng.integers(0, len(_HUGE)))]
+        return json.dumps(doc)
+    raise ValueError(f"unknown JSON kind {kind!r}")
+
+
+def model_with_metadata_text(seed_bytes: bytes, text: str) -> bytes:
+    """The seed file's tensors with the 'hybridbrdf' metadata replaced by ``text`` (any string)."""
+    import safetensors.numpy
+
+    return safetensors.numpy.save(safetensors.numpy.load(seed_bytes), {"hybridbrdf": text})
+
+
+def check_scene_file(text: str, path: pathlib.Path) -> str:
+    """A scene file's text through the front end's reader and the tracer's scene reader: refused
+    in one line naming the file within the time and memory bounds, or read."""
+    path.write_text(text)
+
+    def read():
+        from hybridbrdf.render import load_scene_dict
+
+        data, base, origin = load_scene_dict(str(path))
+        if hasattr(_core, "read_scene_decl"):
+            _core.read_scene_decl(json.dumps(data, allow_nan=True), base, origin)
+
+    return check_hostile("scene file", read, str(path), may_accept=True)
+
+
+def tabulated_scene_text(n_materials: int) -> str:
+    """A scene of ``n_materials`` anisotropic materials under the tabulated sampler at 1 degree:
+    ~210 MB of tables each, over the tracer's budget from 6 on (limits.hpp)."""
+    mats = {f"m{i}": {"type": "analytic", "alpha": [0.1, 0.3]} for i in range(n_materials)}
+    return json.dumps({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
+                       "sampler": "tabulated", "materials": mats,
+                       "objects": [{"type": "sphere", "radius": 0.5, "material": "m0"}]})
+
+
+def check_tabulated_budget(n_materials: int, path: pathlib.Path) -> str:
+    """A scene whose tables are over the budget: refused at load, before any table is built."""
+    from hybridbrdf.render import render
+
+    path.write_text(tabulated_scene_text(n_materials))
+    return check_hostile(f"tabulated scene of {n_materials} materials", lambda: render(str(path)), str(path))
+
+
+# Forged sizes.
+
+def forged_safetensors(seed_bytes: bytes, rng: np.random.Generator) -> bytes:
+    """The seed model with one declared size forged: the header length (past the file, or 2^63),
+    a tensor's shape (2^40 elements) or its data_offsets (past the file, reversed, 2^64 - 1)."""
+    (hlen,) = struct.unpack("<Q", seed_bytes[:8])
+    header = json.loads(seed_bytes[8:8 + hlen])
+    body = seed_bytes[8 + hlen:]
+    r = int(rng.integers(0, 6))
+    if r == 0:
+        return struct.pack("<Q", [len(seed_bytes), 2**63, 2**64 - 1, hlen + 1][int(rng.integers(0, 4))]) + seed_bytes[8:]
+    names = sorted(k for k in header if k != "__metadata__")
+    t = header[names[int(rng.integers(0, len(names)))]]
+    if r == 1:
+        t["shape"] = [2**20, 2**20]
+    elif r == 2:
+        t["shape"] = [2**62, 4]
+    elif r == 3:
+        t["data_offsets"] = [t["data_offsets"][0], len(body) + 2**40]
+    elif r == 4:
+        t["data_offsets"] = [t["data_offsets"][1], t["data_offsets"][0] - 1]
+    else:
+        t["data_offsets"] = [0, 2**64 - 1]
+    text = json.dumps(header).encode()
+    return struct.pack("<Q", len(text)) + text + body
+
+
+def forged_hdr(rng: np.random.Generator) -> bytes:
+    """A Radiance header declaring up to 2^31 x 2^31 texels over a few bytes of pixel data."""
+    big = [8, 4096, 32768, 65535, 2**27, 2**31 - 1, 2**31, 2**40]
+    w, h = (big[int(rng.integers(0, len(big)))] for _ in range(2))
+    header = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + b"-Y %d +X %d\n" % (h, w)
+    return header + bytes(rng.integers(0, 256, int(rng.integers(0, 64)), dtype=np.uint8))
+
+
+def check_hdr_file(data: bytes, path: pathlib.Path) -> str:
+    """An environment map through the tracer's reader (a 4 x 4 render): a forged header is refused."""
+    path.write_bytes(data)
+    return check_hostile("environment map", lambda: _readers()["environment map"][1](str(path)), str(path))
+
+
+# Output equals input: a command told to write over a file it reads must refuse in one line
+# (exit 1, no traceback) and leave every file as it was.
+
+OUTPUT_KINDS = ("same path", "symlink", "hard link", "dot-dot path")
+
+
+def _alias(target: pathlib.Path, kind: str, workdir: pathlib.Path) -> str:
+    if kind == "same path":
+        return str(target)
+    if kind == "dot-dot path":
+        (workdir / "sub").mkdir(exist_ok=True)
+        return str(workdir / "sub" / ".." / target.name)
+    alias = workdir / f"alias-{kind.replace(' ', '-')}{target.suffix}"
+    if os.path.lexists(alias):
+        os.unlink(alias)
+    (os.symlink if kind == "symlink" else os.link)(target, alias)
+    return str(alias)
+
+
+def check_output_over_input(command: str, kind: str, which: str, workdir: pathlib.Path, seed_bytes: bytes) -> str:
+    """``hbrdf-codegen ... -o X`` or ``hbrdf render ... -o X`` where X reaches one of its inputs
+    (``which``: "model" or "scene") through ``kind``: exit 1, one stderr line, nothing changed."""
+    model = workdir / "m.safetensors"
+    model.write_bytes(seed_bytes)
+    scene = workdir / "s.json"
+    scene.write_text(json.dumps({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
+                                 "materials": {"p": {"type": "model", "file": "m.safetensors",
+                                                     "material": seed_metadata(seed_bytes)["materials"][0]["name"]}},
+                                 "objects": [{"type": "sphere", "material": "p"}], "spp": 1}))
+    before = {p: p.read_bytes() for p in (model, scene)}
+    out = _alias(model if which == "model" else scene, kind, workdir)
+    if command == "codegen":
+        from hybridbrdf.codegen import main
+
+        argv, prog = [str(model), "--target", "glsl", "--scene", str(scene), "-o", out], "hbrdf-codegen"
+    else:
+        from hybridbrdf.cli import main
+
+        argv, prog = ["render", str(scene), "-o", out, "--quiet"], "hbrdf render"
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    except Exception as exc:  # noqa: BLE001
+        raise Violation(f"{prog} -o {which} ({kind}): {type(exc).__name__} escaped: {exc!r}"[:2000]) from exc
+    text = err.getvalue()
+    if rc != 1 or text.count("\n") != 1 or "Traceback" in text or not text.startswith(f"{prog}: error: "):
+        raise Violation(f"{prog} -o {which} ({kind}): exit {rc}, stderr {text[-500:]!r}")
+    if "would destroy that input" not in text:
+        raise Violation(f"{prog} -o {which} ({kind}): refused for another reason: {text.strip()[:500]!r}")
+    for p, data in before.items():
+        if p.read_bytes() != data:
+            raise Violation(f"{prog} -o {which} ({kind}): {p.name} was changed")
+    return REJECTED

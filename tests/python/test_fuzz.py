@@ -192,3 +192,57 @@ def test_checkpoint_structure(tmp_path, seed_checkpoint, seed):
     _, state, settings = seed_checkpoint
     edited = fs.mutate_checkpoint_state(state, np.random.default_rng(seed))
     fs.check_checkpoint(ckpt.encode(edited), tmp_path / "ck.pt", settings)
+
+
+# ---- hostile inputs, round two (issue 33) ------------------------------------------------------
+# Every input below is invalid: each must be refused in one line naming the file, within
+# fs.HOSTILE_TIME_S and fs.MEMORY_BOUND (a reader that opens a FIFO unchecked fails the time
+# bound, one that reads /dev/zero the memory bound). bench/fuzz_scale.py runs the same at scale.
+
+@pytest.mark.parametrize("kind", fs.SPECIAL_KINDS)
+@pytest.mark.parametrize("reader", fs.READERS)
+def test_special_files_through_every_reader(tmp_path, reader, kind):
+    assert fs.check_special_file(reader, kind, tmp_path) == fs.REJECTED
+
+
+@FEW
+@given(arch=st.sampled_from(["hybrid", "neural"]), kind=st.sampled_from(fs.JSON_KINDS), seed=st.integers(0, 2**32 - 1))
+def test_structured_json_model_metadata(tmp_path, seed_model, arch, kind, seed):
+    text = fs.hostile_json_text(fs.seed_metadata(seed_model[arch]), kind, np.random.default_rng(seed))
+    fs.check_model_file(fs.model_with_metadata_text(seed_model[arch], text), tmp_path / "m.safetensors")
+
+
+@FEW
+@given(kind=st.sampled_from(fs.JSON_KINDS), seed=st.integers(0, 2**32 - 1))
+def test_structured_json_scene_files(tmp_path, kind, seed):
+    fs.check_scene_file(fs.hostile_json_text(SCENE, kind, np.random.default_rng(seed)), tmp_path / "s.json")
+
+
+@pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+@pytest.mark.parametrize("n", [6, 100, 2000])
+def test_tabulated_scenes_over_the_budget(tmp_path, n):
+    assert fs.check_tabulated_budget(n, tmp_path / "t.json") == fs.REJECTED
+
+
+@FEW
+@given(seed=st.integers(0, 2**32 - 1))
+def test_forged_safetensors_sizes(tmp_path, seed_model, seed):
+    rng = np.random.default_rng(seed)
+    data = fs.forged_safetensors(seed_model["hybrid" if seed % 2 else "neural"], rng)
+    assert fs.check_model_file(data, tmp_path / "m.safetensors") == fs.REJECTED
+
+
+@pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+@FEW
+@given(seed=st.integers(0, 2**32 - 1))
+def test_forged_hdr_sizes(tmp_path, seed):
+    assert fs.check_hdr_file(fs.forged_hdr(np.random.default_rng(seed)), tmp_path / "e.hdr") == fs.REJECTED
+
+
+@pytest.mark.parametrize("which", ["model", "scene"])
+@pytest.mark.parametrize("kind", fs.OUTPUT_KINDS)
+@pytest.mark.parametrize("command", ["codegen", "render"])
+def test_output_over_input(tmp_path, seed_model, command, kind, which):
+    if command == "render" and not getattr(_core, "HAVE_RENDERER", False):
+        pytest.skip("built without the renderer")
+    assert fs.check_output_over_input(command, kind, which, tmp_path, seed_model["hybrid"]) == fs.REJECTED

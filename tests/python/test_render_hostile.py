@@ -4,6 +4,7 @@ about one tile and leave the previous output files untouched; sizes beyond the l
 non-finite values, unwritable outputs and bad measured sources are one-line errors, raised before any
 rendering (the C++ side of the same rules: tests/cpp/test_render_hostile.cpp)."""
 
+import contextlib
 import copy
 import json
 import os
@@ -172,6 +173,62 @@ def fails_fast(s, match, **kwargs):
     with pytest.raises(ValueError, match=match):
         hr.render(s, **kwargs)
     assert time.monotonic() - t0 < 0.5
+
+
+def _tabulated_scene(n, resolution_deg):
+    """n anisotropic materials (alpha x != y: 210 MB of tables each at 1 degree), tabulated sampling."""
+    s = scene(sampler="tabulated", tabulated_resolution_deg=resolution_deg)
+    s["camera"].update(width=4, height=4)
+    s["materials"] = {f"m{i}": {"type": "analytic", "alpha": [0.1, 0.3]} for i in range(n)}
+    for obj in s["objects"]:
+        obj["material"] = "m0"
+    return s
+
+
+@contextlib.contextmanager
+def _peak_resident_growth(growth):
+    """Fills ``growth[0]`` with how far this process's peak resident memory rose above its resident
+    memory at the start of the block (the peak is reset first: /proc/self/clear_refs, Linux)."""
+    def status(key):
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) * 1024 for line in fh if line.startswith(key + ":"))
+
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+    start = status("VmRSS")
+    try:
+        yield
+    finally:
+        growth[0] = status("VmHWM") - start
+
+
+def test_tabulated_tables_over_the_budget_are_refused_before_any_is_built(tmp_path):
+    # 100 materials at 1 degree would be ~21 GB and half an hour of building (issue 33): refused at
+    # load, from the table sizes, before the first table: within half a second, and the peak
+    # resident memory rises by less than 100 MB (one table alone is 210 MB).
+    path = tmp_path / "many.json"
+    path.write_text(json.dumps(_tabulated_scene(100, 1)))
+    growth = [None]
+    with _peak_resident_growth(growth):
+        fails_fast(str(path), "^" + re.escape(
+            f"{path}: sampler: the tabulated sampler's tables for 100 materials (100 anisotropic) at 1 degree need "
+            "~21 GB, above the budget of 1.1 GB (1 GiB) for all of a scene's tables; use fewer materials, a coarser "
+            "tabulated_resolution_deg (3 fits) or another sampler") + "$")
+    assert growth[0] < 100 << 20, growth
+    r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--quiet")
+    assert r.returncode == 1 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"hbrdf render: error: {path}: sampler: the tabulated sampler's tables"), r.stderr
+    # 6 at 1 degree is just over (1.26 GB), 5 just inside (1.05 GB): the advice is then 2 degrees.
+    fails_fast(_tabulated_scene(6, 1), r"^<scene dict>: sampler: .* for 6 materials \(6 anisotropic\) at 1 degree "
+                                       r"need ~1.3 GB, .*a coarser tabulated_resolution_deg \(2 fits\)")
+
+
+def test_tabulated_tables_inside_the_budget_still_load():
+    # 100 anisotropic materials at 18 degrees: ~1.6 kB of tables each, rendered.
+    _, stats = hr.render(_tabulated_scene(100, 18))
+    assert stats["sampler"] == "tabulated"
+    assert len(stats["sampler_memory_bytes"]) == 100
+    assert all(0 < b < 10000 for b in stats["sampler_memory_bytes"].values())
 
 
 def test_huge_films_and_skies_are_errors_with_an_estimate_not_memory_errors():

@@ -120,6 +120,15 @@ public:
     /// excludes the copied BatchEval and the object itself).
     std::size_t memory_bytes() const;
 
+    /// memory_bytes() of a sampler that build() would make, computed without
+    /// building it (0 when `resolution_deg` is not one build() accepts): the
+    /// renderer checks a scene's tables against its budget before building any.
+    static std::size_t table_bytes(bool isotropic, int resolution_deg,
+                                   TabulatedStorage storage = TabulatedStorage::Compact);
+    /// Bytes of the working buffers build() holds while it runs (freed when it
+    /// returns): the sub-sample directions and the per-cell means.
+    static std::size_t build_scratch_bytes(int resolution_deg);
+
     bool isotropic() const { return isotropic_; }
     TabulatedStorage storage() const { return storage_; }
     /// True when the azimuth is folded by mirror symmetry (Compact and isotropic).

@@ -118,10 +118,18 @@ std::string hdr_truncation(const std::string& path) {
     std::FILE* f = std::fopen(path.c_str(), "rb");
     if (!f) return "";  // the decoder reports why it cannot open it
     ByteReader in(f);
+    // Lines are bounded: a file of zeros (a sparse file) has no '\n', and an unbounded line
+    // grew until std::bad_alloc (1 TiB file) or walked the whole file.
+    constexpr std::size_t kMaxHeaderLine = 1 << 16;
+    bool overlong = false;
     auto line = [&](std::string& s) {  // stb's header token: up to '\n'; false at the end
         s.clear();
         for (int c; (c = in.get()) >= 0;) {
             if (c == '\n') return true;
+            if (s.size() == kMaxHeaderLine) {
+                overlong = true;
+                return false;
+            }
             s.push_back(char(c));
         }
         return !s.empty();
@@ -129,6 +137,10 @@ std::string hdr_truncation(const std::string& path) {
     std::string s;
     bool ok = line(s) && (s == "#?RADIANCE" || s == "#?RGBE");
     while (ok && line(s) && !s.empty()) {
+    }
+    if (ok && overlong) {
+        std::fclose(f);
+        return "header line longer than " + std::to_string(kMaxHeaderLine) + " bytes";
     }
     long long w = 0, h = 0;
     if (!(ok && line(s) && std::sscanf(s.c_str(), "-Y %lld +X %lld", &h, &w) == 2 && w > 0 && h > 0)) {

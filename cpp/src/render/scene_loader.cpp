@@ -281,6 +281,7 @@ public:
             read_object(objects[i], "objects[" + std::to_string(i) + "]", scene);
         }
         // Samplers last: a tabulated one evaluates its material millions of times.
+        if (scene.settings.sampler == SamplerKind::Tabulated) check_tabulated_budget(scene);
         for (std::size_t m = 0; m < scene.materials.size(); ++m) {
             throw_if_cancelled(options_.cancel);
             try {
@@ -296,6 +297,43 @@ public:
     }
 
 private:
+    // The tables of all materials together against kMaxTabulatedSamplerBytes,
+    // before the first is built: each takes seconds and up to 210 MB, so a short
+    // scene with many materials would otherwise build for minutes into gigabytes.
+    void check_tabulated_budget(const Scene& scene) const {
+        const int res = scene.settings.tabulated_resolution_deg;
+        const auto need_at = [&scene](int deg, std::size_t& aniso) {
+            double bytes = double(TabulatedSampler::build_scratch_bytes(deg));  // one build at a time
+            aniso = 0;
+            for (const auto& mat : scene.materials) {
+                bytes += double(TabulatedSampler::table_bytes(mat->isotropic(), deg));
+                aniso += mat->isotropic() ? 0 : 1;
+            }
+            return bytes;
+        };
+        std::size_t aniso = 0;
+        const double need = need_at(res, aniso);
+        if (need <= double(kMaxTabulatedSamplerBytes)) return;
+        // The finest coarser resolution that fits, as the advice.
+        std::string coarser;
+        for (int deg = res + 1; deg <= 90; ++deg) {
+            std::size_t unused = 0;
+            if (90 % deg == 0 && need_at(deg, unused) <= double(kMaxTabulatedSamplerBytes)) {
+                coarser = ", a coarser tabulated_resolution_deg (" + std::to_string(deg) + " fits)";
+                break;
+            }
+        }
+        const std::size_t n = scene.materials.size();
+        r_.fail("sampler", "the tabulated sampler's tables for " + std::to_string(n) + " material" +
+                               (n == 1 ? "" : "s") + " (" + std::to_string(aniso) + " anisotropic) at " +
+                               std::to_string(res) + " degree" + (res == 1 ? "" : "s") + " need ~" +
+                               format_bytes(need) + ", above the budget of " +
+                               format_bytes(double(kMaxTabulatedSamplerBytes)) +
+                               " (" + format_number(double(kMaxTabulatedSamplerBytes) / double(1 << 30)) +
+                               " GiB) for all of a scene's tables; use fewer materials" + coarser +
+                               " or another sampler");
+    }
+
     PinholeCamera read_camera(const json& c) {
         const std::string w = "camera";
         r_.check_keys(c, w, {"position", "look_at", "up", "fov_deg", "width", "height"});

@@ -36,6 +36,14 @@ inline constexpr double kEnvironmentBytesPerTexel = 28.0;
 /// that sums spp such samples in float32 can reach +Inf (1.69e38 x 16 spp did, with exit 0).
 inline constexpr float kMaxEnvironmentRadiance = 1e20f;
 
+/// Most bytes the tabulated sampler's tables of all a scene's materials may take together
+/// (`"sampler": "tabulated"` builds one per material, at scene load): 1 GiB. At the default
+/// 1-degree resolution a table is 2.9 MB (isotropic) or 210 MB (anisotropic), so a scene may hold
+/// 5 anisotropic or ~360 isotropic tabulated materials; without the budget a 763-byte scene of
+/// 100 anisotropic materials would ask for ~21 GB and half an hour of building. Checked, from the
+/// sizes TabulatedSampler::table_bytes() computes, before any table is built.
+inline constexpr std::uint64_t kMaxTabulatedSamplerBytes = std::uint64_t(1) << 30;
+
 /// Most worker threads a render may start (also the settings table's bound).
 inline constexpr int kMaxThreads = 1024;
 
