@@ -53,6 +53,15 @@ def make_special(path, kind):
     return path
 
 
+def make_input(path, kind, what):
+    """``path`` as a folder (``kind`` "folder") or a special file; the words its refusal must hold."""
+    if kind == "folder":
+        os.mkdir(path)
+        return f"is a folder, not {what}"
+    make_special(path, kind)
+    return KINDS[kind]
+
+
 #: Address space a command of these tests may use. Without the checks, reading /dev/zero takes
 #: memory until the machine has none; under this cap it is a quick MemoryError, and the test fails.
 CLI_MEMORY_CAP = 4 << 30
@@ -138,12 +147,7 @@ def test_nbrdf_keras_config_is_checked_before_it_is_read(tmp_path, kind):
     h5 = tmp_path / "n.h5"
     h5.write_bytes(b"")  # a regular file: the config next to it is read first
     cfg = str(tmp_path / "n.json")
-    if kind == "folder":
-        os.mkdir(cfg)
-        words = "is a folder, not a Keras config"
-    else:
-        make_special(cfg, kind)
-        words = KINDS[kind]
+    words = make_input(cfg, kind, "a Keras config")
     assert_refused_at_once(lambda: open_source(h5), cfg, words, BRDFFormatError)
 
 
@@ -290,12 +294,7 @@ def test_libhybridbrdf_refuses_special_model_files_in_the_same_words(tmp_path, k
     from hybridbrdf import _core
 
     path = str(tmp_path / "m.safetensors")
-    if kind == "folder":
-        os.mkdir(path)
-        words = "is a folder, not a model file"
-    else:
-        make_special(path, kind)
-        words = KINDS[kind]
+    words = make_input(path, kind, "a model file")
     assert_refused_at_once(lambda: hb.load_model(path), path, words, hb.ModelFileError)
     assert_refused_at_once(lambda: _core.Model(path), path, words, hb.ModelFileError)
 
