@@ -61,8 +61,8 @@ def settings_from_args(args: argparse.Namespace, sparse: bool = False):
             values[f.name] = v
     if "width" in values:  # --mlp WIDTHxDEPTH sets two fields
         values["width"], values["depth"] = parse_mlp(values["width"])
-    if "latent" not in values and values.get("arch") == "neural":
-        values["latent"] = 12  # the neural baseline's latent = the hybrid's l + its analytic parameter count
+    if "latent" not in values and spec.ARCHS.get(values.get("arch"), {}).get("analytic") is False:
+        values["latent"] = 12  # no analytic part: the hybrid's l = 4 plus its 8 analytic parameters
     if sparse:
         values.setdefault("steps", ADD_STEPS)
     values.setdefault("device", default_device())
@@ -372,7 +372,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"{len(model.materials)} materials:")
     for m in model.material_info:
         line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {_shown(m.get('origin', ''))}"
-        if model.kind != "neural":
+        if model.has_analytic:
             p = model.analytic_params(m["name"])
             line += (f"\n      kd {p.kd.round(4).tolist()} eta {p.eta.round(4).tolist()} "
                      f"alpha {p.alpha.round(5).tolist()}")

@@ -210,7 +210,8 @@ def _unrolled_frames(tensors) -> List[str]:
 def contract_literals() -> Dict[str, str]:
     """The model contract's constants (spec/model.json) as float literals for the template."""
     c = {k: float_literal(getattr(spec, k.upper())) for k in
-         ("kd_min", "kd_max", "eta_min", "eta_max", "alpha_max", "hardgelu_knee")}
+         ("kd_min", "kd_max", "eta_min", "eta_max", "alpha_max", "hardgelu_knee",
+                                                    "mis_min_lobe_probability")}
     c["hardgelu_inv_width"] = float_literal(np.float32(1.0) / np.float32(2.0 * spec.HARDGELU_KNEE))
     return c
 
@@ -294,7 +295,7 @@ def load_scene(scene, model: HybridModel, model_path=None) -> Dict[str, object]:
             continue
         if m["material"] not in model.materials:
             raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {target}")
-        if m["evaluate"] == "analytic" and model.kind == "neural":
+        if m["evaluate"] == "analytic" and not model.has_analytic:
             raise InputFileError(origin, f"{m['where']}.evaluate: \"analytic\" is not possible: the neural baseline "
                                          "has no analytic part")
         first = emitted.setdefault(m["material"], m)
@@ -350,13 +351,13 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         # neural_max_depth 0: the tracer renders f_a at every depth, so no network at all (the
         # neural baseline has no f_a; the tracer, and so hbrdf_eval_depth, always runs its network).
         analytic_only = all(m["evaluate"] == "analytic" for m in scene["materials"]) or (
-            neural_max_depth == 0 and model.kind != "neural")
+            neural_max_depth == 0 and model.has_analytic)
         # Some materials full, others analytic-only: the network stays, and a per-material
         # flag makes hbrdf_eval skip it (a branch that is uniform across a draw call).
         mixed = not analytic_only and any(m["evaluate"] == "analytic" for m in scene["materials"])
-        if any(m["evaluate"] == "analytic" for m in scene["materials"]) and model.kind == "neural":
+        if any(m["evaluate"] == "analytic" for m in scene["materials"]) and not model.has_analytic:
             raise ValueError("the scene asks for analytic-only evaluation but the model is the neural baseline")
-        isotropic_only = model.kind != "neural" and all(
+        isotropic_only = model.has_analytic and all(
             model.material_info[model.index(n)].get("isotropic", True) for n in names)
         fold_latent = len(names) == 1 and not analytic_only
         flags = {m["name"]: m["evaluate"] == "analytic" for m in scene["materials"]}
@@ -399,11 +400,13 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
         layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1 and not head_in_material,
                                             precision == "fp16") if unrolled else [])
+    # The neural baseline's network predicts shading frames from the latent code (spec: 'frames').
+    predicts_frames = spec.ARCHS[model.kind]["directions"] == "frames"
     mats = []
     for n, c in zip(names, consts):
         i = model.index(n)
         z = list(t["materials.z"][i]) or [0.0]
-        if model.kind == "neural":
+        if not model.has_analytic:
             kd, eta, alpha = [0.0] * 3, [1.0] * 3, [1.0, 1.0]
         else:
             kd, eta, alpha = t["materials.kd"][i], t["materials.eta"][i], t["materials.alpha"][i]
@@ -427,9 +430,9 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
         head_unrolled=unrolled_head(a["width"], a["n_out"], a["depth"]) if head_in_material and unrolled else [],
         material_names=[comment_text(n) for n in names], materials=mats, layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),
         pre_exp_max=float_literal(a["pre_exp_max"]),
-        frames_unrolled=_unrolled_frames(t) if unrolled and model.kind == "neural" else [],
-        frames_weight=t["frames.weight"].ravel() if model.kind == "neural" else [],
-        frames_bias=t["frames.bias"] if model.kind == "neural" else [])
+        frames_unrolled=_unrolled_frames(t) if unrolled and predicts_frames else [],
+        frames_weight=t["frames.weight"].ravel() if predicts_frames else [],
+        frames_bias=t["frames.bias"] if predicts_frames else [])
     return text
 
 
@@ -455,7 +458,7 @@ def _generate_brdfexplorer(model: HybridModel, materials, model_path: str, extra
     t = model.tensors
     latent = model.arch["latent"]
     params = []
-    if model.kind != "neural":
+    if model.has_analytic:
         for label, key, lo, hi in (("kd", "materials.kd", 0.0, 1.0), ("eta", "materials.eta", 1.0, 10.0)):
             for c, ch in enumerate("rgb"):
                 params.append({"name": f"{label}_{ch}", "min": _param_line_value(lo), "max": _param_line_value(hi),

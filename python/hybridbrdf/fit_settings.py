@@ -264,7 +264,7 @@ class FitSettings:
     specular_alpha: float = _setting(0.1, "GGX roughness of the half-vector distribution of --specular pairs "
                                      "(default: %(default)s)", "loss", "--specular-alpha", type=SPECULAR_ALPHA)
     #: initial pre-exp bias of the hybrid correction f_c (f_c starts at exp(fc_init)).
-    fc_init: float = _setting(-4.0, "initial pre-exp bias of the hybrid correction f_c = exp(o) "
+    fc_init: float = _setting(spec.FC_INIT, "initial pre-exp bias of the hybrid correction f_c = exp(o) "
                               "(default: %(default)s)", "loss", "--fc-init", type=FC_INIT)
     #: where sparse fitting (``frozen=``) starts each new material's (p, z): "nearest" copies the
     #: frozen model's material whose (p, z) has the lowest training loss on the new material's

@@ -289,7 +289,7 @@ def best_starts(module, pool: "TrainingPool", starts: int, eps, eps_analytic, se
         for lo in range(0, len(idx), chunk):
             i = idx[lo:lo + chunk]
             f_t, f_a = module(pool.wi[i], pool.wo[i])
-            total += training_loss(pool.ref[:, i], f_t, f_a if settings.arch != "neural" else None,
+            total += training_loss(pool.ref[:, i], f_t, f_a if spec.ARCHS[settings.arch]["analytic"] else None,
                                    pool.wi[i, 2], eps, eps_analytic,
                                    settings.loss_cos, settings.analytic_expectile) * len(i)
     per_start = total.reshape(-1, starts)
@@ -471,7 +471,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         bar = tqdm(total=settings.steps, initial=start, desc=f"fit {settings.arch} {settings.width}x{settings.depth}",
                    unit="step", dynamic_ncols=True, mininterval=0.5)
     module.train()
-    has_analytic = settings.arch != "neural"
+    has_analytic = spec.ARCHS[settings.arch]["analytic"]
     # A black material (brightness 0) falls back to the smallest epsilon float32 keeps well above
     # the cos f values it is compared with (1e-6 of a typical 0.1-1 brightness).
     scale = (torch.clamp(pool.brightness if settings.loss_cos else pool.mean_f, min=1e-6)

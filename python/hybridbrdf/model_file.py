@@ -271,7 +271,7 @@ class HybridModel:
         mod = self._module(dtype)
         m = self._material_tensors(i, dtype)
         with torch.no_grad():
-            if self.kind == "neural":
+            if not self.has_analytic:
                 f, fa = mod.evaluate(wi_t, wo_t, m["z"])
             else:
                 head = (m["head_weight"], m["head_bias"]) if "head_weight" in m else None

@@ -7,8 +7,8 @@ A model holds one shared network and, per material, the analytic parameters
 p = (kd, eta, alpha) and a latent code z. Parameters are stored
 reparameterised so that every optimiser step keeps them in range:
 
-    kd    = sigmoid(kd_raw)                          in (0, 1)
-    eta   = 1 + 9 sigmoid(eta_raw)                   in (1, 10)
+    kd    = KD_MIN + (KD_MAX - KD_MIN) sigmoid(kd_raw)      in (0, 1)
+    eta   = ETA_MIN + (ETA_MAX - ETA_MIN) sigmoid(eta_raw)  in (1, 10)
     alpha = exp(log(ALPHA_MIN) (1 - sigmoid(a_raw)))  in (ALPHA_MIN, 1), log-uniform in the raw value
 
 Isotropic materials use alpha_y = alpha_x (one raw value is ignored).
@@ -50,6 +50,11 @@ _FLT_MAX = float(torch.finfo(torch.float32).max)
 PRE_EXP_MAX = spec.PRE_EXP_MAX
 ALPHA_MIN = spec.ALPHA_MIN
 _LOG_ALPHA_MIN = math.log(ALPHA_MIN)
+# The ranges of the reparameterisation are the contract's (spec/model.json); alpha's log-uniform
+# map exp(log(ALPHA_MIN) (1 - s)) ends at 1, so it holds only while the contract's ALPHA_MAX is 1.
+assert spec.ALPHA_MAX == 1.0, "alpha's reparameterisation assumes ALPHA_MAX = 1"
+_KD_SPAN = spec.KD_MAX - spec.KD_MIN
+_ETA_SPAN = spec.ETA_MAX - spec.ETA_MIN
 
 
 def hardgelu(x: torch.Tensor) -> torch.Tensor:
@@ -158,16 +163,16 @@ class HybridBRDF(nn.Module):
         # Start every material as a grey (kd 0.5), fairly rough (alpha 0.3) dielectric
         # (eta 1.5): a broad lobe receives gradient from everywhere, a sharp one does not.
         self.kd_raw = nn.Parameter(torch.zeros(n_materials, 3))
-        self.eta_raw = nn.Parameter(torch.full((n_materials, 3), float(_inverse_sigmoid(torch.tensor(0.5 / 9)))))
+        self.eta_raw = nn.Parameter(torch.full((n_materials, 3), float(_inverse_sigmoid(torch.tensor((1.5 - spec.ETA_MIN) / _ETA_SPAN)))))
         alpha0 = float(_inverse_sigmoid(torch.tensor(1.0 - math.log(0.3) / _LOG_ALPHA_MIN)))
         self.alpha_raw = nn.Parameter(torch.full((n_materials, 2), alpha0))
         self.z = nn.Parameter(torch.randn(n_materials, latent) * 0.01)
         with torch.no_grad():
             if n_out == 6:
-                # Start with a small correction (f_c = exp(-4) = 0.018) and an open gate
-                # (f_g = sigmoid(2) = 0.88): the analytic part carries the fit at first.
-                self.mlp.out.bias[0:3] = -4.0
-                self.mlp.out.bias[3:6] = 2.0
+                # Start with a small correction and an open gate (spec FC_INIT, FG_INIT):
+                # the analytic part carries the fit at first.
+                self.mlp.out.bias[0:3] = spec.FC_INIT
+                self.mlp.out.bias[3:6] = spec.FG_INIT
             else:
                 self.mlp.out.bias.zero_()
         self.output_layer = output_layer
@@ -201,21 +206,21 @@ class HybridBRDF(nn.Module):
 
     # ---- analytic parameters -------------------------------------------------
     def kd(self) -> torch.Tensor:
-        return torch.sigmoid(self.kd_raw)
+        return spec.KD_MIN + _KD_SPAN * torch.sigmoid(self.kd_raw)
 
     def eta(self) -> torch.Tensor:
-        return 1.0 + 9.0 * torch.sigmoid(self.eta_raw)
+        return spec.ETA_MIN + _ETA_SPAN * torch.sigmoid(self.eta_raw)
 
     def alpha(self) -> torch.Tensor:
         # The clamp only absorbs exp()'s last-bit rounding below ALPHA_MIN.
-        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw))).clamp(ALPHA_MIN, 1.0)
+        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw))).clamp(ALPHA_MIN, spec.ALPHA_MAX)
         return torch.where(self.isotropic[:, None], a[:, :1].expand_as(a), a)
 
     def set_analytic(self, index: int, kd, eta, alpha) -> None:
         """Initialise material ``index`` from parameter values (inverse of the reparameterisation)."""
         with torch.no_grad():
-            self.kd_raw[index] = _inverse_sigmoid(torch.as_tensor(kd, dtype=torch.float32))
-            self.eta_raw[index] = _inverse_sigmoid((torch.as_tensor(eta, dtype=torch.float32) - 1.0) / 9.0)
+            self.kd_raw[index] = _inverse_sigmoid((torch.as_tensor(kd, dtype=torch.float32) - spec.KD_MIN) / _KD_SPAN)
+            self.eta_raw[index] = _inverse_sigmoid((torch.as_tensor(eta, dtype=torch.float32) - spec.ETA_MIN) / _ETA_SPAN)
             a = torch.as_tensor(alpha, dtype=torch.float32).clamp(ALPHA_MIN, 1.0)
             self.alpha_raw[index] = _inverse_sigmoid(1.0 - torch.log(a) / _LOG_ALPHA_MIN)
 

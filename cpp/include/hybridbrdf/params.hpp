@@ -19,6 +19,8 @@ inline constexpr double kAlphaMin = spec::kAlphaMin;
 inline constexpr double kAlphaMax = spec::kAlphaMax;
 inline constexpr double kEtaMin = spec::kEtaMin;
 inline constexpr double kEtaMax = spec::kEtaMax;
+inline constexpr double kKdMin = spec::kKdMin;
+inline constexpr double kKdMax = spec::kKdMax;
 
 template <typename T> struct AnalyticParamsT {
     Vec3<T> kd{T(0.5)};    ///< Lambertian albedo per channel, [0, 1]
@@ -35,7 +37,7 @@ using AnalyticParams = AnalyticParamsT<float>;
 template <typename T> AnalyticParamsT<T> clamped(const AnalyticParamsT<T>& p) {
     AnalyticParamsT<T> q;
     for (int c = 0; c < 3; ++c) {
-        q.kd[c] = clamp_nan_lo(p.kd[c], T(0), T(1));
+        q.kd[c] = clamp_nan_lo(p.kd[c], T(kKdMin), T(kKdMax));
         q.eta[c] = clamp_nan_lo(p.eta[c], T(kEtaMin), T(kEtaMax));
     }
     for (int c = 0; c < 2; ++c) q.alpha[c] = clamp_nan_lo(p.alpha[c], T(kAlphaMin), T(kAlphaMax));
@@ -51,7 +53,7 @@ template <typename T> void validate(const AnalyticParamsT<T>& p) {
                                         std::to_string(double(v)) + " is outside [" + std::to_string(lo) +
                                         ", " + std::to_string(hi) + "]");
     };
-    for (int c = 0; c < 3; ++c) check("kd", c, p.kd[c], 0.0, 1.0);
+    for (int c = 0; c < 3; ++c) check("kd", c, p.kd[c], kKdMin, kKdMax);
     for (int c = 0; c < 3; ++c) check("eta", c, p.eta[c], kEtaMin, kEtaMax);
     for (int c = 0; c < 2; ++c) check("alpha", c, p.alpha[c], kAlphaMin, kAlphaMax);
 }

@@ -69,14 +69,15 @@ template <typename T> struct BrdfSampleT {
 using BrdfSample = BrdfSampleT<float>;
 
 /// Neither lobe of the MIS mixture is ever picked with a probability below
-/// this: the hybrid model's additive correction f_c can put energy anywhere,
-/// so both lobes must keep covering the hemisphere.
-inline constexpr double kMisMinLobeProbability = 0.1;
+/// this (spec/model.json, mis_min_lobe_probability): the hybrid model's
+/// additive correction f_c can put energy anywhere, so both lobes must keep
+/// covering the hemisphere.
+inline constexpr double kMisMinLobeProbability = spec::kMisMinLobeProbability;
 
 /// Probability with which the Mis strategy samples the GGX lobe for viewing
 /// direction wo (unit, wo.z > 0):
 ///
-///     P_ggx = clamp(Fs / (Fs + Kd), 0.1, 0.9),  Fs = mean_rgb F(wo.z, eta),  Kd = mean_rgb kd
+///     P_ggx = clamp(Fs / (Fs + Kd), p_min, 1 - p_min),  Fs = mean_rgb F(wo.z, eta),  Kd = mean_rgb kd
 ///
 /// Fs is the Fresnel reflectance at the viewing angle, a cheap stand-in for
 /// the specular albedo; Kd is the diffuse albedo. A function of wo only, so

@@ -43,6 +43,18 @@ inline constexpr double kEtaMax = 10.0;
 inline constexpr double kKdMin = 0.0;
 /// Lambertian albedo upper bound.
 inline constexpr double kKdMax = 1.0;
+/// Pre-exp bias a fit starts the gated combine's correction with (FitSettings.fc_init, --fc-init):
+/// f_c = exp(-4) = 0.018 of a unit albedo, small beside f_a so the analytic part carries the first
+/// steps, and far above float32's underflow so its gradient is not zero.
+inline constexpr double kFcInit = -4.0;
+/// Pre-sigmoid bias a fit starts the gated combine's gate with: f_g = sigmoid(2) = 0.88, an open
+/// gate through which f_a's gradient reaches the analytic parameters from the first step.
+inline constexpr double kFgInit = 2.0;
+/// Smallest probability with which the MIS sampler picks either lobe (GGX or cosine): P_ggx =
+/// clamp(Fs / (Fs + Kd), p, 1 - p). The gated combine's f_c can put energy anywhere, so both lobes
+/// must keep covering the hemisphere; every sampler (libhybridbrdf and the generated shaders) uses
+/// this one value.
+inline constexpr double kMisMinLobeProbability = 0.1;
 /// Widest hidden layer and longest network input a model may have (the scalar path keeps a layer on
 /// the stack).
 inline constexpr int kMaxWidth = 256;
