@@ -75,6 +75,24 @@ def activation_fn(name: str):
     raise ValueError(f"unknown activation {name!r}; expected one of {', '.join(ACTIVATIONS)}")
 
 
+def combine(rule: str, o: torch.Tensor, f_a: Optional[torch.Tensor], pre_exp_max: float) -> torch.Tensor:
+    """f_t from the network output ``o`` (..., n_out) and ``f_a`` (..., 3) by combine ``rule``
+    (spec.COMBINES; every reader implements the same table, spec/activation_combine.json):
+    gated f_c + f_g f_a with f_c = exp(min(o[0:3], pre_exp_max)), f_g = sigmoid(o[3:6]) (paper
+    Eq. 1); additive max(f_a + o, 0); logmul f_a exp(min(o, pre_exp_max)) held at FLT_MAX (f_a
+    reaches 3.2e15 and exp(80) 5.5e34, so the product can pass it); exp exp(min(o, pre_exp_max))
+    (no analytic part; ``f_a`` unused)."""
+    if rule == "gated":
+        return torch.exp(o[..., 0:3].clamp(max=pre_exp_max)) + torch.sigmoid(o[..., 3:6]) * f_a
+    if rule == "additive":
+        return torch.clamp(f_a + o, min=0.0)
+    if rule == "logmul":
+        return (f_a * torch.exp(o.clamp(max=pre_exp_max))).clamp(max=_FLT_MAX)
+    if rule == "exp":
+        return torch.exp(o.clamp(max=pre_exp_max))
+    raise ValueError(f"unknown combine rule {rule!r}; expected one of {', '.join(spec.COMBINES)}")
+
+
 class MLP(nn.Module):
     """``depth`` hidden layers of ``width`` units with the chosen activation, then a linear output."""
 
@@ -273,14 +291,7 @@ class HybridBRDF(nn.Module):
 
     def combine(self, o: torch.Tensor, f_a: torch.Tensor) -> torch.Tensor:
         """The network output o and f_a -> f_t, by the architecture's combine rule (spec.COMBINES)."""
-        if self.combine_rule == "gated":
-            f_c = torch.exp(o[..., 0:3].clamp(max=self.pre_exp_max))
-            f_g = torch.sigmoid(o[..., 3:6])
-            return f_c + f_g * f_a
-        if self.combine_rule == "additive":
-            return torch.clamp(f_a + o, min=0.0)
-        # logmul; held at FLT_MAX as every other reader: f_a (up to 3.2e15) times exp(80) can pass it.
-        return (f_a * torch.exp(o.clamp(max=self.pre_exp_max))).clamp(max=_FLT_MAX)
+        return combine(self.combine_rule, o, f_a, self.pre_exp_max)
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         """Evaluation-ready per-material values: kd, eta, alpha, z (float32, detached)."""
@@ -357,7 +368,7 @@ class NeuralBRDF(nn.Module):
         wi_f = torch.einsum("mfac,bc->mbfa", frames, wi_n).reshape(m, b, -1)
         wo_f = torch.einsum("mfac,bc->mbfa", frames, wo_n).reshape(m, b, -1)
         o = self.mlp(torch.cat([wi_f, wo_f, z[:, None].expand(m, b, self.latent_dim)], dim=-1))
-        f = torch.exp(o.clamp(max=self.pre_exp_max))
+        f = combine("exp", o, None, self.pre_exp_max)
         return torch.where(valid[None, :, None], f, torch.zeros_like(f)), None
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
