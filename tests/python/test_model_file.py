@@ -9,14 +9,15 @@ import pytest
 import torch
 
 import hybridbrdf as hb
+from hybridbrdf import spec
 from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
 
 
-@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"])
+@pytest.mark.parametrize("arch", list(spec.ARCHS))
 def test_save_then_load_is_bit_exact(tmp_path, arch):
-    mod, model = random_model(arch, latent=12 if arch == "neural" else 4, isotropic=[True, False, True])
+    mod, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12, isotropic=[True, False, True])
     path = tmp_path / "m.safetensors"
     model.save(path)
     back = hb.load_model(path)
@@ -111,9 +112,9 @@ def test_unknown_material_name():
         model.eval(np.zeros((1, 3)), np.zeros((1, 3)), "nope")
 
 
-@pytest.mark.parametrize("arch", ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"])
+@pytest.mark.parametrize("arch", list(spec.ARCHS))
 def test_models_are_zero_below_the_horizon_and_for_invalid_directions(arch):
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4)
+    _, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12)
     wi, wo = hard_pairs()
     for dtype in (torch.float32, torch.float64):
         f = model.eval(wi, wo, 0, dtype=dtype)
