@@ -85,9 +85,9 @@ class Phase:
 #: "new" (--recipe fast): the same network and loss at 8x the learning rate, decayed exponentially
 #: to 1/100 of it over 58,000 steps, then the refit under eps 0.05 (docs/FITTING.md, "Fitting in
 #: 30 minutes: the learning rate"). "cosine": the fast schedule's first form (cosine decay, refit
-#: eps 0.1: 4 of 5 rows in 26 minutes), kept for comparison; not run by default. "heads": today's
-#: --recipe fast, the "new" schedule on a 16x2 network with material output layers and no refit
-#: (issue 37); not run by default (`--schedules new,heads`).
+#: eps 0.1; its figures: docs/BENCHMARKS_HISTORY.md), kept for comparison; not run by default.
+#: "heads": today's --recipe fast, the "new" schedule on a 16x2 network with material output layers
+#: and no refit; not run by default (`--schedules new,heads`).
 SCHEDULES = {
     "old": [Phase("joint", dict(steps=120_000, lr=5e-3)),
             Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
@@ -97,7 +97,7 @@ SCHEDULES = {
                Phase("refit", dict(steps=3000, loss_eps=0.1), refit=True)],
     "heads": [Phase("joint", dict(width=16, output_layer="material", steps=58_000, lr=4e-2,
                                   lr_schedule="exponential", lr_final=0.01))],
-    # Issue 36 (c): a warm start from a prior that never saw an RGL material (--init-prior;
+    # A warm start from a prior that never saw an RGL material (--init-prior;
     # bench/train_prior.py --folders nbrdf/merl,nbrdf/nielsen: 32x2, latent 8, material output
     # layers) against the cold start of the same network ("heads32"), both on the fast loss.
     "warm": [Phase("joint", dict(steps=8000, lr=1e-2, lr_schedule="exponential", lr_final=0.01,

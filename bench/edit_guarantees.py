@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What editing and blending guarantee, measured (issue 17): on a grid of edits and blends of the
+"""What editing and blending guarantee, measured: on a grid of edits and blends of the
 shipped prior's materials, evaluated by libhybridbrdf (float32, the engines' runtime):
 
 - finite and non-negative: every value on the hard directions of tests/data/hard_directions.json

@@ -1,8 +1,8 @@
-"""The fuzz suite at scale (issue 20): seeded random inputs through every surface of
+"""The fuzz suite at scale: seeded random inputs through every surface of
 tests/python/fuzz_surfaces.py, counted per outcome. A broken invariant is printed with the
 input that broke it and makes the exit status 1.
 
-    python3 bench/fuzz_scale.py                 # ~1.1e6 inputs (the figures in docs/BENCHMARKS.md)
+    python3 bench/fuzz_scale.py                 # the full run (docs/BENCHMARKS.md, "Hostile input")
     python3 bench/fuzz_scale.py --scale 0.01    # a quick look
 
 Surfaces and their inputs: model files (byte damage: both loaders must agree), model metadata
@@ -13,7 +13,7 @@ NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reade
 flags (every typed flag of every hbrdf command) and directions (float32 bit patterns through the
 library's batched and scalar paths and torch).
 
-Hostile inputs, round two (issue 33), every one invalid and each bounded in time and memory
+Hostile inputs, round two, every one invalid and each bounded in time and memory
 (tests/python/fuzz_surfaces.py, check_hostile): special files (FIFO, symlink to /dev/zero, 1 TiB
 sparse file, symlink loop, folder) through every reader; structured JSON (deep nesting, wrong
 types, huge counts) as model metadata and as scene files, and tabulated scenes over the tracer's
@@ -230,7 +230,7 @@ def refused(check):
 
 
 def hostile_round_two(k, rng, work, seeds, docs, counts, failures):
-    """The inputs of issue 33, named "<kind>: <surface>" so that the headline can count each kind."""
+    """The hostile inputs of round two, named "<kind>: <surface>" so that the headline can count each kind."""
     hostile = work / "hostile"
     hostile.mkdir()
     for reader in fs.READERS:

@@ -10,8 +10,8 @@ seed for every render of a material), for the trained and the held-out subsets.
         [--full-model FILE] [--half-model FILE] [--compile] [--out-dir out/merl_reduced] [--limit N]
         [--sparse-steps 5000] [--pairs 100000] [--refine] [--refine-steps 5000]
 
-The paper: render MAE 0.0087 (full) -> 0.0099 (sparse, held-out materials); issue 16 asks for at
-most 1.15x. --full-model / --half-model reuse networks fitted earlier; --limit renders only the
+The paper: render MAE 0.0087 (full) -> 0.0099 (sparse, held-out materials); the project's target
+is at most 1.15x (docs/BENCHMARKS.md, "Open targets"). --full-model / --half-model reuse networks fitted earlier; --limit renders only the
 first N materials of each subset (a quick check; the table says so).
 """
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The new-measurement hold-out (issues 16 and 36): the five raw RGL files, **each added alone**
+"""The new-measurement hold-out: the five raw RGL files, **each added alone**
 with ``hybridbrdf.add``'s defaults, to a prior that never saw them in any form
 (``bench/train_prior.py --leave-out NAME`` for each of the five), scored with the CONVENTIONS
 metrics next to the authors' released model (trained on them) and this project's joint fit

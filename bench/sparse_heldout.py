@@ -6,7 +6,7 @@
    nbrdf-rgl (the 49 NBRDF-RGL networks), rgl (those and the five raw files: the
    joint fit's 54) or all (rgl, NBRDF-MERL and NBRDF-Nielsen: the shipped prior's
    collection). --leave-out NAME (repeatable; default: all five raw RGL files)
-   picks the held-out materials; protocol (a) of issue 16 runs the script once
+   picks the held-out materials; protocol (a) (one network per left-out file) runs it once
    per file with --collection rgl --leave-out NAME. --with-reconstructions keeps
    the held-out materials' reconstructions (then it is not a hold-out).
 2. Freeze it and fit only (p, z) of the held-out raw RGL files.

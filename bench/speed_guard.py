@@ -8,8 +8,8 @@ build tree's libhybridbrdf and the generated C++ header of a shipped model, runs
 core, prints every ratio with its floor and exits 1 when one is below its floor, naming the
 ratio, the figure and the floor.
 
-Each floor is the lowest of ten runs on the machine the table names (AMD EPYC Zen 5, 2
-cores, 2026-11-25; `python bench/speed_guard.py --runs 10` prints them) less a margin for
+Each floor is the lowest of ten runs on the machine that docs/BENCHMARKS.md ("The speed guard
+(CI)") names (`python bench/speed_guard.py --runs 10` prints them) less a margin for
 run-to-run spread and for machines of the same kind with other caches. A floor guards what
 its reason says: losing a kernel's vectorisation halves the first ratios; a scalar network
 in the batched path collapses the model ratios.

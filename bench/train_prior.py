@@ -7,7 +7,7 @@ materials: 142), written into the package (python/hybridbrdf/data/prior.safetens
         [--output-layer shared|material] [--folders F,...] [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
 
 --leave-out NAME drops a material in every form (raw file and reconstruction): the prior of
-issue 16's hold-out (protocol (a) with the prior's recipe), e.g. all five raw RGL files, then
+the new-measurement hold-out (protocol (a) with the prior's recipe), e.g. all five raw RGL files, then
 ``python bench/prior_heldout.py --prior FILE`` adds them with ``hybridbrdf.add``'s defaults.
 The recipe is the fit defaults (FitSettings) except for the flags above; --batch is per
 material, so 512 x 142 materials is 2.5x the pairs of a 54-material fit at 1024.

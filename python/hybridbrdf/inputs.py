@@ -1,4 +1,4 @@
-"""Reading untrusted input files without trusting them (issue 33): every file the Python side
+"""Reading untrusted input files without trusting them: every file the Python side
 opens as input goes through here first.
 
 - :func:`check_input_file` refuses what is not a regular file *before* opening it (``os.stat``

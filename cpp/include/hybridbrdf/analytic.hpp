@@ -22,7 +22,8 @@ namespace hbrdf {
 ///
 /// Two functions returning a vector and a scalar, not one returning a struct {h, cos_d}: GCC
 /// 12 copies such a struct as an aggregate, and an aggregate copy in the loop body stops the
-/// batched kernels from vectorising (7x slower f_a; tests/python/test_vectorisation.py).
+/// batched kernels from vectorising (f_a falls to the baseline kernel's speed; docs/BENCHMARKS.md,
+/// "Analytic BRDF f_a"; guarded by tests/python/test_vectorisation.py).
 template <typename T> HBRDF_INLINE Vec3<T> half_vector(const Vec3<T>& wi, const Vec3<T>& wo) {
     const Vec3<T> s = wi + wo;
     const T inv_len_s = inverse_length_or_zero(s);
