@@ -5,12 +5,13 @@ GLSL as the project's 32x2? docs/BENCHMARKS.md, "Evaluation cost").
 
 Lavapipe's throughput of one shader varies from one process to the next (docs/BENCHMARKS.md,
 "Evaluation cost") by more than a single pair of runs can settle a 2x threshold with. So the
-two shaders run alternately, ``--rounds`` lavapipe processes each, once on the host's own
-SIMD path and once AVX2 only (``GALLIUM_OVERRIDE_CPU_CAPS=avx``); every round prints both rates and their ratio, and the summary gives the median ratio and
-the ratio of the best rates. Each shader is the default generated form (unrolled network,
-literal weights) for one material, compiled by glslang and run by ``hbrdf_vk_runner`` over
-``--pairs`` pairs; the SPIR-V instruction count per evaluation (after ``spirv-opt -O``) is
-printed next to it, since lavapipe is only a proxy for a GPU.
+two shaders run alternately, ``--rounds`` lavapipe processes each, once on the host's own SIMD
+path and once AVX2 only (``GALLIUM_OVERRIDE_CPU_CAPS=avx``); every round prints both rates and
+their ratio, and the summary gives the median ratio and the ratio of the best rates. Each
+shader is the default generated form (unrolled network, literal weights) for one material,
+compiled by glslang and run by ``hbrdf_vk_runner`` over ``--pairs`` pairs; the SPIR-V
+instruction count per evaluation (after ``spirv-opt -O``) is printed next to it, since lavapipe
+is only a proxy for a GPU.
 
 Two kernels (``--harness``): ``synthetic`` makes each pair in the shader from a hash of the
 invocation index, as a renderer hands the BRDF directions it already holds in registers;
