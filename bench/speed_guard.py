@@ -52,7 +52,7 @@ def _ratio(a, b):
 
 
 # The figures in each reason: lowest / median of 10 runs, 2026-11-25, AMD EPYC Zen 5 (AVX-512 on
-# 512-bit pipes), unless another machine is named; docs/BENCHMARKS.md ("Speed guard") keeps the table.
+# 512-bit pipes), unless another machine is named; docs/BENCHMARKS.md ("The speed guard (CI)") keeps the table.
 RATIOS: List[Ratio] = [
     Ratio("f_a eval SoA: AVX2+FMA / baseline kernel", _ratio("fa_soa", "fa_soa_baseline"), 1.6,
           "vectorised f_a, 8 lanes against 4 (2.01 / 2.04); a loop that stops vectorising gives ~1.0"),
