@@ -1,14 +1,18 @@
 // hybridbrdf — vectorised batched inference of fitted models.
 //
-// Pairs are processed in chunks of kChunk in structure-of-arrays layout. A
-// layer is out[j][i] = b[j] + sum_k W[j][k] in[k][i]: the weight is broadcast
-// and the loop over the pairs i is a straight FMA stream. The portable kernel
-// is written once and compiled for the baseline target and for AVX2+FMA; on
-// x86 the layers themselves use register-blocked intrinsics (AVX2: 2 outputs x
-// 32 pairs, AVX-512: 4 outputs x 64 pairs in accumulators), which load each
-// input vector once per block of outputs instead of once per output: the
-// portable loop does one load per FMA.
-// The kernel is chosen at run time (model_simd_path()).
+// Pairs are processed in chunks of kChunk (64) in structure-of-arrays layout. A layer is
+// out[j][i] = b[j] + sum_k W[j][k] in[k][i]: the weight is broadcast and the loop over the
+// pairs i is a straight FMA stream. Three layer kernels, chosen at run time
+// (model_simd_path()):
+// - portable: that loop, compiled for the baseline target (one load per FMA);
+// - AVX2+FMA: register-blocked intrinsics, blocks of 6 outputs x 16 pairs (two 8-lane
+//   vectors each): 12 accumulators, and per input 2 vector loads and 6 broadcasts feed 12
+//   FMAs, so the two FMA pipes and not the load ports are the limit (BLIS's Haswell shape);
+// - AVX-512: blocks of 4 outputs x 64 pairs (four 16-lane vectors each): 16 accumulators.
+// The rest of a chunk's work (normalisation, f_a, the network inputs, the combine) is written
+// once and compiled for each kernel's target. The per-lane activation and gated combine of the
+// vector kernels are model_simd.hpp's; the portable kernel's, and every kernel's other combine
+// rules, are model_math.hpp's, lane by lane.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -20,18 +24,13 @@
 #include "hybridbrdf/batch.hpp"
 #include "hybridbrdf/model.hpp"
 #include "model_math.hpp"
+#include "model_simd.hpp"
 #include "simd_env.hpp"
 
 #if defined(__GNUC__)
 #define HBRDF_KERNEL_INLINE inline __attribute__((always_inline))
 #else
 #define HBRDF_KERNEL_INLINE inline
-#endif
-#if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
-#define HBRDF_MB_X86 1
-#include <immintrin.h>
-#else
-#define HBRDF_MB_X86 0
 #endif
 
 namespace hbrdf {
@@ -55,10 +54,11 @@ struct DensePortable {
                 for (int i = 0; i < kChunk; ++i) acc[i] += wk * x[i];
             }
             float* o = out + j * kChunk;
+            // One loop per activation, so that each is a plain loop over the lanes.
             if (last)
                 for (int i = 0; i < kChunk; ++i) o[i] = acc[i];
             else if (a == Activation::Relu)
-                for (int i = 0; i < kChunk; ++i) o[i] = acc[i] > 0.f ? acc[i] : 0.f;
+                for (int i = 0; i < kChunk; ++i) o[i] = activate(Activation::Relu, acc[i]);
             else
                 for (int i = 0; i < kChunk; ++i) o[i] = activate(Activation::HardGelu, acc[i]);
         }
@@ -77,51 +77,15 @@ struct DensePortable {
     }
 };
 
-#if HBRDF_MB_X86
+#if HBRDF_SIMD_X86
 // GCC 12's own AVX-512 intrinsics (_mm512_undefined_ps) trip -Wmaybe-uninitialized when
 // inlined (GCC bug 105593, fixed in GCC 13); the warning is about the header, not this code.
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-// The activations on 8 / 16 lanes; max(x, 0) returns 0 for NaN like clamp_nan_lo.
-#define HBRDF_ACT_BODY(PS, SET1, MAX, MIN, MUL, FMA)                                            \
-    if (last) return x;                                                                   \
-    if (a == Activation::Relu) return MAX(x, SET1(0.0f));                                \
-    /* hardGeLU, detail::activate: (x + knee) / (2 knee) = x / (2 knee) + 1/2 */          \
-    const auto t = FMA(x, SET1(float(1.0 / (2.0 * spec::kHardgeluKnee))), SET1(0.5f));   \
-    return MUL(x, MIN(MAX(t, SET1(0.0f)), SET1(1.0f)));
-
-__attribute__((target("avx2,fma"))) HBRDF_KERNEL_INLINE __m256 act8(__m256 x, Activation a, bool last) {
-    HBRDF_ACT_BODY(ps, _mm256_set1_ps, _mm256_max_ps, _mm256_min_ps, _mm256_mul_ps, _mm256_fmadd_ps)
-}
-
-// exp(x) on 8 lanes for the combine step, within about 1 ulp of the exact value: Cody-Waite
-// reduction x = n ln2 + r (ln2 split in a 9-bit head and a tail, so n * head is exact),
-// Cephes' degree-6 polynomial for e^r on |r| <= ln2/2, and 2^n applied as two halves so that
-// results in the denormal range (x down to -103.9) and the overflow to +inf (x > 88.72) come
-// out as expf gives them. Inputs are finite (the loader bounds every network value).
-__attribute__((target("avx2,fma"))) HBRDF_KERNEL_INLINE __m256 exp8(__m256 x) {
-    x = _mm256_min_ps(_mm256_max_ps(x, _mm256_set1_ps(-104.0f)), _mm256_set1_ps(89.0f));
-    const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504f)),
-                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693359375f), x);
-    r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.12194440e-4f), r);
-    __m256 p = _mm256_set1_ps(1.9875691500e-4f);
-    p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.3981999507e-3f));
-    p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(8.3334519073e-3f));
-    p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(4.1665795894e-2f));
-    p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.6666665459e-1f));
-    p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(5.0000001201e-1f));
-    const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(p, _mm256_mul_ps(r, r), r), _mm256_set1_ps(1.0f));
-    const __m256i ni = _mm256_cvtps_epi32(n);
-    const __m256i n1 = _mm256_srai_epi32(ni, 1);
-    const __m256i n2 = _mm256_sub_epi32(ni, n1);
-    const __m256i bias = _mm256_set1_epi32(127);
-    const __m256 s1 = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(n1, bias), 23));
-    const __m256 s2 = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(n2, bias), 23));
-    return _mm256_mul_ps(_mm256_mul_ps(y, s1), s2);
-}
+using detail::activate16;
+using detail::activate8;
 
 // J output rows x 16 pairs (two 8-lane vectors) per register block, for every 16 pairs of the
 // chunk: 2J accumulators + 2 inputs + 1 broadcast weight of the 16 ymm registers (J = 6 uses
@@ -143,10 +107,9 @@ __attribute__((target("avx2,fma"))) HBRDF_KERNEL_INLINE void dense_rows_avx2(
                 acc[r][1] = _mm256_fmadd_ps(wr, x1, acc[r][1]);
             }
         }
-        for (int r = 0; r < J; ++r) {
-            _mm256_storeu_ps(out + r * kChunk + col, act8(acc[r][0], a, last));
-            _mm256_storeu_ps(out + r * kChunk + col + 8, act8(acc[r][1], a, last));
-        }
+        for (int r = 0; r < J; ++r)
+            for (int h = 0; h < 2; ++h)
+                _mm256_storeu_ps(out + r * kChunk + col + 8 * h, last ? acc[r][h] : activate8(a, acc[r][h]));
     }
 }
 
@@ -171,32 +134,28 @@ struct DenseAvx2 {
         }
     }
 
-    // The gated combine (paper Eq. 1) f = exp(min(o, bound)) + sigmoid(g) f_a on 8 lanes, 0 where
-    // the pair is invalid: rows of kChunk values in, three rows of f out.
+    // The gated combine (detail::combine_gated8) on 8 lanes at a time, 0 where the pair is
+    // invalid: rows of kChunk values in, three rows of f out.
     __attribute__((target("avx2,fma"))) static void combine_gated(const float* __restrict O,
                                                                   const float* __restrict fa,
                                                                   const float* __restrict valid, float bound,
                                                                   float* __restrict f) {
-        const __m256 vbound = _mm256_set1_ps(bound), one = _mm256_set1_ps(1.0f), zero = _mm256_setzero_ps();
+        const __m256 vbound = _mm256_set1_ps(bound), zero = _mm256_setzero_ps();
         for (int i = 0; i < kChunk; i += 8) {
             const __m256 ok = _mm256_cmp_ps(_mm256_loadu_ps(valid + i), zero, _CMP_GT_OQ);
             for (int c = 0; c < 3; ++c) {
-                const __m256 fc = exp8(_mm256_min_ps(_mm256_loadu_ps(O + c * kChunk + i), vbound));
-                const __m256 e = exp8(_mm256_sub_ps(zero, _mm256_loadu_ps(O + (3 + c) * kChunk + i)));
-                const __m256 gate = _mm256_div_ps(one, _mm256_add_ps(one, e));
-                const __m256 v = _mm256_fmadd_ps(gate, _mm256_loadu_ps(fa + c * kChunk + i), fc);
+                const __m256 v = detail::combine_gated8(_mm256_loadu_ps(O + c * kChunk + i),
+                                                        _mm256_loadu_ps(O + (3 + c) * kChunk + i),
+                                                        _mm256_loadu_ps(fa + c * kChunk + i), vbound);
                 _mm256_storeu_ps(f + c * kChunk + i, _mm256_and_ps(v, ok));
             }
         }
     }
 };
 
-__attribute__((target("avx512f,avx2,fma"))) HBRDF_KERNEL_INLINE __m512 act16(__m512 x, Activation a, bool last) {
-    HBRDF_ACT_BODY(ps, _mm512_set1_ps, _mm512_max_ps, _mm512_min_ps, _mm512_mul_ps, _mm512_fmadd_ps)
-}
-
 struct DenseAvx512 {
-    // Blocks of 4 outputs x 64 pairs: 16 accumulators + 4 inputs + 1 weight of 32 registers.
+    // Blocks of 4 outputs x 64 pairs: 16 accumulators + 4 inputs + 1 weight of 32 registers;
+    // the 1-3 rows left go to the AVX2 kernel.
     __attribute__((target("avx512f,avx2,fma"))) static void run(
         const float* __restrict w, const float* __restrict bias, int n_in, int n_out, const float* __restrict in,
         float* __restrict out, Activation a, bool last) {
@@ -216,16 +175,17 @@ struct DenseAvx512 {
                 }
             }
             for (int r = 0; r < J; ++r)
-                for (int v = 0; v < V; ++v) _mm512_storeu_ps(out + (j + r) * kChunk + 16 * v, act16(acc[r][v], a, last));
+                for (int v = 0; v < V; ++v)
+                    _mm512_storeu_ps(out + (j + r) * kChunk + 16 * v, last ? acc[r][v] : activate16(a, acc[r][v]));
         }
         if (j < n_out) DenseAvx2::run(w + j * n_in, bias + j, n_in, n_out - j, in, out + j * kChunk, a, last);
     }
 
+    // The combine runs once per pair, not per weight: the AVX2 one serves.
     static void combine_gated(const float* O, const float* fa, const float* valid, float bound, float* f) {
         DenseAvx2::combine_gated(O, fa, valid, bound, f);
     }
 };
-#undef HBRDF_ACT_BODY
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
@@ -234,80 +194,31 @@ struct DenseAvx512 {
 }  // namespace
 
 struct ModelBatchKernels {
+    // f_t for pairs [0, n) of material m, chunk by chunk: directions to SoA and normalised, the
+    // network's inputs, its layers with the kernel `Dense`, the combine, f back to AoS.
     template <class Dense>
     HBRDF_KERNEL_INLINE static void run(const HybridModel& md, int m, std::size_t n, const float* wi_aos,
                                         const float* wo_aos, float* f_aos) {
         const int width = md.width_;
         const int n_dir = md.n_dir_inputs_;
-        const spec::ArchSpec& as = md.arch();
-        const Activation a = md.activation_;
         std::vector<float> scratch(static_cast<std::size_t>(kChunk) * (n_dir + 2 * width + 6 + 9 + 1 + 3));
-        float* X = scratch.data();          // n_dir rows
-        float* A = X + n_dir * kChunk;      // width rows
-        float* B = A + width * kChunk;      // width rows
-        float* O = B + width * kChunk;      // 6 rows
-        float* D = O + 6 * kChunk;          // wi (3 rows), wo (3 rows), f_a (3 rows)
-        float* V = D + 9 * kChunk;          // valid (1 row)
-        float* F = V + kChunk;              // f (3 rows)
-        const std::vector<float>& bias0 = md.bias0_[m];
-        const float bound = md.pre_exp_max_;
-        const AnalyticBrdf* brdf = as.analytic ? &md.analytic_[m] : nullptr;
-        const float* frames = as.directions == spec::DirectionInputs::Frames ? md.frame_cache_[m].data() : nullptr;
-
+        Rows rows;
+        rows.X = scratch.data();            // n_dir rows
+        rows.A = rows.X + n_dir * kChunk;   // width rows
+        rows.B = rows.A + width * kChunk;   // width rows
+        rows.O = rows.B + width * kChunk;   // 6 rows
+        rows.D = rows.O + 6 * kChunk;       // wi (3 rows), wo (3 rows), f_a (3 rows)
+        rows.V = rows.D + 9 * kChunk;       // valid (1 row)
+        rows.F = rows.V + kChunk;           // f (3 rows)
         for (std::size_t start = 0; start < n; start += kChunk) {
             const int cnt = int(std::min<std::size_t>(kChunk, n - start));
-            // Directions in SoA; padding lanes get +z (valid, then dropped).
-            for (int i = 0; i < kChunk; ++i) {
-                const std::size_t r = 3 * (start + (i < cnt ? i : 0));
-                for (int c = 0; c < 3; ++c) {
-                    D[c * kChunk + i] = i < cnt ? wi_aos[r + c] : float(c == 2);
-                    D[(3 + c) * kChunk + i] = i < cnt ? wo_aos[r + c] : float(c == 2);
-                }
-            }
-            normalise_rows(D, V);
-            if (brdf) {
-                analytic_rows(*brdf, D, D + 6 * kChunk);
-                std::copy(D, D + 6 * kChunk, X);
-                if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(D, X + 6 * kChunk);
-                if (as.extra == spec::ExtraInputs::Log1pFa)
-                    for (int c = 0; c < 3; ++c)
-                        for (int i = 0; i < kChunk; ++i)
-                            X[(as.direction_count + c) * kChunk + i] = std::log1p(D[(6 + c) * kChunk + i]);
-            } else {
-                // Neural: wi and wo in the material's 3 precomputed frames (t, b, n each).
-                for (int side = 0; side < 2; ++side)
-                    for (int fr = 0; fr < 3; ++fr)
-                        for (int axis = 0; axis < 3; ++axis) {
-                            const float* e = frames + 9 * fr + 3 * axis;
-                            float* x = X + (9 * side + 3 * fr + axis) * kChunk;
-                            const float* w = D + 3 * side * kChunk;
-                            // vectorises: neural_frames (tests/python/test_vectorisation.py)
-                            for (int i = 0; i < kChunk; ++i)
-                                x[i] = e[0] * w[i] + e[1] * w[kChunk + i] + e[2] * w[2 * kChunk + i];
-                        }
-            }
-            // The network: first layer from the varying inputs with the folded bias, then the rest.
-            Dense::run(md.w0_dirs_.data(), bias0.data(), n_dir, width, X, A, a, false);
-            // Hidden layers 1 .. depth-1, then the output layer (shared, or material m's own).
-            const int depth = md.depth_;
-            for (int l = 1; l <= depth; ++l) {
-                const bool last = l == depth;
-                const DenseLayer& L = last ? md.output_layer(m) : md.layers_[l];
-                Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? O : B, a, last);
-                if (!last) std::swap(A, B);
-            }
-            // f in three rows, then back to (n, 3).
-            const spec::Combine rule = as.combine;
-            if (rule == spec::Combine::Gated) {
-                Dense::combine_gated(O, D + 6 * kChunk, V, bound, F);
-            } else {
-                for (int c = 0; c < 3; ++c)
-                    for (int i = 0; i < kChunk; ++i) {
-                        const float f = detail::combine(rule, O[c * kChunk + i], 0.f, D[(6 + c) * kChunk + i], bound);
-                        F[c * kChunk + i] = V[i] > 0.f ? f : 0.f;
-                    }
-            }
+            directions_to_rows(wi_aos + 3 * start, wo_aos + 3 * start, cnt, rows.D);
+            normalise_rows(rows.D, rows.V);
+            network_inputs(md, m, rows);
+            run_network<Dense>(md, m, rows);
+            combine<Dense>(md, rows);
             float* out = f_aos + 3 * start;
+            const float* F = rows.F;
             // vectorises: soa_to_aos (tests/python/test_vectorisation.py)
             for (int i = 0; i < cnt; ++i)
                 for (int c = 0; c < 3; ++c) out[3 * i + c] = F[c * kChunk + i];
@@ -315,6 +226,82 @@ struct ModelBatchKernels {
     }
 
   private:
+    // A chunk's scratch rows, kChunk values each.
+    struct Rows {
+        float *X, *A, *B, *O, *D, *V, *F;
+    };
+
+    // `cnt` pairs of wi, wo (AoS) into rows 0-5 of D; padding lanes get +z (valid, then dropped).
+    HBRDF_KERNEL_INLINE static void directions_to_rows(const float* wi, const float* wo, int cnt, float* D) {
+        for (int i = 0; i < kChunk; ++i) {
+            const int r = 3 * (i < cnt ? i : 0);
+            for (int c = 0; c < 3; ++c) {
+                D[c * kChunk + i] = i < cnt ? wi[r + c] : float(c == 2);
+                D[(3 + c) * kChunk + i] = i < cnt ? wo[r + c] : float(c == 2);
+            }
+        }
+    }
+
+    // The rows of X the network reads (spec/model.json's input layout, the latent code folded
+    // into the first bias): the directions, the half-angle inputs and log1p(f_a) for the hybrid
+    // kinds (f_a into rows 6-8 of D), or wi and wo in the material's frames for the neural one.
+    HBRDF_KERNEL_INLINE static void network_inputs(const HybridModel& md, int m, const Rows& rows) {
+        const spec::ArchSpec& as = md.arch();
+        float* X = rows.X;
+        const float* D = rows.D;
+        if (as.analytic) {
+            analytic_rows(md.analytic_[m], D, rows.D + 6 * kChunk);
+            std::copy(D, D + 6 * kChunk, X);
+            if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(D, X + 6 * kChunk);
+            if (as.extra == spec::ExtraInputs::Log1pFa)
+                for (int c = 0; c < 3; ++c)
+                    for (int i = 0; i < kChunk; ++i)
+                        X[(as.direction_count + c) * kChunk + i] = std::log1p(D[(6 + c) * kChunk + i]);
+            return;
+        }
+        // Neural: wi and wo in the material's 3 precomputed frames (t, b, n each).
+        const float* frames = md.frame_cache_[m].data();
+        for (int side = 0; side < 2; ++side)
+            for (int fr = 0; fr < 3; ++fr)
+                for (int axis = 0; axis < 3; ++axis) {
+                    const float* e = frames + 9 * fr + 3 * axis;
+                    float* x = X + (9 * side + 3 * fr + axis) * kChunk;
+                    const float* w = D + 3 * side * kChunk;
+                    // vectorises: neural_frames (tests/python/test_vectorisation.py)
+                    for (int i = 0; i < kChunk; ++i)
+                        x[i] = e[0] * w[i] + e[1] * w[kChunk + i] + e[2] * w[2 * kChunk + i];
+                }
+    }
+
+    // The first layer from the varying inputs X with the folded bias, hidden layers
+    // 1 .. depth-1 between A and B, then the output layer (shared, or material m's own) into O.
+    template <class Dense>
+    HBRDF_KERNEL_INLINE static void run_network(const HybridModel& md, int m, const Rows& rows) {
+        const Activation a = md.activation_;
+        float* A = rows.A;
+        float* B = rows.B;
+        Dense::run(md.w0_dirs_.data(), md.bias0_[m].data(), md.n_dir_inputs_, md.width_, rows.X, A, a, false);
+        for (int l = 1; l <= md.depth_; ++l) {
+            const bool last = l == md.depth_;
+            const DenseLayer& L = last ? md.output_layer(m) : md.layers_[l];
+            Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? rows.O : B, a, last);
+            if (!last) std::swap(A, B);
+        }
+    }
+
+    // f in three rows of F from the outputs O and f_a (rows 6-8 of D), 0 where the pair is invalid.
+    template <class Dense>
+    HBRDF_KERNEL_INLINE static void combine(const HybridModel& md, const Rows& rows) {
+        const spec::Combine rule = md.arch().combine;
+        const float bound = md.pre_exp_max_;
+        if (rule == spec::Combine::Gated) return Dense::combine_gated(rows.O, rows.D + 6 * kChunk, rows.V, bound, rows.F);
+        for (int c = 0; c < 3; ++c)
+            for (int i = 0; i < kChunk; ++i) {
+                const float f = detail::combine(rule, rows.O[c * kChunk + i], 0.f, rows.D[(6 + c) * kChunk + i], bound);
+                rows.F[c * kChunk + i] = rows.V[i] > 0.f ? f : 0.f;
+            }
+    }
+
     // wi and wo (rows 0-5 of D) normalised in place, valid[i] = 1 where both are above the
     // horizon: branch-free per lane, so the compiler vectorises it for the kernel's target.
     HBRDF_KERNEL_INLINE static void normalise_rows(float* __restrict D, float* __restrict valid) {
@@ -364,7 +351,7 @@ namespace {
 void run_baseline(const HybridModel& md, int m, std::size_t n, const float* wi, const float* wo, float* f) {
     ModelBatchKernels::run<DensePortable>(md, m, n, wi, wo, f);
 }
-#if HBRDF_MB_X86
+#if HBRDF_SIMD_X86
 __attribute__((target("avx2,fma"))) void run_avx2(const HybridModel& md, int m, std::size_t n, const float* wi,
                                                   const float* wo, float* f) {
     ModelBatchKernels::run<DenseAvx2>(md, m, n, wi, wo, f);
@@ -379,26 +366,22 @@ bool cpu_has_avx512() {
     return has;
 }
 #endif
+
+std::atomic<int> g_model_simd_limit{2};  // 0 baseline, 1 avx2+fma, 2 avx512 (the best the CPU has)
 }  // namespace
 
-namespace {
-std::atomic<int> g_model_simd_limit{2};  // 0 baseline, 1 avx2+fma, 2 avx512 (the best the CPU has)
-}
-
-namespace {
 // 2 avx512, 1 avx2+fma, 0 baseline: the best kernel the CPU runs, capped by the limit.
-int model_kernel_level() {
+int detail::model_kernel_level() {
     int level = 0;
-#if HBRDF_MB_X86
+#if HBRDF_SIMD_X86
     if (std::string_view(simd_path()) == "avx2+fma") level = cpu_has_avx512() ? 2 : 1;  // "baseline" when forced
 #endif
     return std::min({level, g_model_simd_limit.load(std::memory_order_relaxed), simd_environment_cap()});
 }
-}  // namespace
 
 const char* model_simd_path() {
     static const char* const kNames[] = {"baseline", "avx2+fma", "avx512"};
-    return kNames[model_kernel_level()];
+    return kNames[detail::model_kernel_level()];
 }
 
 void limit_model_simd(const std::string& path) {
@@ -414,14 +397,45 @@ void limit_model_simd(const std::string& path) {
 
 void HybridModel::eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const {
     check_material(m);
-#if HBRDF_MB_X86
-    switch (model_kernel_level()) {
+#if HBRDF_SIMD_X86
+    switch (detail::model_kernel_level()) {
         case 2: return run_avx512(*this, m, n, wi, wo, f);
         case 1: return run_avx2(*this, m, n, wi, wo, f);
         default: break;
     }
 #endif
     run_baseline(*this, m, n, wi, wo, f);
+}
+
+void HybridModel::prepare_batch() {
+    // Inputs that vary per pair: the direction inputs and the extra inputs. The latent
+    // inputs are constant per material, so W0[:, z] z is added to the first bias once,
+    // here, in double.
+    const int z_start = arch().direction_count;
+    n_dir_inputs_ = n_in_ - latent_;
+    const DenseLayer& L0 = layers_[0];
+    w0_dirs_.assign(static_cast<std::size_t>(width_) * n_dir_inputs_, 0.f);
+    for (int j = 0; j < width_; ++j) {
+        int c = 0;
+        for (int k = 0; k < n_in_; ++k)
+            if (k < z_start || k >= z_start + latent_) w0_dirs_[j * n_dir_inputs_ + c++] = L0.weight[j * n_in_ + k];
+    }
+    bias0_.clear();
+    frame_cache_.clear();
+    for (const ModelMaterial& mat : materials_) {
+        std::vector<float> b(width_);
+        for (int j = 0; j < width_; ++j) {
+            double acc = L0.bias[j];
+            for (int k = 0; k < latent_; ++k) acc += double(L0.weight[j * n_in_ + z_start + k]) * mat.latent[k];
+            b[j] = float(acc);
+        }
+        bias0_.push_back(std::move(b));
+        if (arch().directions == spec::DirectionInputs::Frames) {
+            std::vector<float> fr(9 * spec::kNeuralFrames);
+            detail::neural_frames(frames_, mat.latent.data(), fr.data());
+            frame_cache_.push_back(std::move(fr));
+        }
+    }
 }
 
 }  // namespace hbrdf
