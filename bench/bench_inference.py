@@ -53,12 +53,14 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
+sys.path.insert(0, str(ROOT / "tests" / "python"))  # shader_kernels
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf import _core  # noqa: E402
-from hybridbrdf.codegen import eval_compute_shader, generate, material_constant  # noqa: E402
+from hybridbrdf.codegen import generate, material_constant  # noqa: E402
 from hybridbrdf.random_model import random_model  # noqa: E402
 from bench_analytic import best_rate  # noqa: E402
+from shader_kernels import eval_compute_shader  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
@@ -74,7 +76,7 @@ def compile_shader(model, fn, d, material=None, tag="w", directions="buffer", **
     """SPIR-V of the eval kernel running the generated GLSL ``fn`` for ``material`` (default:
     the model's first), written as d/TAG.spv (TAG keeps several shaders apart in one folder);
     ``directions``: the kernel reads its pairs ("buffer") or makes them ("synthetic", see
-    codegen.eval_compute_shader)."""
+    tests/python/shader_kernels.py, eval_compute_shader)."""
     material = model.materials[0] if material is None else material
     (pathlib.Path(d) / f"{tag}.glsl").write_text(generate(model, "glsl", [material], **generate_options))
     src = pathlib.Path(d) / f"{tag}.comp"

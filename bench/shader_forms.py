@@ -30,11 +30,13 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
+sys.path.insert(0, str(ROOT / "tests" / "python"))  # shader_kernels
 
 import hybridbrdf as hb  # noqa: E402
-import hybridbrdf.codegen as cg  # noqa: E402
-from hybridbrdf.codegen import eval_compute_shader, float_literal as lit, generate, material_constant  # noqa: E402
+import hybridbrdf.codegen_network as cg  # noqa: E402
+from hybridbrdf.codegen import float_literal as lit, generate, material_constant  # noqa: E402
 from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
+from shader_kernels import eval_compute_shader  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"
 LVP = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"

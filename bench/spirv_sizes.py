@@ -9,11 +9,16 @@ hbrdf_eval for MATERIAL: generic (all materials), a one-material scene
 for the network in both code forms (unrolled, the shader default, and loops).
 """
 
+import pathlib
 import sys
 import tempfile
 
-import hybridbrdf as hb
-from hybridbrdf.codegen import generate, material_constant, spirv_size
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "python"))
+
+import hybridbrdf as hb  # noqa: E402
+from hybridbrdf.codegen import generate, material_constant  # noqa: E402
+from shader_kernels import spirv_size  # noqa: E402
 
 
 def main() -> int:

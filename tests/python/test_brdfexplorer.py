@@ -11,9 +11,9 @@ from hybridbrdf import _core
 from hybridbrdf.codegen import generate
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
-from hybridbrdf.shaders import render_shader
 
 from helpers import compile_spirv, run_on_lavapipe, saved_random_model, skip_without_vulkan
+from shader_kernels import render_shader
 
 PARAM = re.compile(r"^float ([A-Za-z_][A-Za-z0-9_]*) (\S+) (\S+) (\S+)$")
 FLOAT = re.compile(r"^-?(\d+\.\d*|\d*\.\d+)(e[-+]?\d+)?$|^-?\d+(\.\d*)?e[-+]?\d+$")

@@ -16,9 +16,9 @@ from hybridbrdf import _core
 from hybridbrdf.codegen import float_literal, generate, load_scene, main as codegen_main, material_constant
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
-from hybridbrdf.shaders import render_shader
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, saved_random_model
+from shader_kernels import every_function_shader, spirv_size
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
@@ -26,7 +26,7 @@ MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
 ARCHS = [("hybrid", "hardgelu"), ("hybrid", "relu"), ("neural", "hardgelu"), ("additive", "relu"),
          ("logmul", "hardgelu"), ("analytic-input", "hardgelu"), ("hybrid-half", "hardgelu")]
 
-DRIVER = r"""
+CPP_DRIVER = r"""
 #include <cstdio>
 #include <vector>
 #include "model.h"
@@ -34,9 +34,16 @@ int main() {
     const hbrdf::HbrdfMaterial mats[] = {MATS};
     unsigned n = 0;
     if (std::fread(&n, 4, 1, stdin) != 1) return 2;
-    std::vector<float> in(8 * n);
+    std::vector<float> in(FLOATS * n);
     if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 3;
     for (const auto& m : mats)
+LOOP
+    return 0;
+}
+"""
+
+# The driver's 11 outputs per pair and material: f, f_a, pdf, sampled wi, its pdf.
+EVAL_LOOP = r"""
         for (unsigned i = 0; i < n; ++i) {
             const float* p = &in[8 * i];
             hbrdf::float3 wi(p[0], p[1], p[2]), wo(p[3], p[4], p[5]);
@@ -46,30 +53,50 @@ int main() {
             hbrdf::float3 s = hbrdf::hbrdf_sample(wo, hbrdf::float2(p[6], p[7]), m, pdf_s);
             float out[11] = {f.x, f.y, f.z, fa.x, fa.y, fa.z, hbrdf::hbrdf_pdf(wi, wo, m), s.x, s.y, s.z, pdf_s};
             std::fwrite(out, 4, 11, stdout);
-        }
-    return 0;
-}
-"""
+        }"""
+
+# hbrdf_eval_depth at depths 0, 1, 2: 3 outputs per pair, depth and material.
+DEPTH_LOOP = r"""
+        for (int depth = 0; depth < 3; ++depth)
+            for (unsigned i = 0; i < n; ++i) {
+                const float* p = &in[6 * i];
+                const hbrdf::float3 f = hbrdf::hbrdf_eval_depth(hbrdf::float3(p[0], p[1], p[2]),
+                                                                hbrdf::float3(p[3], p[4], p[5]), m, depth);
+                const float out[3] = {f.x, f.y, f.z};
+                std::fwrite(out, 4, 3, stdout);
+            }"""
 
 
-def _build_driver(tmp_path, text, names):
+def _build_cpp_driver(tmp_path, text, names, floats_per_pair, loop, stem="driver"):
+    """The generated C++ ``text`` (as tmp_path/model.h) compiled with a driver that reads a
+    pair count and ``floats_per_pair`` floats per pair from stdin and runs ``loop`` for each
+    material of ``names`` (``m``), with -Wall -Wextra -Werror and no contracted multiply-adds."""
     (tmp_path / "model.h").write_text(text)
     mats = ", ".join("hbrdf::" + material_constant(n) for n in names)
-    (tmp_path / "driver.cpp").write_text(DRIVER.replace("MATS", mats))
-    exe = tmp_path / "driver"
+    src = tmp_path / f"{stem}.cpp"
+    src.write_text(CPP_DRIVER.replace("MATS", mats).replace("FLOATS", str(floats_per_pair)).replace("LOOP", loop[1:]))
+    exe = tmp_path / stem
     r = subprocess.run(["g++", "-std=c++17", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
-                        "-I", str(tmp_path), str(tmp_path / "driver.cpp"), "-o", str(exe)],
-                       capture_output=True, text=True)
+                        "-I", str(tmp_path), str(src), "-o", str(exe)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[:3000]
     return exe
 
 
-def _run_driver(exe, wi, wo, u, n_mats):
-    """The driver's 11 outputs per pair (f, f_a, pdf, sampled wi, its pdf) for each material."""
-    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo, u], axis=1).astype(np.float32).tobytes()
+def _run_cpp_driver(exe, *columns):
+    """The driver's float32 outputs for the pairs whose floats are ``columns`` side by side."""
+    payload = np.uint32(len(columns[0])).tobytes() + np.concatenate(columns, axis=1).astype(np.float32).tobytes()
     r = subprocess.run([str(exe)], input=payload, capture_output=True)
     assert r.returncode == 0
-    return np.frombuffer(r.stdout, dtype=np.float32).reshape(n_mats, len(wi), 11)
+    return np.frombuffer(r.stdout, dtype=np.float32)
+
+
+def _build_driver(tmp_path, text, names):
+    return _build_cpp_driver(tmp_path, text, names, 8, EVAL_LOOP)
+
+
+def _run_driver(exe, wi, wo, u, n_mats):
+    """The driver's 11 outputs per pair (f, f_a, pdf, sampled wi, its pdf) for each material."""
+    return _run_cpp_driver(exe, wi, wo, u).reshape(n_mats, len(wi), 11)
 
 
 def _rel(a, b):
@@ -131,16 +158,6 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form,
         assert np.allclose(got[:, 6], pdf, rtol=1e-6, atol=0)
         assert np.allclose(got[:, 7:10], s_wi, rtol=0, atol=2e-6)
         assert np.allclose(got[:, 10], s_pdf, rtol=1e-5, atol=0)
-
-
-def every_function_shader(tmp_path, target, model_code, material):
-    """glsl/every_function.comp.<target> around the generated ``model_code``: compiling it
-    compiles every generated function."""
-    (tmp_path / f"model.{target}").write_text(model_code)
-    src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
-    src.write_text(render_shader(f"every_function.comp.{target}", include=f"model.{target}",
-                                 material=material_constant(material)))
-    return src
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
@@ -261,7 +278,6 @@ def test_mixed_scene_skips_the_network_per_material(tmp_path, target):
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
 def test_specialisation_shrinks_spirv(tmp_path):
-    from hybridbrdf.codegen import spirv_size
 
     _, model = random_model("hybrid", width=32, depth=3)
     model.save(tmp_path / "m.safetensors")
@@ -296,43 +312,10 @@ def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
 
 # ---- scenes: the path tracer's schema (docs/RENDERING.md, docs/CODEGEN.md) --------------------
 
-DEPTH_DRIVER = r"""
-#include <cstdio>
-#include <vector>
-#include "model.h"
-int main() {
-    const hbrdf::HbrdfMaterial mats[] = {MATS};
-    unsigned n = 0;
-    if (std::fread(&n, 4, 1, stdin) != 1) return 2;
-    std::vector<float> in(6 * n);
-    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 3;
-    for (const auto& m : mats)
-        for (int depth = 0; depth < 3; ++depth)
-            for (unsigned i = 0; i < n; ++i) {
-                const float* p = &in[6 * i];
-                const hbrdf::float3 f = hbrdf::hbrdf_eval_depth(hbrdf::float3(p[0], p[1], p[2]),
-                                                                hbrdf::float3(p[3], p[4], p[5]), m, depth);
-                const float out[3] = {f.x, f.y, f.z};
-                std::fwrite(out, 4, 3, stdout);
-            }
-    return 0;
-}
-"""
-
-
 def _eval_depth(tmp_path, text, names, wi, wo):
     """hbrdf_eval_depth of the generated C++ at depths 0, 1, 2: (material, depth, pair, rgb)."""
-    (tmp_path / "model.h").write_text(text)
-    mats = ", ".join("hbrdf::" + material_constant(n) for n in names)
-    (tmp_path / "depth.cpp").write_text(DEPTH_DRIVER.replace("MATS", mats))
-    exe = tmp_path / "depth"
-    r = subprocess.run(["g++", "-std=c++17", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
-                        "-I", str(tmp_path), str(tmp_path / "depth.cpp"), "-o", str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[:3000]
-    payload = np.uint32(len(wi)).tobytes() + np.concatenate([wi, wo], axis=1).astype(np.float32).tobytes()
-    r = subprocess.run([str(exe)], input=payload, capture_output=True)
-    assert r.returncode == 0
-    return np.frombuffer(r.stdout, dtype=np.float32).reshape(len(names), 3, len(wi), 3)
+    exe = _build_cpp_driver(tmp_path, text, names, 6, DEPTH_LOOP, stem="depth")
+    return _run_cpp_driver(exe, wi, wo).reshape(len(names), 3, len(wi), 3)
 
 
 def _library_fa(path, wi, wo, k):

@@ -10,18 +10,19 @@ import numpy as np
 import pytest
 
 from hybridbrdf import _core
-from hybridbrdf.codegen import eval_compute_shader, generate, material_constant
+from hybridbrdf.codegen import generate, material_constant
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, run_on_lavapipe, saved_random_model
 from helpers import skip_without_vulkan
+from shader_kernels import eval_compute_shader
 
 skip_without_vulkan(allow_module_level=True)
 
 
 def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
-    """hbrdf_eval of one material, generated for ``target`` and run by glsl/eval.comp.<target>."""
+    """hbrdf_eval of one material, generated for ``target`` and run by glsl/eval.comp.j2."""
     (tmp_path / f"model.{target}").write_text(generate(model, target, [model.materials[material]],
                                                        **generate_options))
     const = material_constant(model.materials[material])
@@ -83,7 +84,7 @@ def test_fp16_shaders_match_the_half_rounded_model(tmp_path, target, mlp_form):
 
 
 def _synthetic_pairs(n):
-    """The pairs glsl/eval_synthetic.comp.glsl makes, rebuilt in NumPy: the PCG hash (Jarzynski &
+    """The pairs glsl/eval_synthetic.comp.j2 makes, rebuilt in NumPy: the PCG hash (Jarzynski &
     Olano 2020) of 2i and 2i + 1, 10/10/12 bits each to x, y in [-1, 1] and z in [0.02, 1.02]."""
     def pcg(v):
         state = v * np.uint32(747796405) + np.uint32(2891336453)

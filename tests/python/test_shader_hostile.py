@@ -25,9 +25,9 @@ import hybridbrdf as hb
 from hybridbrdf import _core, spec
 from hybridbrdf.codegen import generate, material_constant
 from hybridbrdf.random_model import random_model
-from hybridbrdf.shaders import render_shader
 
 from helpers import compile_spirv, hard_directions, run_on_lavapipe, saved_random_model, skip_without_vulkan
+from shader_kernels import render_shader
 
 skip_without_vulkan(allow_module_level=True)
 
