@@ -25,6 +25,7 @@ from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 
+from hybridbrdf.analytic import AnalyticParams, sample
 from hybridbrdf.names import names_problem
 
 #: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
@@ -54,9 +55,9 @@ def _shortest(values: np.ndarray) -> list:
 
 
 def _with_material(model, name: str, row: Dict[str, np.ndarray], info: Dict[str, Any]):
-    """A new HybridModel: ``model``'s materials, then one more with the given tensors."""
-    from hybridbrdf.model_file import HybridModel
-
+    """A new model of ``model``'s class: its materials, then one more with the given tensors.
+    (Built through ``type(model)`` so that this module does not import model_file, which
+    imports it for ``HybridModel.edit``/``mix``/``albedo``.)"""
     if name in model.materials:
         raise ValueError(f"material '{name}' is already in the model; choose another name")
     problem = names_problem(list(model.materials) + [name])
@@ -67,7 +68,7 @@ def _with_material(model, name: str, row: Dict[str, np.ndarray], info: Dict[str,
                for k, v in model.tensors.items()}
     materials = [dict(m) for m in model.material_info] + [dict(info, name=name)]
     training = dict(model.training) if isinstance(model.training, dict) else {}
-    return HybridModel(dict(model.arch), materials, tensors, training)
+    return type(model)(dict(model.arch), materials, tensors, training)
 
 
 def _material_row(model, material) -> Dict[str, np.ndarray]:
@@ -90,8 +91,6 @@ def edit(model, material, name: str, *, kd=None, eta=None, alpha=None, conserve_
 
     Raises ValueError (one line) for an out-of-range or NaN value, an unknown material, a taken
     or invalid name, or a model without an analytic part (the neural baseline)."""
-    from hybridbrdf.analytic import AnalyticParams
-
     if not model.has_analytic:
         raise ValueError("the neural baseline has no analytic parameters to edit (hbrdf mix blends its latent codes)")
     if kd is None and eta is None and alpha is None:
@@ -177,8 +176,6 @@ def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarra
     """Incident directions for every outgoing direction of the grid, drawn by the MIS sampler of
     the material's f_a (cosine sampling for the neural baseline): (wi, wo, pdf), rows grouped
     by outgoing direction."""
-    from hybridbrdf.analytic import AnalyticParams, sample
-
     if isinstance(samples, bool) or not (isinstance(samples, (int, np.integer)) and samples >= 1):
         raise ValueError(f"albedo samples must be a positive integer, got {samples!r}")
     wo_grid = _outgoing_grid()

@@ -41,7 +41,7 @@ import safetensors
 import safetensors.numpy
 import torch
 
-from hybridbrdf import _core, spec
+from hybridbrdf import _core, editing, spec
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.inputs import check_input_file, loads_json
 from hybridbrdf.models import build_model
@@ -193,23 +193,17 @@ class HybridModel:
              conserve_energy: bool = False) -> "HybridModel":
         """A new model: these materials and ``name``, ``material`` with the given analytic
         parameters (kd, eta, alpha) replaced; see :func:`hybridbrdf.editing.edit`."""
-        from hybridbrdf.editing import edit
-
-        return edit(self, material, name, kd=kd, eta=eta, alpha=alpha, conserve_energy=conserve_energy)
+        return editing.edit(self, material, name, kd=kd, eta=eta, alpha=alpha, conserve_energy=conserve_energy)
 
     def mix(self, a, b, t: float, name: str, conserve_energy: bool = False) -> "HybridModel":
         """A new model: these materials and ``name``, the linear blend at ``t`` of the analytic
         parameters and latent codes of ``a`` and ``b``; see :func:`hybridbrdf.editing.mix`."""
-        from hybridbrdf.editing import mix
-
-        return mix(self, a, b, t, name, conserve_energy=conserve_energy)
+        return editing.mix(self, a, b, t, name, conserve_energy=conserve_energy)
 
     def albedo(self, material, samples: Optional[int] = None) -> Dict[str, Any]:
         """Directional albedo of a material over a grid of outgoing directions and its maximum;
         see :func:`hybridbrdf.editing.albedo_profile`."""
-        from hybridbrdf.editing import ALBEDO_SAMPLES, albedo_profile
-
-        return albedo_profile(self, material, ALBEDO_SAMPLES if samples is None else samples)
+        return editing.albedo_profile(self, material, editing.ALBEDO_SAMPLES if samples is None else samples)
 
     # ---- evaluation ------------------------------------------------------------
     def _module(self, dtype: torch.dtype):
