@@ -10,6 +10,7 @@
 
 #include "checks.hpp"
 #include "hybridbrdf/hybridbrdf.hpp"
+#include "../src/model_contract.hpp"  // the test hook _contract_math (internal to the library)
 #if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
 #include "../tools/fma_peak.hpp"
 #define HBRDF_HAVE_FMA_PEAK 1
@@ -252,6 +253,30 @@ PYBIND11_MODULE(_core, m) {
           "Cap the kernel of Model.eval: avx512 (no cap), avx2+fma or baseline; for tests and benchmarks.");
     m.def("force_baseline_simd", &hbrdf::force_baseline_simd, py::arg("force"),
           "Force the baseline (non-AVX2) kernels; for tests and benchmarks.");
+    m.def("_contract_math", [](const std::string& kind, const std::string& name, const FloatArray& inputs,
+                               const std::string& path) {
+        int arity = 0;
+        try {
+            arity = hbrdf::detail::contract_math_arity(kind);
+        } catch (const std::invalid_argument& e) {
+            throw py::value_error(e.what());
+        }
+        if (inputs.ndim() != 2 || inputs.shape(1) != arity)
+            throw py::value_error("_contract_math: inputs must be (N, " + std::to_string(arity) + ") for " + kind);
+        const py::ssize_t n = inputs.shape(0);
+        FloatArray out(std::vector<py::ssize_t>{n});
+        try {
+            py::gil_scoped_release release;
+            hbrdf::detail::contract_math(kind, name, path, std::size_t(n), inputs.data(), out.mutable_data());
+        } catch (const std::invalid_argument& e) {
+            throw py::value_error(e.what());
+        }
+        return out;
+    }, py::arg("kind"), py::arg("name"), py::arg("inputs"), py::arg("path"),
+          "Test hook (tests/python/test_contract_table_cpp.py): the contract's activation (kind 'activation', "
+          "inputs (N, 1): x) or combine rule (kind 'combine', inputs (N, 4): o, g, fa, bound) named `name`, "
+          "through path 'scalar' (HybridModel::eval's functions) or 'batched' (the per-lane functions of the "
+          "kernel model_simd_path() names); float32 (N,) out.");
     m.def("fma_peak_gflops", [](double seconds) {
         if (!(seconds > 0.0 && seconds <= 60.0)) throw py::value_error("fma_peak_gflops: seconds must be in (0, 60]");
         py::dict out;

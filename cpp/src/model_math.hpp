@@ -1,8 +1,11 @@
 // hybridbrdf — the per-value math of fitted models, written once for the scalar
 // path (model.cpp) and the batched path (model_batch.cpp). The contract it
 // implements (activations, combine rules, the pre-exp bound) is declared in
-// spec/model.json; the vector kernels in model_batch.cpp repeat only the
-// activation, lane-wise, from the same constants.
+// spec/model.json and tabulated on hard inputs in spec/activation_combine.json.
+// The batched kernels' portable path uses these functions lane by lane; the vector
+// kernels repeat the activations and the gated combine as lane-wise intrinsics
+// (model_simd.hpp) from the same constants. Both paths are checked against the
+// table (tests/python/test_contract_table_cpp.py).
 #pragma once
 
 #include <cmath>

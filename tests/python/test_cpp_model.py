@@ -15,7 +15,7 @@ from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
 
-# "ARCH:material": the architecture with material output layers (issue 37).
+# "ARCH:material": the architecture with material output layers (spec/model.json, output_layers).
 ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half", "hybrid:material",
          "hybrid-half:material", "logmul:material"]
 
@@ -169,11 +169,11 @@ def test_batched_exp_over_its_whole_range(tmp_path):
             assert np.isfinite(got).all() and (got >= 0).all()
             assert ref.min() < 1e-30 and ref.max() > 1e5, (ref.min(), ref.max())  # the sweep reaches both ends
             # float32 normal range: relative error; below it, absolute. With |o| ~ 100 the network's
-            # float32 rounding is amplified by exp: the scalar path (std::exp) is 4.5e-5 off here too.
+            # float32 rounding is amplified by exp: the scalar path (std::exp) is off by that much too.
             normal = ref > 1e-37
             rel = np.abs(got - ref)[normal] / ref[normal]
             assert rel.max() < 1e-4, (kernel, rel.max())
-            # Denormal results are kept, not flushed to 0 (measured error 3.2e-42 on every kernel).
+            # Denormal results are kept, not flushed to 0: the bound is a small fraction of FLT_MIN.
             assert np.abs(got - ref)[~normal].max() < 3e-41, kernel
     finally:
         _core.limit_model_simd("avx512")

@@ -4,8 +4,8 @@
 //     f_t(wi, wo) = f_c + f_g f_a,   (f_c, f_g) = psi(wi, wo, z)      (paper Eq. 1)
 //
 // its ablation variants and the fully neural baseline, without Python.
-// Thread-safe: a loaded model is immutable and evaluation keeps its scratch
-// space on the stack.
+// Thread-safe: a loaded model is immutable and every evaluation keeps its own
+// scratch space (on the stack for the scalar path, per call for the batched one).
 #pragma once
 
 #include <cstddef>
@@ -102,7 +102,8 @@ public:
     Vec3<float> eval_analytic(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// Batched f_t: wi, wo (n, 3) row-major in, f (n, 3) out. Vectorised: chunks of pairs in
     /// structure-of-arrays layout, each layer a broadcast-weight FMA loop over the pairs
-    /// (AVX2+FMA when the CPU has it), the latent code folded into the first layer's bias.
+    /// (AVX-512 or AVX2+FMA when the CPU has it: model_simd_path()), the latent code folded
+    /// into the first layer's bias.
     void eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const;
     /// Floating-point operations of one batched evaluation's network (multiply-adds count 2),
     /// with the latent folded as eval_batch does; for throughput benchmarks.
