@@ -1,10 +1,10 @@
 """Editing and interpolation of fitted materials (hybridbrdf.editing, hbrdf edit / mix) on a
 prior whose materials were fitted to measurements (paper Sec. 5.1).
 
-The tests run on the shared-output prior shipped until issue 37 (tests/data/prior_shared_20261123,
-the same recipe on the same 142 materials): their premises are properties of its materials (a
-sharp MERL lobe, a pair whose blend outshines both ends, found by bench/edit_guarantees.py), and a
-fixed file keeps them true whatever prior ships. Edits and blends of material output layers are
+The tests run on the shared-output prior shipped before material output layers
+(tests/data/prior_shared_20261123, the same recipe on the same 142 materials): their premises are
+properties of its materials (a sharp MERL lobe, a pair whose blend outshines both ends, found by
+bench/edit_guarantees.py), and a fixed file keeps them true whatever prior ships. Edits and blends of material output layers are
 tested in test_material_heads.py."""
 
 import math
@@ -120,7 +120,7 @@ def test_blends_change_smoothly_with_t(prior):
     steps = np.array([np.abs(b - a).mean() for a, b in zip(fs, fs[1:])])
     assert steps.min() > 0  # every step changes the material
     # no jump: the largest change per step of t is within a small factor of the average
-    assert steps.max() < 2 * steps.mean(), steps  # measured: 1.33
+    assert steps.max() < 2 * steps.mean(), steps
 
 
 @pytest.mark.parametrize("edit", [dict(kd=0.0), dict(kd=1.0), dict(eta=1.0), dict(eta=10.0), dict(alpha=1e-4),
@@ -244,8 +244,8 @@ def test_cli_errors_leave_out_untouched(tmp_path, args, message):
 
 def test_a_blend_can_outshine_both_ends_and_kd_cannot_always_fix_it(prior):
     """Found by bench/edit_guarantees.py: halfway between these two latent codes the network's
-    correction is brighter than at either end, and the blend reflects ~1.5x what it receives at
-    grazing; even with kd = 0 it reflects 1.2, so conserve_energy says so instead of guessing."""
+    correction is brighter than at either end, and the blend reflects more than it receives at
+    grazing (docs/EDITING.md); even with kd = 0 it does, so conserve_energy says so instead of guessing."""
     a, b = "cc_ibiza_sunset_rgb.rgl", "acrylic_felt_orange_rgb"
     blend = prior.mix(a, b, 0.5, "half")
     assert blend.albedo("half")["max"] > 1.2

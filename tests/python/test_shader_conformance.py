@@ -35,7 +35,7 @@ def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
 
 CASES = [("hybrid", "hardgelu", 32, 3), ("hybrid", "relu", 16, 2), ("neural", "hardgelu", 16, 2),
          ("logmul", "hardgelu", 16, 2), ("analytic-input", "relu", 16, 2), ("additive", "hardgelu", 16, 2), ("hybrid-half", "hardgelu", 16, 2),
-         # material output layers (issue 37): the head in HbrdfMaterial, read with constant indices
+         # material output layers: the head in HbrdfMaterial, read with constant indices
          ("hybrid", "hardgelu", 32, 2, "material"), ("hybrid-half", "relu", 16, 2, "material")]
 
 
