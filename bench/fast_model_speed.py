@@ -46,8 +46,8 @@ from bench_inference import LVP, RUNNER, VK_RUNS, compile_shader, lavapipe_rate,
 from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
 
 BASELINE = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
-HARNESSES = {"synthetic": "made in the shader from a hash of the invocation index (glsl/eval_synthetic.comp.glsl)",
-             "buffer": "read from a storage buffer, 6 floats each (glsl/eval.comp.glsl)"}
+HARNESSES = {"synthetic": "made in the shader from a hash of the invocation index (glsl/eval_synthetic.comp.j2)",
+             "buffer": "read from a storage buffer, 6 floats each (glsl/eval.comp.j2)"}
 
 
 def main() -> int:
