@@ -24,7 +24,7 @@ optimiser's raw parameters), so saving then loading is bit-exact.
 The contract (architectures, the fields of ``arch`` with their types and bounds, the
 parameter ranges) is declared once in ``spec/model.json`` (:mod:`hybridbrdf.spec`);
 loading checks it in the same order, with the same messages, as the C++ loader
-(``cpp/src/model.cpp``), and raises :class:`hybridbrdf.errors.ModelFileError` naming
+(``cpp/src/model_validate.cpp``), and raises :class:`hybridbrdf.errors.ModelFileError` naming
 the file and the first problem found. ``tests/data/malformed_models.json`` is the
 shared table of broken files both loaders must reject alike.
 """
@@ -469,7 +469,7 @@ def network_overflow_problem(arch: Dict[str, Any], tensors: Dict[str, np.ndarray
     log1p(FLT_MAX) for finite f_a), a layer maps bounds b to |W| b + |bias|, and relu and
     hardGeLU never grow a magnitude. Exact arithmetic bounds float32 rounding to within a
     factor (1 + 2^-24)^width, which the limit's 8 orders below FLT_MAX absorb. The same
-    computation, in the same order of layers, is libhybridbrdf's (cpp/src/model.cpp); the
+    computation, in the same order of layers, is libhybridbrdf's (cpp/src/model_validate.cpp); the
     figure is printed with 3 digits so that summation order cannot change the text."""
     a = spec.ARCHS[arch["kind"]]
     z = np.abs(tensors["materials.z"].astype(np.float64))

@@ -7,7 +7,7 @@ backslash splices the next line into it), the constant ``HBRDF_MATERIAL_<NAME>``
 and comma-separated ``--materials`` lists. So names are 1 to 64 characters from ``A-Z a-z 0-9
 _ . + -``, hold at least one letter or digit, and stay distinct once mapped to their shader
 constant (:func:`shader_constant_key`). Both model-file loaders
-(this package's and libhybridbrdf's ``cpp/src/model.cpp``) and ``hbrdf fit`` enforce it with
+(this package's and libhybridbrdf's ``cpp/src/model_validate.cpp``) and ``hbrdf fit`` enforce it with
 the same words. Torch-free.
 """
 
