@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf import _core
+from hybridbrdf import _core, spec
 from hybridbrdf.codegen import float_literal, generate, load_scene, main as codegen_main, material_constant
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
@@ -23,8 +23,9 @@ from shader_kernels import every_function_shader, spirv_size
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
 
-ARCHS = [("hybrid", "hardgelu"), ("hybrid", "relu"), ("neural", "hardgelu"), ("additive", "relu"),
-         ("logmul", "hardgelu"), ("analytic-input", "hardgelu"), ("hybrid-half", "hardgelu")]
+# Every architecture of the spec, the activations taken in turn, and the paper's model with each.
+ACTS = list(spec.ACTIVATIONS)
+ARCHS = [(arch, ACTS[(i + 1) % len(ACTS)]) for i, arch in enumerate(spec.ARCHS)] + [("hybrid", ACTS[0])]
 
 CPP_DRIVER = r"""
 #include <cstdio>
@@ -141,9 +142,9 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form,
         ref = cpp.eval_scalar(wi, wo, m)  # the library's scalar path, the header's twin
         zero = ref == 0
         assert np.array_equal(got[:, :3] == 0, zero)  # zeros in the same places
-        floor = 1e-6 * np.abs(ref).max() if arch == "additive" else 0.0  # max(f_a + o, 0) cancels
+        floor = 1e-6 * np.abs(ref).max() if spec.ARCHS[arch]["combine"] == "additive" else 0.0  # max(f_a + o, 0) cancels
         assert np.all(np.abs(got[:, :3] - ref) <= 1e-6 * np.abs(ref) + floor), _rel(got[:, :3], ref).max()
-        if arch == "neural":
+        if not spec.ARCHS[arch]["analytic"]:
             continue
         p = model.analytic_params(m)
         # The library's AVX2 kernels contract multiply-adds; compare with its baseline
@@ -163,7 +164,7 @@ def test_generated_cpp_matches_the_library(tmp_path, arch, activation, mlp_form,
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslang-tools not installed")
 @pytest.mark.parametrize("arch,activation", ARCHS)
 def test_generated_glsl_and_hlsl_compile_and_validate(tmp_path, arch, activation):
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
+    _, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12, width=16, depth=2)
     model.arch["activation"] = activation
     for target in ("glsl", "hlsl"):
         src = every_function_shader(tmp_path, target, generate(model, target), model.materials[1])
@@ -227,11 +228,11 @@ def test_scene_specialisation_keeps_the_values(tmp_path, arch):
     cpp = _core.Model(str(path))
     scene = load_scene(tracer_scene(path, {"two": "mat-2"}), model)
     text = generate(model, "cpp", scene=scene)
-    assert "folded into the first layer" in text and ("isotropic-only" in text) == (arch != "neural")
+    assert "folded into the first layer" in text and ("isotropic-only" in text) == spec.ARCHS[arch]["analytic"]
     got = _run_driver(_build_driver(tmp_path, text, ["mat-2"]), wi, wo, u, 1)[0]
     ref = cpp.eval_scalar(wi, wo, 2)
     assert np.allclose(got[:, :3], ref, rtol=1e-5, atol=1e-9)
-    if arch != "neural":
+    if spec.ARCHS[arch]["analytic"]:
         scene = load_scene(tracer_scene(path, {"a": ("mat-0", "analytic"), "b": ("mat-1", "analytic")}), model)
         text = generate(model, "cpp", scene=scene)
         assert "HBRDF_W0" not in text and "isotropic-only" not in text  # mat-1 is anisotropic
@@ -292,7 +293,7 @@ def test_specialisation_shrinks_spirv(tmp_path):
 
 @pytest.mark.parametrize("arch", ["hybrid", "neural"])
 def test_fp16_header_stores_half_weights_exactly(tmp_path, arch):
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=16, depth=2)
+    _, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12, width=16, depth=2)
     model.save(tmp_path / "m.safetensors")
     half = half_rounded_copy(model, tmp_path / "half.safetensors")
     text = generate(model, "cpp", precision="fp16")

@@ -9,21 +9,21 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf import _core
+from hybridbrdf import _core, spec
 from hybridbrdf.directions import cosine_directions
 from hybridbrdf.random_model import random_model
 
 from helpers import hard_pairs, valid_upper
 
-# "ARCH:material": the architecture with material output layers (spec/model.json, output_layers).
-ARCHS = ["hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half", "hybrid:material",
-         "hybrid-half:material", "logmul:material"]
+# Every architecture of the spec, and "ARCH:material" for each that can have material output
+# layers (spec/model.json, output_layers: those with an analytic part).
+ARCHS = list(spec.ARCHS) + [f"{a}:material" for a, d in spec.ARCHS.items() if d["analytic"]]
 
 
 def _random(arch_spec, **kwargs):
     """random_model for an ARCHS entry: (module, HybridModel) and the bare architecture name."""
     arch, _, output_layer = arch_spec.partition(":")
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, output_layer=output_layer or "shared", **kwargs)
+    _, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12, output_layer=output_layer or "shared", **kwargs)
     return model, arch
 
 
@@ -46,13 +46,13 @@ def test_cpp_model_agrees_with_float64_torch(tmp_path, arch, activation):
         got = cpp.eval(wi, wo, m).astype(np.float64)
         scalar = cpp.eval_scalar(wi, wo, m).astype(np.float64)
         # The vectorised batch path and the scalar path agree like two float32 roundings.
-        assert np.allclose(got, scalar, rtol=1e-5, atol=1e-6 * np.abs(scalar).max() if arch == "additive" else 1e-12)
+        assert np.allclose(got, scalar, rtol=1e-5, atol=1e-6 * np.abs(scalar).max() if spec.ARCHS[arch]["combine"] == "additive" else 1e-12)
         # Relative error where the value is not tiny; the additive ablation max(f_a + o, 0)
         # cancels, so it gets an absolute floor scaled by the magnitude of its terms.
-        floor = 1e-6 * np.abs(ref).max() if arch == "additive" else 1e-12
+        floor = 1e-6 * np.abs(ref).max() if spec.ARCHS[arch]["combine"] == "additive" else 1e-12
         rel = np.abs(got - ref) / np.maximum(np.abs(ref), floor / 1e-5)
         worst = max(worst, float(rel.max()))
-        if arch != "neural":
+        if spec.ARCHS[arch]["analytic"]:
             assert np.allclose(cpp.eval_analytic(wi, wo, m), py.eval_analytic(wi, wo, m, dtype=torch.float64),
                                rtol=2e-4, atol=1e-9)
     assert worst < 1e-5, worst
@@ -97,7 +97,7 @@ def _kernels():
 def test_every_batched_kernel_agrees_with_float64_torch(tmp_path, arch, width, depth):
     """The register-blocked AVX-512 / AVX2 layers and the portable loop, each against torch
     float64: widths 16..64 and outputs 3 and 6 exercise full blocks and the remainders."""
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
+    _, model = random_model(arch, latent=4 if spec.ARCHS[arch]["analytic"] else 12, width=width, depth=depth,
                             isotropic=[True, False, True])
     path = tmp_path / "m.safetensors"
     model.save(path)
