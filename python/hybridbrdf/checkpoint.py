@@ -8,7 +8,7 @@ A checkpoint file is one header line and a ``torch.save`` payload::
 The state dict holds ``module`` (the model's state_dict), ``optimizer`` and ``scheduler``
 (their state_dicts), ``step`` (steps done), ``settings`` (the FitSettings as a dict),
 ``names`` (material names), ``torch_rng`` and ``batch_rng`` (the global and the batch
-generator's states), ``train_seconds`` and ``timed_from_step`` (see fitting.fit).
+generator's states), ``train_seconds`` and ``timed_from_step`` (see :func:`save_fit_state`).
 
 Reading checks, in this order, and stops at the first problem with an
 :class:`~hybridbrdf.errors.InputFileError` whose one-line message names the file:
@@ -79,6 +79,20 @@ def save(path, state: Dict[str, Any]) -> None:
     atomic_write_bytes(path, encode(state))
 
 
+def save_fit_state(path, module, opt, sched, step: int, settings: FitSettings, names: List[str],
+                   train_seconds: float, timed_from_step: int, gen: torch.Generator) -> None:
+    """Write a fit's checkpoint after ``step`` steps: what :func:`restore` loads back.
+
+    ``train_seconds``: training time of the steps from ``timed_from_step`` on (0 unless the fit
+    once resumed a checkpoint that kept no time), so that a resumed fit records the time of the
+    whole fit, not of its last segment. ``batch_rng``: the batch generator's state, so that a
+    resume continues the batch sequence without replaying it (docs/FITTING.md, "Checkpoints")."""
+    save(path, {"module": module.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                "step": step, "settings": dataclasses.asdict(settings), "names": names,
+                "torch_rng": torch.get_rng_state(), "batch_rng": gen.get_state(),
+                "train_seconds": float(train_seconds), "timed_from_step": int(timed_from_step)})
+
+
 # ---- reading ---------------------------------------------------------------------------
 
 
@@ -88,7 +102,7 @@ def _read_bytes(path: str) -> bytes:
     # spec.MAX_MATERIALS materials, gigabytes by design, and a regular file's size is what it holds.
     size = check_input_file(path, "checkpoint file", None, CheckpointError)
     # ... but not beyond this machine's memory: the whole file is read at once, and a sparse
-    # 1 TiB file (no disk used) raised MemoryError with no file named (the fuzz suite, issue 33).
+    # file of a terabyte (no disk used) raised MemoryError with no file named.
     memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     if size > memory:
         raise CheckpointError(path, f"checkpoint file of {size} bytes is larger than this machine's memory "
@@ -121,7 +135,7 @@ def _check_archive(path: str, payload: bytes) -> None:
     """Refuse a zip payload whose entries would expand beyond the file before torch.load opens it.
     torch.save stores every entry as is (no compression), so a checkpoint's content is never
     larger than the file: that is the budget. A deflated entry is a decompression bomb waiting
-    to happen (1 MB of zip became 1.28 GB in torch.load before any check could run), and an
+    to happen (a small zip can expand a thousandfold in torch.load before any check runs), and an
     entry that declares more bytes than the file holds would size an allocation by a lie. Only
     the central directory is read here (what torch's reader allocates by), not the data."""
     if not payload.startswith(_LEGACY_MAGIC):

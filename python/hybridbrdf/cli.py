@@ -342,6 +342,7 @@ def _shown(value) -> str:
 
 def _cmd_info(args: argparse.Namespace) -> int:
     from hybridbrdf.model_file import load_model
+    from hybridbrdf.training_record import environment_line
 
     if args.albedo_samples < 0:
         raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
@@ -363,6 +364,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         sections = ("training", "run") + (("sparse",) if t.get("frozen_from") else ())  # sparse_init: sparse fits only
         print(_settings_line("training", t, sections, RECORDED_TIMINGS))
         print(_settings_line("loss", t, ("loss",)))
+        print(environment_line(t, _shown))  # ranks, device, threads, versions (or what an older file lacks)
         if t.get("mode") == "fine-tune" and isinstance(t.get("sparse_fit"), dict):
             print(f"added by fine-tuning the network of {_shown(t.get('init_from'))} (the training line above) "
                   f"after a sparse fit on it:")

@@ -31,12 +31,11 @@ LR_SCHEDULES = ("cosine", "exponential")
 #: :class:`FitSettings`, each chosen on a measured figure (docs/FITTING.md, "Defaults and the
 #: figures they come from"); ``paper`` reproduces the paper's Sec. 3.3 settings (AdamW at
 #: PyTorch's default decay, log(1 + cos f), symmetric loss, cosine-weighted pairs only, 200k
-#: steps, 32x3, latent 4) for comparison; ``fast`` fits an RGL-sized collection (54 materials) in
-#: under half an hour on two CPU cores: the loss of results/rgl54_hybrid_32x2_e09_120k at 8x its
-#: learning rate, decayed exponentially over 58,000 steps, on a 16x2 network with material output
-#: layers (issue 37: 5 of 5 RGL rows without a refit, results/rgl54_fast; the 32x2 with one shared
-#: output layer it replaced needed the (p, z) refit under eps 0.05 for them: docs/FITTING.md,
-#: "Fitting in 30 minutes"). A flag given explicitly overrides its recipe value.
+#: steps, 32x3, latent 4) for comparison; ``fast`` fits an RGL-sized collection in under half an
+#: hour on two CPU cores: the default loss at a higher learning rate, decayed exponentially, on a
+#: 16x2 network with material output layers, which needs no (p, z) refit afterwards where one
+#: shared output layer did (docs/FITTING.md, "Fitting in 30 minutes", holds the figures). A flag
+#: given explicitly overrides its recipe value.
 RECIPES = {
     "hybridbrdf": {},
     "paper": dict(width=32, depth=3, latent=4, steps=200_000, batch=1024, lr=5e-3, clip=0.01, weight_decay=0.01,
@@ -47,9 +46,9 @@ RECIPES = {
 }
 RECIPE_NAMES = tuple(RECIPES)
 
-#: Steps of a sparse fit (``hbrdf add``, :func:`hybridbrdf.add`) when none are given: 5,000 and
-#: 20,000 sparse steps end within 0.5% of each other in cMAE (docs/BENCHMARKS_HISTORY.md,
-#: "Adding measurements later"), and 5,000 keep a material well inside the 2 minutes issue 16 allows.
+#: Steps of a sparse fit (``hbrdf add``, :func:`hybridbrdf.add`) when none are given: four times
+#: as many end no better in cMAE (docs/BENCHMARKS_HISTORY.md, "Adding measurements later"), and
+#: these keep adding a material within its budget of minutes.
 ADD_STEPS = 5000
 
 #: Steps of ``hbrdf add``'s fine-tune onto the shipped prior (after its ADD_STEPS sparse steps):
@@ -58,10 +57,10 @@ FINETUNE_STEPS = 5000
 
 #: ``hbrdf add --refine``'s limit on how far a base material may move: SMAPE of the refined
 #: model against the base's own output on the metric pairs (docs/FITTING.md, "Refining a
-#: collection"). 0.75: the NBRDF-MERL refine of issue 36 (b) moved its 42 base materials by 0.098
-#: on average and at most 0.59 (a dark phenolic, where SMAPE is most sensitive) while their render
-#: MAE changed by 6.7%; the limit refuses a refine that moves a material further than any of
-#: those (SMAPE 2 is a material replaced by another).
+#: collection"). 0.75: above the largest drift of the measured NBRDF-MERL refine (a dark material,
+#: where SMAPE is most sensitive; its figures are in docs/FITTING.md), so the limit refuses a
+#: refine that moves a material further than any of those did (SMAPE 2 is a material replaced by
+#: another).
 MAX_DRIFT = 0.75
 
 
@@ -178,8 +177,8 @@ class FitSettings:
     activation: str = _setting("hardgelu", "hidden activation (default: %(default)s)", "network", "--activation",
                                choices=ACTIVATIONS)
     #: "material": each material its own output layer, 6 x width + 6 floats (spec/model.json, output_layers).
-    #: The default since issue 37: on the eight synthetic materials (3,000 steps) mean SMAPE 0.118 vs
-    #: 0.152 and the exact-f_a control (plastic) no longer worse than its f_a (docs/FITTING.md).
+    #: The default: on the synthetic materials it fits more accurately than one shared output layer,
+    #: and the exact-f_a control (plastic) no longer ends worse than its f_a (docs/FITTING.md).
     output_layer: str = _setting("material", "output layer: each material's own ('material': 6 x width + 6 more floats "
                                  "per material, the same multiply-adds per evaluation; the neural baseline always shares its) or one "
                                  "shared by every material ('shared': the paper's model and recipe) "
@@ -192,8 +191,8 @@ class FitSettings:
                            "a 54-material collection in under 30 minutes on 2 cores with --compile; its f_a is an "
                            "upper envelope); flags given override them (default: %(default)s)", "training",
                            "--recipe", choices=RECIPE_NAMES)
-    #: 120k: at 60k steps a 49-material network let 4 of 5 sparse-added RGL files beat the released
-    #: model, at 120k 5 of 5 on three seeds (docs/BENCHMARKS_HISTORY.md, "Weight decay off").
+    #: 120k: with half as many steps a collection's network left some sparse-added RGL files behind
+    #: the released model, with these none (docs/BENCHMARKS_HISTORY.md, "Weight decay off").
     steps: int = _setting(120_000, f"optimiser steps (default: %(default)s; hbrdf add: {ADD_STEPS})", "training", "--steps",
                           type=STEPS)
     batch: int = _setting(1024, "direction pairs per step (default: %(default)s)", "training", "--batch",
@@ -204,14 +203,14 @@ class FitSettings:
                                 "(to --lr times --lr-final) (default: %(default)s)", "training", "--lr-schedule",
                                 choices=LR_SCHEDULES)
     #: The exponential decay's last rate as a fraction of ``lr``. 0.01, two decades: from --recipe
-    #: fast's 0.04 it spends the last 44% of the steps below 3e-3, the rates at which the default
-    #: schedule's golden-yellow highlight converged (docs/FITTING.md, "The learning-rate decay").
+    #: fast's rate it spends a large share of the last steps at the rates at which the default
+    #: schedule's hardest highlight converged (docs/FITTING.md, "The learning-rate decay").
     lr_final: float = _setting(0.01, "with --lr-schedule exponential: the last step's learning rate as a fraction "
                                "of --lr (default: %(default)s)", "training", "--lr-final", type=LR_FINAL)
     clip: float = _setting(0.01, "gradient-norm clipping (the paper's 0.01)", "training")
     #: 0: decoupled decay shrinks a network shared by many materials by exp(-wd sum(lr)); without it
-    #: the sparse-added RGL files went from 3 of 5 to 4 of 5 wins at 60k steps (docs/FITTING.md,
-    #: "Defaults and the figures they come from"). The paper's AdamW implies torch's 0.01 (--recipe paper).
+    #: more sparse-added RGL files beat the released model (docs/FITTING.md, "Defaults and the
+    #: figures they come from"). The paper's AdamW implies torch's 0.01 (--recipe paper).
     weight_decay: float = _setting(
         0.0, "AdamW weight decay of the shared network (not of p or z) (default: %(default)s; --recipe paper: "
         "0.01, torch's default, which the paper's AdamW implies)", "training", "--weight-decay", type=NON_NEGATIVE)
