@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -40,6 +41,19 @@ std::string load_error(const std::string& text, const std::string& base_dir = ".
 // A scene with `environment` under the default camera and a sphere.
 std::string with_environment(const std::string& environment) {
     return "{" + kCam + R"(, "environment": )" + environment + ", " + kSphere + "}";
+}
+
+// An environment and the error of loading it under the default camera and a sphere.
+struct EnvironmentError {
+    const char* environment;
+    const char* error;
+};
+
+void check_environment_errors(std::initializer_list<EnvironmentError> cases) {
+    for (const EnvironmentError& c : cases) {
+        CAPTURE(c.environment);
+        CHECK(load_error(with_environment(c.environment)) == c.error);
+    }
 }
 
 std::string read_file(const std::string& path) {
@@ -106,13 +120,15 @@ TEST_CASE("limits: film and environment sizes are checked before anything is all
     CHECK(load_error(with_environment(R"({"type": "sky", "resolution": [100000, 50000]})")) ==
           "bad.json: environment.resolution: 100000 x 50000 = 5000000000 pixels need ~140 GB with its sampling "
           "tables (limit 134217728 pixels, e.g. 16384 x 8192)");
-    // Resolutions are integers, bounded before the conversion (a float 1e10 was cast to int: undefined).
-    CHECK(load_error(with_environment(R"({"type": "sky", "resolution": [1e10, 64]})")) ==
-          "bad.json: environment.resolution[0]: expected an integer, got 10000000000.0");
-    CHECK(load_error(with_environment(R"({"type": "sky", "resolution": [3000000000, 64]})")) ==
-          "bad.json: environment.resolution[0]: must be <= 2147483647, got 3000000000");
-    CHECK(load_error(with_environment(R"({"type": "sky", "resolution": [2, 64]})")) ==
-          "bad.json: environment.resolution: must be at least 4 x 2, got 2 x 64");
+    check_environment_errors({
+        // Resolutions are integers, bounded before the conversion (a float 1e10 was cast to int: undefined).
+        {R"({"type": "sky", "resolution": [1e10, 64]})",
+         "bad.json: environment.resolution[0]: expected an integer, got 10000000000.0"},
+        {R"({"type": "sky", "resolution": [3000000000, 64]})",
+         "bad.json: environment.resolution[0]: must be <= 2147483647, got 3000000000"},
+        {R"({"type": "sky", "resolution": [2, 64]})",
+         "bad.json: environment.resolution: must be at least 4 x 2, got 2 x 64"},
+    });
     SkyParams sky;
     sky.width = 100000;
     sky.height = 50000;
@@ -139,25 +155,21 @@ TEST_CASE("limits: an image header that declares too many pixels is refused befo
 }
 
 TEST_CASE("validation: radiances, scales and albedos are finite and >= 0, named by their key") {
-    CHECK(load_error(with_environment(R"({"type": "sky", "scale": -1})")) == "bad.json: environment.scale: must be >= 0, got -1");
-    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": [1, -2, 1]})")) ==
-          "bad.json: environment.radiance[1]: must be >= 0, got -2");
-    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": -1})")) ==
-          "bad.json: environment.radiance: must be >= 0, got -1");
-    CHECK(load_error(with_environment(R"({"type": "sky", "ground_albedo": -0.5})")) ==
-          "bad.json: environment.ground_albedo: must be >= 0, got -0.5");
-    CHECK(load_error(with_environment(R"({"type": "sky", "sun_irradiance": [1, -1, 1]})")) ==
-          "bad.json: environment.sun_irradiance[1]: must be >= 0, got -1");
-    CHECK(load_error(with_environment(R"({"type": "sky", "sky_intensity": -3})")) ==
-          "bad.json: environment.sky_intensity: must be >= 0, got -3");
-    CHECK(load_error(with_environment(R"({"type": "sky", "turbidity": 12})")) ==
-          "bad.json: environment.turbidity: must be in [1, 10], got 12");
-    // Beyond float: 1e300 would become inf after the conversion.
-    CHECK(load_error(with_environment(R"({"type": "sky", "scale": 1e300})")) ==
-          "bad.json: environment.scale: must be within +-3.40282e+38, got 1e+300");
-    // Finite factors whose product is not.
-    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": 1e30, "scale": 1e30})")) ==
-          "bad.json: environment: scale: 1e+30 x the brightest texel (1e+30) overflows float");
+    check_environment_errors({
+        {R"({"type": "sky", "scale": -1})", "bad.json: environment.scale: must be >= 0, got -1"},
+        {R"({"type": "constant", "radiance": [1, -2, 1]})", "bad.json: environment.radiance[1]: must be >= 0, got -2"},
+        {R"({"type": "constant", "radiance": -1})", "bad.json: environment.radiance: must be >= 0, got -1"},
+        {R"({"type": "sky", "ground_albedo": -0.5})", "bad.json: environment.ground_albedo: must be >= 0, got -0.5"},
+        {R"({"type": "sky", "sun_irradiance": [1, -1, 1]})",
+         "bad.json: environment.sun_irradiance[1]: must be >= 0, got -1"},
+        {R"({"type": "sky", "sky_intensity": -3})", "bad.json: environment.sky_intensity: must be >= 0, got -3"},
+        {R"({"type": "sky", "turbidity": 12})", "bad.json: environment.turbidity: must be in [1, 10], got 12"},
+        // Beyond float: 1e300 would become inf after the conversion.
+        {R"({"type": "sky", "scale": 1e300})", "bad.json: environment.scale: must be within +-3.40282e+38, got 1e+300"},
+        // Finite factors whose product is not.
+        {R"({"type": "constant", "radiance": 1e30, "scale": 1e30})",
+         "bad.json: environment: scale: 1e+30 x the brightest texel (1e+30) overflows float"},
+    });
     // A sun too small for float: its radiance (irradiance / solid angle) would be infinite.
     CHECK(load_error(with_environment(R"({"type": "sky", "sun_size_deg": 1e-30})"))
               .rfind("bad.json: environment.sun_size_deg: is too small for sun_irradiance", 0) == 0);
@@ -215,11 +227,13 @@ TEST_CASE("outputs: checked before a render, replaced only by a commit") {
 }
 
 TEST_CASE("validation: an environment too bright for float32 sums, and a film that is not finite, are errors") {
-    // 1e30 x 1: finite, but 16 samples of it through a path's throughput can reach +Inf.
-    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": 1e21})")) ==
-          "bad.json: environment: the brightest texel x scale is 1e+21, above the limit 1e+20 (a pixel's samples "
-          "would overflow float32)");
-    CHECK(load_error(with_environment(R"({"type": "constant", "radiance": 1e20})")) == "no error");
+    check_environment_errors({
+        // 1e30 x 1: finite, but 16 samples of it through a path's throughput can reach +Inf.
+        {R"({"type": "constant", "radiance": 1e21})",
+         "bad.json: environment: the brightest texel x scale is 1e+21, above the limit 1e+20 (a pixel's samples "
+         "would overflow float32)"},
+        {R"({"type": "constant", "radiance": 1e20})", "no error"},
+    });
     // The last guard, whatever the light: render() refuses an image holding Inf or NaN.
     Scene scene = load_scene_json(with_environment(R"({"type": "constant", "radiance": 2})"), ".", "ok.json");
     Image img(4, 2);
