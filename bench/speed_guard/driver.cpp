@@ -8,11 +8,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "hybridbrdf/hybridbrdf.hpp"
+#include "../../cpp/tools/direction_pairs.hpp"
 #include "../../cpp/tools/fma_peak.hpp"
 
 void header_eval(std::size_t n, const float* wi, const float* wo, float* f);  // header_kernel.cpp
@@ -46,24 +46,11 @@ int main(int argc, char** argv) {
     const std::size_t n = std::strtoull(argv[3], nullptr, 10);
     const int rounds = std::atoi(argv[4]);
 
-    // Cosine-weighted direction pairs, as in fitting and metrics.
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<float> uni(0.f, 1.f);
-    std::vector<float> wi(3 * n), wo(3 * n), u(2 * n), soa(6 * n), out(3 * n), pdf(n), wis(3 * n), weight(3 * n);
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto a = hbrdf::square_to_cosine_hemisphere(hbrdf::Vec2<float>(uni(rng), uni(rng)));
-        const auto b = hbrdf::square_to_cosine_hemisphere(hbrdf::Vec2<float>(uni(rng), uni(rng)));
-        for (int c = 0; c < 3; ++c) {
-            wi[3 * i + c] = a[c];
-            wo[3 * i + c] = b[c];
-            soa[c * n + i] = a[c];
-            soa[(3 + c) * n + i] = b[c];
-        }
-        u[2 * i] = uni(rng);
-        u[2 * i + 1] = uni(rng);
-    }
+    const hbrdf::bench::DirectionPairs pairs = hbrdf::bench::cosine_direction_pairs(n);
+    const std::vector<float> &wi = pairs.wi, &wo = pairs.wo, &u = pairs.u;
+    std::vector<float> out(3 * n), pdf(n), wis(3 * n), weight(3 * n);
     const hbrdf::AnalyticParams p = model.materials().at(mat).params;
-    const float* s = soa.data();
+    const float* s = pairs.soa.data();
     float* o = out.data();
     // The scalar paths are 5-50x slower than the batched ones: they get a slice.
     const std::size_t n_scalar = n / 8;

@@ -5,9 +5,9 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <random>
 #include <vector>
 
+#include "direction_pairs.hpp"
 #include "hybridbrdf/hybridbrdf.hpp"
 
 namespace {
@@ -31,29 +31,15 @@ int main(int argc, char** argv) {
     const std::size_t n = argc > 1 ? std::strtoull(argv[1], nullptr, 10) : (1u << 20);
     const int repeats = argc > 2 ? std::atoi(argv[2]) : 7;
 
-    // Cosine-weighted direction pairs, as in fitting and metrics.
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<float> uni(0.f, 1.f);
-    std::vector<float> wi(3 * n), wo(3 * n), u(2 * n);
-    std::vector<float> soa_in(6 * n), soa_out(3 * n), aos_out(3 * n), pdf(n), wis(3 * n), weight(3 * n);
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto a = hbrdf::square_to_cosine_hemisphere(hbrdf::Vec2<float>(uni(rng), uni(rng)));
-        const auto b = hbrdf::square_to_cosine_hemisphere(hbrdf::Vec2<float>(uni(rng), uni(rng)));
-        for (int c = 0; c < 3; ++c) {
-            wi[3 * i + c] = a[c];
-            wo[3 * i + c] = b[c];
-            soa_in[c * n + i] = a[c];
-            soa_in[(3 + c) * n + i] = b[c];
-        }
-        u[2 * i] = uni(rng);
-        u[2 * i + 1] = uni(rng);
-    }
+    const hbrdf::bench::DirectionPairs pairs = hbrdf::bench::cosine_direction_pairs(n);
+    const std::vector<float> &wi = pairs.wi, &wo = pairs.wo, &u = pairs.u;
+    std::vector<float> soa_out(3 * n), aos_out(3 * n), pdf(n), wis(3 * n), weight(3 * n);
     hbrdf::AnalyticParams p;
     p.kd = {0.3f, 0.2f, 0.1f};
     p.eta = {1.5f, 1.6f, 1.7f};
     p.alpha = {0.2f, 0.4f};
 
-    const float* s = soa_in.data();
+    const float* s = pairs.soa.data();
     float* o = soa_out.data();
     std::printf("{\"n\": %zu, \"simd\": \"%s\"", n, hbrdf::simd_path());
     for (int pass = 0; pass < 2; ++pass) {
