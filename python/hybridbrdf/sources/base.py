@@ -30,6 +30,39 @@ def read_file_bytes(spec: str, kind: str, limit: int) -> bytes:
     return read_input_bytes(spec, f"{kind} file", limit, BRDFFormatError)
 
 
+def check_file_size(spec: str, data: bytes, kind: str, expected: int, layout: str) -> None:
+    """Raises :class:`BRDFFormatError` unless ``data``, a ``kind`` file, is ``expected`` bytes
+    long; the message names ``layout``, what those bytes hold."""
+    if len(data) != expected:
+        what = f"truncated {kind} file" if len(data) < expected else f"{kind} file too long"
+        raise BRDFFormatError(spec, f"{what}: {len(data)} bytes, expected {expected} ({layout})")
+
+
+def check_finite_table(spec: str, raw: np.ndarray, kind: str, describe) -> None:
+    """Raises :class:`BRDFFormatError` if ``raw``, a ``kind`` table read from ``spec``, holds
+    non-finite values, naming how many and the first, which ``describe(*index)`` words."""
+    bad = ~np.isfinite(raw)
+    if bad.any():
+        first = (int(x[0]) for x in np.nonzero(bad))
+        raise BRDFFormatError(
+            spec, f"{int(bad.sum())} non-finite values in the {kind} table (first: {describe(*first)})"
+        )
+
+
+def table_array(values, shape: tuple, kind: str) -> np.ndarray:
+    """``values`` as a float64 array; ``ValueError`` unless it has ``shape``."""
+    table = np.asarray(values, dtype=np.float64)
+    if table.shape != shape:
+        raise ValueError(f"{kind} table must have shape {shape}, got {table.shape}")
+    return table
+
+
+def check_choice(what: str, value: str, choices: tuple) -> None:
+    """``ValueError`` unless ``value`` (the option ``what``) is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(f"{what} must be one of {choices}, got {value!r}")
+
+
 def source_name(name: Optional[str], path: Optional[str], fallback: str) -> str:
     """A source's name: ``name`` when given, else the stem of ``path``, else ``fallback``."""
     if name is not None:

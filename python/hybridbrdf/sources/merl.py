@@ -47,7 +47,16 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, read_file_bytes, source_name
+from hybridbrdf.sources.base import (
+    BRDFFormatError,
+    BRDFSource,
+    check_choice,
+    check_file_size,
+    check_finite_table,
+    read_file_bytes,
+    source_name,
+    table_array,
+)
 from hybridbrdf.sources.rusinkiewicz import dirs_from_half_diff, half_diff_angles
 
 #: Table resolution (theta_h, theta_d, phi_d) of every MERL file.
@@ -169,20 +178,10 @@ def read_merl_raw(path) -> np.ndarray:
         raise BRDFFormatError(
             spec, f"MERL dims header is {dims[0]} {dims[1]} {dims[2]}, expected 90 90 180 (theta_h, theta_d, phi_d)"
         )
-    if len(data) != FILE_BYTES:
-        what = "truncated MERL file" if len(data) < FILE_BYTES else "MERL file too long"
-        raise BRDFFormatError(
-            spec, f"{what}: {len(data)} bytes, expected {FILE_BYTES} (header + 3 x 90x90x180 float64)"
-        )
+    check_file_size(spec, data, "MERL", FILE_BYTES, "header + 3 x 90x90x180 float64")
     raw = np.frombuffer(data, dtype="<f8", offset=HEADER_BYTES).reshape(3, *MERL_DIMS).astype(np.float64)
-    bad = ~np.isfinite(raw)
-    if bad.any():
-        c, i, j, k = (int(x[0]) for x in np.nonzero(bad))
-        raise BRDFFormatError(
-            spec,
-            f"{int(bad.sum())} non-finite values in the MERL table (first: channel {'RGB'[c]}, "
-            f"theta_h index {i}, theta_d index {j}, phi_d index {k})",
-        )
+    check_finite_table(spec, raw, "MERL", lambda c, i, j, k: f"channel {'RGB'[c]}, theta_h index {i}, "
+                                                            f"theta_d index {j}, phi_d index {k}")
     return raw
 
 
@@ -195,11 +194,8 @@ class MERLSource(BRDFSource):
     def __init__(self, raw: np.ndarray, path: Optional[str] = None, name: Optional[str] = None,
                  interpolation: str = "linear", origin: str = "MERL measurement (raw .binary)"):
         """``raw``: stored values (3, 90, 90, 180) as in the file (unscaled, negative = missing)."""
-        if interpolation not in INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
-        raw = np.asarray(raw, dtype=np.float64)
-        if raw.shape != (3, *MERL_DIMS):
-            raise ValueError(f"MERL table must have shape (3, 90, 90, 180), got {raw.shape}")
+        check_choice("interpolation", interpolation, INTERPOLATIONS)
+        raw = table_array(raw, (3, *MERL_DIMS), "MERL")
         self.path = path
         self.name = source_name(name, path, "merl")
         self.origin = origin
@@ -297,9 +293,7 @@ def write_merl(path, table_or_function: Union[np.ndarray, BRDFSource, Callable])
     elif callable(table_or_function):
         values, measurable = _evaluate_at_nodes(table_or_function)
     else:
-        table = np.asarray(table_or_function, dtype=np.float64)
-        if table.shape != (*MERL_DIMS, 3):
-            raise ValueError(f"MERL table must have shape (90, 90, 180, 3), got {table.shape}")
+        table = table_array(table_or_function, (*MERL_DIMS, 3), "MERL")
         values, measurable = table.reshape(N_CELLS, 3), np.ones(N_CELLS, dtype=bool)
     if not np.isfinite(values).all():
         raise ValueError("the BRDF table or function holds non-finite values")

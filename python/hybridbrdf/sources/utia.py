@@ -44,7 +44,15 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource, read_file_bytes, source_name
+from hybridbrdf.sources.base import (
+    BRDFSource,
+    check_choice,
+    check_file_size,
+    check_finite_table,
+    read_file_bytes,
+    source_name,
+    table_array,
+)
 
 N_THETA = 6
 N_PHI = 48
@@ -95,19 +103,11 @@ def read_utia_table(path) -> np.ndarray:
     file, a wrong size or non-finite values."""
     spec = os.fspath(path)
     data = read_file_bytes(spec, "UTIA", FILE_BYTES)  # the format has one size
-    if len(data) != FILE_BYTES:
-        what = "truncated UTIA file" if len(data) < FILE_BYTES else "UTIA file too long"
-        raise BRDFFormatError(spec, f"{what}: {len(data)} bytes, expected {FILE_BYTES} (3 x 6x48x6x48 float64)")
+    check_file_size(spec, data, "UTIA", FILE_BYTES, "3 x 6x48x6x48 float64")
     raw = np.frombuffer(data, dtype="<f8").reshape(FILE_SHAPE)
-    bad = ~np.isfinite(raw)
-    if bad.any():
-        c, ti, pi, tv, pv = (int(x[0]) for x in np.nonzero(bad))
-        raise BRDFFormatError(
-            spec,
-            f"{int(bad.sum())} non-finite values in the UTIA table (first: channel {'RGB'[c]}, "
-            f"theta_i {ti * THETA_STEP_DEG:g}, phi_i {pi * PHI_STEP_DEG:g}, "
-            f"theta_v {tv * THETA_STEP_DEG:g}, phi_v {pv * PHI_STEP_DEG:g} degrees)",
-        )
+    check_finite_table(spec, raw, "UTIA", lambda c, ti, pi, tv, pv: (
+        f"channel {'RGB'[c]}, theta_i {ti * THETA_STEP_DEG:g}, phi_i {pi * PHI_STEP_DEG:g}, "
+        f"theta_v {tv * THETA_STEP_DEG:g}, phi_v {pv * PHI_STEP_DEG:g} degrees"))
     return np.moveaxis(raw, 0, -1).astype(np.float64)
 
 
@@ -120,11 +120,8 @@ class UTIASource(BRDFSource):
     def __init__(self, table: np.ndarray, path: Optional[str] = None, name: Optional[str] = None,
                  theta_beyond: str = "clamp", origin: str = "UTIA measurement (raw .bin)"):
         """``table``: (6, 48, 6, 48, 3) f values indexed (theta_i, phi_i, theta_v, phi_v, RGB)."""
-        if theta_beyond not in THETA_BEYOND:
-            raise ValueError(f"theta_beyond must be one of {THETA_BEYOND}, got {theta_beyond!r}")
-        table = np.asarray(table, dtype=np.float64)
-        if table.shape != TABLE_SHAPE:
-            raise ValueError(f"UTIA table must have shape {TABLE_SHAPE}, got {table.shape}")
+        check_choice("theta_beyond", theta_beyond, THETA_BEYOND)
+        table = table_array(table, TABLE_SHAPE, "UTIA")
         self.path = path
         self.name = source_name(name, path, "utia")
         self.origin = origin
@@ -197,9 +194,7 @@ def write_utia(path, table_or_function: Union[np.ndarray, BRDFSource, Callable])
             raise ValueError(f"the BRDF function returned shape {table.shape}, expected ({wi.shape[0]}, 3)")
         table = table.reshape(TABLE_SHAPE)
     else:
-        table = np.asarray(table_or_function, dtype=np.float64)
-        if table.shape != TABLE_SHAPE:
-            raise ValueError(f"UTIA table must have shape {TABLE_SHAPE}, got {table.shape}")
+        table = table_array(table_or_function, TABLE_SHAPE, "UTIA")
     if not np.isfinite(table).all():
         raise ValueError("the BRDF table or function holds non-finite values")
     payload = np.ascontiguousarray(np.moveaxis(table, -1, 0), dtype="<f8").tobytes()
