@@ -1,6 +1,6 @@
 """Helpers shared by the Python tests: the hard-case table, parameter sets, rotation
-matrices, a source with exact values, model files, the command line, the Mitsuba
-oracle and the Vulkan (lavapipe) runner.
+matrices, a source with exact values, model files, the command line, a scene for the
+renderer, the Mitsuba oracle and the Vulkan (lavapipe) runner.
 
 Direction generators and the float64 textbook reference live in the package
 (hybridbrdf.directions, hybridbrdf.reference): the benchmarks use them too."""
@@ -153,6 +153,27 @@ def half_rounded_copy(model, path):
 def run_cli(*args):
     """`hbrdf ARGS` in a fresh interpreter (the package on this interpreter's path, with its _core)."""
     return subprocess.run([sys.executable, "-m", "hybridbrdf.cli", *args], capture_output=True, text=True)
+
+
+# ---- a scene for the renderer -----------------------------------------------------
+
+
+def sphere_on_floor_scene(material, floor=None, **settings):
+    """A scene dict: a unit sphere of ``material`` (named "m") on an 8 x 8 floor of ``floor``
+    (named "floor"; the sphere's "m" when None) under the sky, 20x16 pixels, one sample per
+    pixel, three bounces on two threads. ``settings`` replace top-level keys."""
+    materials = {"m": material} if floor is None else {"m": material, "floor": floor}
+    s = {
+        "camera": {"position": [0, 0.5, 4], "look_at": [0, 0, 0], "fov_deg": 40, "width": 20, "height": 16},
+        "environment": {"type": "sky", "resolution": [64, 32]},
+        "materials": materials,
+        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"},
+                    {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 8,
+                     "material": "m" if floor is None else "floor"}],
+        "spp": 1, "max_depth": 3, "threads": 2,
+    }
+    s.update(settings)
+    return s
 
 
 # ---- Mitsuba 3, the oracle -------------------------------------------------------

@@ -18,7 +18,7 @@ import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf import render as hr
 
-from helpers import run_cli
+from helpers import run_cli, sphere_on_floor_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODEL = ROOT / "results" / "rgl54_hybrid_32x2.safetensors"
@@ -29,17 +29,12 @@ PARAMS = dict(kd=[0.3, 0.2, 0.1], eta=[1.5, 1.6, 1.7], alpha=[0.2, 0.35])
 
 
 def scene(material, env=None, **settings):
-    """A unit sphere on a floor, 20x16 pixels."""
-    s = {
-        "camera": {"position": [0, 0.5, 4], "look_at": [0, 0, 0], "fov_deg": 40, "width": 20, "height": 16},
-        "environment": env or {"type": "sky", "resolution": [64, 32]},
-        "materials": {"m": material, "floor": {"type": "analytic", "kd": 0.5, "eta": 1.5, "alpha": 0.4}},
-        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"},
-                    {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 8, "material": "floor"}],
-        "spp": 4, "max_depth": 3, "threads": 2,
-    }
-    s.update(settings)
-    return s
+    """A unit sphere of ``material`` on an analytic floor under ``env`` (the sky by default),
+    20x16 pixels, 4 samples per pixel."""
+    if env:
+        settings["environment"] = env
+    return sphere_on_floor_scene(material, {"type": "analytic", "kd": 0.5, "eta": 1.5, "alpha": 0.4},
+                                 **{"spp": 4, **settings})
 
 
 def analytic_material():

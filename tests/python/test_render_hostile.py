@@ -23,23 +23,14 @@ import pytest
 from hybridbrdf import _core
 from hybridbrdf import render as hr
 
-from helpers import run_cli
+from helpers import run_cli, sphere_on_floor_scene
 
 pytestmark = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
 
 
 def scene(**settings):
-    """A sphere on a floor under the sky, 20x16 pixels."""
-    s = {
-        "camera": {"position": [0, 0.5, 4], "look_at": [0, 0, 0], "fov_deg": 40, "width": 20, "height": 16},
-        "environment": {"type": "sky", "resolution": [64, 32]},
-        "materials": {"m": {"type": "analytic", "kd": 0.5, "eta": 1.5, "alpha": 0.3}},
-        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"},
-                    {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 8, "material": "m"}],
-        "spp": 1, "max_depth": 3, "threads": 2,
-    }
-    s.update(settings)
-    return s
+    """A sphere on a floor, both of one analytic material, under the sky, 20x16 pixels."""
+    return sphere_on_floor_scene({"type": "analytic", "kd": 0.5, "eta": 1.5, "alpha": 0.3}, **settings)
 
 
 def slow_scene():
