@@ -55,6 +55,17 @@ template <typename T> AnalyticParamsT<T> random_params(std::mt19937& rng) {
     return p;
 }
 
+// Calls f(p, wi, wo) `count` times: random double parameters, then two cosine-weighted
+// directions of type T, drawn in that order from one generator seeded with `seed`.
+template <typename T, typename F> void for_random_cases(unsigned seed, int count, F&& f) {
+    std::mt19937 rng(seed);
+    for (int i = 0; i < count; ++i) {
+        const auto p = random_params<double>(rng);
+        const auto wi = random_cosine_dir<T>(rng), wo = random_cosine_dir<T>(rng);
+        f(p, wi, wo);
+    }
+}
+
 double rel_err(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-30); }
 
 // The largest relative error of a against b over the three channels.
@@ -101,30 +112,24 @@ TEST_CASE("fresnel_dielectric matches the textbook form and its limits") {
 }
 
 TEST_CASE("double implementation equals an independent textbook transcription") {
-    std::mt19937 rng(1);
     double worst = 0;
-    for (int i = 0; i < 20000; ++i) {
-        const auto p = random_params<double>(rng);
-        const auto wi = random_cosine_dir<double>(rng), wo = random_cosine_dir<double>(rng);
-        if (wi.z < 1e-3 || wo.z < 1e-3) continue;  // the textbook G1 form loses digits at grazing angles
+    for_random_cases<double>(1, 20000, [&](const auto& p, const auto& wi, const auto& wo) {
+        if (wi.z < 1e-3 || wo.z < 1e-3) return;  // the textbook G1 form loses digits at grazing angles
         worst = std::max(worst, max_rel_err(eval_analytic(wi, wo, p), textbook_fa(wi, wo, p)));
-    }
+    });
     CHECK(worst < 1e-9);
 }
 
 TEST_CASE("float agrees with double on 10^5 cosine-weighted pairs (2e-5 relative for alpha >= 0.05)") {
-    std::mt19937 rng(2);
     double worst = 0, worst_rough = 0;
-    for (int i = 0; i < 100000; ++i) {
-        const auto pd = random_params<double>(rng);
+    for_random_cases<float>(2, 100000, [&](const auto& pd, const auto& wi, const auto& wo) {
         const auto pf = test::params_as<float>(pd);
         const auto pd_rounded = test::params_as<double>(pf);
-        const auto wi = random_cosine_dir<float>(rng), wo = random_cosine_dir<float>(rng);
         const double err = max_rel_err(eval_analytic(wi, wo, pf),
                                        eval_analytic(Vec3<double>(wi), Vec3<double>(wo), pd_rounded));
         worst = std::max(worst, err);
         if (std::min(pd.alpha.x, pd.alpha.y) >= 0.05) worst_rough = std::max(worst_rough, err);
-    }
+    });
     MESSAGE("worst float/double relative error: " << worst << " (alpha >= 0.05: " << worst_rough << ")");
     // D is ill-conditioned for small alpha: an absolute float error of ~6e-8
     // in h_x becomes a relative error ~ 2 * 6e-8 * |h_x| / alpha^2 in D; with
@@ -134,16 +139,13 @@ TEST_CASE("float agrees with double on 10^5 cosine-weighted pairs (2e-5 relative
 }
 
 TEST_CASE("reciprocity f(wi, wo) = f(wo, wi) to 1e-6 relative") {
-    std::mt19937 rng(3);
     double worst_f = 0, worst_d = 0;
-    for (int i = 0; i < 50000; ++i) {
-        const auto p = random_params<double>(rng);
-        const auto wi = random_cosine_dir<double>(rng), wo = random_cosine_dir<double>(rng);
+    for_random_cases<double>(3, 50000, [&](const auto& p, const auto& wi, const auto& wo) {
         worst_d = std::max(worst_d, max_rel_err(eval_analytic(wi, wo, p), eval_analytic(wo, wi, p)));
         const auto pf = test::params_as<float>(p);
         const Vec3<float> wi_f(wi), wo_f(wo);
         worst_f = std::max(worst_f, max_rel_err(eval_analytic(wi_f, wo_f, pf), eval_analytic(wo_f, wi_f, pf)));
-    }
+    });
     CHECK(worst_d < 1e-6);
     CHECK(worst_f < 1e-6);
 }
