@@ -44,15 +44,8 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from hybridbrdf.sources.base import (
-    BRDFSource,
-    check_choice,
-    check_file_size,
-    check_finite_table,
-    read_file_bytes,
-    source_name,
-    table_array,
-)
+from hybridbrdf.sources.base import (BRDFSource, check_choice, check_file_size, check_finite_table,
+                                     read_file_bytes, source_name, table_array)
 
 N_THETA = 6
 N_PHI = 48
