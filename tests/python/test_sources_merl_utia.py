@@ -260,6 +260,15 @@ def test_merl_all_missing_is_an_error(tmp_path):
 # ---- MERL: malformed files -----------------------------------------------------
 
 
+def check_malformed(path, data, message):
+    """``data`` written to ``path`` is refused by open_source with a one-line error naming
+    the path and matching ``message``."""
+    path.write_bytes(data)
+    with pytest.raises(BRDFFormatError, match=message) as info:
+        open_source(path)
+    assert info.value.path == os.fspath(path) and str(info.value).startswith(os.fspath(path) + ": ")
+
+
 @pytest.fixture
 def good_merl_bytes(rng):
     return np.asarray([90, 90, 180], "<i4").tobytes() + rng.random(3 * 90 * 90 * 180).astype("<f8").tobytes()
@@ -280,18 +289,18 @@ def good_merl_bytes(rng):
     ],
 )
 def test_merl_malformed_files(tmp_path, good_merl_bytes, mutate, message):
-    path = tmp_path / "bad.binary"
-    path.write_bytes(mutate(good_merl_bytes))
-    with pytest.raises(BRDFFormatError, match=message) as info:
-        open_source(path)
-    assert info.value.path == os.fspath(path) and str(info.value).startswith(os.fspath(path) + ": ")
+    check_malformed(tmp_path / "bad.binary", mutate(good_merl_bytes), message)
 
 
-def test_merl_unreadable(tmp_path):
-    folder = tmp_path / "x.binary"
+@pytest.mark.parametrize("name,opener,kind", [("x.binary", open_merl, "MERL"), ("x.bin", open_utia, "UTIA")])
+def test_a_folder_is_refused_by_name(tmp_path, name, opener, kind):
+    folder = tmp_path / name
     folder.mkdir()
-    with pytest.raises(BRDFFormatError, match="is a folder, not a MERL file$"):
-        open_merl(folder)
+    with pytest.raises(BRDFFormatError, match=f"is a folder, not a {kind} file$"):
+        opener(folder)
+
+
+def test_merl_absent_file(tmp_path):
     with pytest.raises(BRDFFormatError, match="absent.binary: no such file$"):
         open_merl(tmp_path / "absent.binary")
 
@@ -470,18 +479,10 @@ def test_utia_grazing_clamped_stays_in_data_range(tmp_path, rng):
     ],
 )
 def test_utia_malformed_files(tmp_path, rng, mutate, message):
-    path = tmp_path / "bad.bin"
-    path.write_bytes(mutate(rng.random(3 * 6 * 48 * 6 * 48).astype("<f8").tobytes()))
-    with pytest.raises(BRDFFormatError, match=message) as info:
-        open_source(path)
-    assert info.value.path == os.fspath(path)
+    check_malformed(tmp_path / "bad.bin", mutate(rng.random(3 * 6 * 48 * 6 * 48).astype("<f8").tobytes()), message)
 
 
-def test_utia_unreadable_and_writer_checks(tmp_path):
-    folder = tmp_path / "x.bin"
-    folder.mkdir()
-    with pytest.raises(BRDFFormatError, match="is a folder, not a UTIA file$"):
-        open_utia(folder)
+def test_utia_writer_checks(tmp_path):
     with pytest.raises(ValueError, match="shape"):
         write_utia(tmp_path / "y.bin", np.zeros((3, 6, 48, 6, 48)))
     with pytest.raises(ValueError, match="non-finite"):
