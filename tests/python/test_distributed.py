@@ -65,8 +65,14 @@ def test_two_ranks_fit_the_one_rank_model(tmp_path):
     assert "data-parallel fit on 2 ranks: 128 pairs of each 256-pair batch per rank" in two.stderr
     assert two.stdout.count("wrote two.safetensors") == 1  # rank 0 alone reports and writes
     a, b = hb.load_model(tmp_path / "one.safetensors"), hb.load_model(tmp_path / "two.safetensors")
-    # Same global batches, gradients averaged: only the order of float additions differs
-    # (measured: 1.5e-6 after 300 steps).
+    # The training record says how each was run, and hbrdf info prints the rank count.
+    assert a.training["world_size"] == 1 and b.training["world_size"] == 2
+    assert a.training["torch_threads"] == b.training["torch_threads"] == 1  # OMP_NUM_THREADS=1 (ENV)
+    for name, ranks in (("one", "run: 1 rank,"), ("two", "run: 2 ranks (data-parallel),")):
+        info = run(hbrdf_cmd("info", f"{name}.safetensors"), tmp_path)
+        assert info.returncode == 0 and ranks in info.stdout, info.stdout + info.stderr
+    # Same global batches, gradients averaged: only the order of float additions differs, far
+    # below this bound.
     assert max_weight_difference(a, b) < 1e-4
     assert np.allclose(smapes(a), smapes(b), rtol=1e-5)
     # A second rank that did not train would leave the weights where the first rank's half-batches take them.

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
+from hybridbrdf import spec
 from hybridbrdf.fitting import FitSettings, fit, log_cos_loss
 from hybridbrdf.metrics import metric_directions, smape
 
@@ -249,10 +250,10 @@ def test_a_resumed_fit_records_the_time_of_every_segment(tmp_path, monkeypatch):
     import types
 
     from hybridbrdf import checkpoint as hb_checkpoint
-    from hybridbrdf import fitting as fitting_module
+    from hybridbrdf import training_loop
 
     ticks = iter(range(0, 10 ** 9, 1000))
-    monkeypatch.setattr(fitting_module, "time", types.SimpleNamespace(perf_counter=lambda: float(next(ticks))))
+    monkeypatch.setattr(training_loop, "time", types.SimpleNamespace(perf_counter=lambda: float(next(ticks))))
     ck = str(tmp_path / "ck.pt")
     assert fit(sources(), quick(steps=80, pool=1 << 12), checkpoint=ck, progress=False, stop_after=40) is None
     state, _ = hb_checkpoint.read(ck)
@@ -396,11 +397,11 @@ def test_fitting_is_stable_on_every_shared_material():
 
 def _applied_rates(settings):
     """The learning rate the optimiser applies at each step of a fit with ``settings``."""
-    from hybridbrdf.fitting import _optimizer
+    from hybridbrdf.fit_schedule import optimizer_and_schedule
 
     module = torch.nn.Module()
     module.register_parameter("z", torch.nn.Parameter(torch.zeros(3)))
-    opt, sched = _optimizer(module, settings, frozen=False)
+    opt, sched = optimizer_and_schedule(module, settings, frozen=False)
     rates = []
     for _ in range(settings.steps):
         rates.append(opt.param_groups[0]["lr"])
@@ -436,3 +437,89 @@ def test_an_exponential_schedule_trains_and_is_recorded(tmp_path):
             progress=False)
     with pytest.raises(ValueError, match="lr_schedule"):
         quick(lr_schedule="linear").check()
+
+
+def _tiny(**kw):
+    """A fit of one synthetic material small enough to run dozens of times."""
+    base = dict(width=8, depth=1, steps=1, batch=64, pool=256, eval_pairs=500, seed=5)
+    base.update(kw)
+    return FitSettings(**base)
+
+
+def _output_bias(model):
+    """The output bias of every material, (M, n_out): its own head's, or the shared layer's."""
+    if "materials.head_bias" in model.tensors:
+        return model.tensors["materials.head_bias"]
+    return np.broadcast_to(model.tensors["mlp.out.bias"], (len(model.materials), model.arch["n_out"]))
+
+
+GATED = [a for a in spec.ARCHS if spec.ARCHS[a]["combine"] == "gated"]
+NOT_GATED = [a for a in spec.ARCHS if spec.ARCHS[a]["combine"] != "gated"]
+
+
+def test_the_spec_has_gated_and_other_architectures():
+    assert GATED and NOT_GATED  # otherwise the two tests below test nothing
+
+
+@pytest.mark.parametrize("arch", GATED)
+def test_fc_init_starts_the_correction_of_every_gated_architecture(arch):
+    """--fc-init X: the pre-exp bias of f_c (output channels 0:3) starts at X, shared or per
+    material; a vanishing learning rate leaves it there for the model file to show."""
+    from hybridbrdf.sources.synthetic import open_synthetic
+
+    x = -1.375  # neither the default nor inside a fresh layer's bias range of +-1/sqrt(8)
+    assert x != FitSettings().fc_init
+    for layer in spec.OUTPUT_LAYERS:
+        model = fit([open_synthetic("plastic"), open_synthetic("gold")],
+                    _tiny(arch=arch, output_layer=layer, lr=1e-12, fc_init=x), progress=False, log=lambda m: None)
+        assert model.arch.get("output_layer", "shared") == layer  # every gated architecture has an analytic part
+        bias = _output_bias(model)
+        assert np.all(np.abs(bias[:, 0:3] - x) <= 1e-6), (layer, bias)
+        assert np.all(np.abs(bias[:, 3:6] - x) > 1e-3), (layer, bias)  # the gate's bias is not f_c's
+
+
+@pytest.mark.parametrize("arch", NOT_GATED)
+def test_fc_init_does_not_change_other_architectures(arch):
+    """Architectures without the gated combine ignore --fc-init: the same fit with another X
+    gives the same weights, bit for bit."""
+    from hybridbrdf.sources.synthetic import open_synthetic
+
+    for layer in spec.OUTPUT_LAYERS:
+        a, b = (fit([open_synthetic("plastic")], _tiny(arch=arch, output_layer=layer, steps=3, fc_init=x),
+                    progress=False, log=lambda m: None) for x in (FitSettings().fc_init, 1.5))
+        assert a.tensors.keys() == b.tensors.keys()
+        for key in a.tensors:
+            assert np.array_equal(a.tensors[key], b.tensors[key]), (layer, key)
+
+
+def test_the_training_record_says_how_the_fit_ran(tmp_path, capsys):
+    """world size 1, the device, the torch threads the fit ran on, the torch and hybridbrdf
+    versions; hbrdf info prints them, and a file written before they were recorded still
+    loads and says what it lacks."""
+    from hybridbrdf.cli import main
+    from hybridbrdf.sources.synthetic import open_synthetic
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        model = fit([open_synthetic("plastic")], _tiny(steps=2), progress=False, log=lambda m: None)
+    finally:
+        torch.set_num_threads(threads)
+    t = model.training
+    assert t["world_size"] == 1 and t["device"] == "cpu" and t["torch_threads"] == 1
+    assert t["torch_version"] == torch.__version__ and t["hybridbrdf_version"] == hb.__version__
+    path = tmp_path / "m.safetensors"
+    model.save(path)
+    assert hb.load_model(path).training["world_size"] == 1  # through the file
+    assert main(["info", str(path)]) == 0
+    run_line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("run: ")]
+    assert run_line == [f"run: 1 rank, device cpu, torch threads 1, torch {torch.__version__}, "
+                        f"hybridbrdf {hb.__version__}"], run_line
+    for key in ("world_size", "torch_threads", "torch_version", "hybridbrdf_version"):
+        del model.training[key]
+    old = tmp_path / "old.safetensors"
+    model.save(old)
+    assert main(["info", str(old)]) == 0
+    out = capsys.readouterr().out
+    assert "run: device cpu; not recorded: world_size, torch_threads, torch_version, hybridbrdf_version" in out, out
+    assert "plastic" in out
