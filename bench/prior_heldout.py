@@ -27,7 +27,7 @@ from hybridbrdf.fitting import evaluate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
-from rgl_paper_comparison import PAPER, verdict  # noqa: E402
+from rgl_paper_comparison import PAPER, print_verdicts  # noqa: E402
 
 JOINT = ROOT / "results" / "rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
 
@@ -87,14 +87,11 @@ def main() -> int:
     print(f"metrics on {args.pairs} pairs, seed 7, negatives clamped; released = authors' model, joint = {JOINT.name}")
     print(f"{'material':24s} {'SMAPE':>8s} {'released':>8s} {'joint':>7s} {'cMAE':>9s} {'released':>9s} {'joint':>8s} "
           f"{'SMAPE(a)':>8s} {'cMAE(a)':>8s}  verdict (both metrics vs released)")
-    wins = cmae_wins = 0
-    for row, j, name in zip(rows, joint, PAPER):
-        ref = PAPER[name]
-        ok = row["smape"] < ref[0] and row["cmae"] < ref[2]
-        wins += ok
-        cmae_wins += row["cmae"] < ref[2]
-        print(f"{name[:24]:24s} {row['smape']:8.4f} {ref[0]:8.4f} {j['smape']:7.4f} {row['cmae']:9.5f} {ref[2]:9.5f} "
-              f"{j['cmae']:8.5f} {row['smape_analytic']:8.4f} {row['cmae_analytic']:8.5f}  {verdict(ok)}")
+    joint_of = dict(zip(PAPER, joint))
+    wins = print_verdicts(rows, PAPER, lambda name, row, ref: (
+        f"{name[:24]:24s} {row['smape']:8.4f} {ref[0]:8.4f} {joint_of[name]['smape']:7.4f} {row['cmae']:9.5f} "
+        f"{ref[2]:9.5f} {joint_of[name]['cmae']:8.5f} {row['smape_analytic']:8.4f} {row['cmae_analytic']:8.5f}"))
+    cmae_wins = sum(row["cmae"] < ref[2] for row, ref in zip(rows, PAPER.values()))
     mean = sum(r["cmae"] for r in rows) / len(rows)
     mean_joint = sum(r["cmae"] for r in joint) / len(joint)
     print(f"beats the released model on both metrics for {wins} of 5, on cMAE for {cmae_wins} of 5; "

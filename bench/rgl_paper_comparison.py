@@ -44,6 +44,18 @@ def verdict(ok: bool) -> str:
     return "beats" if ok else "DOES NOT beat"
 
 
+def print_verdicts(rows, names, columns) -> int:
+    """Prints, for each evaluated ``row`` of the PAPER material ``name``, ``columns(name, row, ref)``
+    (``ref``: the released model's row) and the verdict; returns how many rows beat theirs."""
+    wins = 0
+    for row, name in zip(rows, names):
+        ref = PAPER[name]
+        ok = beats_paper(row, ref)
+        wins += ok
+        print(f"{columns(name, row, ref)}  {verdict(ok)}")
+    return wins
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("model")
@@ -60,12 +72,9 @@ def main() -> int:
     print(f"reference: raw RGL .bsdf files; metrics on {args.pairs} pairs, seed 7, negatives clamped to 0")
     print(f"{'material':24s} {'SMAPE ours':>10s} {'paper':>7s} {'cMAE ours':>10s} {'paper':>8s}   "
           f"{'SMAPE ours(a)':>13s} {'paper(a)':>8s} {'cMAE ours(a)':>12s} {'paper(a)':>8s}  verdict")
-    wins = 0
-    for row, (name, ref) in zip(rows, PAPER.items()):
-        ok = beats_paper(row, ref)
-        wins += ok
-        print(f"{name[:24]:24s} {row['smape']:10.4f} {ref[0]:7.4f} {row['cmae']:10.5f} {ref[2]:8.5f}   "
-              f"{row['smape_analytic']:13.4f} {ref[1]:8.4f} {row['cmae_analytic']:12.5f} {ref[3]:8.5f}  {verdict(ok)}")
+    wins = print_verdicts(rows, PAPER, lambda name, row, ref: (
+        f"{name[:24]:24s} {row['smape']:10.4f} {ref[0]:7.4f} {row['cmae']:10.5f} {ref[2]:8.5f}   "
+        f"{row['smape_analytic']:13.4f} {ref[1]:8.4f} {row['cmae_analytic']:12.5f} {ref[3]:8.5f}"))
     mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
     paper = lambda k: sum(v[k] for v in PAPER.values()) / len(PAPER)  # noqa: E731
     print(f"{'mean':24s} {mean('smape'):10.4f} {paper(0):7.4f} {mean('cmae'):10.5f} {paper(2):8.5f}   "

@@ -35,16 +35,8 @@ from hybridbrdf.models import parse_mlp
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
-from rgl_paper_comparison import PAPER, beats_paper, verdict  # noqa: E402
-
-
-def collection_means(model) -> str:
-    """Mean SMAPE and cMAE of a network's own collection, from the metrics its fit recorded."""
-    met = [m["metrics"] for m in model.material_info if m.get("metrics")]
-    if not met:
-        return "no recorded metrics"
-    return (f"mean SMAPE {sum(x['smape'] for x in met) / len(met):.4f}, "
-            f"mean cMAE {sum(x['cmae'] for x in met) / len(met):.5f} over its {len(met)} materials")
+from model_metrics import collection_means  # noqa: E402
+from rgl_paper_comparison import PAPER, print_verdicts  # noqa: E402
 
 
 def main() -> int:
@@ -128,13 +120,10 @@ def main() -> int:
     print(f"metrics on {args.pairs} pairs, seed 7, negatives clamped; paper = authors' released model")
     print(f"{'material':24s} {'SMAPE':>8s} {'paper':>7s} {'cMAE':>9s} {'paper':>8s} {'SMAPE(a)':>9s} "
           f"{'cMAE(a)':>9s} {'cMAE(start)':>11s}  verdict")
-    wins = 0
-    for row, c0, name in zip(rows, start_cmae, left_out):
-        ref = PAPER[name]
-        ok = beats_paper(row, ref)
-        wins += ok
-        print(f"{name[:24]:24s} {row['smape']:8.4f} {ref[0]:7.4f} {row['cmae']:9.5f} {ref[2]:8.5f} "
-              f"{row['smape_analytic']:9.4f} {row['cmae_analytic']:9.5f} {c0:11.5f}  {verdict(ok)}")
+    start_of = dict(zip(left_out, start_cmae))
+    wins = print_verdicts(rows, left_out, lambda name, row, ref: (
+        f"{name[:24]:24s} {row['smape']:8.4f} {ref[0]:7.4f} {row['cmae']:9.5f} {ref[2]:8.5f} "
+        f"{row['smape_analytic']:9.4f} {row['cmae_analytic']:9.5f} {start_of[name]:11.5f}"))
     print(f"sparse-fitted hybrid beats the released model on both metrics for {wins} of {len(left_out)} materials")
     return 0
 

@@ -26,6 +26,9 @@ from hybridbrdf.fit_settings import FitSettings, parse_mlp
 from hybridbrdf.fitting import fit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+from model_metrics import collection_means  # noqa: E402
+
 FOLDERS = ("rgl", "nbrdf/rgl", "nbrdf/merl", "nbrdf/nielsen")
 
 
@@ -68,12 +71,10 @@ def main() -> int:
     model.training["prior"] = {"collection": list(folders), "left_out": sorted(args.leave_out)}
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     model.save(args.out)
-    met = [m["metrics"] for m in model.material_info]
     print(f"prior: {len(sources)} materials ({', '.join(folders)}; left out: {', '.join(args.leave_out) or 'none'}), "
           f"{args.mlp} ({args.output_layer} output layer), latent {args.latent}, {args.steps} steps x {args.batch} pairs per material, "
           f"{time.time() - t0:.0f} s (training {model.training['train_seconds']:.0f} s)")
-    print(f"its own fit (10^5 pairs): mean SMAPE {sum(m['smape'] for m in met) / len(met):.4f}, "
-          f"mean cMAE {sum(m['cmae'] for m in met) / len(met):.5f}")
+    print(f"its own fit (10^5 pairs): {collection_means(model)}")
     print(f"wrote {args.out}: {os.path.getsize(args.out):,} bytes")
     return 0
 
