@@ -22,6 +22,7 @@ from hybridbrdf.models import activation_fn, combine
 from hybridbrdf.random_model import random_model
 
 from helpers import compile_spirv, run_on_lavapipe, skip_without_vulkan
+from shader_kernels import render_shader
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 TABLE = json.loads((ROOT / "spec" / "activation_combine.json").read_text())
@@ -88,7 +89,8 @@ def test_pytorch_combine(rule):
 
 # ---- the generated dialects ----------------------------------------------------------------------
 # Each case is a model (an architecture, its activation and pre_exp_max) whose generated code a
-# kernel calls directly: out[0] = hbrdf_activation(in[0]), out[1] = hbrdf_combine(in[1..3]).
+# kernel (glsl/contract_table.comp.j2) calls directly: out[0] = hbrdf_activation(in[0]),
+# out[1] = hbrdf_combine(in[1..3]).
 CASES = [(rule, activation, bound) for rule in spec.COMBINES
          for activation, bound in zip(spec.ACTIVATIONS, (spec.PRE_EXP_MAX, spec.PRE_EXP_MAX_LIMIT))]
 
@@ -118,32 +120,6 @@ def combine_call(rule, o, g, fa):
         return f"hbrdf_combine({o}, {fa})"
     return f"hbrdf_combine({o})"
 
-
-GLSL_KERNEL = """#version 450
-#extension GL_GOOGLE_include_directive : require
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer In { float data_in[]; };
-layout(std430, binding = 1) writeonly buffer Out { float data_out[]; };
-#include "model.glsl"
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= NU) return;
-    data_out[2 * i] = hbrdf_activation(data_in[4 * i]);
-    data_out[2 * i + 1] = COMBINE;
-}
-"""
-
-HLSL_KERNEL = """#include "model.hlsl"
-RWStructuredBuffer<float> data_in : register(u0);
-RWStructuredBuffer<float> data_out : register(u1);
-[numthreads(64, 1, 1)]
-void main(uint3 id : SV_DispatchThreadID) {
-    uint i = id.x;
-    if (i >= NU) return;
-    data_out[2 * i] = hbrdf_activation(data_in[4 * i]);
-    data_out[2 * i + 1] = COMBINE;
-}
-"""
 
 CPP_DRIVER = """#include <cstdio>
 #include <vector>
@@ -181,9 +157,8 @@ def run_dialect(tmp_path, target, model, rule, inputs):
     ext = "glsl" if target == "glsl" else "hlsl"
     (tmp_path / f"model.{ext}").write_text(generate(model, target))
     call = combine_call(rule, "data_in[4 * i + 1]", "data_in[4 * i + 2]", "data_in[4 * i + 3]")
-    kernel = (GLSL_KERNEL if target == "glsl" else HLSL_KERNEL).replace("COMBINE", call).replace("NU", f"{n}u")
     src = tmp_path / ("kernel.comp" if target == "glsl" else "kernel.hlsl")
-    src.write_text(kernel)
+    src.write_text(render_shader(f"contract_table.comp.{ext}", include=f"model.{ext}", n=n, combine=call))
     spv = tmp_path / "kernel.spv"
     compile_spirv(src, spv, target, include_dir=tmp_path)
     return run_on_lavapipe(spv, inputs, out_floats=2)
