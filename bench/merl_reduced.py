@@ -171,11 +171,11 @@ def main() -> int:
     for (subset, label), (s, c, m, k) in table.items():
         print(f"{subset:10s} {label:8s} {s:8.4f} {c:9.5f} {m:11.5f} {k:8d}")
     ratio = table["held out", "sparse"][2] / table["held out", "full"][2]
-    print(f"held-out render MAE, sparse / full: {ratio:.3f} (issue 16: <= 1.15; the paper 0.0099 / 0.0087 = 1.14)")
+    print(f"held-out render MAE, sparse / full: {ratio:.3f} (target <= 1.15; the paper 0.0099 / 0.0087 = 1.14)")
     if args.refine:
         print(f"held-out render MAE, refined / full: {table['held out', 'refined'][2] / table['held out', 'full'][2]:.3f} "
-              f"(issue 36: <= 1.05); the trained half's, refined / its own network: "
-              f"{table['trained', 'refined'][2] / table['trained', 'sparse'][2]:.3f} (issue 36: within 5%)")
+              f"(target <= 1.05); the trained half's, refined / its own network: "
+              f"{table['trained', 'refined'][2] / table['trained', 'sparse'][2]:.3f} (target: within 5%)")
     return 0
 
 

@@ -74,7 +74,7 @@ RATIOS: List[Ratio] = [
           "a slowdown of every f_a kernel alike, which the ratios above cannot see (1.40 / 1.43; Zen 4 1.43)"),
     Ratio("hybrid 32x2 batched, AVX2 kernel: fraction of the AVX2 FMA peak",
           lambda r: r["rates"]["model_batch_avx2"] * r["flops_per_eval"] / (r["fma_peak_gflops"]["avx2_fma"] * 1e9),
-          0.45, "issue 18's target for the 32x2 on AVX2 (0.594 / 0.603; Zen 4: 0.552)"),
+          0.45, "the 32x2 on AVX2 reaches 0.59-0.60 on Zen 5, 0.55 on Zen 4 (docs/BENCHMARKS.md)"),
 ]
 
 

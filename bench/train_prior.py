@@ -40,8 +40,8 @@ def main() -> int:
     ap.add_argument("--latent", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--output-layer", choices=("shared", "material"), default="material",
-                    help="the network's output layer: one shared, or each material's own (issue 37; "
-                         "the prior shipped before it is 'shared')")
+                    help="the network's output layer: one shared, or each material's own (the shipped prior "
+                         "has material output layers; the one before it is 'shared')")
     ap.add_argument("--folders", default=",".join(FOLDERS),
                     help="folders of --shared to train on, comma-separated (default: %(default)s; "
                          "nbrdf/merl,nbrdf/nielsen: a prior that never saw an RGL material, for warm-start tests)")

@@ -50,7 +50,7 @@ MAX_JSON_DEPTH = 64
 MAX_NAME_LENGTH = 64
 #: Characters a material name may hold besides the ASCII letters and digits. Nothing that can end a comment, continue a line (backslash) or need quoting in a shell or a comma-separated --materials list.
 NAME_PUNCTUATION = '_.+-'
-#: The material-name rule in words, as both loaders and hbrdf fit state it. A name must also hold at least one letter or digit, and names must stay distinct once mapped to their shader constant HBRDF_MATERIAL_<NAME>: <NAME> is the name upper-cased with each run of other characters ('_', '.', '+', '-') turned into one '_' and none kept at either end ('a..b' gives A_B, '_a' gives A), so no constant holds '__', reserved in GLSL (an error in GLSL ES) and in C++. Changed in issue 33: before it, every such character became its own '_'.
+#: The material-name rule in words, as both loaders and hbrdf fit state it. A name must also hold at least one letter or digit, and names must stay distinct once mapped to their shader constant HBRDF_MATERIAL_<NAME>: <NAME> is the name upper-cased with each run of other characters ('_', '.', '+', '-') turned into one '_' and none kept at either end ('a..b' gives A_B, '_a' gives A), so no constant holds '__', reserved in GLSL (an error in GLSL ES) and in C++. (Format version 1 files written before this rule turned every such character into its own '_'.)
 NAME_RULE = '1 to 64 characters from A-Z a-z 0-9 _ . + -'
 #: Shading frames the neural baseline predicts from its latent code (t, b, n each: 6 raw values per frame).
 NEURAL_FRAMES = 3

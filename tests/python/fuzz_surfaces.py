@@ -1,4 +1,4 @@
-"""The surfaces of the standing fuzz suite (issue 20) and the invariant each must keep:
+"""The surfaces of the standing fuzz suite and the invariant each must keep:
 
     one-line error naming the input, or a valid result;
     no crash, no traceback, no hang, bounded memory, no file damaged.
@@ -388,7 +388,7 @@ SURFACES: Dict[str, Callable] = {
 }
 
 
-# ---- hostile inputs, round two (issue 33): special files, structured JSON, forged sizes, -o ----
+# ---- hostile inputs, round two: special files, structured JSON, forged sizes, -o ----
 #
 # Each generator below makes one input of a kind the byte and field mutations above rarely or
 # never reach; check_hostile() runs it under the invariant, in this process, and adds three

@@ -223,7 +223,7 @@ def _readme_main_job():
 
 
 def test_the_readme_main_job_prints_no_warning_and_ends_with_a_picture(tmp_path):
-    """A newcomer's first run (issue 35), shortened: the README's command with fewer steps. Its
+    """A newcomer's first run, shortened: the README's command with fewer steps. Its
     output holds no warning (Python's, PyTorch's or the project's), and it writes and names a PNG
     of the fitted materials next to the model."""
     words = _readme_main_job()

@@ -1,4 +1,4 @@
-"""Code generation under hostile input (issue 20): names, paths and scene keys never reach the
+"""Code generation under hostile input: names, paths and scene keys never reach the
 generated code raw, and codegen either writes code that compiles or stops with one line."""
 
 import json
@@ -195,7 +195,7 @@ def test_scene_errors_with_hostile_keys_stay_one_line(tmp_path, hostile_model_fi
     assert err.count("\n") == 1 and "\x1b" not in err, err
 
 
-# ---- issue 33: reserved identifiers, outputs over inputs, deep metadata ---------------------
+# ---- reserved identifiers, outputs over inputs, deep metadata ---------------------
 
 
 @pytest.mark.parametrize("name,constant", [

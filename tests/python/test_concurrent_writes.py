@@ -1,4 +1,4 @@
-"""Two processes writing the same output at once (issue 33): the result is one of the two
+"""Two processes writing the same output at once: the result is one of the two
 complete files, never a mix, and no temporary is left behind. Model files and checkpoints go
 through hybridbrdf.util.atomic_write_bytes (a temporary named by pid and 64 random bits, then a
 rename); images through the tracer's StagedFile (a temporary named by pid, then a rename)."""

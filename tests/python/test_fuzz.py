@@ -1,4 +1,4 @@
-"""The standing fuzz suite (issue 20), bounded for CI: Hypothesis drives every surface of
+"""The standing fuzz suite, bounded for CI: Hypothesis drives every surface of
 fuzz_surfaces.py with a fixed budget of examples (derandomized, so CI is reproducible), and
 each example must keep the invariant "one-line error naming the input, or a valid result; no
 crash, no traceback, no hang, bounded memory, no file damaged". bench/fuzz_scale.py runs the
@@ -194,7 +194,7 @@ def test_checkpoint_structure(tmp_path, seed_checkpoint, seed):
     fs.check_checkpoint(ckpt.encode(edited), tmp_path / "ck.pt", settings)
 
 
-# ---- hostile inputs, round two (issue 33) ------------------------------------------------------
+# ---- hostile inputs, round two ------------------------------------------------------
 # Every input below is invalid: each must be refused in one line naming the file, within
 # fs.HOSTILE_TIME_S and fs.MEMORY_BOUND (a reader that opens a FIFO unchecked fails the time
 # bound, one that reads /dev/zero the memory bound). bench/fuzz_scale.py runs the same at scale.

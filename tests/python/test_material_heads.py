@@ -1,4 +1,4 @@
-"""Material output layers (spec/model.json, output_layers "material"; issue 37): each material
+"""Material output layers (spec/model.json, output_layers "material"): each material
 evaluates with its own output layer, in every implementation, and keeps it through edits,
 blends and sparse fits.
 

@@ -275,7 +275,7 @@ def test_the_library_raises_the_packages_model_file_error(tmp_path):
     str(err.value).encode("utf-8", "surrogateescape")  # printable: no raw bytes that could not be shown
 
 
-# ---- the file's size, checked before its data is read (issue 33) -------------------------
+# ---- the file's size, checked before its data is read -------------------------
 
 _MEMORY_PROBE = r"""
 import resource, sys

@@ -1,4 +1,4 @@
-"""Model files from careless or hostile hands (issue 20): the free-form records of a valid file
+"""Model files from careless or hostile hands: the free-form records of a valid file
 never crash `hbrdf info`, damaged bytes give one printable line from both loaders, and weights
 that could overflow float32 are refused before any evaluation."""
 

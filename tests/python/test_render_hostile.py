@@ -194,7 +194,7 @@ def _peak_resident_growth(growth):
 
 
 def test_tabulated_tables_over_the_budget_are_refused_before_any_is_built(tmp_path):
-    # 100 materials at 1 degree would be ~21 GB and half an hour of building (issue 33): refused at
+    # 100 materials at 1 degree would be ~21 GB and half an hour of building: refused at
     # load, from the table sizes, before the first table: within half a second, and the peak
     # resident memory rises by less than 100 MB (one table alone is 210 MB).
     path = tmp_path / "many.json"
@@ -382,7 +382,7 @@ def test_a_measured_factory_error_is_one_line():
     assert str(info.value).startswith("<scene dict>: materials.m.source: [Errno 2] No such file or directory: ")
 
 
-# ---- issue 33: outputs that are inputs, special and deeply nested scene files --------------
+# ---- outputs that are inputs, special and deeply nested scene files --------------
 
 
 def _scene_with_files(tmp_path):
@@ -452,7 +452,7 @@ def test_a_scene_nested_5000_levels_is_one_line(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["deep.json"]
 
 
-# ---- environment maps and meshes that lie, or are not files (issue 33) --------------------
+# ---- environment maps and meshes that lie, or are not files --------------------
 
 HDR_HEADER = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n"
 

@@ -1,4 +1,4 @@
-"""Hostile input through the generated GLSL and HLSL under lavapipe (issue 20): every generated
+"""Hostile input through the generated GLSL and HLSL under lavapipe: every generated
 function that takes directions (hbrdf_eval, hbrdf_eval_analytic, hbrdf_eval_depth, hbrdf_pdf,
 hbrdf_sample) on the adversarial directions -- the shared table tests/data/hard_directions.json
 crossed with itself, more of the same kinds (1e30, 1e-30, grazing z <= 1e-4, z = -0 and slightly

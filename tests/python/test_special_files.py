@@ -1,4 +1,4 @@
-"""Hostile input, round two (issue 33): special files and endless inputs.
+"""Hostile input, round two: special files and endless inputs.
 
 Every file the Python side opens as input is checked before it is read (hybridbrdf.inputs): a
 FIFO, a device (a symlink to /dev/zero or /dev/urandom), a folder, or a file larger than its

@@ -1,8 +1,8 @@
 """The batched kernels' hot loops vectorise, by the compiler's own report.
 
 f_a's batched kernel once ran 7x slower with every test green: a refactor made GCC
-copy a struct as an aggregate inside the loop body, and the loop stopped vectorising
-(issue 34). Speed is guarded by bench/speed_guard.py (ratios measured in one run); this test
+copy a struct as an aggregate inside the loop body, and the loop stopped vectorising.
+Speed is guarded by bench/speed_guard.py (ratios measured in one run); this test
 names the cause. It compiles the kernels' translation units with the library's flags and
 GCC's ``-fopt-info-vec-optimized`` and requires, for each loop marked
 ``// vectorises: NAME`` in the source, a "loop vectorized" line at that loop for every vector

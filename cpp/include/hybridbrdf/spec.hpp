@@ -81,8 +81,8 @@ inline constexpr const char* kNamePunctuation = "_.+-";
 /// at least one letter or digit, and names must stay distinct once mapped to their shader constant
 /// HBRDF_MATERIAL_<NAME>: <NAME> is the name upper-cased with each run of other characters ('_',
 /// '.', '+', '-') turned into one '_' and none kept at either end ('a..b' gives A_B, '_a' gives A),
-/// so no constant holds '__', reserved in GLSL (an error in GLSL ES) and in C++. Changed in issue
-/// 33: before it, every such character became its own '_'.
+/// so no constant holds '__', reserved in GLSL (an error in GLSL ES) and in C++. (Format version 1
+/// files written before this rule turned every such character into its own '_'.)
 inline constexpr const char* kNameRule = "1 to 64 characters from A-Z a-z 0-9 _ . + -";
 /// Shading frames the neural baseline predicts from its latent code (t, b, n each: 6 raw values per
 /// frame).
