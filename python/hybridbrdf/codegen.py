@@ -38,7 +38,7 @@ from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model_file import HybridModel, load_model
 from hybridbrdf.util import atomic_write_bytes, check_writable
 
-TARGETS = ("glsl", "hlsl", "cpp", "brdfexplorer")
+TARGETS = ("glsl", "hlsl", "slang", "wgsl", "cpp", "brdfexplorer")
 
 # Re-exported: the names callers have imported from here since before the split.
 __all__ = ["DIALECTS", "MLP_FORMS", "NO_DEPTH_LIMIT", "TARGETS", "check_material_selection", "comment_text",

@@ -1,6 +1,6 @@
 """The literals of generated code: float and contract constants, comments, material constant
-names, and the dialect table that holds what differs between GLSL, HLSL and C++ (vector types,
-constant and array syntax, out-parameters, the C++ prelude). Every value the template prints goes
+names, and the dialect table that holds what differs between GLSL, HLSL, Slang, WGSL and C++ (vector
+types, declarations, constant and array syntax, selection, loops, out-parameters, the C++ prelude). Every value the template prints goes
 through here, so that each dialect reads back the same float32."""
 
 from __future__ import annotations
@@ -106,27 +106,145 @@ inline float3 cross(const float3 a, const float3 b) {
 }
 """
 
+# ---- declarations and statements, per dialect ---------------------------------------------------
+# The template writes declarations in one abstract form, "[const|out] TYPE NAME[N]" with TYPE one of
+# float, int, uint, bool, v3, v2 or HbrdfMaterial, and each dialect turns it into its own syntax:
+# "const v3 wi" is GLSL's "const vec3 wi", HLSL's "const float3 wi", WGSL's "wi: vec3f".
+
+
+def _parse_decl(text: str):
+    """("const"/"out"/None, type, name, array length or None) of "[const|out] TYPE NAME[N]"."""
+    words = text.split()
+    qualifier = words[0] if words[0] in ("const", "out") else None
+    typ, name = words[-2], words[-1]
+    n = None
+    if name.endswith("]"):
+        name, n = name[:-1].split("[")
+    return qualifier, typ, name, n
+
+
+def _c_like(v3: str, v2: str, uint: str, const: str, fn: str, out_array: str, out_float):
+    """Declarations and statements of the C-like dialects (GLSL, HLSL, Slang, C++)."""
+    types = {"v3": v3, "v2": v2, "uint": uint}
+
+    def decl(text: str) -> str:
+        qualifier, typ, name, n = _parse_decl(text)
+        return (f"{qualifier} " if qualifier == "const" else "") + f"{types.get(typ, typ)} {name}" + (
+            f"[{n}]" if n is not None else "")
+
+    def param(text: str) -> str:
+        qualifier, typ, name, n = _parse_decl(text)
+        if qualifier == "out":
+            return out_float(name) if n is None else f"{out_array}{decl(text[4:])}"
+        return decl(text)
+
+    return {"decl": decl, "let": decl, "var": decl, "constant": lambda t: f"{const} {decl(t)}",
+            "field": lambda t: f"{decl(t)};",
+            "func": lambda ret, name, *params: f"{fn}{types.get(ret, ret)} {name}({', '.join(param(p) for p in params)})",
+            "sel": lambda cond, t, f: f"{cond} ? {t} : {f}",
+            "for_": lambda k, n: f"for (int {k} = 0; {k} < {n}; ++{k})",
+            "block": lambda s: s, "deref": lambda n: n, "ref": lambda n: n,
+            "immutable_params": False, "returns_arrays": False, "half_to_float": ""}
+
+
+_WGSL_TYPES = {"float": "f32", "int": "i32", "uint": "u32", "bool": "bool", "v3": "vec3f", "v2": "vec2f"}
+
+
+def _wgsl_type(typ: str, n=None) -> str:
+    t = _WGSL_TYPES.get(typ, typ)
+    return t if n is None else f"array<{t}, {n}>"
+
+
+def _wgsl_name_type(text: str) -> str:
+    _, typ, name, n = _parse_decl(text)
+    return f"{name}: {_wgsl_type(typ, n)}"
+
+
+def _wgsl_param(text: str) -> str:
+    qualifier, typ, name, n = _parse_decl(text)
+    if qualifier == "out":  # no out parameters: a pointer to the caller's variable
+        return f"{name}: ptr<function, {_wgsl_type(typ, n)}>"
+    return f"{name}: {_wgsl_type(typ, n)}"
+
+
+def _wgsl_func(ret: str, name: str, *params: str) -> str:
+    """``fn name(p: T, ...) -> R``; ``ret`` "void", a type, or "float[N]" (an array returned by value)."""
+    if ret.endswith("]"):
+        typ, n = ret[:-1].split("[")
+        ret_type = _wgsl_type(typ, n)
+    else:
+        ret_type = None if ret == "void" else _wgsl_type(ret)
+    return f"fn {name}({', '.join(_wgsl_param(p) for p in params)})" + (f" -> {ret_type}" if ret_type else "")
+
+
+def _wgsl_array(n: int, values) -> str:
+    return f"array<f32, {n}>(" + ", ".join(float_literal(v) for v in values) + ")"
+
+
+# Slang's f16tof32 becomes 16-bit integer and float types in SPIR-V (capabilities Int16 and Float16,
+# which many Vulkan devices, lavapipe among them, do not enable); this exact conversion uses none.
+# Binary16 subnormals (exponent 0) are m * 2^-24, computed in float32 without a subnormal
+# intermediate; normal values move their exponent from bias 15 to 127 (Inf/NaN never occur:
+# --precision fp16 refuses weights beyond the half range).
+SLANG_HALF_TO_FLOAT = """// IEEE binary16 (low 16 bits of h) to float, exactly, without 16-bit types; used for fp16 weights.
+float hbrdf_half_to_float(uint h) {
+    uint a = h & 0x7fffu;
+    float magnitude = a < 0x400u ? float(a) * 5.96046448e-8f : asfloat((a << 13) + 0x38000000u);
+    return (h & 0x8000u) != 0u ? -magnitude : magnitude;
+}
+"""
+
 DIALECTS: Dict[str, Dict[str, object]] = {
     "glsl": {"name": "GLSL 4.50", "comment": "//", "prelude": "", "epilogue": "", "v3": "vec3", "v2": "vec2",
              "const": "const", "fn": "", "out_array": "out ", "out_float": lambda n: f"out float {n}",
              "unused": lambda n: "",
              "array": _glsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "uint",
              "uint_array": lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
-             "weight": lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]"},
+             "weight": lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]",
+             **_c_like("vec3", "vec2", "uint", "const", "", "out ", lambda n: f"out float {n}")},
     "hlsl": {"name": "HLSL (Shader Model 5+, glslang/DXC)", "comment": "//", "prelude": "", "epilogue": "",
              "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
              "unused": lambda n: "",
              "out_float": lambda n: f"out float {n}", "array": _brace_array,
              "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
              "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
-             "weight": lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))"},
+             "weight": lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))",
+             **_c_like("float3", "float2", "uint", "static const", "", "out ", lambda n: f"out float {n}")},
+    # Slang reads HLSL: the same text but for fp16 weights, widened without 16-bit types.
+    "slang": {"name": "Slang (slangc)", "comment": "//", "prelude": "", "epilogue": "",
+              "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
+              "unused": lambda n: "",
+              "out_float": lambda n: f"out float {n}", "array": _brace_array,
+              "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
+              "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
+              "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))",
+              **_c_like("float3", "float2", "uint", "static const", "", "out ", lambda n: f"out float {n}"),
+              "half_to_float": SLANG_HALF_TO_FLOAT},
     "cpp": {"name": "C++17, dependency-free", "comment": "//", "prelude": CPP_PRELUDE,
             "epilogue": "}  // namespace hbrdf", "v3": "float3", "v2": "float2", "const": "inline constexpr",
             "fn": "inline ", "out_array": "", "out_float": lambda n: f"float& {n}", "array": _brace_array,
             "unused": lambda n: f"(void){n}; ",  # a parameter the code ignores, without -Wunused-parameter
             "struct_open": lambda t: "{", "struct_close": "}", "uint": "unsigned",
             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
-            "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))"},
+            "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))",
+            **_c_like("float3", "float2", "unsigned", "inline constexpr", "inline ", "", lambda n: f"float& {n}")},
+    # WGSL (WebGPU): no ?: (select(false, true, cond), both evaluated), no out parameters (a pointer,
+    # or an array returned by value), immutable parameters, let/var/const with the type after the
+    # name, braces on every body, no implicit conversions. fp16 weights need no f16 type (no
+    # `enable f16;`): unpack2x16float widens the packed halves.
+    "wgsl": {"name": "WGSL (WebGPU)", "comment": "//", "prelude": "", "epilogue": "", "v3": "vec3f", "v2": "vec2f",
+             "const": "const", "fn": "fn ", "out_array": "", "out_float": lambda n: f"{n}: ptr<function, f32>",
+             "unused": lambda n: "",
+             "array": _wgsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "u32",
+             "uint_array": lambda n, v: f"array<u32, {n}>(" + _hex_list(v) + ")",
+             "weight": lambda a, i: f"unpack2x16float({a}[({i}) >> 1u])[({i}) & 1]",
+             "decl": _wgsl_name_type, "let": lambda t: "let " + _wgsl_name_type(t),
+             "var": lambda t: "var " + _wgsl_name_type(t), "constant": lambda t: "const " + _wgsl_name_type(t),
+             "field": lambda t: _wgsl_name_type(t) + ",", "func": _wgsl_func,
+             "sel": lambda cond, t, f: f"select({f}, {t}, {cond})",
+             "for_": lambda k, n: f"for (var {k}: i32 = 0; {k} < {n}; {k}++)",
+             "block": lambda s: "{ " + s + " }", "deref": lambda n: f"(*{n})", "ref": lambda n: f"&{n}",
+             "immutable_params": True, "returns_arrays": True, "half_to_float": ""},
 }
 
 

@@ -5,7 +5,7 @@ the statements of the unrolled form (weights as literals, one statement per neur
 
 from __future__ import annotations
 
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -14,10 +14,15 @@ from hybridbrdf.codegen_literals import float_literal, half_pairs
 from hybridbrdf.model_file import HybridModel
 
 
-def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool = False) -> List[str]:
+def _c_declaration(text: str) -> str:
+    return text
+
+
+def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool = False,
+                   let: Callable[[str], str] = _c_declaration) -> List[str]:
     """Statements of one fully connected layer with its weights as literals:
     ``float h<index>_<j> = hbrdf_activation(b + w * x + ...);`` (``o[j] = ...`` for the
-    output layer). Inputs are ``x[k]`` for the first layer and the previous layer's
+    output layer); ``let`` is the dialect's declaration of "float NAME" (WGSL: ``let NAME: f32``). Inputs are ``x[k]`` for the first layer and the previous layer's
     ``h`` otherwise; exactly-zero weights are left out (the inputs are finite).
     ``fp16`` rounds the weights (not the bias) to binary16 first."""
     n_in, n_out = layer["n_in"], layer["n_out"]
@@ -33,7 +38,7 @@ def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool 
             if w[j, k] != 0.0:
                 terms.append(f"{'-' if w[j, k] < 0 else '+'} {float_literal(abs(w[j, k]))} * {inputs[k]}")
         expr = " ".join(terms)
-        lines.append(f"o[{j}] = {expr};" if last else f"float h{index}_{j} = hbrdf_activation({expr});")
+        lines.append(f"o[{j}] = {expr};" if last else f"{let(f'float h{index}_{j}')} = hbrdf_activation({expr});")
     return lines
 
 
@@ -78,14 +83,15 @@ def _layer(weight, bias) -> Dict[str, Any]:
 
 
 def network_layers(model: HybridModel, names: Sequence[str], *, fold_latent: bool, analytic_only: bool,
-                   literal_head: Optional[str], precision: str, unrolled: bool
-                   ) -> Tuple[List[Dict[str, Any]], bool, int, int]:
+                   literal_head: Optional[str], precision: str, unrolled: bool,
+                   let: Callable[[str], str] = _c_declaration) -> Tuple[List[Dict[str, Any]], bool, int, int]:
     """The layers the template writes for ``model``'s materials ``names``: ``(layers,
     head_in_material, n_in, latent_in)``, each layer ``{"n_in", "n_out", "weight", "bias",
     "weight_half_pairs", "unrolled"}``. ``head_in_material``: the output layer is each material's
     own, read from HbrdfMaterial (then not among ``layers``); ``n_in``/``latent_in``: the first
     layer's inputs and the latent ones among them (0 with ``fold_latent``, where the one
-    material's latent inputs are constants and W0[:, z] z joins the first bias)."""
+    material's latent inputs are constants and W0[:, z] z joins the first bias). ``let``: the
+    dialect's declaration of the unrolled form's "float NAME" (codegen_literals.DIALECTS)."""
     a, t = model.arch, model.tensors
     latent = a["latent"]
     layers = [_layer(t[f"mlp.hidden.{i}.weight"], t[f"mlp.hidden.{i}.bias"]) for i in range(a["depth"])]
@@ -115,5 +121,5 @@ def network_layers(model: HybridModel, names: Sequence[str], *, fold_latent: boo
     for i, layer in enumerate(layers):
         layer["weight_half_pairs"] = half_pairs(layer["weight"])
         layer["unrolled"] = (unrolled_layer(layer, i, i == len(layers) - 1 and not head_in_material,
-                                            precision == "fp16") if unrolled else [])
+                                            precision == "fp16", let) if unrolled else [])
     return layers, head_in_material, n_in, latent_in

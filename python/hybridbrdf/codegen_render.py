@@ -1,4 +1,4 @@
-"""The source of a model for one dialect (GLSL, HLSL or C++): ``codegen/hbrdf.j2`` rendered
+"""The source of a model for one dialect (GLSL, HLSL, Slang, WGSL or C++): ``codegen/hbrdf.j2`` rendered
 with the model's network, its materials' constants and the scene's specialisation."""
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
                     model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
                     precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None) -> str:
     """:func:`hybridbrdf.codegen.generate` for the dialects of :data:`DIALECTS` (glsl, hlsl,
-    cpp). ``literal_head`` (a material's name) writes that material's output layer as literals
+    slang, wgsl, cpp). ``literal_head`` (a material's name) writes that material's output layer as literals
     even without a scene, as BRDF Explorer files do."""
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(DIALECTS)}")
@@ -81,7 +81,8 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
     a, t = model.arch, model.tensors
     layers, head_in_material, n_in, latent_in = network_layers(
         model, plan.names, fold_latent=plan.fold_latent, analytic_only=plan.analytic_only,
-        literal_head=literal_head, precision=precision, unrolled=unrolled)
+        literal_head=literal_head, precision=precision, unrolled=unrolled,
+        let=DIALECTS[target]["let"])
     # The neural baseline's network predicts shading frames from the latent code (spec: 'frames').
     predicts_frames = spec.ARCHS[model.kind]["directions"] == "frames"
     return template("hbrdf.j2").render(

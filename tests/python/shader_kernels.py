@@ -2,8 +2,10 @@
 shared by the shader tests and the benchmarks: not part of the installed library. Benchmarks
 import it with ``sys.path.insert(0, str(ROOT / "tests" / "python"))``.
 
-Each kernel is one Jinja2 source, ``glsl/<kernel>.comp.j2``, written once for both dialects:
-:func:`render_shader` renders ``<kernel>.comp.glsl`` or ``<kernel>.comp.hlsl`` from it."""
+Each kernel is one Jinja2 source, ``glsl/<kernel>.comp.j2``, written once for every dialect:
+:func:`render_shader` renders ``<kernel>.comp.glsl``, ``.hlsl``, ``.slang`` (the HLSL form, which
+slangc reads) or ``.wgsl`` from it. WGSL has no ``#include``: its kernels take the generated
+code itself (``model_code``) and put it first."""
 
 from __future__ import annotations
 
@@ -13,22 +15,26 @@ from typing import Optional
 
 import jinja2
 
-from hybridbrdf.codegen_literals import material_constant
+from hybridbrdf.codegen_literals import DIALECTS, material_constant
 
 SHADER_DIR = pathlib.Path(__file__).resolve().parents[2] / "glsl"
 
-#: What differs between the kernels' two dialects (the generated code's own table is
-#: hybridbrdf.codegen_literals.DIALECTS).
-KERNEL_DIALECTS = {"glsl": {"v3": "vec3", "v2": "vec2"}, "hlsl": {"v3": "float3", "v2": "float2"}}
+#: What differs between the kernels' dialects: the vector types, and the generated code's own
+#: declarations (let, var) and out-argument (ref: &pdf in WGSL) from hybridbrdf.codegen_literals.DIALECTS.
+KERNEL_DIALECTS = {t: {"v3": DIALECTS[t]["v3"], "v2": DIALECTS[t]["v2"],
+                       **{k: DIALECTS[t][k] for k in ("let", "var", "ref")}}
+                   for t in ("glsl", "hlsl", "slang", "wgsl")}
+#: The file name of the kernel source each dialect's compiler reads.
+KERNEL_FILE = {"glsl": "wrap.comp", "hlsl": "wrap.hlsl", "slang": "wrap.slang", "wgsl": "wrap.wgsl"}
 
 
 def render_shader(name: str, **values) -> str:
-    """The kernel ``<kernel>.comp.<glsl|hlsl>`` rendered from ``glsl/<kernel>.comp.j2`` with
+    """The kernel ``<kernel>.comp.<glsl|hlsl|slang|wgsl>`` rendered from ``glsl/<kernel>.comp.j2`` with
     its template variables set from ``values``; a variable left unset is an error, not an empty
     string."""
     stem, _, target = name.rpartition(".")
     if target not in KERNEL_DIALECTS or not stem.endswith(".comp"):
-        raise ValueError(f"render_shader: expected <kernel>.comp.glsl or <kernel>.comp.hlsl, got {name!r}")
+        raise ValueError(f"render_shader: expected <kernel>.comp.<{'|'.join(KERNEL_DIALECTS)}>, got {name!r}")
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(SHADER_DIR)), undefined=jinja2.StrictUndefined,
                              trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
                              autoescape=False)
@@ -36,7 +42,7 @@ def render_shader(name: str, **values) -> str:
 
 
 def eval_compute_shader(function: str, material_constant_name: str, include: str, target: str = "glsl",
-                        n: Optional[int] = None, directions: str = "buffer") -> str:
+                        n: Optional[int] = None, directions: str = "buffer", model_code: Optional[str] = None) -> str:
     """A compute shader (64 invocations per workgroup, GLSL or HLSL for glslang's HLSL front end)
     that includes the generated file ``include`` and writes ``function(wi, wo, MATERIAL)``
     (hbrdf_eval or hbrdf_eval_analytic) for pairs read from binding 0 (6 floats each) to
@@ -48,9 +54,11 @@ def eval_compute_shader(function: str, material_constant_name: str, include: str
     in the shader from a hash of its index instead of reading it (glsl/eval_synthetic.comp.j2):
     under lavapipe the per-lane buffer loads are a sizeable share of a small network's evaluation
     time (docs/CODEGEN.md), which is the harness's cost, not the BRDF's. There ``function`` may
-    also be "hbrdf_harness_only" (the kernel without the BRDF)."""
-    if target not in ("glsl", "hlsl"):
-        raise ValueError(f"eval_compute_shader: target must be glsl or hlsl, got {target!r}")
+    also be "hbrdf_harness_only" (the kernel without the BRDF).
+
+    Slang kernels are the HLSL form; WGSL ones start with ``model_code`` (WGSL has no #include)."""
+    if target not in KERNEL_DIALECTS:
+        raise ValueError(f"eval_compute_shader: target must be one of {', '.join(KERNEL_DIALECTS)}, got {target!r}")
     if directions not in ("buffer", "synthetic"):
         raise ValueError(f"eval_compute_shader: directions must be buffer or synthetic, got {directions!r}")
     if directions == "synthetic":
@@ -58,18 +66,20 @@ def eval_compute_shader(function: str, material_constant_name: str, include: str
             raise ValueError("eval_compute_shader: synthetic directions are GLSL only and take no pair count")
         return render_shader("eval_synthetic.comp.glsl", include=include, function=function,
                              material=material_constant_name, n=None)
+    extra = {"model_code": model_code} if target == "wgsl" else {}
     return render_shader(f"eval.comp.{target}", include=include, function=function,
-                         material=material_constant_name, n=n)
+                         material=material_constant_name, n=n, **extra)
 
 
 def every_function_shader(tmp_path, target, model_code, material):
     """glsl/every_function.comp.j2 around the generated ``model_code`` (written to
-    tmp_path/model.<target>), as tmp_path/wrap.comp or wrap.hlsl: compiling it compiles every
-    generated function."""
+    tmp_path/model.<target>), as tmp_path/wrap.comp, .hlsl, .slang or .wgsl (KERNEL_FILE):
+    compiling it compiles every generated function."""
     (tmp_path / f"model.{target}").write_text(model_code)
-    src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
+    src = tmp_path / KERNEL_FILE[target]
+    extra = {"model_code": model_code} if target == "wgsl" else {}
     src.write_text(render_shader(f"every_function.comp.{target}", include=f"model.{target}",
-                                 material=material_constant(material)))
+                                 material=material_constant(material), **extra))
     return src
 
 

@@ -1,0 +1,177 @@
+"""The Slang and WGSL targets (`hbrdf-codegen --target slang|wgsl`, docs/CODEGEN.md) compiled by
+their real compilers and run under lavapipe against libhybridbrdf:
+
+- Slang: slangc (PyPI slangtorch's) to SPIR-V, spirv-val, hbrdf_vk_runner with the validation layer;
+- WGSL: naga (PyPI wgpu's wgpu-native) parses and validates it, wgpu runs it on lavapipe.
+
+Every generated function that takes directions (hbrdf_eval, hbrdf_eval_analytic, hbrdf_eval_depth,
+hbrdf_pdf, hbrdf_sample; glsl/all_outputs.comp.j2) on cosine-weighted pairs, the hard-case table
+crossed with itself (helpers.hard_pairs) and the hostile directions and sample numbers of
+test_shader_hostile.py, for every architecture of the spec (the cases of
+test_shader_conformance.py, material output layers included), both network forms, fp16 weights and
+scene-specialised code, checked as test_shader_hostile.py checks GLSL and HLSL (1e-4 relative where
+|ref| > 1e-6, zeros in the same places, nothing non-finite or negative). Material names that are
+keywords of WGSL or Slang, or use every character the name rule allows, compile in every dialect.
+The contract table (hbrdf_activation, hbrdf_combine) is test_contract_table.py's."""
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from hybridbrdf import spec
+from hybridbrdf.codegen import generate, main as codegen_main, material_constant
+from hybridbrdf.directions import cosine_directions
+from hybridbrdf.random_model import random_model
+
+from helpers import compile_spirv, half_rounded_copy, hard_pairs, run_on_lavapipe, saved_random_model
+from helpers import skip_without_vulkan
+from shader_kernels import KERNEL_FILE, every_function_shader, render_shader
+from slang_wgsl_tools import compile_slang, run_wgsl, skip_without_slang, skip_without_wgpu, wgsl_errors
+from test_shader_conformance import CASES, HEADS, NEURAL, PAPER
+from test_shader_hostile import adversarial_inputs, check_outputs, library_outputs
+
+skip_without_vulkan(allow_module_level=True)
+
+TARGETS = ["slang", "wgsl"]
+
+
+def skip_without(target):
+    (skip_without_slang if target == "slang" else skip_without_wgpu)()
+
+
+def run_all_outputs(tmp_path, target, model, material, wi, wo, u, **generate_options):
+    """glsl/all_outputs.comp.j2 around the Slang or WGSL of ``model``: (n, 17) outputs
+    (test_shader_hostile.OUT)."""
+    code = generate(model, target, **generate_options)
+    (tmp_path / f"model.{target}").write_text(code)
+    extra = {"model_code": code} if target == "wgsl" else {}
+    kernel = render_shader(f"all_outputs.comp.{target}", include=f"model.{target}",
+                           material=material_constant(material), n=len(wi), **extra)
+    inputs = np.concatenate([wi, wo, u], axis=1)
+    if target == "wgsl":
+        return run_wgsl(kernel, inputs, out_floats=17)
+    src = tmp_path / KERNEL_FILE[target]
+    src.write_text(kernel)
+    spv = tmp_path / "shader.spv"
+    compile_slang(src, spv, include_dir=tmp_path)
+    return run_on_lavapipe(spv, inputs, out_floats=17)
+
+
+def conformance_inputs(n_cosine, seed):
+    """(wi, wo, u) float32: cosine-weighted pairs with uniform u, then the hard-case table crossed
+    with itself and the hostile directions and sample numbers of test_shader_hostile.py."""
+    rng = np.random.default_rng(seed)
+    hwi, hwo = hard_pairs()
+    awi, awo, au = adversarial_inputs(n_random=1000, seed=seed)
+    wi = np.concatenate([cosine_directions(rng, n_cosine), hwi, awi]).astype(np.float32)
+    wo = np.concatenate([cosine_directions(rng, n_cosine), hwo, awo]).astype(np.float32)
+    u = np.concatenate([rng.random((n_cosine + len(hwi), 2)), au]).astype(np.float32)
+    return wi, wo, u
+
+
+# The cases of test_shader_conformance.py (the paper's 32x3, every architecture of the spec at
+# 16x2, material output layers) in the unrolled form, and the loops form on three of them.
+FORMS = [(case, "unrolled") for case in CASES] + [(PAPER, "loops"), (NEURAL, "loops"), (HEADS, "loops")]
+
+
+@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("case,mlp_form", FORMS, ids=[f"{'-'.join(map(str, c))}-{f}" for c, f in FORMS])
+def test_every_output_matches_the_library(tmp_path, case, mlp_form, target):
+    skip_without(target)
+    arch, activation, width, depth, output_layer = (tuple(case) + ("shared",))[:5]
+    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer)
+    wi, wo, u = conformance_inputs(30_000, seed=31)
+    material = 1  # the anisotropic one
+    out = run_all_outputs(tmp_path, target, model, model.materials[material], wi, wo, u, mlp_form=mlp_form)
+    ref, p = library_outputs(path, model, material, wi, wo, u)
+    check_outputs(out, ref, p, wi, wo, u, arch)
+
+
+@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("mlp_form", ["unrolled", "loops"])
+def test_fp16_weights_match_the_half_rounded_model(tmp_path, mlp_form, target):
+    """--precision fp16: literals rounded to binary16 (unrolled) or halves packed two per 32-bit
+    word (loops: Slang widens them with integer operations, WGSL with unpack2x16float; neither
+    needs 16-bit types nor WGSL's f16 extension)."""
+    skip_without(target)
+    _, model = random_model("hybrid", width=32, depth=2, isotropic=[True, False, True])
+    model.save(tmp_path / "m.safetensors")
+    half = half_rounded_copy(model, tmp_path / "half.safetensors")
+    wi, wo, u = conformance_inputs(20_000, seed=32)
+    out = run_all_outputs(tmp_path, target, model, model.materials[1], wi, wo, u, precision="fp16", mlp_form=mlp_form)
+    ref, p = library_outputs(tmp_path / "half.safetensors", half, 1, wi, wo, u)
+    check_outputs(out, ref, p, wi, wo, u, "hybrid")
+
+
+# Scene-specialised code: isotropic-only GGX, a mixed scene's analytic_only flag,
+# HBRDF_NEURAL_MAX_DEPTH = 1, and one material's latent code folded into the first layer.
+SCENES = {"mixed": ([("mat-0", "full"), ("mat-2", "analytic")], 1), "single": ([("mat-0", "full")], None)}
+
+
+@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_scene_specialised_code_matches_the_library(tmp_path, scene, target):
+    skip_without(target)
+    path, model = saved_random_model(tmp_path, "hybrid", "hardgelu", 16, 2)
+    materials, depth = SCENES[scene]
+    plan = {"name": scene, "materials": [{"name": n, "evaluate": e} for n, e in materials], "neural_max_depth": depth}
+    wi, wo, u = conformance_inputs(10_000, seed=33)
+    for name, evaluate in materials:
+        work = tmp_path / name
+        work.mkdir()
+        out = run_all_outputs(work, target, model, name, wi, wo, u, scene=plan)
+        analytic_at = ("eval", "depth0", "depth_max") if evaluate == "analytic" else (
+            ("depth_max",) if depth is not None else ())
+        ref, p = library_outputs(path, model, model.index(name), wi, wo, u, analytic_at)
+        check_outputs(out, ref, p, wi, wo, u, "hybrid")
+
+
+# Names reach the code only as HBRDF_MATERIAL_<NAME> constants and in comments: keywords of WGSL
+# and Slang, and a name with every character the rule allows, compile in every dialect.
+KEYWORD_NAMES = ["var", "let", "fn", "override", "struct"]
+PUNCTUATION_NAME = "a" + "b".join(spec.NAME_PUNCTUATION) + "Z9" + spec.NAME_PUNCTUATION
+
+
+@pytest.mark.parametrize("target", ["glsl", "hlsl", "cpp", "slang", "wgsl"])
+def test_keyword_and_punctuation_names_compile_in_every_dialect(tmp_path, target):
+    if target in TARGETS:
+        skip_without(target)
+    _, model = random_model("hybrid", n=len(KEYWORD_NAMES) + 1, width=8, depth=1)
+    for info, name in zip(model.material_info, KEYWORD_NAMES + [PUNCTUATION_NAME]):
+        info["name"] = name
+    assert model.materials == KEYWORD_NAMES + [PUNCTUATION_NAME]
+    code = generate(model, target)
+    for name in model.materials:
+        assert material_constant(name) in code
+    if target == "cpp":
+        (tmp_path / "model.h").write_text(code)
+        (tmp_path / "use.cpp").write_text('#include "model.h"\nfloat use() { return '
+                                          + " + ".join(f"hbrdf::{material_constant(n)}.alpha_x" for n in model.materials)
+                                          + "; }\n")
+        r = subprocess.run(["g++", "-std=c++17", "-fsyntax-only", "-Wall", "-Wextra", "-Werror", "-I", str(tmp_path),
+                            str(tmp_path / "use.cpp")], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr[-3000:]
+        return
+    for name in (KEYWORD_NAMES[0], PUNCTUATION_NAME):  # one kernel per constant form
+        work = tmp_path / material_constant(name)
+        work.mkdir()
+        src = every_function_shader(work, target, code, name)
+        if target == "wgsl":
+            errors = wgsl_errors(src.read_text())
+            assert errors is None, errors[-3000:]
+        elif target == "slang":
+            compile_slang(src, work / "x.spv", include_dir=work)
+        else:
+            compile_spirv(src, work / "x.spv", target, include_dir=work)
+
+
+@pytest.mark.parametrize("target", TARGETS)
+def test_the_command_line_writes_the_target(tmp_path, target, capsys):
+    path, _ = saved_random_model(tmp_path, "hybrid")
+    out = tmp_path / f"m.{target}"
+    assert codegen_main([str(path), "--target", target, "--materials", "mat-1", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert f"--target {target}" in text and "HBRDF_MATERIAL_MAT_1" in text
+    assert ("fn hbrdf_sample(" in text) == (target == "wgsl")
+    assert "?" not in text.split("\n", 8)[-1] or target != "wgsl"  # no ternary in WGSL
