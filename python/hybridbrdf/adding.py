@@ -112,15 +112,46 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     :data:`~hybridbrdf.fit_settings.ADD_STEPS` sparse steps. Raises InputFileError /
     ModelFileError / ValueError, one line naming the input, before any training for every input
     that can be checked."""
-    from hybridbrdf.fit_settings import ADD_STEPS, FINETUNE_STEPS, STEPS
-    from hybridbrdf.fitting import fit, frozen_arch_settings
-    from hybridbrdf.prior import prior_path
+    from hybridbrdf.fitting import fit
     from hybridbrdf.util import check_writable
 
     if out is not None:
         check_writable(out, "model")
     on_prior = to is None
-    to = (prior if prior is not None else prior_path()) if on_prior else to
+    to = _resolve_base(to, prior)
+    finetune, finetune_steps = _check_options(on_prior, refine, keep_network, finetune_steps, max_drift)
+    base = load_model(to)
+    settings = _sparse_settings(settings, base, to)
+    opened = _open_additions(sources, base, out, on_prior)
+    settings.sources = [s.path or s.name for s in opened]
+    added = fit(opened, settings, frozen=base, progress=progress, log=log)
+    if refine:
+        merged = _refine(base, added, opened, settings, finetune_steps, max_drift, os.fspath(to), progress, log)
+    elif finetune:
+        merged = _finetune(opened, added, settings, finetune_steps, prior, to, progress, log)
+    else:
+        added.training["mode"] = "sparse"
+        merged = merge(base, added, keep_base_materials=not on_prior)
+    if out is not None:
+        merged = merged.save_checked(out)
+    return merged
+
+
+def _resolve_base(to: Optional[Union[str, os.PathLike]], prior: Optional[Union[str, os.PathLike]]):
+    """The base model's path: ``to``, or without it ``prior`` or the shipped prior's file."""
+    from hybridbrdf.prior import prior_path
+
+    if to is not None:
+        return to
+    return prior if prior is not None else prior_path()
+
+
+def _check_options(on_prior: bool, refine: bool, keep_network: bool, finetune_steps: Optional[int],
+                   max_drift: float):
+    """(whether the network is trained after the sparse fit, its steps); ValueError for options
+    that contradict each other or are out of range."""
+    from hybridbrdf.fit_settings import FINETUNE_STEPS, STEPS
+
     if refine and on_prior:
         raise ValueError("--refine refines the network of --to BASE; onto the shipped prior the network is "
                          "fine-tuned by default")
@@ -134,11 +165,25 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         problem = STEPS.problem(finetune_steps)
         if problem:
             raise ValueError(f"finetune steps {problem}")
-    base = load_model(to)
+    return finetune, finetune_steps
+
+
+def _sparse_settings(settings: Optional[FitSettings], base: HybridModel, to) -> FitSettings:
+    """A copy of ``settings`` (default: the default recipe with ADD_STEPS steps) for the sparse fit
+    on ``base``'s frozen network, its network fields taken from ``base``, checked."""
+    from hybridbrdf.fit_settings import ADD_STEPS
+    from hybridbrdf.fitting import frozen_arch_settings
+
     settings = dataclasses.replace(settings) if settings is not None else FitSettings(steps=ADD_STEPS)
     settings.frozen_from, settings.init_from = os.fspath(to), None
     frozen_arch_settings(settings, base)
     settings.check()
+    return settings
+
+
+def _open_additions(sources: Sequence[SourceLike], base: HybridModel, out, on_prior: bool) -> List[BRDFSource]:
+    """The sources opened; refused when there are none, when one of them is ``out``, or (onto a
+    model file) when their names clash with ``base``'s."""
     opened = _open(sources)
     if not opened:
         raise ValueError("no sources to add")
@@ -147,26 +192,25 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
             raise InputFileError(out, "--out names one of the sources")
     if not on_prior:  # the prior's own materials are not written: their names cannot clash
         check_additions(base, opened)
-    settings.sources = [s.path or s.name for s in opened]
-    added = fit(opened, settings, frozen=base, progress=progress, log=log)
-    if refine:
-        merged = _refine(base, added, opened, settings, finetune_steps, max_drift, os.fspath(to), progress, log)
-    elif finetune:
-        tuned_settings = dataclasses.replace(settings, steps=finetune_steps, frozen_from=None,
-                                             init_from="prior" if prior is None else os.fspath(to))
-        log(f"fine-tune: the network and the new materials' (p, z) together, {finetune_steps} steps")
-        tuned = fit(opened, tuned_settings, init=added, progress=progress, log=log)
-        # The record: the fine-tune's settings and time, and the sparse fit it started from.
-        tuned.training["mode"] = "fine-tune"
-        tuned.training["sparse_fit"] = dict(added.training)
-        _record_sparse_starts(tuned.material_info, added.material_info)
-        merged = tuned
-    else:
-        added.training["mode"] = "sparse"
-        merged = merge(base, added, keep_base_materials=not on_prior)
-    if out is not None:
-        merged = merged.save_checked(out)
-    return merged
+    return opened
+
+
+def _finetune(opened: List[BRDFSource], added: HybridModel, settings: FitSettings, steps: int,
+              prior: Optional[Union[str, os.PathLike]], base_path, progress: bool,
+              log: Callable[[str], None]) -> HybridModel:
+    """``hbrdf add`` onto a prior: its network and the new materials' (p, z) trained together for
+    ``steps``, started from the sparse fit ``added``; the record keeps that sparse fit."""
+    from hybridbrdf.fitting import fit
+
+    tuned_settings = dataclasses.replace(settings, steps=steps, frozen_from=None,
+                                         init_from="prior" if prior is None else os.fspath(base_path))
+    log(f"fine-tune: the network and the new materials' (p, z) together, {steps} steps")
+    tuned = fit(opened, tuned_settings, init=added, progress=progress, log=log)
+    # The record: the fine-tune's settings and time, and the sparse fit it started from.
+    tuned.training["mode"] = "fine-tune"
+    tuned.training["sparse_fit"] = dict(added.training)
+    _record_sparse_starts(tuned.material_info, added.material_info)
+    return tuned
 
 
 def _record_sparse_starts(infos, sparse_infos) -> None:

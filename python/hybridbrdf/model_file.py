@@ -376,17 +376,49 @@ def _arch_field(fail, arch: Dict[str, Any], f: Dict[str, Any]):
 
 def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> Dict[str, Any]:
     """Checks ``doc`` and ``tensors`` against the model contract (spec/model.json), in the C++
-    loader's order and words; returns the ``arch`` object with defaults filled in."""
-    def fail(problem):
+    loader's order and words (HybridModel::load, cpp/src/model_load.cpp: one step each below);
+    returns the ``arch`` object with defaults filled in."""
+    _check_versions(path, doc)
+    arch = _read_arch(path, doc)
+    names = _read_materials(path, doc)
+    _check_tensors(path, tensors, _expected_tensors(path, arch, len(names)))
+    if spec.ARCHS[arch["kind"]]["analytic"]:
+        _read_analytic_params(path, tensors, doc["materials"])
+    problem = network_overflow_problem(arch, tensors)
+    if problem:
         raise ModelFileError(path, problem)
+    return arch
 
+
+def _read_document(path: str, metadata: Dict[str, str]) -> Dict[str, Any]:
+    """The ``hybridbrdf`` metadata entry parsed into a JSON object (C++ read_document)."""
+    if METADATA_KEY not in metadata:
+        raise ModelFileError(path, f"safetensors file without '{METADATA_KEY}' metadata: not a hybridbrdf model")
+    # Bounded nesting first: 5,000 levels in the free-form records would be a RecursionError.
+    doc = loads_json(metadata[METADATA_KEY], path, f"'{METADATA_KEY}' metadata", ModelFileError,
+                     parse_constant=_reject_constant)
+    if not isinstance(doc, dict):
+        raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not a JSON object")
+    return doc
+
+
+def _check_versions(path: str, doc: Dict[str, Any]) -> None:
+    """format_version and conventions_version are the ones this library reads (C++ check_versions)."""
     for field, expected in (("format_version", spec.FORMAT_VERSION), ("conventions_version", spec.CONVENTIONS_VERSION)):
         v = doc.get(field)
         if not _is_json_integer(v):
-            fail(f"{field} must be an integer, got {_json_type(v) if field in doc else 'nothing'} "
-                 f"(this library reads {expected})")
+            raise ModelFileError(path, f"{field} must be an integer, got {_json_type(v) if field in doc else 'nothing'} "
+                                       f"(this library reads {expected})")
         if v != expected:
-            fail(f"{field} {v} is not supported (this library reads {expected})")
+            raise ModelFileError(path, f"{field} {v} is not supported (this library reads {expected})")
+
+
+def _read_arch(path: str, doc: Dict[str, Any]) -> Dict[str, Any]:
+    """The ``arch`` object, each field checked against spec.ARCH_FIELDS and defaults filled in,
+    with n_in/n_out matching its kind and latent size (C++ read_arch)."""
+    def fail(problem):
+        raise ModelFileError(path, problem)
+
     arch = doc.get("arch")
     if not isinstance(arch, dict):
         fail("metadata has no 'arch' object")
@@ -398,67 +430,87 @@ def _validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) ->
     if (arch["n_in"], arch["n_out"]) != (expected_in, a["n_out"]):
         fail(f"arch n_in/n_out {arch['n_in']}/{arch['n_out']} do not match kind {arch['kind']} with latent "
              f"{arch['latent']} (expected {expected_in}/{a['n_out']})")
+    return arch
+
+
+def _read_materials(path: str, doc: Dict[str, Any]) -> List[str]:
+    """The material names, in file order: the list's size, each record's name (the name rule),
+    origin and isotropic flag, and no two names sharing a shader constant (C++ read_materials)."""
     materials = doc.get("materials")
     if not isinstance(materials, list) or not materials:
-        fail("metadata lists no materials")
+        raise ModelFileError(path, "metadata lists no materials")
     if len(materials) > spec.MAX_MATERIALS:
-        fail(f"metadata lists {len(materials)} materials, more than {spec.MAX_MATERIALS}")
+        raise ModelFileError(path, f"metadata lists {len(materials)} materials, more than {spec.MAX_MATERIALS}")
     names: List[str] = []
     seen = set()
     for i, m in enumerate(materials):
         if not isinstance(m, dict) or not isinstance(m.get("name"), str) or not m["name"]:
-            fail(f"material {i} has no name")
+            raise ModelFileError(path, f"material {i} has no name")
         problem = name_problem(m["name"])
         if problem:
-            fail(f"material {i}: {problem}")
+            raise ModelFileError(path, f"material {i}: {problem}")
         if m["name"] in seen:
-            fail(f"duplicate material names: {m['name']}")
+            raise ModelFileError(path, f"duplicate material names: {m['name']}")
         seen.add(m["name"])
         names.append(m["name"])
         if "origin" in m and not isinstance(m["origin"], str):
-            fail(f"material '{m['name']}': origin must be a string")
+            raise ModelFileError(path, f"material '{m['name']}': origin must be a string")
         if "isotropic" in m and not isinstance(m["isotropic"], bool):
-            fail(f"material '{m['name']}': isotropic must be true or false")
+            raise ModelFileError(path, f"material '{m['name']}': isotropic must be true or false")
     problem = names_problem(names)  # the names are valid and distinct: this finds shared shader constants
     if problem:
-        fail(problem)
-    n_mat = len(materials)
+        raise ModelFileError(path, problem)
+    return names
+
+
+def _expected_tensors(path: str, arch: Dict[str, Any], n_mat: int) -> Dict[str, tuple]:
+    """Name -> shape of every tensor the architecture needs for ``n_mat`` materials; refuses a
+    per-material output layer on a kind without an analytic part (C++ expected_tensors)."""
+    a = spec.ARCHS[arch["kind"]]
     expected = dict(network_tensor_shapes(arch))
     expected["materials.z"] = (n_mat, arch["latent"])
     if a["analytic"]:
         expected.update({f"materials.{r['tensor']}": (n_mat, r["components"]) for r in spec.MATERIAL_RANGES})
     if arch["output_layer"] == "material":
         if not a["analytic"]:
-            fail(f"arch.output_layer 'material' is for architectures with an analytic part, not {arch['kind']}")
+            raise ModelFileError(path, f"arch.output_layer 'material' is for architectures with an analytic part, "
+                                       f"not {arch['kind']}")
         expected["materials.head_weight"] = (n_mat, arch["n_out"], arch["width"])
         expected["materials.head_bias"] = (n_mat, arch["n_out"])
+    return expected
+
+
+def _check_tensors(path: str, tensors: Dict[str, np.ndarray], expected: Dict[str, tuple]) -> None:
+    """Exactly the expected tensors, each of its shape and finite (C++ check_tensors)."""
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))
     if missing:
-        fail(f"missing tensors: {', '.join(missing)}")
+        raise ModelFileError(path, f"missing tensors: {', '.join(missing)}")
     if extra:
-        fail(f"unexpected tensors: {', '.join(extra)}")
+        raise ModelFileError(path, f"unexpected tensors: {', '.join(extra)}")
     for name in sorted(expected):
         if tuple(tensors[name].shape) != expected[name]:
-            fail(f"tensor {name} has shape {tuple(tensors[name].shape)}, expected {expected[name]}")
+            raise ModelFileError(path, f"tensor {name} has shape {tuple(tensors[name].shape)}, expected {expected[name]}")
         if not np.isfinite(tensors[name]).all():
-            fail(f"tensor {name} holds NaN or Inf")
-    if a["analytic"]:
-        for i, name in enumerate(names):
-            for r in spec.MATERIAL_RANGES:
-                row = tensors[f"materials.{r['tensor']}"][i]
-                lo, hi = np.float32(r["min"]), np.float32(r["max"])  # compared in float32, as C++
-                for c in range(r["components"]):
-                    if not lo <= row[c] <= hi:
-                        fail(f"material '{name}': {r['tensor']}[{c}] = {_num(row[c])} is outside "
-                             f"[{_num(r['min'])}, {_num(r['max'])}]")
-            alpha = tensors["materials.alpha"][i]
-            if materials[i].get("isotropic", True) and alpha[0] != alpha[1]:
-                fail(f"material '{name}' is marked isotropic but alpha_x != alpha_y")
-    problem = network_overflow_problem(arch, tensors)
-    if problem:
-        fail(problem)
-    return arch
+            raise ModelFileError(path, f"tensor {name} holds NaN or Inf")
+
+
+def _read_analytic_params(path: str, tensors: Dict[str, np.ndarray], materials: List[Dict[str, Any]]) -> None:
+    """Each material's kd/eta/alpha inside spec.MATERIAL_RANGES (compared in float32, as C++) and
+    alpha_x == alpha_y where it is marked isotropic (C++ read_analytic_params, which also stores
+    them; here they stay in ``tensors``)."""
+    for i, m in enumerate(materials):
+        name = m["name"]
+        for r in spec.MATERIAL_RANGES:
+            row = tensors[f"materials.{r['tensor']}"][i]
+            lo, hi = np.float32(r["min"]), np.float32(r["max"])
+            for c in range(r["components"]):
+                if not lo <= row[c] <= hi:
+                    raise ModelFileError(path, f"material '{name}': {r['tensor']}[{c}] = {_num(row[c])} is outside "
+                                               f"[{_num(r['min'])}, {_num(r['max'])}]")
+        alpha = tensors["materials.alpha"][i]
+        if m.get("isotropic", True) and alpha[0] != alpha[1]:
+            raise ModelFileError(path, f"material '{name}' is marked isotropic but alpha_x != alpha_y")
 
 
 def network_overflow_problem(arch: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> Optional[str]:
@@ -516,13 +568,7 @@ def load_model(path) -> HybridModel:
     """Read and validate a model file; raises ModelFileError naming the file and the problem."""
     path = os.fspath(path)
     metadata, tensors = decode(path)
-    if METADATA_KEY not in metadata:
-        raise ModelFileError(path, f"safetensors file without '{METADATA_KEY}' metadata: not a hybridbrdf model")
-    # Bounded nesting first: 5,000 levels in the free-form records would be a RecursionError.
-    doc = loads_json(metadata[METADATA_KEY], path, f"'{METADATA_KEY}' metadata", ModelFileError,
-                     parse_constant=_reject_constant)
-    if not isinstance(doc, dict):
-        raise ModelFileError(path, f"'{METADATA_KEY}' metadata is not a JSON object")
+    doc = _read_document(path, metadata)
     arch = _validate(path, doc, tensors)
     model = HybridModel(arch, doc["materials"], tensors, doc.get("training"), path)
     model.written_by = doc.get("library_version")  # informative only: which hybridbrdf wrote the file

@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import os
 import struct
-from typing import Dict, List, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -144,83 +144,100 @@ def read_tensor_file(path) -> Dict[str, np.ndarray]:
     truncated file, a wrong magic or version, an unknown dtype code, a
     duplicate field or a field whose data lie outside the file."""
     path = os.fspath(path)
-    buf = read_input_bytes(path, ".bsdf file", MAX_FILE_BYTES, BRDFFormatError)
+    cursor = _Cursor(path, read_input_bytes(path, ".bsdf file", MAX_FILE_BYTES, BRDFFormatError))
+    _read_preamble(cursor)
+    headers = _read_field_headers(cursor)
+    return {name: _read_field_data(cursor, name, dtype, shape, offset) for name, dtype, shape, offset in headers}
 
-    size = len(buf)
-    pos = 0
 
-    def take(fmt: str, what: str) -> tuple:
-        """Unpack ``fmt`` at the cursor and advance; a short file is an error."""
-        nonlocal pos
+class _Cursor:
+    """A position in a tensor_file's bytes; reading past the end is a "truncated file" error."""
+
+    def __init__(self, path: str, buf: bytes):
+        self.path, self.buf, self.size, self.pos = path, buf, len(buf), 0
+
+    def fail(self, problem: str):
+        raise BRDFFormatError(self.path, problem)
+
+    def check_room(self, need: int, what: str):
+        if self.pos + need > self.size:
+            self.fail(f"truncated file: {what} needs bytes {self.pos}..{self.pos + need} but the file has "
+                      f"{self.size} bytes")
+
+    def take(self, fmt: str, what: str) -> tuple:
+        """Unpack ``fmt`` at the cursor and advance."""
         need = struct.calcsize(fmt)
-        if pos + need > size:
-            raise BRDFFormatError(
-                path, f"truncated file: {what} needs bytes {pos}..{pos + need} but the file has {size} bytes"
-            )
-        vals = struct.unpack_from(fmt, buf, pos)
-        pos += need
+        self.check_room(need, what)
+        vals = struct.unpack_from(fmt, self.buf, self.pos)
+        self.pos += need
         return vals
 
+
+def _read_preamble(cursor: _Cursor) -> None:
+    """The magic and the container version; leaves the cursor at the field count."""
+    buf, size = cursor.buf, cursor.size
     if size < len(TENSOR_MAGIC):
         if TENSOR_MAGIC.startswith(buf):
-            raise BRDFFormatError(path, f"truncated file: {size} bytes, shorter than the tensor_file header")
-        raise BRDFFormatError(path, f"not a tensor_file (.bsdf): the file starts with {buf[:12]!r}")
+            cursor.fail(f"truncated file: {size} bytes, shorter than the tensor_file header")
+        cursor.fail(f"not a tensor_file (.bsdf): the file starts with {buf[:12]!r}")
     if buf[: len(TENSOR_MAGIC)] != TENSOR_MAGIC:
-        raise BRDFFormatError(
-            path, f"not a tensor_file (.bsdf): wrong magic {buf[:12]!r}, expected {TENSOR_MAGIC!r}"
-        )
-    pos = len(TENSOR_MAGIC)
-    version = take("<BB", "the container version")
+        cursor.fail(f"not a tensor_file (.bsdf): wrong magic {buf[:12]!r}, expected {TENSOR_MAGIC!r}")
+    cursor.pos = len(TENSOR_MAGIC)
+    version = cursor.take("<BB", "the container version")
     if tuple(version) != TENSOR_VERSION:
-        raise BRDFFormatError(
-            path, f"unsupported tensor_file version {version[0]}.{version[1]} (this reader reads 1.0)"
-        )
-    (count,) = take("<I", "the field count")
+        cursor.fail(f"unsupported tensor_file version {version[0]}.{version[1]} (this reader reads 1.0)")
 
+
+def _read_field_headers(cursor: _Cursor) -> List[Tuple[str, np.dtype, Tuple[int, ...], int]]:
+    """(name, dtype, shape, offset) of each field, in file order; names distinct."""
+    (count,) = cursor.take("<I", "the field count")
     headers: List[Tuple[str, np.dtype, Tuple[int, ...], int]] = []
     seen = set()
     for k in range(count):
-        (name_len,) = take("<H", f"the name length of field #{k}")
-        if pos + name_len > size:
-            raise BRDFFormatError(
-                path, f"truncated file: the name of field #{k} needs bytes {pos}..{pos + name_len} "
-                      f"but the file has {size} bytes"
-            )
-        try:
-            name = buf[pos: pos + name_len].decode("utf-8")
-        except UnicodeDecodeError:
-            raise BRDFFormatError(
-                path, f"field #{k} has a name that is not UTF-8: {buf[pos:pos + min(name_len, _MAX_NAME_CHARS)]!r}"
-            ) from None
-        pos += name_len
-        if len(name) > _MAX_NAME_CHARS:  # RGL's names are a few letters; keep messages short
-            name = name[:_MAX_NAME_CHARS] + "..."
-        (ndim,) = take("<H", f"the rank of field {name!r}")
+        name = _read_field_name(cursor, k)
+        (ndim,) = cursor.take("<H", f"the rank of field {name!r}")
         if ndim > _MAX_RANK:
-            raise BRDFFormatError(path, f"field {name!r} has rank {ndim}; RGL fields have at most {_MAX_RANK}")
-        code, offset = take("<BQ", f"the dtype and offset of field {name!r}")
-        shape = take("<" + "Q" * ndim, f"the shape of field {name!r}")
+            cursor.fail(f"field {name!r} has rank {ndim}; RGL fields have at most {_MAX_RANK}")
+        code, offset = cursor.take("<BQ", f"the dtype and offset of field {name!r}")
+        shape = cursor.take("<" + "Q" * ndim, f"the shape of field {name!r}")
         if code not in _DTYPES:
-            raise BRDFFormatError(path, f"field {name!r} has unknown dtype code {code} (expected 1..11)")
+            cursor.fail(f"field {name!r} has unknown dtype code {code} (expected 1..11)")
         if name in seen:
-            raise BRDFFormatError(path, f"field {name!r} appears twice")
+            cursor.fail(f"field {name!r} appears twice")
         seen.add(name)
         headers.append((name, _DTYPES[code], shape, offset))
+    return headers
 
-    fields: Dict[str, np.ndarray] = {}
-    for name, dtype, shape, offset in headers:
-        count_items = 1
-        for s in shape:
-            count_items *= s  # Python ints: a corrupt shape cannot overflow
-        nbytes = count_items * dtype.itemsize
-        if offset + nbytes > size or max(shape, default=0) > size:  # (a huge extent beside a 0 is damage too)
-            raise BRDFFormatError(
-                path, f"truncated file: field {name!r} {dtype.name}{list(shape)} needs bytes "
-                      f"{offset}..{offset + nbytes} but the file has {size} bytes"
-            )
-        arr = np.frombuffer(buf, dtype=dtype, count=count_items, offset=offset)
-        fields[name] = arr.reshape(shape).copy()
-    return fields
+
+def _read_field_name(cursor: _Cursor, k: int) -> str:
+    """Field #k's name (UTF-8), cut to _MAX_NAME_CHARS for messages."""
+    (name_len,) = cursor.take("<H", f"the name length of field #{k}")
+    cursor.check_room(name_len, f"the name of field #{k}")
+    raw = cursor.buf[cursor.pos: cursor.pos + name_len]
+    try:
+        name = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        name = None
+    if name is None:
+        cursor.fail(f"field #{k} has a name that is not UTF-8: {raw[:_MAX_NAME_CHARS]!r}")
+    cursor.pos += name_len
+    if len(name) > _MAX_NAME_CHARS:  # RGL's names are a few letters; keep messages short
+        name = name[:_MAX_NAME_CHARS] + "..."
+    return name
+
+
+def _read_field_data(cursor: _Cursor, name: str, dtype: np.dtype, shape: Tuple[int, ...], offset: int) -> np.ndarray:
+    """A copy of one field's data, which must lie inside the file."""
+    count_items = 1
+    for s in shape:
+        count_items *= s  # Python ints: a corrupt shape cannot overflow
+    nbytes = count_items * dtype.itemsize
+    # (a huge extent beside a 0 is damage too)
+    if offset + nbytes > cursor.size or max(shape, default=0) > cursor.size:
+        cursor.fail(f"truncated file: field {name!r} {dtype.name}{list(shape)} needs bytes "
+                    f"{offset}..{offset + nbytes} but the file has {cursor.size} bytes")
+    arr = np.frombuffer(cursor.buf, dtype=dtype, count=count_items, offset=offset)
+    return arr.reshape(shape).copy()
 
 
 # ----------------------------------------------------------------------------
@@ -467,55 +484,75 @@ class RGLSource(BRDFSource):
         return value / cos_out[:, None]
 
 
+#: The float32 tables of an RGL RGB file and their ranks, in the order they are checked.
+_TABLES = (("phi_i", 1), ("theta_i", 1), ("sigma", 2), ("ndf", 2), ("vndf", 4), ("luminance", 4), ("rgb", 5))
+_REQUIRED = ("version", "description", "phi_i", "theta_i", "sigma", "ndf", "vndf", "luminance", "rgb", "jacobian")
+
+
 def _validate(path: str, fields: Dict[str, np.ndarray]) -> Dict[str, object]:
     """Check the fields of an RGL RGB file and return them (``description`` as
     str, ``jacobian`` as bool, ``valid`` as array or None). Raises
     BRDFFormatError naming the file and the problem."""
+    _check_present(path, fields)
+    t = _read_header_fields(path, fields)
+    t.update({name: _field(path, fields, name, _F32, ndim) for name, ndim in _TABLES})
+    _check_table_shapes(path, t)
+    t["valid"] = _read_valid(path, fields, t["rgb"].shape[-1])
+    _check_table_values(path, t)
+    return t
 
+
+def _check_present(path: str, fields: Dict[str, np.ndarray]) -> None:
+    """An RGB (not spectral) file with every required field."""
+    if "rgb" not in fields and ("spectra" in fields or "wavelengths" in fields):
+        raise BRDFFormatError(path, "spectral RGL file (fields 'spectra' and 'wavelengths'); this reader reads the "
+                                    "RGB variant (*_rgb.bsdf)")
+    for name in _REQUIRED:
+        if name not in fields:
+            raise BRDFFormatError(path, f"missing field {name!r} (the file has: "
+                                        f"{', '.join(sorted(fields)) or 'no fields'})")
+
+
+def _field(path: str, fields: Dict[str, np.ndarray], name: str, dtype: np.dtype, ndim: int) -> np.ndarray:
+    """Field ``name``, checked to have ``dtype`` and rank ``ndim``."""
+    arr = fields[name]
+    if arr.dtype != dtype:
+        raise BRDFFormatError(path, f"field {name!r} has dtype {arr.dtype.name}, expected {dtype.name}")
+    if arr.ndim != ndim:
+        raise BRDFFormatError(path, f"field {name!r} has shape {arr.shape} (rank {arr.ndim}), expected rank {ndim}")
+    return arr
+
+
+def _expect_shape(path: str, name: str, arr: np.ndarray, shape: Tuple[int, ...]) -> None:
+    if arr.shape != shape:
+        raise BRDFFormatError(path, f"field {name!r} has shape {arr.shape}, expected {shape}")
+
+
+def _read_header_fields(path: str, fields: Dict[str, np.ndarray]) -> Dict[str, object]:
+    """``description`` (str) and ``jacobian`` (bool), after the RGL format version."""
+    version = _field(path, fields, "version", _U32, 1)
+    _expect_shape(path, "version", version, (2,))
+    if tuple(int(v) for v in version) != RGL_VERSION:
+        raise BRDFFormatError(path, f"unsupported RGL format version {version[0]}.{version[1]} "
+                                    f"(this reader reads 1.0)")
+    description = bytes(_field(path, fields, "description", _U8, 1)).decode("utf-8", errors="replace")
+    jacobian = _field(path, fields, "jacobian", _U8, 1)
+    _expect_shape(path, "jacobian", jacobian, (1,))
+    return dict(description=description, jacobian=bool(jacobian[0]))
+
+
+def _check_table_shapes(path: str, t: Dict[str, object]) -> None:
+    """The tables' extents agree: n_phi x n_theta incident directions, N x N rgb tables."""
     def fail(problem: str):
         raise BRDFFormatError(path, problem)
 
-    if "rgb" not in fields and ("spectra" in fields or "wavelengths" in fields):
-        fail("spectral RGL file (fields 'spectra' and 'wavelengths'); this reader reads the RGB variant "
-             "(*_rgb.bsdf)")
-    required = ("version", "description", "phi_i", "theta_i", "sigma", "ndf", "vndf", "luminance", "rgb", "jacobian")
-    for name in required:
-        if name not in fields:
-            fail(f"missing field {name!r} (the file has: {', '.join(sorted(fields)) or 'no fields'})")
-
-    def field(name: str, dtype: np.dtype, ndim: int) -> np.ndarray:
-        arr = fields[name]
-        if arr.dtype != dtype:
-            fail(f"field {name!r} has dtype {arr.dtype.name}, expected {dtype.name}")
-        if arr.ndim != ndim:
-            fail(f"field {name!r} has shape {arr.shape} (rank {arr.ndim}), expected rank {ndim}")
-        return arr
-
-    def expect_shape(name: str, arr: np.ndarray, shape: Tuple[int, ...]):
-        if arr.shape != shape:
-            fail(f"field {name!r} has shape {arr.shape}, expected {shape}")
-
-    version = field("version", _U32, 1)
-    expect_shape("version", version, (2,))
-    if tuple(int(v) for v in version) != RGL_VERSION:
-        fail(f"unsupported RGL format version {version[0]}.{version[1]} (this reader reads 1.0)")
-    description = bytes(field("description", _U8, 1)).decode("utf-8", errors="replace")
-    jacobian = field("jacobian", _U8, 1)
-    expect_shape("jacobian", jacobian, (1,))
-
-    phi_i = field("phi_i", _F32, 1)
-    theta_i = field("theta_i", _F32, 1)
-    sigma = field("sigma", _F32, 2)
-    ndf = field("ndf", _F32, 2)
-    vndf = field("vndf", _F32, 4)
-    luminance = field("luminance", _F32, 4)
-    rgb = field("rgb", _F32, 5)
-    n_phi, n_theta = len(phi_i), len(theta_i)
+    n_phi, n_theta = len(t["phi_i"]), len(t["theta_i"])
     if n_phi < 1 or n_theta < 1:
         fail(f"fields 'phi_i' and 'theta_i' must not be empty (they hold {n_phi} and {n_theta} values)")
-    for name, arr in (("sigma", sigma), ("ndf", ndf)):
-        if min(arr.shape) < 2:
-            fail(f"field {name!r} has shape {arr.shape}, expected at least 2 x 2")
+    for name in ("sigma", "ndf"):
+        if min(t[name].shape) < 2:
+            fail(f"field {name!r} has shape {t[name].shape}, expected at least 2 x 2")
+    vndf, rgb = t["vndf"], t["rgb"]
     if vndf.shape[:2] != (n_phi, n_theta) or min(vndf.shape[2:]) < 2:
         fail(f"field 'vndf' has shape {vndf.shape}, expected ({n_phi}, {n_theta}, H >= 2, W >= 2) "
              f"for {n_phi} phi_i and {n_theta} theta_i")
@@ -523,33 +560,43 @@ def _validate(path: str, fields: Dict[str, np.ndarray]) -> Dict[str, object]:
     if rgb.shape[:3] != (n_phi, n_theta, 3) or rgb.shape[3] != n or n < 2:
         fail(f"field 'rgb' has shape {rgb.shape}, expected ({n_phi}, {n_theta}, 3, N, N) with N >= 2 "
              f"for {n_phi} phi_i and {n_theta} theta_i")
-    expect_shape("luminance", luminance, (n_phi, n_theta, n, n))
-    valid = fields.get("valid")
-    if valid is not None:
-        if valid.dtype != _U8 or valid.size != n * n:
-            fail(f"field 'valid' has dtype {valid.dtype.name} and shape {valid.shape}, "
-                 f"expected uint8 with {n * n} entries")
-        valid = valid.reshape(n, n) != 0
+    _expect_shape(path, "luminance", t["luminance"], (n_phi, n_theta, n, n))
 
-    for name, arr in (("phi_i", phi_i), ("theta_i", theta_i), ("sigma", sigma), ("ndf", ndf),
-                      ("vndf", vndf), ("luminance", luminance), ("rgb", rgb)):
-        bad = int(np.count_nonzero(~np.isfinite(arr)))
+
+def _read_valid(path: str, fields: Dict[str, np.ndarray], n: int) -> Optional[np.ndarray]:
+    """The optional mask of measured samples as an N x N bool array, or None."""
+    valid = fields.get("valid")
+    if valid is None:
+        return None
+    if valid.dtype != _U8 or valid.size != n * n:
+        raise BRDFFormatError(path, f"field 'valid' has dtype {valid.dtype.name} and shape {valid.shape}, "
+                                    f"expected uint8 with {n * n} entries")
+    return valid.reshape(n, n) != 0
+
+
+def _check_table_values(path: str, t: Dict[str, object]) -> None:
+    """Finite tables, increasing angles, non-negative densities with a normalisable warp for every
+    incident direction, and (with the Jacobian flag) a positive divisor sigma."""
+    def fail(problem: str):
+        raise BRDFFormatError(path, problem)
+
+    for name, _ in _TABLES:
+        bad = int(np.count_nonzero(~np.isfinite(t[name])))
         if bad:
             fail(f"field {name!r} holds {bad} NaN or infinite value{'s' if bad > 1 else ''}")
-    for name, arr in (("phi_i", phi_i), ("theta_i", theta_i)):
-        if np.any(np.diff(arr.astype(np.float64)) <= 0):
-            fail(f"field {name!r} must be strictly increasing, got {arr.tolist()}")
-    if np.any(vndf < 0) or np.any(ndf < 0):
+    for name in ("phi_i", "theta_i"):
+        if np.any(np.diff(t[name].astype(np.float64)) <= 0):
+            fail(f"field {name!r} must be strictly increasing, got {t[name].tolist()}")
+    vndf, n_theta = t["vndf"], len(t["theta_i"])
+    if np.any(vndf < 0) or np.any(t["ndf"] < 0):
         fail("fields 'vndf' and 'ndf' are densities and must not be negative")
-    vndf_mass = vndf.reshape(n_phi * n_theta, -1).astype(np.float64).sum(axis=1)
+    vndf_mass = vndf.reshape(len(t["phi_i"]) * n_theta, -1).astype(np.float64).sum(axis=1)
     if np.any(vndf_mass <= 0):
         k = int(np.argmin(vndf_mass))
         fail(f"field 'vndf' is zero for incident direction #{k} (phi_i {k // n_theta}, theta_i {k % n_theta}); "
              "its warp cannot be normalised")
-    if jacobian[0] and np.any(sigma <= 0):
+    if t["jacobian"] and np.any(t["sigma"] <= 0):
         fail("field 'sigma' (projected area, a divisor) must be positive")
-    return dict(description=description, jacobian=bool(jacobian[0]), phi_i=phi_i, theta_i=theta_i, sigma=sigma,
-                ndf=ndf, vndf=vndf, luminance=luminance, rgb=rgb, valid=valid)
 
 
 def open_rgl(path) -> RGLSource:
