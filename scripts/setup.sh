@@ -36,6 +36,13 @@ if ! "$PY" -c 'import torch, sys; sys.exit(torch.__version__.split("+")[0] != "2
   "$PY" -m pip install -q "torch==2.13.0"
 fi
 "$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12"
+# slangc for the Slang target's tests (tests/python/slang_wgsl_tools.py): the slangtorch wheel ships
+# it; --no-deps because its own requirements (torch, ninja, hatchling) serve its PyTorch extension
+# builder, which is not used. (wgpu, for the WGSL target's tests, is among the test extras.)
+if ! "$PY" -c 'import importlib.metadata as m, sys; sys.exit(m.version("slangtorch") != "1.3.22")' 2>/dev/null; then
+  echo "setup: installing slangtorch==1.3.22 (for slangc, without its dependencies)"
+  "$PY" -m pip install -q --no-deps "slangtorch==1.3.22"
+fi
 echo "setup: building and installing hybridbrdf"
 # No build isolation: reuses build-py/ for incremental rebuilds and the
 # scikit-build-core/pybind11 installed just above.

@@ -53,7 +53,7 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     default values; kd, eta, alpha and the latent code become sliders.
 
     ``mlp_form`` is "unrolled" (straight-line code, weights as literals), "loops"
-    (weights in constant arrays, loops over them) or "auto": unrolled for GLSL and HLSL
+    (weights in constant arrays, loops over them) or "auto": unrolled for the shading languages
     (shader compilers turn constant arrays indexed in loops into per-invocation memory;
     see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops).
     With ``precision="fp16"`` the layer weights are rounded to IEEE binary16: unrolled
@@ -68,9 +68,13 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="hbrdf-codegen", description="Generate GLSL, HLSL or C++ code from a model file.")
+    ap = argparse.ArgumentParser(prog="hbrdf-codegen",
+                                 description="Generate GLSL, HLSL, Slang, WGSL or C++ code from a model file.")
     ap.add_argument("model", help="model file written by hbrdf fit")
-    ap.add_argument("--target", required=True, choices=TARGETS, help="output language")
+    ap.add_argument("--target", required=True, choices=TARGETS,
+                    help="output language: glsl (GLSL 4.50), hlsl (DXC/glslang), slang (slangc), wgsl (WebGPU; "
+                         "hbrdf_sample takes pdf as ptr<function, f32>), cpp (C++17 header), brdfexplorer (Disney "
+                         "BRDF Explorer .brdf); docs/CODEGEN.md")
     ap.add_argument("--materials", help="comma-separated material names to include (default: all)")
     ap.add_argument("--scene", help="path-tracer scene file (docs/RENDERING.md): emit only its materials of type "
                                     "\"model\" in MODEL and specialise the code (isotropic-only GGX, no network for "
@@ -81,7 +85,7 @@ def main(argv=None) -> int:
                          "in unrolled code, two per 32-bit word in loops)")
     ap.add_argument("--mlp-form", choices=MLP_FORMS, default="auto",
                     help="network code: unrolled (weights as literals), loops (weights in constant arrays) or auto "
-                         "(default: unrolled for GLSL/HLSL, loops for C++)")
+                         "(default: unrolled for GLSL/HLSL/Slang/WGSL, loops for C++)")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     args = ap.parse_args(argv)
     try:

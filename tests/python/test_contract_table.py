@@ -1,7 +1,8 @@
 """spec/activation_combine.json, the model contract's activations and combine rules on hard inputs
 (signed zeros, denormals, the hardGeLU knee and its float32 neighbours, the pre-exp bound and
-beyond, f_a up to 3.2e15), reproduced by PyTorch and by every generated dialect: GLSL and HLSL
-under lavapipe (validation layer on), and the C++ header compiled with g++. libhybridbrdf's scalar
+beyond, f_a up to 3.2e15), reproduced by PyTorch and by every generated dialect: GLSL, HLSL and Slang
+under lavapipe (validation layer on), WGSL under lavapipe through wgpu (naga), and the C++ header
+compiled with g++. libhybridbrdf's scalar
 and batched paths check the same table in test_contract_table_cpp.py.
 
 The expected values are a float64 evaluation of spec/model.json's formulas written in
@@ -22,6 +23,8 @@ from hybridbrdf.models import activation_fn, combine
 from hybridbrdf.random_model import random_model
 
 from helpers import compile_spirv, run_on_lavapipe, skip_without_vulkan
+from shader_kernels import KERNEL_FILE
+from slang_wgsl_tools import compile_slang, run_wgsl, skip_without_slang, skip_without_wgpu
 from shader_kernels import render_shader
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -154,20 +157,31 @@ def run_dialect(tmp_path, target, model, rule, inputs):
         r = subprocess.run([str(exe)], input=np.uint32(n).tobytes() + inputs.tobytes(), capture_output=True)
         assert r.returncode == 0
         return np.frombuffer(r.stdout, dtype=np.float32).reshape(n, 2)
-    ext = "glsl" if target == "glsl" else "hlsl"
-    (tmp_path / f"model.{ext}").write_text(generate(model, target))
+    code = generate(model, target)
+    (tmp_path / f"model.{target}").write_text(code)
     call = combine_call(rule, "data_in[4 * i + 1]", "data_in[4 * i + 2]", "data_in[4 * i + 3]")
-    src = tmp_path / ("kernel.comp" if target == "glsl" else "kernel.hlsl")
-    src.write_text(render_shader(f"contract_table.comp.{ext}", include=f"model.{ext}", n=n, combine=call))
+    extra = {"model_code": code} if target == "wgsl" else {}
+    kernel = render_shader(f"contract_table.comp.{target}", include=f"model.{target}", n=n, combine=call, **extra)
+    if target == "wgsl":
+        return run_wgsl(kernel, inputs, out_floats=2)
+    src = tmp_path / KERNEL_FILE[target]
+    src.write_text(kernel)
     spv = tmp_path / "kernel.spv"
-    compile_spirv(src, spv, target, include_dir=tmp_path)
+    if target == "slang":
+        compile_slang(src, spv, include_dir=tmp_path)
+    else:
+        compile_spirv(src, spv, target, include_dir=tmp_path)
     return run_on_lavapipe(spv, inputs, out_floats=2)
 
 
-@pytest.mark.parametrize("target", ["glsl", "hlsl", "cpp"])
+@pytest.mark.parametrize("target", ["glsl", "hlsl", "slang", "wgsl", "cpp"])
 def test_generated_code_reproduces_the_table(tmp_path, target):
     if target != "cpp":
         skip_without_vulkan()
+    if target == "slang":
+        skip_without_slang()
+    if target == "wgsl":
+        skip_without_wgpu()
     for k, (rule, activation, bound) in enumerate(CASES):
         work = tmp_path / str(k)
         work.mkdir()
