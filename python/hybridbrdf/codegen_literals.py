@@ -1,7 +1,7 @@
 """The literals of generated code: float and contract constants, comments, material constant
 names, and the dialect table that holds what differs between GLSL, HLSL, Slang, WGSL and C++ (vector
-types, declarations, constant and array syntax, selection, loops, out-parameters, the C++ prelude). Every value the template prints goes
-through here, so that each dialect reads back the same float32."""
+types, declarations, constant and array syntax, selection, loops, out-parameters, the C++ prelude).
+Every value the template prints goes through here, so that each dialect reads back the same float32."""
 
 from __future__ import annotations
 
