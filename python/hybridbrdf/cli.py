@@ -1,4 +1,4 @@
-"""The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``info``, ``demo``, ``render``.
+"""The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``view``, ``info``, ``demo``, ``render``.
 
 ``hbrdf <command> --help`` documents every flag. The fit flags, their help and defaults are
 generated from :class:`hybridbrdf.fitting.FitSettings` (:func:`add_fit_flags`), and so is the
@@ -287,6 +287,15 @@ def _cmd_edit(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     edited = model.edit(args.material, args.as_name, conserve_energy=args.conserve_energy, **values)
     return _write_new_material(edited, args.as_name, args.out)
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from hybridbrdf.viewer import write_page
+
+    info = write_page(args.model, args.out, args.sources)
+    print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {info['materials']} materials): open it in a browser "
+          f"with WebGL2; it needs no network")
+    return 0
 
 
 def _cmd_mix(args: argparse.Namespace) -> int:
@@ -582,6 +591,18 @@ def build_parser() -> argparse.ArgumentParser:
     mx.add_argument("--conserve-energy", action="store_true",
                     help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
     mx.set_defaults(func=_cmd_mix)
+
+    vw = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live (WebGL2)",
+                        description="Write one HTML file, with everything inlined (it opens from disk, without "
+                                    "network), that renders each material of MODEL on a sphere with WebGL2, from the "
+                                    "GLSL that hbrdf-codegen writes: a material picker, the analytic part alone, "
+                                    "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
+                                    "exposure and the light's direction (docs/VIEWER.md).")
+    vw.add_argument("model", help="model file")
+    vw.add_argument("sources", nargs="*", metavar="SOURCE",
+                    help="BRDF sources the materials were fitted to (listed on the page)")
+    vw.add_argument("--out", "-o", required=True, help="HTML file to write")
+    vw.set_defaults(func=_cmd_view)
 
     info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
                                                                             "training settings and materials.")

@@ -1,0 +1,187 @@
+"""``hbrdf view``: one self-contained HTML page that shows a model's materials live on a sphere
+(WebGL2), with the analytic part alone as a toggle, a material picker, kd / eta / alpha sliders that
+preview what ``hbrdf edit`` would write (and the matching command line), exposure and the light's
+direction (docs/VIEWER.md).
+
+The page's shader is the GLSL that ``hbrdf-codegen --target glsl`` writes (the same template as
+every dialect), preceded by ``#version 300 es`` and precision qualifiers: GLSL ES 3.00 reads that
+output as it is, and WebGL2 wants ``#version`` on the first line, before the generated header's
+comments, so the version line cannot come from the template. The material is not one of the
+generated ``HBRDF_MATERIAL_<NAME>`` constants but uniforms (kd, eta, alpha and the packed latent
+code and output-layer head), so that the picker and the sliders change it without a recompile.
+
+Lighting: a directional light (the sun) of irradiance :data:`SUN_IRRADIANCE` and no sky. The path
+tracer renders the same camera, light and material with :func:`tracer_scene` (a ``sky`` environment
+with ``sky_intensity`` 0, a sun disc of :data:`SUN_SIZE_DEG`, ``max_depth`` 1: direct light only),
+which the tests compare with the page.
+
+Everything the page shows that comes from the model file (names, origin labels, training records,
+paths) reaches it inside one JSON document in a ``<script type="application/json">`` element,
+written with every ``<``, ``>``, ``&``, U+2028 and U+2029 escaped, and the page's script puts it into
+the document only as text (``textContent``, ``new Option``), never as markup.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import pathlib
+from typing import Any, Dict, List, Optional, Sequence
+
+import numpy as np
+
+from hybridbrdf.codegen import generate
+from hybridbrdf.model_file import HybridModel
+
+#: The largest model one page takes: float32 tensors (shared network and every material's row), in
+#: bytes. The page inlines the materials as JSON text (about 2.5 times their binary size) and the
+#: network as literals in the shader, and a browser parses and compiles all of it at load.
+MAX_VIEW_WEIGHT_BYTES = 16 << 20
+#: Most floats per material in the uniform block (latent code and, for material output layers, the
+#: head): WebGL2 guarantees 224 fragment uniform vectors; the page packs 4 floats in each.
+MAX_PACKED_FLOATS = 4 * 192
+
+#: Camera of the page and of :func:`tracer_scene` (docs/RENDERING.md's pinhole): a unit sphere at
+#: the origin seen from +z.
+CAMERA = {"position": [0.0, 0.0, 4.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_deg": 32.0}
+#: Irradiance of the directional light on a surface facing it: pi, so that a white Lambert
+#: surface facing the light has radiance kd.
+SUN_IRRADIANCE = math.pi
+#: Angular diameter of the sun disc in the tracer's environment (the page's light is a direction).
+SUN_SIZE_DEG = 0.5
+#: Defaults of the page's light (degrees; azimuth from -z toward +x, as the tracer's sky).
+DEFAULT_SUN = {"elevation": 35.0, "azimuth": 150.0}
+
+
+class ViewError(ValueError):
+    """A model ``hbrdf view`` refuses (one line)."""
+
+
+def weight_bytes(model: HybridModel) -> int:
+    """Bytes of the model's tensors as float32 (what the size limit counts)."""
+    return int(sum(4 * np.asarray(v).size for v in model.tensors.values()))
+
+
+def check_size(model: HybridModel, path: str, limit: Optional[int] = None) -> None:
+    """Raise :class:`ViewError` naming the model's size and the limit when it is too large for one page."""
+    limit = MAX_VIEW_WEIGHT_BYTES if limit is None else limit
+    n = weight_bytes(model)
+    if n > limit:
+        raise ViewError(f"{path}: {n / 2**20:.1f} MiB of weights ({n // 4} float32 values) is more than one page "
+                        f"takes (hbrdf view's limit: {limit / 2**20:g} MiB)")
+
+
+def _packed(model: HybridModel, i: int) -> List[float]:
+    """The material's latent code (at least one float, as the generated struct) and head, flat."""
+    t = model.tensors
+    z = [float(v) for v in t["materials.z"][i]] or [0.0]
+    if "materials.head_weight" in t:
+        z += [float(v) for v in np.asarray(t["materials.head_weight"][i]).ravel()]
+        z += [float(v) for v in t["materials.head_bias"][i]]
+    return z
+
+
+def _material_rows(model: HybridModel) -> List[Dict[str, Any]]:
+    t = model.tensors
+    rows = []
+    for i, info in enumerate(model.material_info):
+        if model.has_analytic:
+            kd, eta, alpha = (t[k][i] for k in ("materials.kd", "materials.eta", "materials.alpha"))
+        else:
+            kd, eta, alpha = [0.0] * 3, [1.0] * 3, [1.0, 1.0]
+        rows.append({"name": info["name"], "origin": str(info.get("origin", "")),
+                     "kd": [float(v) for v in kd], "eta": [float(v) for v in eta],
+                     "alpha": [float(v) for v in alpha], "pack": _packed(model, i)})
+    return rows
+
+
+def script_json(value: Any) -> str:
+    """JSON safe inside a ``<script>`` element and as a JavaScript literal: ASCII only (U+2028 and
+    U+2029 escaped), and ``<``, ``>`` and ``&`` as ``\\u003c`` ... so that no ``</script>`` or
+    ``<!--`` can appear."""
+    text = json.dumps(value, ensure_ascii=True, allow_nan=False, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = ()) -> Dict[str, Any]:
+    """What the page's script reads: the shader, the materials, the camera and light, the model's labels."""
+    check_size(model, model_path)
+    a = model.arch
+    heads = a.get("output_layer", "shared") == "material"
+    glsl = generate(model, "glsl", materials=[model.materials[0]], model_path=model_path)
+    rows = _material_rows(model)
+    n_pack = len(rows[0]["pack"])
+    if n_pack > MAX_PACKED_FLOATS:
+        raise ViewError(f"{model_path}: {n_pack} floats per material (latent code and output layer) is more than "
+                        f"the page's uniforms hold ({MAX_PACKED_FLOATS})")
+    training = model.training if isinstance(model.training, dict) else {}
+    return {
+        "model_path": model_path, "kind": model.kind, "has_analytic": bool(model.has_analytic),
+        "arch": f"{model.kind} {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}"
+                + (", output layer per material" if heads else ""),
+        "z_len": max(a["latent"], 1), "heads": heads, "head_w": a["n_out"] * a["width"] if heads else 0,
+        "n_out": a["n_out"], "n_pack": n_pack, "materials": rows,
+        "training_sources": [str(s) for s in training.get("sources", [])][:50] if isinstance(
+            training.get("sources"), list) else [],
+        "sources": [str(s) for s in sources],
+        "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN, "glsl": glsl,
+    }
+
+
+def render_page(model: HybridModel, model_path: str, sources: Sequence[str] = ()) -> str:
+    """The HTML page (a str)."""
+    data = page_data(model, model_path, sources)
+    folder = pathlib.Path(__file__).resolve().parent / "data"
+    html = (folder / "viewer.html").read_text(encoding="utf-8")
+    js = (folder / "viewer.js").read_text(encoding="utf-8")
+    if "</script" in js.lower():
+        raise AssertionError("viewer.js must not contain </script")
+    return html.replace("/*HBRDF_DATA*/", script_json(data)).replace("/*HBRDF_SCRIPT*/", js)
+
+
+def write_page(model_path: str, out: str, sources: Sequence[str] = ()) -> Dict[str, Any]:
+    """Load ``model_path`` (ModelFileError as ``hbrdf info`` prints it), write the page to ``out``
+    atomically; returns {"bytes", "materials"}."""
+    from hybridbrdf.inputs import refuse_output_over_input
+    from hybridbrdf.model_file import load_model
+    from hybridbrdf.util import atomic_write_bytes, check_writable
+
+    refuse_output_over_input(out, [model_path, *sources], "--out")
+    check_writable(out, "page")
+    model = load_model(model_path)
+    page = render_page(model, model_path, sources).encode("utf-8")
+    atomic_write_bytes(out, page)
+    return {"bytes": len(page), "materials": len(model.materials)}
+
+
+def tracer_scene(model_file: str, material: str, *, width: int = 256, height: int = 256, analytic: bool = False,
+                 elevation: float = DEFAULT_SUN["elevation"], azimuth: float = DEFAULT_SUN["azimuth"],
+                 spp: int = 16, resolution=(2048, 1024)) -> Dict[str, Any]:
+    """A scene (docs/RENDERING.md) that the path tracer renders as the page shows ``material``: the
+    page's camera, the unit sphere, the sun at (``elevation``, ``azimuth``) with irradiance
+    :data:`SUN_IRRADIANCE` as a disc of :data:`SUN_SIZE_DEG` in an otherwise black sky, direct
+    light only (``max_depth`` 1). ``analytic``: the material's f_a (``"evaluate": "analytic"``)."""
+    return {
+        "camera": dict(CAMERA, width=width, height=height),
+        "environment": {"type": "sky", "sun_elevation_deg": elevation, "sun_azimuth_deg": azimuth,
+                        "sun_irradiance": SUN_IRRADIANCE, "sun_size_deg": SUN_SIZE_DEG, "sky_intensity": 0.0,
+                        "ground_albedo": 0.0, "resolution": list(resolution)},
+        "materials": {"m": {"type": "model", "file": os.path.abspath(model_file), "material": material,
+                            "evaluate": "analytic" if analytic else "full"}},
+        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
+        "spp": spp, "max_depth": 1, "sampler": "mis", "seed": 0,
+    }
+
+
+def srgb8(linear: np.ndarray, exposure: float = 0.0) -> np.ndarray:
+    """What the page (and ``hbrdf render --png`` with ``--tonemap clamp``) shows for linear radiance:
+    2^exposure x, clipped to [0, 1], the sRGB OETF, rounded to 8 bits."""
+    x = np.clip(np.asarray(linear, dtype=np.float64) * 2.0 ** exposure, 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(s * 255.0).astype(np.uint8)
+
+
+__all__ = ["CAMERA", "DEFAULT_SUN", "MAX_VIEW_WEIGHT_BYTES", "SUN_IRRADIANCE", "SUN_SIZE_DEG", "ViewError",
+           "check_size", "page_data", "render_page", "script_json", "srgb8", "tracer_scene", "weight_bytes",
+           "write_page"]

@@ -1,0 +1,254 @@
+"""``hbrdf view`` (hybridbrdf.viewer, docs/VIEWER.md): the page in a real browser.
+
+Chromium headless with software WebGL2 (ANGLE on SwiftShader) opens the page from its file path
+with ``--dump-dom``; the page draws at load and, with ``#readback=1``, writes its canvas's pixels
+into the DOM and its outcome into the title ("hbrdf view: ok" or "hbrdf view: error: ...").
+Without chromium the browser tests skip, unless HBRDF_REQUIRE_BROWSER=1 (then they fail).
+
+The oracle for the pixels is the C++ path tracer rendering the same camera, light and material
+(hybridbrdf.viewer.tracer_scene: direct light only, the sun as a 0.5 degree disc). Bound on the mean
+absolute difference (8-bit sRGB units) over the pixels the sphere covers entirely:
+    MAD(page, tracer seed 0) <= MAD(tracer seed 0, tracer seed 1) + 1.
+Why: with the page showing the converged image E, the tracer's images are E + n_i with independent
+noise n_i of its sample count, so MAD(page, t0) ~ E|n| while MAD(t0, t1) ~ E|n0 - n1| ~ 1.4 E|n|
+(for Gaussian noise); the 1 covers the two 8-bit roundings, the box filter of the tracer's pixels
+against the page's pixel centres and the sun's disc against its direction. A page that renders
+another material, frame or light direction is off by far more (checked: the unedited page
+against the edited material's render)."""
+
+import base64
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from hybridbrdf import _core
+from hybridbrdf import viewer
+from hybridbrdf.model_file import load_model
+from helpers import run_cli
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+MODEL = os.path.join(REPO, "results", "rgl54_hybrid_32x2.safetensors")
+HEADS_MODEL = os.path.join(REPO, "results", "rgl54_32x2_heads_fast15k.safetensors")
+NEURAL_MODEL = os.path.join(REPO, "results", "merl80_neural_32x3_10k.safetensors")
+SIZE = 96
+SPP = 64
+
+#: The flags that give headless chromium WebGL2 without a GPU (ANGLE on SwiftShader). --no-sandbox:
+#: the tests run as root in CI, where chromium's sandbox refuses to start; the page is local.
+CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                  "--enable-webgl", "--ignore-gpu-blocklist", "--enable-logging=stderr", "--v=0",
+                  "--virtual-time-budget=20000"]
+
+
+def chromium():
+    exe = os.environ.get("HBRDF_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        if os.environ.get("HBRDF_REQUIRE_BROWSER") == "1":
+            pytest.fail("chromium not found and HBRDF_REQUIRE_BROWSER=1 (scripts/setup.sh installs it)")
+        pytest.skip("chromium not installed (scripts/setup.sh installs it)")
+    return exe
+
+
+needs_renderer = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="build without the renderer")
+
+
+def open_page(page, hash_="", extra_flags=()):
+    """(title, status line, dom, the page's console lines) of the page opened from its path."""
+    exe = chromium()
+    url = "file://" + os.path.abspath(page) + ("#" + hash_ if hash_ else "")
+    r = subprocess.run([exe, *CHROMIUM_FLAGS, *extra_flags, "--dump-dom", url], capture_output=True, text=True,
+                       timeout=180)
+    assert r.returncode == 0, r.stderr[-3000:]
+    dom = r.stdout
+    title = re.search(r"<title>(.*?)</title>", dom, re.S).group(1)
+    status = re.search(r'<div id="status">(.*?)</div>', dom, re.S).group(1)
+    console = [line for line in r.stderr.splitlines() if ":CONSOLE" in line]
+    return title, status, dom, console
+
+
+def page_pixels(page, hash_):
+    """The page's canvas as (SIZE, SIZE, 3) uint8, top row first; asserts a clean load."""
+    title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_)
+    assert title == "hbrdf view: ok", (title, status)
+    assert console == [], console
+    size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
+    px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)
+    return px[::-1, :, :3]  # readPixels gives the bottom row first
+
+
+def tracer_pixels(model, material, analytic=False, seed=0, **light):
+    from hybridbrdf.render import render
+
+    scene = viewer.tracer_scene(model, material, width=SIZE, height=SIZE, analytic=analytic, spp=SPP, **light)
+    img, _ = render(scene, seed=seed, threads=2)
+    return viewer.srgb8(img)
+
+
+def interior_mask():
+    """Pixels the unit sphere covers entirely (the page's camera; corners and centre hit it)."""
+    cam = viewer.CAMERA
+    pos, look, up = (np.array(cam[k], dtype=np.float64) for k in ("position", "look_at", "up"))
+    f = (look - pos) / np.linalg.norm(look - pos)
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    t = np.tan(np.radians(cam["fov_deg"]) / 2)
+    mask = np.ones((SIZE, SIZE), bool)
+    for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1), (0.5, 0.5)):
+        x, y = np.meshgrid(np.arange(SIZE) + dx, np.arange(SIZE) + dy)
+        d = f[None, None] + r[None, None] * ((2 * x / SIZE - 1) * t)[..., None] + u[None, None] * ((1 - 2 * y / SIZE) * t)[..., None]
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        b = d @ pos
+        mask &= b * b - (pos @ pos - 1) > 0
+    return mask
+
+
+def mad(a, b, mask):
+    return float(np.abs(a.astype(np.int32) - b.astype(np.int32))[mask].mean())
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    out = tmp_path_factory.mktemp("view") / "page.html"
+    r = run_cli("view", MODEL, "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def assert_matches_tracer(page_img, model, material, analytic=False, **light):
+    mask = interior_mask()
+    t0 = tracer_pixels(model, material, analytic, seed=0, **light)
+    t1 = tracer_pixels(model, material, analytic, seed=1, **light)
+    noise = mad(t0, t1, mask)
+    lit = (t0[mask].max(axis=-1) > 10).mean()
+    assert lit > 0.3 and noise < 3.0, (lit, noise)  # a lit sphere, a converged-enough tracer
+    diff = mad(page_img, t0, mask)
+    assert diff <= noise + 1.0, (diff, noise)
+    return diff, noise
+
+
+@needs_renderer
+@pytest.mark.parametrize("analytic", [False, True], ids=["full", "analytic"])
+def test_page_matches_tracer(page, analytic):
+    """(1) The page's sphere against the tracer's image of the same camera, light and material."""
+    material = "paper_white_rgb.rgl"
+    img = page_pixels(page, f"material={material}&analytic={int(analytic)}&sun_el=40&sun_az=130")
+    assert_matches_tracer(img, MODEL, material, analytic, elevation=40, azimuth=130)
+
+
+@needs_renderer
+def test_kd_slider_previews_hbrdf_edit(page, tmp_path):
+    """(2) kd set through the URL renders as `hbrdf edit` of the same value, and the page shows that command."""
+    material, kd = "cc_ibiza_sunset_rgb.rgl", "0.8,0.2,0.1"
+    edited = tmp_path / "edited.safetensors"
+    r = run_cli("edit", MODEL, material, "--set", f"kd={kd}", "--as", "edited", "--out", str(edited))
+    assert r.returncode == 0, r.stderr
+    img = page_pixels(page, f"material={material}&kd={kd}")
+    assert_matches_tracer(img, str(edited), "edited")
+    unedited = page_pixels(page, f"material={material}")
+    assert mad(img, unedited, interior_mask()) > 5.0  # the slider changes the image
+    _, _, dom, _ = open_page(page, f"material={material}&kd={kd}")
+    cmd = re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1)
+    assert f"edit {MODEL} {material} --set kd={kd} --as {material}_edit --out {MODEL}" in cmd, cmd
+
+
+def test_page_is_self_contained_and_logs_nothing(page):
+    """(3) Opened from its path: no reference to anything outside the file, no console message."""
+    html = page.read_text(encoding="utf-8")
+    assert not re.search(r"\b(src|href)\s*=", html, re.I)
+    assert "default-src 'none'" in html  # and the page's policy forbids any fetch
+    assert not re.search(r"https?://|//[a-z0-9.-]+\.[a-z]{2,}/", html.split('id="hbrdf-data"')[0], re.I)
+    title, status, dom, console = open_page(page)
+    assert (title, status.strip(), console) == ("hbrdf view: ok", "", [])
+
+
+@pytest.mark.parametrize("model", [HEADS_MODEL, NEURAL_MODEL], ids=["heads", "neural"])
+def test_other_architectures_load(tmp_path, model):
+    out = tmp_path / "p.html"
+    r = run_cli("view", model, "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    img = page_pixels(out, "")
+    assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
+
+
+HOSTILE = ["</script><script>document.title='pwned'</script>", "<!--<script>", "a\"b'c`${x}\\",
+           "line\nbreak\r\u2028\u2029end", "<img src=x onerror=\"document.title='pwned'\">", "&amp;&lt;"]
+
+
+def test_hostile_text_cannot_inject(tmp_path):
+    """(4) Origin labels and training records of the model are shown as text, never run."""
+    model = load_model(MODEL)
+    for i, text in enumerate(HOSTILE):
+        model.material_info[i]["origin"] = text
+    model.training = dict(model.training, sources=HOSTILE)
+    hostile_path = tmp_path / "m'<b>&.safetensors"
+    model.save(str(hostile_path))
+    out = tmp_path / "p.html"
+    r = run_cli("view", str(hostile_path), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    html = out.read_text(encoding="utf-8")
+    assert html.count("<script") == 2 and html.lower().count("</script") == 2
+    assert "\u2028" not in html and "\u2029" not in html
+    title, status, dom, console = open_page(out)
+    assert title == "hbrdf view: ok" and console == [], (title, status, console)
+    assert "pwned" not in title
+    assert dom.count("<script") == 2 and "<img" not in dom and "<b>" not in dom
+    for i in range(len(HOSTILE)):  # each origin, shown for its material, reads back as the text it is
+        title, status, dom, console = open_page(out, f"material={model.materials[i]}")
+        assert title == "hbrdf view: ok" and console == [], (title, console)
+        info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
+        shown = info.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
+        assert shown.startswith("origin: " + HOSTILE[i].replace("\r", "\n")), (HOSTILE[i], shown)  # text mode reads CR as LF
+
+
+def _error_line(r, command):
+    assert r.returncode == 1 and r.stdout == "", (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"hbrdf {command}: error: "), r.stderr
+    return lines[0][len(f"hbrdf {command}: error: "):]
+
+
+def test_refused_models_same_error_as_info(tmp_path):
+    """(5) Model files the loaders refuse: the one line `hbrdf info` prints; nothing written."""
+    good = open(MODEL, "rb").read()
+    cases = {"empty.safetensors": b"", "garbage.safetensors": b"not a model" * 10,
+             "truncated.safetensors": good[: len(good) // 2], "header.safetensors": good[:8] + b"{" + good[9:200]}
+    for name, content in cases.items():
+        path = tmp_path / name
+        path.write_bytes(content)
+        out = tmp_path / (name + ".html")
+        view = _error_line(run_cli("view", str(path), "--out", str(out)), "view")
+        info = _error_line(run_cli("info", str(path)), "info")
+        assert view == info, (view, info)
+        assert not out.exists()
+    missing = tmp_path / "missing.safetensors"
+    assert _error_line(run_cli("view", str(missing), "--out", str(tmp_path / "o.html")), "view") == \
+        _error_line(run_cli("info", str(missing)), "info")
+    # the page over its own model is refused before anything is read
+    msg = _error_line(run_cli("view", MODEL, "--out", MODEL), "view")
+    assert "names the input" in msg
+
+
+def test_too_large_model_refused(tmp_path, monkeypatch, capsys):
+    """A model over the size limit is refused with its size and the limit."""
+    from hybridbrdf import cli
+
+    n = viewer.weight_bytes(load_model(MODEL))
+    monkeypatch.setattr(viewer, "MAX_VIEW_WEIGHT_BYTES", n - 4)
+    out = tmp_path / "p.html"
+    assert cli.main(["view", MODEL, "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hbrdf view: error: ") and "\n" not in err
+    assert f"({n // 4} float32 values)" in err and f"limit: {(n - 4) / 2**20:g} MiB" in err, err
+    assert not out.exists()
+
+
+def test_without_webgl2_one_line(page):
+    """A browser without WebGL2 sees one line saying so."""
+    title, status, dom, console = open_page(page, "", ["--disable-3d-apis"])
+    assert status.strip() == "This viewer needs WebGL2, which this browser does not provide (or has turned off)."
+    assert title.startswith("hbrdf view: error: This viewer needs WebGL2")
