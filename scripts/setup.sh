@@ -17,6 +17,7 @@ apt_packages=(
   nlohmann-json3-dev               # model-file header parsing in libhybridbrdf
   libassimp-dev libtinyexr-dev libstb-dev   # the path tracer: OBJ/PLY meshes, EXR and HDR/PNG images
   libllvm19                        # Mitsuba's llvm_ad_rgb (the plugin's tests): Dr.Jit needs LLVM >= 16 here
+  chromium                         # hbrdf view's page in a real browser (tests/python/test_view.py, SwiftShader WebGL2)
 )
 missing=()
 for p in "${apt_packages[@]}"; do
