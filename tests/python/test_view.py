@@ -19,6 +19,7 @@ against the edited material's render)."""
 import base64
 import os
 import re
+import shlex
 import shutil
 import subprocess
 
@@ -164,7 +165,8 @@ def test_page_is_self_contained_and_logs_nothing(page):
     assert not re.search(r"\b(src|href)\s*=", html, re.I)
     assert "default-src 'none'" in html  # and the page's policy forbids any fetch
     assert not re.search(r"https?://|//[a-z0-9.-]+\.[a-z]{2,}/", html.split('id="hbrdf-data"')[0], re.I)
-    title, status, dom, console = open_page(page)
+    # no name resolves: a page that reached for the network would fail to load something and log it
+    title, status, dom, console = open_page(page, "", ["--host-resolver-rules=MAP * ~NOTFOUND"])
     assert (title, status.strip(), console) == ("hbrdf view: ok", "", [])
 
 
@@ -199,7 +201,13 @@ def test_hostile_text_cannot_inject(tmp_path):
     assert title == "hbrdf view: ok" and console == [], (title, status, console)
     assert "pwned" not in title
     assert dom.count("<script") == 2 and "<img" not in dom and "<b>" not in dom
-    for i in range(len(HOSTILE)):  # each origin, shown for its material, reads back as the text it is
+    # the hbrdf edit line quotes the hostile path for a POSIX shell
+    title, status, dom, console = open_page(out, f"material={model.materials[0]}&kd=0.5")
+    cmd = re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1)
+    cmd = cmd.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
+    assert shlex.split(cmd) == ["hbrdf", "edit", str(hostile_path), model.materials[0], "--set", "kd=0.5,0.5,0.5", "--as",
+                                model.materials[0] + "_edit", "--out", str(hostile_path)], cmd
+    for i in (0, 3):  # an origin, shown for its material, reads back as the text it is (all: the training line)
         title, status, dom, console = open_page(out, f"material={model.materials[i]}")
         assert title == "hbrdf view: ok" and console == [], (title, console)
         info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
@@ -207,32 +215,34 @@ def test_hostile_text_cannot_inject(tmp_path):
         assert shown.startswith("origin: " + HOSTILE[i].replace("\r", "\n")), (HOSTILE[i], shown)  # text mode reads CR as LF
 
 
-def _error_line(r, command):
-    assert r.returncode == 1 and r.stdout == "", (r.stdout, r.stderr)
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"hbrdf {command}: error: "), r.stderr
-    return lines[0][len(f"hbrdf {command}: error: "):]
+def _error_line(capsys, *argv):
+    """The one line ``hbrdf ARGV`` prints to stderr (in-process: the same code as the command), after its prefix."""
+    from hybridbrdf import cli
+
+    assert cli.main(list(argv)) == 1
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    prefix = f"hbrdf {argv[0]}: error: "
+    assert out == "" and len(lines) == 1 and lines[0].startswith(prefix), (out, err)
+    return lines[0][len(prefix):]
 
 
-def test_refused_models_same_error_as_info(tmp_path):
+def test_refused_models_same_error_as_info(tmp_path, capsys):
     """(5) Model files the loaders refuse: the one line `hbrdf info` prints; nothing written."""
     good = open(MODEL, "rb").read()
     cases = {"empty.safetensors": b"", "garbage.safetensors": b"not a model" * 10,
-             "truncated.safetensors": good[: len(good) // 2], "header.safetensors": good[:8] + b"{" + good[9:200]}
+             "truncated.safetensors": good[: len(good) // 2], "header.safetensors": good[:8] + b"{" + good[9:200],
+             "missing.safetensors": None}
     for name, content in cases.items():
         path = tmp_path / name
-        path.write_bytes(content)
+        if content is not None:
+            path.write_bytes(content)
         out = tmp_path / (name + ".html")
-        view = _error_line(run_cli("view", str(path), "--out", str(out)), "view")
-        info = _error_line(run_cli("info", str(path)), "info")
-        assert view == info, (view, info)
+        view = _error_line(capsys, "view", str(path), "--out", str(out))
+        assert view == _error_line(capsys, "info", str(path)) and str(path) in view, view
         assert not out.exists()
-    missing = tmp_path / "missing.safetensors"
-    assert _error_line(run_cli("view", str(missing), "--out", str(tmp_path / "o.html")), "view") == \
-        _error_line(run_cli("info", str(missing)), "info")
     # the page over its own model is refused before anything is read
-    msg = _error_line(run_cli("view", MODEL, "--out", MODEL), "view")
-    assert "names the input" in msg
+    assert "names the input" in _error_line(capsys, "view", MODEL, "--out", MODEL)
 
 
 def test_too_large_model_refused(tmp_path, monkeypatch, capsys):
