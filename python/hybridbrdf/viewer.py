@@ -126,6 +126,8 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = ()) 
             training.get("sources"), list) else [],
         "sources": [str(s) for s in sources],
         "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN, "glsl": glsl,
+        # the page fills in the material, the light, analytic or full, and the size
+        "scene": tracer_scene(model_path, model.materials[0], spp=64),
     }
 
 

@@ -17,6 +17,7 @@ another material, frame or light direction is off by far more (checked: the uned
 against the edited material's render)."""
 
 import base64
+import json
 import os
 import re
 import shlex
@@ -71,21 +72,31 @@ def open_page(page, hash_="", extra_flags=()):
     return title, status, dom, console
 
 
-def page_pixels(page, hash_):
-    """The page's canvas as (SIZE, SIZE, 3) uint8, top row first; asserts a clean load."""
+def unescape(text):
+    return text.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
+
+
+def page_state(page, hash_):
+    """(canvas as (SIZE, SIZE, 3) uint8 top row first, the scene the page shows for the tracer,
+    its hbrdf edit line); asserts a clean load."""
     title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_)
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console
     size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
     px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)
-    return px[::-1, :, :3]  # readPixels gives the bottom row first
+    scene = json.loads(unescape(re.search(r'<pre id="scene">(.*?)</pre>', dom, re.S).group(1)))
+    cmd = unescape(re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1))
+    return px[::-1, :, :3], scene, cmd  # readPixels gives the bottom row first
 
 
-def tracer_pixels(model, material, analytic=False, seed=0, **light):
+def page_pixels(page, hash_):
+    return page_state(page, hash_)[0]
+
+
+def tracer_pixels(scene, seed=0):
     from hybridbrdf.render import render
 
-    scene = viewer.tracer_scene(model, material, width=SIZE, height=SIZE, analytic=analytic, spp=SPP, **light)
-    img, _ = render(scene, seed=seed, threads=2)
+    img, _ = render(scene, seed=seed, spp=SPP, threads=2)
     return viewer.srgb8(img)
 
 
@@ -120,10 +131,9 @@ def page(tmp_path_factory):
     return out
 
 
-def assert_matches_tracer(page_img, model, material, analytic=False, **light):
+def assert_matches_tracer(page_img, scene):
     mask = interior_mask()
-    t0 = tracer_pixels(model, material, analytic, seed=0, **light)
-    t1 = tracer_pixels(model, material, analytic, seed=1, **light)
+    t0, t1 = tracer_pixels(scene, seed=0), tracer_pixels(scene, seed=1)
     noise = mad(t0, t1, mask)
     lit = (t0[mask].max(axis=-1) > 10).mean()
     assert lit > 0.3 and noise < 3.0, (lit, noise)  # a lit sphere, a converged-enough tracer
@@ -135,28 +145,35 @@ def assert_matches_tracer(page_img, model, material, analytic=False, **light):
 @needs_renderer
 @pytest.mark.parametrize("analytic", [False, True], ids=["full", "analytic"])
 def test_page_matches_tracer(page, analytic):
-    """(1) The page's sphere against the tracer's image of the same camera, light and material."""
+    """(1) The page's sphere against the tracer's image of the scene the page shows for it."""
     material = "paper_white_rgb.rgl"
-    img = page_pixels(page, f"material={material}&analytic={int(analytic)}&sun_el=40&sun_az=130")
-    assert_matches_tracer(img, MODEL, material, analytic, elevation=40, azimuth=130)
+    img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&sun_el=40&sun_az=130")
+    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
+                                        elevation=40, azimuth=130)
+    assert_matches_tracer(img, scene)
 
 
 @needs_renderer
 @pytest.mark.parametrize("key,value", [("kd", "0.8,0.2,0.1"), ("alpha", "0.05,0.4")], ids=["kd", "alpha_anisotropic"])
-def test_slider_previews_hbrdf_edit(page, tmp_path, key, value):
+def test_slider_previews_hbrdf_edit(tmp_path, key, value):
     """(2) kd (or an anisotropic alpha: the tangent frame) set through the URL, as the sliders set it,
-    renders as `hbrdf edit` of the same value, and the page shows that command line."""
+    renders as what the page's `hbrdf edit` line writes for it, in the tracer scene the page shows."""
+    model = tmp_path / "m.safetensors"
+    shutil.copyfile(MODEL, model)
+    page = tmp_path / "p.html"
+    assert run_cli("view", str(model), "--out", str(page)).returncode == 0
     material = "cc_ibiza_sunset_rgb.rgl"
-    edited = tmp_path / "edited.safetensors"
-    r = run_cli("edit", MODEL, material, "--set", f"{key}={value}", "--as", "edited", "--out", str(edited))
+    img, scene, cmd = page_state(page, f"material={material}&{key}={value}")
+    argv = shlex.split(cmd)
+    assert argv == ["hbrdf", "edit", str(model), material, "--set", f"{key}={value}", "--as", f"{material}_edit",
+                    "--out", str(model)], cmd
+    r = run_cli(*argv[1:])  # the page's command line, run
     assert r.returncode == 0, r.stderr
-    img = page_pixels(page, f"material={material}&{key}={value}")
-    assert_matches_tracer(img, str(edited), "edited")
+    assert scene["materials"]["m"] == {"type": "model", "file": str(model), "material": f"{material}_edit",
+                                       "evaluate": "full"}
+    assert_matches_tracer(img, scene)
     unedited = page_pixels(page, f"material={material}")
     assert mad(img, unedited, interior_mask()) > 2.0  # the slider changes the image
-    _, _, dom, _ = open_page(page, f"material={material}&{key}={value}")
-    cmd = re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1)
-    assert f"edit {MODEL} {material} --set {key}={value} --as {material}_edit --out {MODEL}" in cmd, cmd
 
 
 def test_page_is_self_contained_and_logs_nothing(page):

@@ -194,6 +194,9 @@ void main() {
     $("sun_az_v").textContent = state.az.toFixed(0);
     const m = mats[state.index];
     $("cmd").textContent = editCommand(m);
+    $("scene").textContent = sceneJson(m);
+    $("render_cmd").textContent = "hbrdf render scene.json -o out.exr --png out.png --exposure " + state.exposure +
+      (edited() ? " (after the hbrdf edit above: the scene names its new material)" : "");
     $("info").textContent = "origin: " + m.origin + (data.has_analytic ? "\nfitted kd " + fitted(m.kd) + ", eta " + fitted(m.eta) +
       ", alpha " + fitted(m.alpha) : "") +
       (data.sources.length ? "\nsources given to hbrdf view: " + data.sources.join(", ") : "") +
@@ -202,6 +205,20 @@ void main() {
   function fmt(v) { return v.map(String).join(","); }  // slider values as typed: hbrdf edit rounds them to float32
   function fitted(v) { return v.map(function (x) { return x.toPrecision(4); }).join(","); }
   function quote(s) { return /^[A-Za-z0-9_.+\-\/=,:]+$/.test(s) ? s : "'" + s.replace(/'/g, "'\\''") + "'"; }
+  // the edited material's name: the model contract's names have at most 64 characters
+  function editName(m) { return m.name.slice(0, 59) + "_edit"; }
+  function edited() { return data.has_analytic && (state.edited.kd || state.edited.eta || state.edited.alpha); }
+  // hybridbrdf.viewer.tracer_scene's scene (Python fills in the rest): this material, light and size.
+  function sceneJson(m) {
+    const s = JSON.parse(JSON.stringify(data.scene));
+    s.camera.width = size;
+    s.camera.height = size;
+    s.environment.sun_elevation_deg = state.el;
+    s.environment.sun_azimuth_deg = state.az;
+    s.materials.m.material = edited() ? editName(m) : m.name;
+    s.materials.m.evaluate = state.analytic && data.has_analytic ? "analytic" : "full";
+    return JSON.stringify(s, null, 1);
+  }
   function editCommand(m) {
     if (!data.has_analytic) return "(the neural baseline has no analytic parameters to edit)";
     const sets = [];
@@ -210,7 +227,7 @@ void main() {
     if (state.edited.alpha) sets.push("alpha=" + fmt(state.alpha));
     if (!sets.length) return "(move a kd, eta or alpha slider)";
     return ["hbrdf", "edit", data.model_path, m.name].map(quote).join(" ") +
-      sets.map(function (s) { return " --set " + s; }).join("") + " --as " + quote(m.name + "_edit") +
+      sets.map(function (s) { return " --set " + s; }).join("") + " --as " + quote(editName(m)) +
       " --out " + quote(data.model_path);
   }
 
