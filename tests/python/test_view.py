@@ -23,6 +23,8 @@ import re
 import shlex
 import shutil
 import subprocess
+import tempfile
+import urllib.parse
 
 import numpy as np
 import pytest
@@ -41,9 +43,10 @@ SPP = 64
 
 #: The flags that give headless chromium WebGL2 without a GPU (ANGLE on SwiftShader). --no-sandbox:
 #: the tests run as root in CI, where chromium's sandbox refuses to start; the page is local.
+#: --disable-dev-shm-usage: containers' small /dev/shm. Each run gets a profile folder of its own.
 CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                   "--enable-webgl", "--ignore-gpu-blocklist", "--enable-logging=stderr", "--v=0",
-                  "--virtual-time-budget=20000"]
+                  "--virtual-time-budget=20000", "--disable-dev-shm-usage", "--no-first-run"]
 
 
 def chromium():
@@ -61,9 +64,10 @@ needs_renderer = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), 
 def open_page(page, hash_="", extra_flags=()):
     """(title, status line, dom, the page's console lines) of the page opened from its path."""
     exe = chromium()
-    url = "file://" + os.path.abspath(page) + ("#" + hash_ if hash_ else "")
-    r = subprocess.run([exe, *CHROMIUM_FLAGS, *extra_flags, "--dump-dom", url], capture_output=True, text=True,
-                       timeout=180)
+    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+    with tempfile.TemporaryDirectory() as profile:
+        r = subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *extra_flags, "--dump-dom", url],
+                           capture_output=True, text=True, timeout=180)
     assert r.returncode == 0, r.stderr[-3000:]
     dom = r.stdout
     title = re.search(r"<title>(.*?)</title>", dom, re.S).group(1)
@@ -81,6 +85,10 @@ def page_state(page, hash_):
     its hbrdf edit line); asserts a clean load."""
     title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_)
     assert title == "hbrdf view: ok", (title, status)
+    # The tests' readback (gl.finish, then readPixels) can still draw ANGLE's performance note "GPU stall
+    # due to ReadPixels" on a loaded machine (seen once in ~40 runs); it is not an error, and the
+    # page without readback=1 must log nothing at all (test_page_is_self_contained_and_logs_nothing).
+    console = [line for line in console if "GPU stall due to ReadPixels" not in line]
     assert console == [], console
     size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
     px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)

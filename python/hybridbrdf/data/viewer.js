@@ -288,6 +288,7 @@ void main() {
   }
   if (params.get("readback") === "1") {  // the tests read the pixels back (RGBA, bottom row first)
     const px = new Uint8Array(4 * size * size);
+    gl.finish();  // drawn before reading: a readPixels that waits logs a "GPU stall" performance message
     gl.readPixels(0, 0, size, size, gl.RGBA, gl.UNSIGNED_BYTE, px);
     let bin = "";
     for (let i = 0; i < px.length; i += 0x8000) bin += String.fromCharCode.apply(null, px.subarray(i, i + 0x8000));
