@@ -289,3 +289,13 @@ def test_without_webgl2_one_line(page):
     title, status, dom, console = open_page(page, "", ["--disable-3d-apis"])
     assert status.strip() == "This viewer needs WebGL2, which this browser does not provide (or has turned off)."
     assert title.startswith("hbrdf view: error: This viewer needs WebGL2")
+
+
+@pytest.mark.parametrize("hash_,line", [
+    ("material=nope", 'no material "nope" in the model'),
+    ("kd=2", 'URL parameter kd="2": expected 1 or 3 numbers in [0, 1]'),
+    ("alpha=0.1,", 'URL parameter alpha="0.1,": expected 1 or 2 numbers in [0.0001, 1]'),
+])
+def test_bad_url_parameters_one_line(page, hash_, line):
+    title, status, _, _ = open_page(page, hash_)
+    assert unescape(status) == line and title == "hbrdf view: error: " + line, (title, status)

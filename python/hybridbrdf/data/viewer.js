@@ -133,11 +133,12 @@ void main() {
   const select = $("material");
   mats.forEach(function (m, i) { select.add(new Option(m.name, String(i))); });
 
-  function numbers(text, counts, lo, hi) {
+  function numbers(key, counts, lo, hi) {
+    const text = params.get(key);
     if (text === null) return null;
-    const v = text.split(",").map(Number);
+    const v = text.split(",").map(function (x) { return x.trim() === "" ? NaN : Number(x); });
     if (counts.indexOf(v.length) < 0 || v.some(function (x) { return !isFinite(x) || x < lo || x > hi; })) {
-      throw new Error("URL parameter value " + JSON.stringify(text) + ": expected " + counts.join(" or ") +
+      throw new Error("URL parameter " + key + "=" + JSON.stringify(text) + ": expected " + counts.join(" or ") +
         " numbers in [" + lo + ", " + hi + "]");
     }
     return v;
@@ -159,17 +160,17 @@ void main() {
       if (i < 0) throw new Error("no material " + JSON.stringify(name) + " in the model");
       loadMaterial(i);
     }
-    const kd = numbers(params.get("kd"), [1, 3], 0, 1);
+    const kd = numbers("kd", [1, 3], 0, 1);
     if (kd) { state.kd = kd.length === 1 ? [kd[0], kd[0], kd[0]] : kd; state.edited.kd = true; }
-    const eta = numbers(params.get("eta"), [1, 3], 1, 10);
+    const eta = numbers("eta", [1, 3], 1, 10);
     if (eta) { state.eta = eta.length === 1 ? [eta[0], eta[0], eta[0]] : eta; state.edited.eta = true; }
-    const alpha = numbers(params.get("alpha"), [1, 2], 1e-4, 1);
+    const alpha = numbers("alpha", [1, 2], 1e-4, 1);
     if (alpha) { state.alpha = alpha.length === 1 ? [alpha[0], alpha[0]] : alpha; state.edited.alpha = true; }
-    const ev = numbers(params.get("exposure"), [1], -20, 20);
+    const ev = numbers("exposure", [1], -20, 20);
     if (ev) state.exposure = ev[0];
-    const el = numbers(params.get("sun_el"), [1], -90, 90);
+    const el = numbers("sun_el", [1], -90, 90);
     if (el) state.el = el[0];
-    const az = numbers(params.get("sun_az"), [1], -360, 360);
+    const az = numbers("sun_az", [1], -360, 360);
     if (az) state.az = az[0];
     state.analytic = params.get("analytic") === "1";
   }
