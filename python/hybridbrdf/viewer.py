@@ -54,6 +54,70 @@ SUN_SIZE_DEG = 0.5
 DEFAULT_SUN = {"elevation": 35.0, "azimuth": 150.0}
 
 
+#: GLSL ES 3.00 in front of the generated GLSL: WebGL2 takes the version only on the first line.
+ES_PREFIX = "#version 300 es\nprecision highp float;\nprecision highp int;\n"
+
+#: The page's own shader code after the generated GLSL: the material from uniforms, the camera ray,
+#: the sphere in the tracer's frame, f cos E, exposure and the sRGB OETF.
+_MAIN = """
+// ---- hbrdf view: one unit sphere at the origin lit by a directional light (docs/VIEWER.md) ----
+uniform vec3 u_kd;
+uniform vec3 u_eta;
+uniform vec2 u_alpha;
+uniform vec4 u_pack[{n_vec}];
+uniform bool u_analytic;
+uniform vec3 u_sun;
+uniform float u_irradiance;
+uniform float u_gain;
+uniform vec3 u_cam_pos, u_cam_fwd, u_cam_right, u_cam_up;
+uniform vec2 u_tan;
+uniform vec2 u_size;
+out vec4 frag_color;
+float hbrdf_view_packed(int i) {{ return u_pack[i / 4][i % 4]; }}
+HbrdfMaterial hbrdf_view_material() {{
+    HbrdfMaterial m;
+    m.kd = u_kd;
+    m.eta = u_eta;
+    m.alpha_x = u_alpha.x;
+    m.alpha_y = u_alpha.y;
+    for (int i = 0; i < {z_len}; ++i) m.z[i] = hbrdf_view_packed(i);
+{head_lines}    return m;
+}}
+float hbrdf_view_srgb(float x) {{
+    x = clamp(x, 0.0, 1.0);
+    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+}}
+void main() {{
+    // The tracer's pinhole (docs/RENDERING.md): pixel (0, 0) top left, y down; the pixel's centre.
+    vec2 p = vec2(gl_FragCoord.x, u_size.y - gl_FragCoord.y);
+    float sx = (2.0 * p.x / u_size.x - 1.0) * u_tan.x;
+    float sy = (1.0 - 2.0 * p.y / u_size.y) * u_tan.y;
+    vec3 d = normalize(u_cam_fwd + u_cam_right * sx + u_cam_up * sy);
+    vec3 o = u_cam_pos;
+    float b = dot(o, d), disc = b * b - (dot(o, o) - 1.0);
+    vec3 radiance = vec3(0.0);
+    if (disc > 0.0) {{
+        float t = -b - sqrt(disc);
+        vec3 n = normalize(o + t * d);
+        // The tracer's sphere frame: tangent d p / d phi about +y (the alpha_x axis).
+        vec3 tg = vec3(-n.z, 0.0, n.x);
+        float len2 = dot(tg, tg);
+        tg = len2 > 1e-12 ? tg / sqrt(len2) : vec3(1.0, 0.0, 0.0);
+        vec3 bt = cross(n, tg);
+        vec3 wi = vec3(dot(u_sun, tg), dot(u_sun, bt), dot(u_sun, n));
+        vec3 wo = vec3(dot(-d, tg), dot(-d, bt), dot(-d, n));
+        if (wi.z > 0.0 && wo.z > 0.0) {{
+            HbrdfMaterial m = hbrdf_view_material();
+            vec3 f = u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m);
+            radiance = max(f, vec3(0.0)) * wi.z * u_irradiance;
+        }}
+    }}
+    vec3 c = radiance * u_gain;
+    frag_color = vec4(hbrdf_view_srgb(c.r), hbrdf_view_srgb(c.g), hbrdf_view_srgb(c.b), 1.0);
+}}
+"""
+
+
 class ViewError(ValueError):
     """A model ``hbrdf view`` refuses (one line)."""
 
@@ -96,6 +160,17 @@ def _material_rows(model: HybridModel) -> List[Dict[str, Any]]:
     return rows
 
 
+def fragment_shader(glsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0) -> str:
+    """The page's fragment shader (GLSL ES 3.00): :data:`ES_PREFIX`, ``glsl`` (``hbrdf-codegen --target
+    glsl`` output, unchanged) and the page's ``main``. ``head_w``/``n_out``: the material output
+    layer's sizes (0 for a shared one); the packed uniforms hold z, then head_w, then head_b."""
+    head_lines = ""
+    if head_w:
+        head_lines = (f"    for (int i = 0; i < {head_w}; ++i) m.head_w[i] = hbrdf_view_packed({z_len} + i);\n"
+                      f"    for (int i = 0; i < {n_out}; ++i) m.head_b[i] = hbrdf_view_packed({z_len + head_w} + i);\n")
+    return ES_PREFIX + glsl + _MAIN.format(n_vec=(n_pack + 3) // 4, z_len=z_len, head_lines=head_lines)
+
+
 def script_json(value: Any) -> str:
     """JSON safe inside a ``<script>`` element and as a JavaScript literal: ASCII only (U+2028 and
     U+2029 escaped), and ``<``, ``>`` and ``&`` as ``\\u003c`` ... so that no ``</script>`` or
@@ -125,7 +200,9 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = ()) 
         "training_sources": [str(s) for s in training.get("sources", [])][:50] if isinstance(
             training.get("sources"), list) else [],
         "sources": [str(s) for s in sources],
-        "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN, "glsl": glsl,
+        "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN,
+        "fragment": fragment_shader(glsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
+                                    a["n_out"]),
         # the page fills in the material, the light, analytic or full, and the size
         "scene": tracer_scene(model_path, model.materials[0], spp=64),
     }
@@ -185,5 +262,5 @@ def srgb8(linear: np.ndarray, exposure: float = 0.0) -> np.ndarray:
 
 
 __all__ = ["CAMERA", "DEFAULT_SUN", "MAX_VIEW_WEIGHT_BYTES", "SUN_IRRADIANCE", "SUN_SIZE_DEG", "ViewError",
-           "check_size", "page_data", "render_page", "script_json", "srgb8", "tracer_scene", "weight_bytes",
+           "check_size", "fragment_shader", "page_data", "render_page", "script_json", "srgb8", "tracer_scene", "weight_bytes",
            "write_page"]

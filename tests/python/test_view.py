@@ -299,3 +299,21 @@ def test_without_webgl2_one_line(page):
 def test_bad_url_parameters_one_line(page, hash_, line):
     title, status, _, _ = open_page(page, hash_)
     assert unescape(status) == line and title == "hbrdf view: error: " + line, (title, status)
+
+
+@pytest.mark.parametrize("model_file", [MODEL, HEADS_MODEL, NEURAL_MODEL], ids=["hybrid", "heads", "neural"])
+def test_fragment_shader_is_the_generated_glsl_as_es300(tmp_path, model_file):
+    """The page's shader: ES 3.00 lines, then hbrdf-codegen's GLSL unchanged, then the page's main;
+    glslang compiles it as a GLSL ES 3.00 fragment shader (without a browser)."""
+    from hybridbrdf.codegen import generate
+
+    model = load_model(model_file)
+    frag = viewer.page_data(model, model_file)["fragment"]
+    glsl = generate(model, "glsl", materials=[model.materials[0]], model_path=model_file)
+    assert frag.startswith("#version 300 es\nprecision highp float;\nprecision highp int;\n" + glsl)
+    exe = shutil.which("glslangValidator")
+    if exe is None:
+        pytest.skip("glslangValidator not installed (scripts/setup.sh installs glslang-tools)")
+    (tmp_path / "page.frag").write_text(frag)
+    r = subprocess.run([exe, "-S", "frag", str(tmp_path / "page.frag")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:]

@@ -31,67 +31,8 @@
     return;
   }
 
-  const Z = data.z_len, NPACK = data.n_pack, NVEC = Math.ceil(NPACK / 4);
-  const headLines = data.heads ?
-    "    for (int i = 0; i < " + data.head_w + "; ++i) m.head_w[i] = hbrdf_view_packed(" + Z + " + i);\n" +
-    "    for (int i = 0; i < " + data.n_out + "; ++i) m.head_b[i] = hbrdf_view_packed(" + (Z + data.head_w) + " + i);\n" : "";
-  const fragment = "#version 300 es\nprecision highp float;\nprecision highp int;\n" + data.glsl + `
-// ---- hbrdf view: one unit sphere at the origin lit by a directional light (docs/VIEWER.md) ----
-uniform vec3 u_kd;
-uniform vec3 u_eta;
-uniform vec2 u_alpha;
-uniform vec4 u_pack[${NVEC}];
-uniform bool u_analytic;
-uniform vec3 u_sun;
-uniform float u_irradiance;
-uniform float u_gain;
-uniform vec3 u_cam_pos, u_cam_fwd, u_cam_right, u_cam_up;
-uniform vec2 u_tan;
-uniform vec2 u_size;
-out vec4 frag_color;
-float hbrdf_view_packed(int i) { return u_pack[i / 4][i % 4]; }
-HbrdfMaterial hbrdf_view_material() {
-    HbrdfMaterial m;
-    m.kd = u_kd;
-    m.eta = u_eta;
-    m.alpha_x = u_alpha.x;
-    m.alpha_y = u_alpha.y;
-    for (int i = 0; i < ${Z}; ++i) m.z[i] = hbrdf_view_packed(i);
-${headLines}    return m;
-}
-float hbrdf_view_srgb(float x) {
-    x = clamp(x, 0.0, 1.0);
-    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
-}
-void main() {
-    // The tracer's pinhole (docs/RENDERING.md): pixel (0, 0) top left, y down; the pixel's centre.
-    vec2 p = vec2(gl_FragCoord.x, u_size.y - gl_FragCoord.y);
-    float sx = (2.0 * p.x / u_size.x - 1.0) * u_tan.x;
-    float sy = (1.0 - 2.0 * p.y / u_size.y) * u_tan.y;
-    vec3 d = normalize(u_cam_fwd + u_cam_right * sx + u_cam_up * sy);
-    vec3 o = u_cam_pos;
-    float b = dot(o, d), disc = b * b - (dot(o, o) - 1.0);
-    vec3 radiance = vec3(0.0);
-    if (disc > 0.0) {
-        float t = -b - sqrt(disc);
-        vec3 n = normalize(o + t * d);
-        // The tracer's sphere frame: tangent d p / d phi about +y (the alpha_x axis).
-        vec3 tg = vec3(-n.z, 0.0, n.x);
-        float len2 = dot(tg, tg);
-        tg = len2 > 1e-12 ? tg / sqrt(len2) : vec3(1.0, 0.0, 0.0);
-        vec3 bt = cross(n, tg);
-        vec3 wi = vec3(dot(u_sun, tg), dot(u_sun, bt), dot(u_sun, n));
-        vec3 wo = vec3(dot(-d, tg), dot(-d, bt), dot(-d, n));
-        if (wi.z > 0.0 && wo.z > 0.0) {
-            HbrdfMaterial m = hbrdf_view_material();
-            vec3 f = u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m);
-            radiance = max(f, vec3(0.0)) * wi.z * u_irradiance;
-        }
-    }
-    vec3 c = radiance * u_gain;
-    frag_color = vec4(hbrdf_view_srgb(c.r), hbrdf_view_srgb(c.g), hbrdf_view_srgb(c.b), 1.0);
-}
-`;
+  const NVEC = Math.ceil(data.n_pack / 4);
+  const fragment = data.fragment;  // hybridbrdf.viewer.fragment_shader
   const vertex = "#version 300 es\nvoid main() { vec2 v = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));" +
     " gl_Position = vec4(v * 2.0 - 1.0, 0.0, 1.0); }\n";
 
