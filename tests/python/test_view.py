@@ -189,7 +189,9 @@ def test_page_is_self_contained_and_logs_nothing(page):
     html = page.read_text(encoding="utf-8")
     assert not re.search(r"\b(src|href)\s*=", html, re.I)
     assert "default-src 'none'" in html  # and the page's policy forbids any fetch
-    assert not re.search(r"https?://|//[a-z0-9.-]+\.[a-z]{2,}/", html.split('id="hbrdf-data"')[0], re.I)
+    own = re.sub(r'(<script type="application/json" id="hbrdf-data">).*?(</script>)', r"\1\2", html, flags=re.S)
+    assert not re.search(r"https?:|wss?:|ftp:|//[a-z0-9.-]+\.[a-z]{2,}/", own, re.I)  # the page's own HTML and script
+    assert not re.search(r"\b(fetch|XMLHttpRequest|WebSocket|importScripts|import\()", own)
     # no name resolves: a page that reached for the network would fail to load something and log it
     title, status, dom, console = open_page(page, "", ["--host-resolver-rules=MAP * ~NOTFOUND"])
     assert (title, status.strip(), console) == ("hbrdf view: ok", "", [])
