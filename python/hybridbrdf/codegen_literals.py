@@ -194,31 +194,30 @@ float hbrdf_half_to_float(uint h) {
 }
 """
 
+def _c_like_row(name: str, v3: str, v2: str, uint: str, const: str, fn: str, out_array: str, out_float,
+                **rest) -> Dict[str, object]:
+    """A dialect row of the C-like family: its spellings, the declarations _c_like makes of them,
+    and the row's own entries (``rest``)."""
+    spellings = {"v3": v3, "v2": v2, "uint": uint, "const": const, "fn": fn, "out_array": out_array,
+                 "out_float": out_float}
+    return {"name": name, "comment": "//", "prelude": "", "epilogue": "", "unused": lambda n: "", **spellings,
+            **_c_like(v3, v2, uint, const, fn, out_array, out_float), **rest}
+
+
+_HLSL = _c_like_row("HLSL (Shader Model 5+, glslang/DXC)", "float3", "float2", "uint", "static const", "", "out ",
+                    lambda n: f"out float {n}", array=_brace_array, struct_open=lambda t: "{",
+                    struct_close="}", uint_array=lambda n, v: "{" + _hex_list(v) + "}",
+                    weight=lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))")
+
 DIALECTS: Dict[str, Dict[str, object]] = {
-    "glsl": {"name": "GLSL 4.50", "comment": "//", "prelude": "", "epilogue": "", "v3": "vec3", "v2": "vec2",
-             "const": "const", "fn": "", "out_array": "out ", "out_float": lambda n: f"out float {n}",
-             "unused": lambda n: "",
-             "array": _glsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "uint",
-             "uint_array": lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
-             "weight": lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]",
-             **_c_like("vec3", "vec2", "uint", "const", "", "out ", lambda n: f"out float {n}")},
-    "hlsl": {"name": "HLSL (Shader Model 5+, glslang/DXC)", "comment": "//", "prelude": "", "epilogue": "",
-             "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
-             "unused": lambda n: "",
-             "out_float": lambda n: f"out float {n}", "array": _brace_array,
-             "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
-             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
-             "weight": lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))",
-             **_c_like("float3", "float2", "uint", "static const", "", "out ", lambda n: f"out float {n}")},
+    "glsl": _c_like_row("GLSL 4.50", "vec3", "vec2", "uint", "const", "", "out ", lambda n: f"out float {n}",
+                        array=_glsl_array, struct_open=lambda t: f"{t}(", struct_close=")",
+                        uint_array=lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
+                        weight=lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]"),
+    "hlsl": _HLSL,
     # Slang reads HLSL: the same text but for fp16 weights, widened without 16-bit types.
-    "slang": {"name": "Slang (slangc)", "comment": "//", "prelude": "", "epilogue": "",
-              "v3": "float3", "v2": "float2", "const": "static const", "fn": "", "out_array": "out ",
-              "unused": lambda n: "",
-              "out_float": lambda n: f"out float {n}", "array": _brace_array,
-              "struct_open": lambda t: "{", "struct_close": "}", "uint": "uint",
-              "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
+    "slang": {**_HLSL, "name": "Slang (slangc)",
               "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))",
-              **_c_like("float3", "float2", "uint", "static const", "", "out ", lambda n: f"out float {n}"),
               "half_to_float": SLANG_HALF_TO_FLOAT},
     "cpp": {"name": "C++17, dependency-free", "comment": "//", "prelude": CPP_PRELUDE,
             "epilogue": "}  // namespace hbrdf", "v3": "float3", "v2": "float2", "const": "inline constexpr",

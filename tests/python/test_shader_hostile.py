@@ -27,7 +27,8 @@ from hybridbrdf.codegen import generate, material_constant
 from hybridbrdf.random_model import random_model
 
 from helpers import compile_spirv, hard_directions, run_on_lavapipe, saved_random_model, skip_without_vulkan
-from shader_kernels import render_shader
+from shader_kernels import KERNEL_FILE, render_shader
+from slang_wgsl_tools import compile_slang, run_wgsl
 
 skip_without_vulkan(allow_module_level=True)
 
@@ -92,14 +93,24 @@ def adversarial_inputs(n_random=2000, seed=20):
 
 
 def run_all_outputs(tmp_path, target, model, material, wi, wo, u, **generate_options):
-    """glsl/all_outputs.comp.<target> around the generated model: (n, 17) outputs (see OUT)."""
-    (tmp_path / f"model.{target}").write_text(generate(model, target, **generate_options))
-    src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
-    src.write_text(render_shader(f"all_outputs.comp.{target}", include=f"model.{target}",
-                                 material=material_constant(material), n=len(wi)))
+    """glsl/all_outputs.comp.j2 around the generated model in ``target`` (glsl, hlsl: glslang;
+    slang: slangc; wgsl: wgpu), under lavapipe: (n, 17) outputs (see OUT)."""
+    code = generate(model, target, **generate_options)
+    (tmp_path / f"model.{target}").write_text(code)
+    extra = {"model_code": code} if target == "wgsl" else {}  # WGSL has no #include
+    kernel = render_shader(f"all_outputs.comp.{target}", include=f"model.{target}",
+                           material=material_constant(material), n=len(wi), **extra)
+    inputs = np.concatenate([wi, wo, u], axis=1)
+    if target == "wgsl":
+        return run_wgsl(kernel, inputs, out_floats=17)
+    src = tmp_path / KERNEL_FILE[target]
+    src.write_text(kernel)
     spv = tmp_path / "shader.spv"
-    compile_spirv(src, spv, target, include_dir=tmp_path)
-    return run_on_lavapipe(spv, np.concatenate([wi, wo, u], axis=1), out_floats=17)
+    if target == "slang":
+        compile_slang(src, spv, include_dir=tmp_path)
+    else:
+        compile_spirv(src, spv, target, include_dir=tmp_path)
+    return run_on_lavapipe(spv, inputs, out_floats=17)
 
 
 def bad_counts(out):
@@ -209,10 +220,15 @@ SCENES = {"mixed": ([("mat-0", "full"), ("mat-2", "analytic")], 1), "single": ([
 @pytest.mark.parametrize("target", ["glsl", "hlsl"])
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_hostile_directions_through_scene_specialised_shaders(tmp_path, scene, target):
+    check_scene_specialised(tmp_path, scene, target, *adversarial_inputs(n_random=1000))
+
+
+def check_scene_specialised(tmp_path, scene, target, wi, wo, u):
+    """Every output of SCENES[scene]'s specialised code in ``target`` against the library (f_a
+    where the scene asks for the analytic part) on the pairs (wi, wo, u)."""
     path, model = saved_random_model(tmp_path, "hybrid", "hardgelu", 16, 2)
     materials, depth = SCENES[scene]
     plan = {"name": scene, "materials": [{"name": n, "evaluate": e} for n, e in materials], "neural_max_depth": depth}
-    wi, wo, u = adversarial_inputs(n_random=1000)
     for name, evaluate in materials:
         work = tmp_path / name
         work.mkdir()

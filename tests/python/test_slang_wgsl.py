@@ -26,10 +26,10 @@ from hybridbrdf.random_model import random_model
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, run_on_lavapipe, saved_random_model
 from helpers import skip_without_vulkan
-from shader_kernels import KERNEL_FILE, every_function_shader, render_shader
-from slang_wgsl_tools import compile_slang, run_wgsl, skip_without_slang, skip_without_wgpu, wgsl_errors
+from shader_kernels import every_function_shader
+from slang_wgsl_tools import compile_slang, skip_without_slang, skip_without_wgpu, wgsl_errors
 from test_shader_conformance import CASES, HEADS, NEURAL, PAPER
-from test_shader_hostile import adversarial_inputs, check_outputs, library_outputs
+from test_shader_hostile import SCENES, adversarial_inputs, check_outputs, check_scene_specialised, library_outputs, run_all_outputs
 
 skip_without_vulkan(allow_module_level=True)
 
@@ -38,24 +38,6 @@ TARGETS = ["slang", "wgsl"]
 
 def skip_without(target):
     (skip_without_slang if target == "slang" else skip_without_wgpu)()
-
-
-def run_all_outputs(tmp_path, target, model, material, wi, wo, u, **generate_options):
-    """glsl/all_outputs.comp.j2 around the Slang or WGSL of ``model``: (n, 17) outputs
-    (test_shader_hostile.OUT)."""
-    code = generate(model, target, **generate_options)
-    (tmp_path / f"model.{target}").write_text(code)
-    extra = {"model_code": code} if target == "wgsl" else {}
-    kernel = render_shader(f"all_outputs.comp.{target}", include=f"model.{target}",
-                           material=material_constant(material), n=len(wi), **extra)
-    inputs = np.concatenate([wi, wo, u], axis=1)
-    if target == "wgsl":
-        return run_wgsl(kernel, inputs, out_floats=17)
-    src = tmp_path / KERNEL_FILE[target]
-    src.write_text(kernel)
-    spv = tmp_path / "shader.spv"
-    compile_slang(src, spv, include_dir=tmp_path)
-    return run_on_lavapipe(spv, inputs, out_floats=17)
 
 
 def conformance_inputs(n_cosine, seed):
@@ -109,27 +91,13 @@ def test_fp16_weights_match_the_half_rounded_model(tmp_path, mlp_form, target):
     check_outputs(out, ref, p, wi, wo, u, "hybrid")
 
 
-# Scene-specialised code: isotropic-only GGX, a mixed scene's analytic_only flag,
-# HBRDF_NEURAL_MAX_DEPTH = 1, and one material's latent code folded into the first layer.
-SCENES = {"mixed": ([("mat-0", "full"), ("mat-2", "analytic")], 1), "single": ([("mat-0", "full")], None)}
-
-
 @pytest.mark.parametrize("target", TARGETS)
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_scene_specialised_code_matches_the_library(tmp_path, scene, target):
+    """test_shader_hostile's scene check (isotropic-only GGX, a mixed scene's analytic_only flag,
+    HBRDF_NEURAL_MAX_DEPTH = 1, a latent code folded into the first layer) on the conformance pairs."""
     skip_without(target)
-    path, model = saved_random_model(tmp_path, "hybrid", "hardgelu", 16, 2)
-    materials, depth = SCENES[scene]
-    plan = {"name": scene, "materials": [{"name": n, "evaluate": e} for n, e in materials], "neural_max_depth": depth}
-    wi, wo, u = conformance_inputs(10_000, seed=33)
-    for name, evaluate in materials:
-        work = tmp_path / name
-        work.mkdir()
-        out = run_all_outputs(work, target, model, name, wi, wo, u, scene=plan)
-        analytic_at = ("eval", "depth0", "depth_max") if evaluate == "analytic" else (
-            ("depth_max",) if depth is not None else ())
-        ref, p = library_outputs(path, model, model.index(name), wi, wo, u, analytic_at)
-        check_outputs(out, ref, p, wi, wo, u, "hybrid")
+    check_scene_specialised(tmp_path, scene, target, *conformance_inputs(10_000, seed=33))
 
 
 # Names reach the code only as HBRDF_MATERIAL_<NAME> constants and in comments: keywords of WGSL
