@@ -6,7 +6,11 @@ pairs, seed 7, negatives clamped to 0).
 The authors' figures (hybrid 32x2, latent 4, hardGeLU, one network for 62 RGL
 materials, GPU-trained) are the ones quoted in the project's fitting issue.
 
-    python bench/rgl_paper_comparison.py MODEL [--pairs 1000000]
+    python bench/rgl_paper_comparison.py MODEL [--pairs 1000000] [--nbrdf]
+
+--nbrdf also scores each file's published NBRDF network (one 675-weight network per material,
+../shared/data/nbrdf/rgl) on the same pairs and prints the mean cMAE of both to six digits: the
+per-material-network fidelity a shared network with material output layers is measured against.
 
 MODEL: a model file whose materials include the five files (as ``<name>`` or
 ``<name>.rgl``), e.g. the output of
@@ -56,11 +60,32 @@ def print_verdicts(rows, names, columns) -> int:
     return wins
 
 
+def nbrdf_rows(data: pathlib.Path, n_pairs: int, seed: int = 7):
+    """(SMAPE, cMAE) of each PAPER file's published NBRDF network on the metric pairs, evaluated by
+    libhybridbrdf's float32 NBRDF path, against the raw measurement."""
+    import numpy as np
+
+    from hybridbrdf import _core
+    from hybridbrdf.metrics import cmae, metric_directions, smape
+    from hybridbrdf.sources.nbrdf import open_nbrdf
+
+    wi, wo = metric_directions(n_pairs, seed)
+    out = []
+    for name in PAPER:
+        ref = hb.open_source(str(data / "rgl" / f"{name}.bsdf")).eval(wi, wo)
+        net = open_nbrdf(data / "nbrdf" / "rgl" / f"{name}.h5")
+        network = _core.NbrdfNetwork([(k.T.astype(np.float32), b.astype(np.float32)) for _, k, b, _ in net.layers])
+        f = network.eval(wi.astype(np.float32), wo.astype(np.float32)).astype(np.float64)
+        out.append((smape(ref, f), cmae(ref, f, wi[:, 2])))
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("model")
     ap.add_argument("--pairs", type=int, default=1_000_000)
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "rgl"))
+    ap.add_argument("--nbrdf", action="store_true", help="also score the published NBRDF networks (six digits)")
     args = ap.parse_args()
     model = hb.load_model(args.model)
     sources = [hb.open_source(f"{args.data}/{name}.bsdf") for name in PAPER]
@@ -80,6 +105,14 @@ def main() -> int:
     print(f"{'mean':24s} {mean('smape'):10.4f} {paper(0):7.4f} {mean('cmae'):10.5f} {paper(2):8.5f}   "
           f"{mean('smape_analytic'):13.4f} {paper(1):8.4f} {mean('cmae_analytic'):12.5f} {paper(3):8.5f}")
     print(f"hybrid beats the released model on both SMAPE and cMAE for {wins} of {len(PAPER)} materials")
+    if args.nbrdf:
+        nb = nbrdf_rows(pathlib.Path(args.data).parent, args.pairs)
+        print(f"{'material':24s} {'cMAE ours':>10s} {'NBRDF':>10s}")
+        for (name, row), (_, c) in zip(zip(PAPER, rows), nb):
+            print(f"{name[:24]:24s} {row['cmae']:10.6f} {c:10.6f}")
+        ours, theirs = mean("cmae"), sum(c for _, c in nb) / len(nb)
+        print(f"{'mean':24s} {ours:10.6f} {theirs:10.6f}  ours / NBRDF = {ours / theirs:.4f}"
+              f" ({'at or below' if ours <= theirs else 'above'} NBRDF; NBRDF mean SMAPE {sum(s for s, _ in nb) / len(nb):.4f})")
     return 0
 
 
