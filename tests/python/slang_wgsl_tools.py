@@ -159,3 +159,22 @@ def run_wgsl(code: str, inputs: np.ndarray, out_floats: int = 3) -> np.ndarray:
     compute.end()
     device.queue.submit([encoder.finish()])
     return np.frombuffer(device.queue.read_buffer(buf_out), dtype=np.float32).copy().reshape(n, out_floats)
+
+
+def run_kernel(work: pathlib.Path, target: str, kernel: str, inputs: np.ndarray, out_floats: int) -> np.ndarray:
+    """A rendered compute kernel of glsl/*.comp.j2 in ``target`` run on ``inputs`` under lavapipe:
+    WGSL through wgpu; GLSL and HLSL through glslang, Slang through slangc, then hbrdf_vk_runner.
+    The generated model code it includes must already be in ``work``. Returns (n, out_floats)."""
+    from helpers import compile_spirv, run_on_lavapipe
+    from shader_kernels import KERNEL_FILE
+
+    if target == "wgsl":
+        return run_wgsl(kernel, inputs, out_floats=out_floats)
+    src = work / KERNEL_FILE[target]
+    src.write_text(kernel)
+    spv = work / "kernel.spv"
+    if target == "slang":
+        compile_slang(src, spv, include_dir=work)
+    else:
+        compile_spirv(src, spv, target, include_dir=work)
+    return run_on_lavapipe(spv, inputs, out_floats=out_floats)

@@ -22,10 +22,9 @@ from hybridbrdf.codegen import generate
 from hybridbrdf.models import activation_fn, combine
 from hybridbrdf.random_model import random_model
 
-from helpers import compile_spirv, run_on_lavapipe, skip_without_vulkan
-from shader_kernels import KERNEL_FILE
-from slang_wgsl_tools import compile_slang, run_wgsl, skip_without_slang, skip_without_wgpu
+from helpers import skip_without_vulkan
 from shader_kernels import render_shader
+from slang_wgsl_tools import run_kernel, skip_without_slang, skip_without_wgpu
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 TABLE = json.loads((ROOT / "spec" / "activation_combine.json").read_text())
@@ -162,16 +161,7 @@ def run_dialect(tmp_path, target, model, rule, inputs):
     call = combine_call(rule, "data_in[4 * i + 1]", "data_in[4 * i + 2]", "data_in[4 * i + 3]")
     extra = {"model_code": code} if target == "wgsl" else {}
     kernel = render_shader(f"contract_table.comp.{target}", include=f"model.{target}", n=n, combine=call, **extra)
-    if target == "wgsl":
-        return run_wgsl(kernel, inputs, out_floats=2)
-    src = tmp_path / KERNEL_FILE[target]
-    src.write_text(kernel)
-    spv = tmp_path / "kernel.spv"
-    if target == "slang":
-        compile_slang(src, spv, include_dir=tmp_path)
-    else:
-        compile_spirv(src, spv, target, include_dir=tmp_path)
-    return run_on_lavapipe(spv, inputs, out_floats=2)
+    return run_kernel(tmp_path, target, kernel, inputs, out_floats=2)
 
 
 @pytest.mark.parametrize("target", ["glsl", "hlsl", "slang", "wgsl", "cpp"])

@@ -26,9 +26,9 @@ from hybridbrdf import _core, spec
 from hybridbrdf.codegen import generate, material_constant
 from hybridbrdf.random_model import random_model
 
-from helpers import compile_spirv, hard_directions, run_on_lavapipe, saved_random_model, skip_without_vulkan
-from shader_kernels import KERNEL_FILE, render_shader
-from slang_wgsl_tools import compile_slang, run_wgsl
+from helpers import hard_directions, saved_random_model, skip_without_vulkan
+from shader_kernels import render_shader
+from slang_wgsl_tools import run_kernel
 
 skip_without_vulkan(allow_module_level=True)
 
@@ -100,17 +100,7 @@ def run_all_outputs(tmp_path, target, model, material, wi, wo, u, **generate_opt
     extra = {"model_code": code} if target == "wgsl" else {}  # WGSL has no #include
     kernel = render_shader(f"all_outputs.comp.{target}", include=f"model.{target}",
                            material=material_constant(material), n=len(wi), **extra)
-    inputs = np.concatenate([wi, wo, u], axis=1)
-    if target == "wgsl":
-        return run_wgsl(kernel, inputs, out_floats=17)
-    src = tmp_path / KERNEL_FILE[target]
-    src.write_text(kernel)
-    spv = tmp_path / "shader.spv"
-    if target == "slang":
-        compile_slang(src, spv, include_dir=tmp_path)
-    else:
-        compile_spirv(src, spv, target, include_dir=tmp_path)
-    return run_on_lavapipe(spv, inputs, out_floats=17)
+    return run_kernel(tmp_path, target, kernel, np.concatenate([wi, wo, u], axis=1), out_floats=17)
 
 
 def bad_counts(out):
