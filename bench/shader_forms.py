@@ -63,7 +63,9 @@ def _tree(terms):
     return terms[0]
 
 
-def form_fma(layer, index, last, fp16=False):
+# Each form stands in for codegen_network.unrolled_layer and takes its arguments; ``let`` (the
+# dialect's declaration) is unused: these forms are GLSL only and declare ``float h..`` themselves.
+def form_fma(layer, index, last, fp16=False, let=None):
     w, b = _weights(layer)
     out = []
     for j in range(w.shape[0]):
@@ -74,7 +76,7 @@ def form_fma(layer, index, last, fp16=False):
     return out
 
 
-def form_tree(layer, index, last, fp16=False, parts=None):
+def form_tree(layer, index, last, fp16=False, let=None, parts=None):
     w, b = _weights(layer)
     out = []
     for j in range(w.shape[0]):
@@ -85,7 +87,7 @@ def form_tree(layer, index, last, fp16=False, parts=None):
     return out
 
 
-def form_rows4(layer, index, last, fp16=False):
+def form_rows4(layer, index, last, fp16=False, let=None):
     w, b = _weights(layer)
     x, out = _inputs(index, w.shape[1]), []
     for j0 in range(0, w.shape[0], 4):
@@ -96,7 +98,7 @@ def form_rows4(layer, index, last, fp16=False):
     return out
 
 
-def form_mat4(layer, index, last, fp16=False):
+def form_mat4(layer, index, last, fp16=False, let=None):
     w, b = _weights(layer)
     n_out, n_in = w.shape
     out = []

@@ -8,8 +8,14 @@
 // output (N_ITEMS * OUT_FLOATS_PER_ITEM floats). Dispatches ceil(N / local size)
 // workgroups. With --validation the Khronos validation layer is enabled and any
 // error or warning it reports makes the run fail. With --repeat R the dispatch
-// is submitted R more times and the best time is printed ("best_ms <t>") for
-// benchmarks. Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
+// is submitted R more times and the best time is printed ("best_ms <t>": host
+// clock around submit + wait) for benchmarks; where the queue has timestamps,
+// also the dispatch alone on the device's clock ("best_gpu_ms", "median_gpu_ms").
+// Both buffers live in device-local memory, filled and read back through
+// host-visible staging buffers outside the timed loop: on a discrete GPU the
+// host-visible types are system memory across PCIe, which would time the bus
+// rather than the shader. A discrete GPU is preferred over other devices.
+// Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
 #include <vulkan/vulkan.h>
 
 #include <algorithm>
@@ -53,26 +59,28 @@ struct Buffer {
     VkDeviceSize size = 0;
 };
 
-Buffer make_buffer(VkPhysicalDevice phys, VkDevice dev, VkDeviceSize size) {
+// A buffer in the first memory type having all of `want` (staging: host-visible and coherent;
+// storage: device-local, else any type the buffer accepts).
+Buffer make_buffer(VkPhysicalDevice phys, VkDevice dev, VkDeviceSize size, VkBufferUsageFlags usage,
+                   VkMemoryPropertyFlags want) {
     Buffer b;
     b.size = size;
     VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     bi.size = size;
-    bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    bi.usage = usage;
     bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
     check(vkCreateBuffer(dev, &bi, nullptr, &b.buffer), "vkCreateBuffer");
     VkMemoryRequirements req;
     vkGetBufferMemoryRequirements(dev, b.buffer, &req);
     VkPhysicalDeviceMemoryProperties props;
     vkGetPhysicalDeviceMemoryProperties(phys, &props);
-    const VkMemoryPropertyFlags want = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    const bool staging = want & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT;
     uint32_t type = UINT32_MAX;
-    for (uint32_t i = 0; i < props.memoryTypeCount; ++i)
-        if ((req.memoryTypeBits & (1u << i)) && (props.memoryTypes[i].propertyFlags & want) == want) {
-            type = i;
-            break;
-        }
-    if (type == UINT32_MAX) throw std::runtime_error("no host-visible coherent memory type");
+    for (uint32_t i = 0; i < props.memoryTypeCount && type == UINT32_MAX; ++i)
+        if ((req.memoryTypeBits & (1u << i)) && (props.memoryTypes[i].propertyFlags & want) == want) type = i;
+    for (uint32_t i = 0; i < props.memoryTypeCount && type == UINT32_MAX && !staging; ++i)
+        if (req.memoryTypeBits & (1u << i)) type = i;
+    if (type == UINT32_MAX) throw std::runtime_error(staging ? "no host-visible coherent memory type" : "no memory type");
     VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
     ai.allocationSize = req.size;
     ai.memoryTypeIndex = type;
@@ -143,6 +151,14 @@ int run(int argc, char** argv) {
     VkPhysicalDevice phys = physs[0];
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(phys, &props);
+    for (VkPhysicalDevice p : physs) {  // a GPU machine may also list a CPU driver (lavapipe)
+        VkPhysicalDeviceProperties pp;
+        vkGetPhysicalDeviceProperties(p, &pp);
+        if (pp.deviceType == VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU && props.deviceType != pp.deviceType) {
+            phys = p;
+            props = pp;
+        }
+    }
 
     uint32_t n_families = 0;
     vkGetPhysicalDeviceQueueFamilyProperties(phys, &n_families, nullptr);
@@ -168,12 +184,19 @@ int run(int argc, char** argv) {
     VkQueue queue;
     vkGetDeviceQueue(dev, family, 0, &queue);
 
-    Buffer in_buf = make_buffer(phys, dev, input.size());
-    Buffer out_buf = make_buffer(phys, dev, std::max<VkDeviceSize>(4, n_items * out_floats * 4));
+    const VkBufferUsageFlags copy = VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    const VkDeviceSize out_size = std::max<VkDeviceSize>(4, n_items * out_floats * 4);
+    Buffer in_buf = make_buffer(phys, dev, input.size(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | copy,
+                                VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    Buffer out_buf = make_buffer(phys, dev, out_size, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | copy,
+                                 VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    Buffer in_stage = make_buffer(phys, dev, input.size(), copy, host);
+    Buffer out_stage = make_buffer(phys, dev, out_size, copy, host);
     void* mapped = nullptr;
-    check(vkMapMemory(dev, in_buf.memory, 0, in_buf.size, 0, &mapped), "vkMapMemory");
+    check(vkMapMemory(dev, in_stage.memory, 0, in_stage.size, 0, &mapped), "vkMapMemory");
     std::memcpy(mapped, input.data(), input.size());
-    vkUnmapMemory(dev, in_buf.memory);
+    vkUnmapMemory(dev, in_stage.memory);
 
     VkDescriptorSetLayoutBinding bindings[2] = {};
     for (uint32_t i = 0; i < 2; ++i) {
@@ -238,53 +261,113 @@ int run(int argc, char** argv) {
     VkCommandBufferAllocateInfo cbai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     cbai.commandPool = cmd_pool;
     cbai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    cbai.commandBufferCount = 1;
-    VkCommandBuffer cmd;
-    check(vkAllocateCommandBuffers(dev, &cbai, &cmd), "vkAllocateCommandBuffers");
+    cbai.commandBufferCount = 3;
+    VkCommandBuffer cmds[3];  // upload, the timed dispatch, read-back
+    check(vkAllocateCommandBuffers(dev, &cbai, cmds), "vkAllocateCommandBuffers");
+    VkCommandBuffer upload = cmds[0], cmd = cmds[1], readback = cmds[2];
     VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    auto barrier = [](VkCommandBuffer c, VkPipelineStageFlags src, VkAccessFlags src_access, VkPipelineStageFlags dst,
+                      VkAccessFlags dst_access) {
+        VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+        b.srcAccessMask = src_access;
+        b.dstAccessMask = dst_access;
+        vkCmdPipelineBarrier(c, src, dst, 0, 1, &b, 0, nullptr, 0, nullptr);
+    };
+    check(vkBeginCommandBuffer(upload, &begin), "vkBeginCommandBuffer");
+    const VkBufferCopy in_copy{0, 0, in_buf.size};
+    vkCmdCopyBuffer(upload, in_stage.buffer, in_buf.buffer, 1, &in_copy);
+    barrier(upload, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+            VK_ACCESS_SHADER_READ_BIT);
+    check(vkEndCommandBuffer(upload), "vkEndCommandBuffer");
+
+    // Timestamps around the dispatch, where the queue family has them: the device's own clock,
+    // without the submit and fence-wait latency that the host clock adds to a short dispatch.
+    const bool timestamps = families[family].timestampValidBits > 0 && props.limits.timestampPeriod > 0;
+    VkQueryPool queries = VK_NULL_HANDLE;
+    if (timestamps) {
+        VkQueryPoolCreateInfo qpi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+        qpi.queryType = VK_QUERY_TYPE_TIMESTAMP;
+        qpi.queryCount = 2;
+        check(vkCreateQueryPool(dev, &qpi, nullptr, &queries), "vkCreateQueryPool");
+    }
     check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer");
+    if (timestamps) {
+        vkCmdResetQueryPool(cmd, queries, 0, 2);
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+    }
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipe_layout, 0, 1, &set, 0, nullptr);
-    const uint32_t groups = uint32_t((n_items + local_size - 1) / local_size);
-    vkCmdDispatch(cmd, std::max<uint32_t>(groups, 1), 1, 1);
-    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0,
-                         nullptr, 0, nullptr);
+    const uint64_t groups = (n_items + local_size - 1) / local_size;
+    if (groups > props.limits.maxComputeWorkGroupCount[0])  // lavapipe: 65535, a GPU far more
+        throw std::runtime_error("too many workgroups for this device: " + std::to_string(groups) + " > " +
+                                 std::to_string(props.limits.maxComputeWorkGroupCount[0]));
+    vkCmdDispatch(cmd, std::max<uint32_t>(uint32_t(groups), 1), 1, 1);
+    if (timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    // The next repeat's dispatch and the read-back copy come after this dispatch's writes.
+    barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+            VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+            VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT);
     check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
+    check(vkBeginCommandBuffer(readback, &begin), "vkBeginCommandBuffer");
+    const VkBufferCopy out_copy{0, 0, out_buf.size};
+    vkCmdCopyBuffer(readback, out_buf.buffer, out_stage.buffer, 1, &out_copy);
+    barrier(readback, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+            VK_ACCESS_HOST_READ_BIT);
+    check(vkEndCommandBuffer(readback), "vkEndCommandBuffer");
+
     VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
     VkFence fence;
     check(vkCreateFence(dev, &fci, nullptr, &fence), "vkCreateFence");
-    double best_ms = 1e30;
-    for (int r = 0; r <= repeat; ++r) {
+    auto submit = [&](VkCommandBuffer c) {
         VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
         si.commandBufferCount = 1;
-        si.pCommandBuffers = &cmd;
-        const auto t0 = std::chrono::steady_clock::now();
+        si.pCommandBuffers = &c;
         check(vkQueueSubmit(queue, 1, &si, fence), "vkQueueSubmit");
         check(vkWaitForFences(dev, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
-        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        if (r > 0 || repeat == 0) best_ms = std::min(best_ms, ms);  // the first submit warms up when repeating
         check(vkResetFences(dev, 1, &fence), "vkResetFences");
+    };
+    submit(upload);
+    double best_ms = 1e30;
+    std::vector<double> gpu_ms;
+    const uint64_t ticks_mask =
+        timestamps && families[family].timestampValidBits < 64 ? (uint64_t(1) << families[family].timestampValidBits) - 1
+                                                               : ~uint64_t(0);
+    for (int r = 0; r <= repeat; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        submit(cmd);
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (r > 0 || repeat == 0) {  // the first submit warms up when repeating
+            best_ms = std::min(best_ms, ms);
+            uint64_t ticks[2];
+            if (timestamps &&
+                vkGetQueryPoolResults(dev, queries, 0, 2, sizeof ticks, ticks, sizeof ticks[0],
+                                      VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
+                gpu_ms.push_back(double((ticks[1] - ticks[0]) & ticks_mask) * props.limits.timestampPeriod * 1e-6);
+        }
     }
-    check(vkMapMemory(dev, out_buf.memory, 0, out_buf.size, 0, &mapped), "vkMapMemory");
+    submit(readback);
+    check(vkMapMemory(dev, out_stage.memory, 0, out_stage.size, 0, &mapped), "vkMapMemory");
     {
         std::ofstream out(out_path, std::ios::binary);
         out.write(static_cast<const char*>(mapped), std::streamsize(n_items * out_floats * 4));
         if (!out) throw std::runtime_error("cannot write " + out_path);
     }
-    vkUnmapMemory(dev, out_buf.memory);
+    vkUnmapMemory(dev, out_stage.memory);
     std::printf("device %s\nbest_ms %.4f\n", props.deviceName, best_ms);
+    if (!gpu_ms.empty()) {
+        std::sort(gpu_ms.begin(), gpu_ms.end());
+        std::printf("best_gpu_ms %.4f\nmedian_gpu_ms %.4f\n", gpu_ms.front(), gpu_ms[gpu_ms.size() / 2]);
+    }
 
     vkDestroyFence(dev, fence, nullptr);
+    if (queries) vkDestroyQueryPool(dev, queries, nullptr);
     vkDestroyCommandPool(dev, cmd_pool, nullptr);
     vkDestroyDescriptorPool(dev, pool, nullptr);
     vkDestroyPipeline(dev, pipeline, nullptr);
     vkDestroyShaderModule(dev, module, nullptr);
     vkDestroyPipelineLayout(dev, pipe_layout, nullptr);
     vkDestroyDescriptorSetLayout(dev, set_layout, nullptr);
-    for (Buffer* b : {&in_buf, &out_buf}) {
+    for (Buffer* b : {&in_buf, &out_buf, &in_stage, &out_stage}) {
         vkDestroyBuffer(dev, b->buffer, nullptr);
         vkFreeMemory(dev, b->memory, nullptr);
     }

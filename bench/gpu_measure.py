@@ -1,0 +1,427 @@
+#!/usr/bin/env python3
+"""One prepared measurement run on a lent GPU machine (an H100; docs: /work/.library/device):
+the generated shaders' speed on a real GPU through Vulkan, the CUDA fitting tests, and a short
+CUDA fit's time. Two steps, because the GPU machine has neither glslang nor this package's
+extension for its Python (3.12), and no network:
+
+    python bench/gpu_measure.py prepare          # here: writes .gpu/ (ignored, carried)
+    python3 bench/gpu_measure.py device [--pairs 16777216] [--rounds 2] [--repeat 20]
+                                        [--skip vk,ext,tests,fit]   # there: numpy + the runner
+
+``prepare`` (needs the installed package, glslangValidator and build/hbrdf_vk_runner) writes
+.gpu/: the SPIR-V of every kernel below, 16384 cosine-weighted direction pairs (pairs.bin) and
+the float64 PyTorch model's f on them (ref_*.bin), a manifest (manifest.json), a copy of the
+runner, and copies of the header-only GLM and nlohmann-json (deps/, with their CMake files) for
+building the extension there. About 7 MB, so that .gpu travels in the run's carry list.
+
+``device`` (plain python3 + numpy; nothing of hybridbrdf imported) does, each part guarded so
+that one failing leaves the others to run:
+
+1. ``vk``: the Vulkan loader from .gl/*.deb where none is installed, the NVIDIA ICD where the
+   loader finds no GPU by itself; then every kernel by hbrdf_vk_runner over --pairs pairs (the
+   16384 pairs tiled: a GPU gains nothing from repeated pairs, and no input has to travel),
+   ``--rounds`` interleaved rounds of ``--repeat`` timed dispatches, best device time
+   (Vulkan timestamps around the dispatch; the runner keeps both buffers in device memory).
+   One table per question: the code forms of bench/shader_forms.py at 32x2 and 32x3 (ratio to
+   today's unrolled default; the open target is >= 1.3x), f_a alone and the kernel without a
+   BRDF, and the fast 16x2 model (material output layers) against the 32x2 as in
+   bench/fast_model_speed.py (buffer and synthetic pairs). The first round's outputs (the first
+   and last 16384 pairs) are checked against the group's default form and the float64 reference.
+2. ``ext``: the extension hybridbrdf._core built for the machine's Python (no renderer, no C++
+   tests: only the module), the package assembled in /tmp/hbrdf-py from python/hybridbrdf.
+3. ``tests``: tests/python/test_fit_cuda.py with that package (the two-GPU test skips on one).
+4. ``fit``: ``hbrdf fit synthetic:all --steps 3000 --device cuda`` (the README's main job; under
+   a minute on this project's 2-core CPU machine), seconds per 1000 steps.
+
+Check the device step here under lavapipe first (small, quick):
+    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json python bench/gpu_measure.py device \
+        --pairs 65536 --rounds 1 --repeat 2 --skip ext,tests,fit
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+GPU = ROOT / ".gpu"
+BASE = 16384  # distinct pairs; --pairs must be a multiple
+MODELS = {"32x2": "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors",  # bench/shader_forms.py's default
+          "32x3": "results/rgl54_hybrid_32x3_10k.safetensors",
+          "fast16x2": "results/rgl54_fast.safetensors"}  # bench/fast_model_speed.py's candidate
+GOLDEN = "vch_golden_yellow_rgb.rgl"  # bench/fast_model_speed.py's material
+FORMS = ("unrolled", "fma", "tree", "acc4", "rows4", "mat4", "pairs4")
+NVIDIA_ICDS = ("/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json", "/usr/share/vulkan/icd.d/nvidia_icd.json",
+               "/etc/vulkan/icd.d/nvidia_icd.json")
+
+
+# ---- prepare (here) ----------------------------------------------------------------------
+
+
+def prepare(args) -> int:
+    sys.path.insert(0, str(ROOT / "bench"))
+    sys.path.insert(0, str(ROOT / "tests" / "python"))
+    import torch
+
+    import hybridbrdf as hb
+    import hybridbrdf.codegen_network as cg
+    from hybridbrdf.codegen import generate, material_constant
+    from hybridbrdf.metrics import cosine_hemisphere
+    from shader_forms import ACT4, form_fma, form_mat4, form_rows4, form_tree, pairs4_shader
+    from shader_kernels import eval_compute_shader
+
+    subprocess.run(["cmake", "--build", str(ROOT / "build"), "--target", "hbrdf_vk_runner"], check=True)
+    shutil.rmtree(GPU / "spv", ignore_errors=True)
+    (GPU / "spv").mkdir(parents=True)
+    shutil.copy2(ROOT / "build" / "hbrdf_vk_runner", GPU / "hbrdf_vk_runner")
+    # GLM and nlohmann-json as installed here (headers + CMake package files, relocatable):
+    # the extension's only build dependencies the GPU machine lacks.
+    for src, dst in (("/usr/include/glm", "include/glm"), ("/usr/include/nlohmann", "include/nlohmann"),
+                     ("/usr/share/cmake/glm", "share/cmake/glm"),
+                     ("/usr/share/cmake/nlohmann_json", "share/cmake/nlohmann_json")):
+        shutil.rmtree(GPU / "deps" / dst, ignore_errors=True)
+        shutil.copytree(src, GPU / "deps" / dst)
+
+    rng = np.random.default_rng(7)
+    wi, wo = cosine_hemisphere(rng, BASE), cosine_hemisphere(rng, BASE)
+    np.concatenate([wi, wo], axis=1).astype(np.float32).tofile(GPU / "pairs.bin")
+    models = {tag: hb.load_model(ROOT / path) for tag, path in MODELS.items()}
+    kernels, refs = {}, {}
+
+    def reference(tag, material, analytic=False):
+        key = f"ref_{tag}_{'fa_' if analytic else ''}{hb_safe(material)}.bin"
+        if key not in refs:
+            m = models[tag]
+            f = (m.eval_analytic if analytic else m.eval)(wi, wo, material, dtype=torch.float64)
+            np.asarray(f, dtype=np.float32).tofile(GPU / key)
+            refs[key] = True
+        return key
+
+    def add(name, model_glsl, kernel, pairs_per_item=1, ref=None, same_as=None):
+        with tempfile.TemporaryDirectory() as d:
+            (pathlib.Path(d) / "model.glsl").write_text(model_glsl)
+            (pathlib.Path(d) / "w.comp").write_text(kernel)
+            subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", f"-I{d}", f"{d}/w.comp", "-o",
+                            str(GPU / "spv" / f"{name}.spv")], check=True, capture_output=True)
+        kernels[name] = {"spv": f"spv/{name}.spv", "pairs_per_item": pairs_per_item, "floats": 3 * pairs_per_item,
+                         "ref": ref, "same_as": same_as}
+
+    # The code forms of bench/shader_forms.py (its first material, as there).
+    form_fns = {"fma": form_fma, "tree": form_tree, "acc4": lambda *a, **k: form_tree(*a, **k, parts=4),
+                "rows4": form_rows4, "mat4": form_mat4}
+    for tag in ("32x2", "32x3"):
+        m = models[tag]
+        mat = m.materials[0]
+        mc, ref = material_constant(mat), reference(tag, mat)
+        default = cg.unrolled_layer
+        glsl = generate(m, "glsl", [mat])
+        add(f"{tag}.unrolled", glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=ref)
+        try:
+            for form, fn in form_fns.items():
+                cg.unrolled_layer = fn
+                g = generate(m, "glsl", [mat])
+                if form == "mat4":
+                    g = g.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1)
+                add(f"{tag}.{form}", g, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=ref,
+                    same_as=f"{tag}.unrolled")
+        finally:
+            cg.unrolled_layer = default
+        add(f"{tag}.pairs4", *pairs4_shader(glsl, mc), pairs_per_item=4, ref=ref, same_as=f"{tag}.unrolled")
+        if tag == "32x2":  # f_a alone, and the kernel without a BRDF (reading pairs, writing f)
+            add("fa", glsl, eval_compute_shader("hbrdf_eval_analytic", mc, "model.glsl"),
+                ref=reference(tag, mat, analytic=True))
+            add("harness", glsl, eval_compute_shader("hbrdf_harness_only", mc, "model.glsl"))
+    # bench/fast_model_speed.py: the same material in both models, buffer and synthetic pairs.
+    for tag in ("32x2", "fast16x2"):
+        glsl, mc = generate(models[tag], "glsl", [GOLDEN]), material_constant(GOLDEN)
+        add(f"{tag}.golden", glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=reference(tag, GOLDEN))
+        add(f"{tag}.golden.syn", glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl", directions="synthetic"))
+    glsl = generate(models["32x2"], "glsl", [GOLDEN])
+    add("harness.syn", glsl, eval_compute_shader("hbrdf_harness_only", material_constant(GOLDEN), "model.glsl",
+                                                 directions="synthetic"))
+
+    forms = lambda tag: [f"{tag}.{f}" for f in FORMS]  # noqa: E731
+    groups = [
+        {"title": f"code forms, 32x2 ({MODELS['32x2']}, {models['32x2'].materials[0]}), buffer pairs",
+         "baseline": "32x2.unrolled", "kernels": forms("32x2")},
+        {"title": f"code forms, 32x3 ({MODELS['32x3']}, {models['32x3'].materials[0]}), buffer pairs",
+         "baseline": "32x3.unrolled", "kernels": forms("32x3")},
+        {"title": "f_a alone (hbrdf_eval_analytic) and the kernel without a BRDF, against the 32x2",
+         "baseline": "32x2.unrolled", "kernels": ["32x2.unrolled", "fa", "harness"]},
+        {"title": f"fast 16x2 ({MODELS['fast16x2']}) against the 32x2, {GOLDEN}, buffer pairs",
+         "baseline": "32x2.golden", "kernels": ["32x2.golden", "fast16x2.golden"]},
+        {"title": f"fast 16x2 against the 32x2, {GOLDEN}, synthetic pairs (made in the shader)",
+         "baseline": "32x2.golden.syn", "kernels": ["32x2.golden.syn", "fast16x2.golden.syn", "harness.syn"]},
+    ]
+    manifest = {"base_pairs": BASE, "pairs": "pairs.bin", "kernels": kernels, "groups": groups,
+                "models": MODELS, "runner": "hbrdf_vk_runner"}
+    (GPU / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    size = sum(p.stat().st_size for p in GPU.rglob("*") if p.is_file())
+    print(f"wrote {GPU}: {len(kernels)} kernels, {size / 2**20:.1f} MiB")
+    return 0
+
+
+def hb_safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_]", "_", name)
+
+
+# ---- device (on the GPU machine; numpy only) -----------------------------------------------
+
+
+def sh(cmd, **kw):
+    return subprocess.run(cmd, capture_output=True, text=True, **kw)
+
+
+def section(title):
+    print(f"\n===== {title}", flush=True)
+
+
+def vulkan_loader():
+    """The loader from .gl/*.deb (the device notes' recipe), only where none is installed."""
+    if "libvulkan.so.1" in sh(["ldconfig", "-p"]).stdout:
+        print("Vulkan loader: installed")
+        return
+    debs = sorted(glob.glob(str(ROOT / ".gl" / "*.deb")))
+    if not debs:
+        raise RuntimeError("no libvulkan.so.1 and no .gl/*.deb to unpack (carry .gl)")
+    for deb in debs:
+        subprocess.run(["dpkg", "-x", deb, "/"], check=True)
+    subprocess.run(["ldconfig"], check=True)
+    print(f"Vulkan loader: unpacked {len(debs)} packages from .gl")
+
+
+def run_kernel(man, name, inp, out, n_pairs, repeat, timeout=60):
+    k = man["kernels"][name]
+    r = sh([str(GPU / man["runner"]), str(GPU / k["spv"]), str(inp), str(out), str(n_pairs // k["pairs_per_item"]),
+            str(k["floats"]), "--repeat", str(repeat)], timeout=timeout)
+    if r.returncode != 0:
+        raise RuntimeError(f"{name}: runner exit {r.returncode}: {r.stderr.strip()[-400:]}")
+    vals = dict(ln.split(" ", 1) for ln in r.stdout.splitlines() if " " in ln)
+    return vals
+
+
+def choose_driver(man, inp):
+    """Keeps a VK_DRIVER_FILES set by the caller; else the loader's own choice, or the NVIDIA ICD
+    where that finds no GPU (the device notes: the driver's files sit under /usr/local/nvidia)."""
+    def probe():
+        try:
+            return run_kernel(man, "harness", inp, os.devnull, 256, 0, timeout=60).get("device", "?"), ""
+        except Exception as e:  # noqa: BLE001
+            return None, str(e)
+    name, err = probe()
+    if "VK_DRIVER_FILES" not in os.environ and (name is None or "llvmpipe" in name or "lavapipe" in name):
+        for icd in NVIDIA_ICDS:
+            if os.path.exists(icd):
+                os.environ["VK_DRIVER_FILES"] = icd
+                os.environ.setdefault("__EGL_VENDOR_LIBRARY_FILENAMES",
+                                      "/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json")
+                # The ICD names its library without a path: let the loader find the driver's folder.
+                libs = [d for d in ("/usr/local/nvidia/lib64", "/usr/local/nvidia/lib") if os.path.isdir(d)]
+                os.environ["LD_LIBRARY_PATH"] = ":".join(libs + [os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")
+                name, err = probe()
+                break
+    if name is None:
+        raise RuntimeError(f"no Vulkan device: {err}")
+    print(f"Vulkan device: {name}   (VK_DRIVER_FILES={os.environ.get('VK_DRIVER_FILES', 'unset')})")
+    if "llvmpipe" in name:
+        print("NOTE: this is lavapipe (CPU), not a GPU")
+    return name
+
+
+def max_rel(a, b):
+    return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-6)))
+
+
+def shader_speed(args):
+    man = json.loads((GPU / "manifest.json").read_text())
+    base = man["base_pairs"]
+    n = args.pairs
+    if n % base or n % 256:
+        raise SystemExit(f"--pairs must be a multiple of {base} and of 256")
+    vulkan_loader()
+    work = pathlib.Path(tempfile.mkdtemp(prefix="hbrdf-vk-"))
+    pairs = np.fromfile(GPU / man["pairs"], dtype=np.float32).reshape(base, 6)
+    inp = work / "in.bin"
+    np.tile(pairs, (n // base, 1)).tofile(inp)
+    device_name = choose_driver(man, inp)
+    smi = sh(["nvidia-smi", "--query-gpu=name,driver_version,clocks.sm,clocks.max.sm,temperature.gpu,power.draw",
+              "--format=csv,noheader"]) if shutil.which("nvidia-smi") else None
+    if smi is not None:
+        print(f"nvidia-smi before: {smi.stdout.strip()}")
+    names = list(man["kernels"])
+    # Warm-up, uncounted: a few hundred dispatches so that the clocks are up before the first timing.
+    t0 = time.time()
+    run_kernel(man, "32x2.unrolled", inp, os.devnull, n, max(2, args.repeat * 5))
+    print(f"{len(names)} kernels, {n} pairs each ({n * 24 / 2**20:.0f} MiB in, {n * 12 / 2**20:.0f} MiB out), "
+          f"{args.rounds} interleaved rounds x {args.repeat} timed dispatches (warm-up {time.time() - t0:.1f} s)",
+          flush=True)
+    best, host, checks, failed, gpu_clock = {}, {}, {}, {}, False
+    for rnd in range(args.rounds):
+        for name in (names if rnd % 2 == 0 else names[::-1]):  # alternate the order: no form always first
+            if name in failed or len(failed) >= 3:  # a broken driver: stop spending device time on it
+                continue
+            out = work / "out.bin" if rnd == 0 else os.devnull  # outputs are read once
+            try:
+                v = run_kernel(man, name, inp, out, n, args.repeat)
+            except Exception as e:  # noqa: BLE001
+                failed[name] = str(e)
+                print(f"FAILED {e}", flush=True)
+                continue
+            ms = float(v.get("best_gpu_ms", v["best_ms"]))
+            gpu_clock = gpu_clock or "best_gpu_ms" in v
+            best[name] = min(ms, best.get(name, ms))
+            host[name] = min(float(v["best_ms"]), host.get(name, float(v["best_ms"])))
+            if rnd == 0:  # the first and the last tile of pairs
+                f = [np.fromfile(out, dtype=np.float32, count=3 * base, offset=o) for o in (0, 12 * (n - base))]
+                checks[name] = np.concatenate(f).reshape(2 * base, 3)
+    timed_by = "Vulkan timestamps around the dispatch" if gpu_clock else "host clock around submit + wait"
+    if smi is not None:
+        print(f"nvidia-smi after:  {sh(smi.args).stdout.strip()}")
+    for g in man["groups"]:
+        section(g["title"])
+        print(f"{'kernel':20s} {'best ms':>9s} {'M eval/s':>10s} {'vs ' + g['baseline']:>18s} {'host ms':>9s} "
+              f"{'rel vs default':>15s} {'rel vs float64':>15s}")
+        b = best.get(g["baseline"])
+        for name in g["kernels"]:
+            if name not in best:
+                print(f"{name:20s} FAILED: {failed.get(name, 'not run')[:200]}")
+                continue
+            k, out = man["kernels"][name], checks.get(name)
+            vs_default = vs_ref = "-"
+            if out is not None and k["same_as"] in checks:
+                vs_default = f"{max_rel(out, checks[k['same_as']]):.2e}"
+            if out is not None and k["ref"]:
+                ref = np.fromfile(GPU / k["ref"], dtype=np.float32).reshape(base, 3)
+                vs_ref = f"{max_rel(out, np.concatenate([ref, ref])):.2e}"
+            if out is not None and not np.all(np.isfinite(out)):
+                vs_ref += " NON-FINITE"
+            ratio = f"{b / best[name]:.3f}x" if b else "-"
+            print(f"{name:20s} {best[name]:9.4f} {n / best[name] / 1e3:10.1f} {ratio:>18s} {host[name]:9.3f} "
+                  f"{vs_default:>15s} {vs_ref:>15s}")
+    print(f"\nbest ms: {timed_by}, best over rounds and dispatches; M eval/s = pairs / best ms; host ms: submit + "
+          "fence wait; rel: max |a - b| / max(|b|, 1e-6) over the first and last 16384 pairs (float64 = the "
+          "PyTorch model in float64, computed by prepare)")
+    if os.environ.get("OUT"):  # the figures, for the record (the device tool brings $OUT back)
+        (pathlib.Path(os.environ["OUT"]) / "gpu_vk.json").write_text(json.dumps(
+            {"device": device_name, "pairs": n, "rounds": args.rounds, "repeat": args.repeat, "timed_by": timed_by,
+             "best_ms": best, "host_ms": host, "failed": failed}, indent=1))
+    shutil.rmtree(work, ignore_errors=True)
+
+
+def build_extension():
+    """hybridbrdf._core for this machine's Python: the module alone (no renderer, no C++ tests),
+    GLM and nlohmann-json from .gpu/deps, pybind11 from this Python's package."""
+    build, pkg = pathlib.Path("/tmp/hbrdf-ext"), pathlib.Path("/tmp/hbrdf-py")
+    pybind = sh([sys.executable, "-m", "pybind11", "--cmakedir"]).stdout.strip()
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    t0 = time.time()
+    cfg = sh(["cmake", "-S", str(ROOT), "-B", str(build), *gen, "-DHBRDF_BUILD_PYTHON=ON", "-DHBRDF_BUILD_TESTS=OFF",
+              "-DHBRDF_BUILD_RENDERER=OFF", f"-DCMAKE_PREFIX_PATH={GPU / 'deps'}", f"-Dpybind11_DIR={pybind}",
+              f"-DPython_EXECUTABLE={sys.executable}"])
+    if cfg.returncode:
+        raise RuntimeError(f"cmake configure failed:\n{(cfg.stdout + cfg.stderr)[-2500:]}")
+    t1 = time.time()
+    bld = sh(["cmake", "--build", str(build), "--target", "_core", "-j", str(os.cpu_count() or 4)])
+    if bld.returncode:
+        raise RuntimeError(f"build failed:\n{(bld.stdout + bld.stderr)[-2500:]}")
+    t2 = time.time()
+    shutil.rmtree(pkg, ignore_errors=True)
+    shutil.copytree(ROOT / "python" / "hybridbrdf", pkg / "hybridbrdf",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.so"))
+    shutil.copytree(ROOT / "codegen", pkg / "hybridbrdf" / "codegen")
+    for so in build.glob("_core*.so"):
+        shutil.copy2(so, pkg / "hybridbrdf")
+    print(f"extension: configure {t1 - t0:.1f} s, build {t2 - t1:.1f} s on {os.cpu_count()} cores ({' '.join(gen) or 'make'})")
+    r = sh([sys.executable, "-c", "import hybridbrdf, torch; print('hybridbrdf', hybridbrdf.__file__); "
+            "print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), "
+            "torch.cuda.get_device_name(0) if torch.cuda.is_available() else '')"],
+           env=dict(os.environ, PYTHONPATH=str(pkg)))
+    print((r.stdout + r.stderr).strip()[-1500:])
+    if r.returncode:
+        raise RuntimeError("import hybridbrdf failed")
+    return pkg
+
+
+def cuda_tests(pkg):
+    t0 = time.time()
+    r = sh([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "tests/python/test_fit_cuda.py"],
+           cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(pkg)), timeout=240)
+    print((r.stdout + r.stderr).strip()[-3000:])
+    print(f"test_fit_cuda.py: exit {r.returncode} in {time.time() - t0:.1f} s")
+
+
+def cuda_fit(pkg, steps, fit_device, log_dir):
+    out = pathlib.Path(tempfile.mkdtemp(prefix="hbrdf-fit-")) / "synthetic_cuda.safetensors"
+    t0 = time.time()
+    r = sh([sys.executable, "-m", "hybridbrdf.cli", "fit", "synthetic:all", "--steps", str(steps), "--device", fit_device,
+            "--no-preview", "--out", str(out)], env=dict(os.environ, PYTHONPATH=str(pkg), TQDM_DISABLE="1"),
+           timeout=180)
+    wall = time.time() - t0
+    text = r.stdout + r.stderr
+    if log_dir:
+        (pathlib.Path(log_dir) / "fit_cuda.log").write_text(text)
+    # The table and the summary line only: a progress bar's carriage returns would fill the output.
+    print("\n".join(ln for ln in text.splitlines() if "\r" not in ln and "evaluating" not in ln)[-2500:])
+    m = re.search(r"trained (\d+) steps in ([\d.]+) s", text)
+    if r.returncode or not m:
+        raise RuntimeError(f"fit exit {r.returncode}")
+    secs = float(m.group(2))
+    print(f"{fit_device} fit, synthetic:all (8 materials, 32x3, batch 1024): {steps} steps in {secs:.1f} s = "
+          f"{1000 * secs / steps:.2f} s per 1000 steps ({steps / secs:.0f} steps/s); whole command {wall:.1f} s")
+
+
+def device(args) -> int:
+    skip = set(filter(None, args.skip.split(",")))
+    log_dir = os.environ.get("OUT")  # the device tool's folder of files that come back
+    pkg = None
+    for key, title in (("vk", "shader speed through Vulkan"), ("ext", "the extension for this Python"),
+                       ("tests", "CUDA tests (tests/python/test_fit_cuda.py)"), ("fit", "a CUDA fit")):
+        if key in skip:
+            continue
+        section(title)
+        t0 = time.time()
+        try:  # each part on its own: a failure is reported and the next part runs
+            if key == "vk":
+                shader_speed(args)
+            elif key == "ext":
+                pkg = build_extension()
+            elif pkg is None:
+                print("skipped: needs the extension (part ext failed or was skipped)")
+            elif key == "tests":
+                cuda_tests(pkg)
+            else:
+                cuda_fit(pkg, args.fit_steps, args.fit_device, log_dir)
+        except Exception as e:  # noqa: BLE001
+            print(f"FAILED: {type(e).__name__}: {e}")
+        print(f"[{key}: {time.time() - t0:.1f} s]", flush=True)
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="step", required=True)
+    sub.add_parser("prepare", help="here: write .gpu/ (SPIR-V, pairs, references, manifest, runner, headers)")
+    d = sub.add_parser("device", help="on the GPU machine: run what .gpu/ holds")
+    d.add_argument("--pairs", type=int, default=1 << 24, help="pairs per dispatch (default 2^24)")
+    d.add_argument("--rounds", type=int, default=2, help="interleaved rounds over the kernels (default 2)")
+    d.add_argument("--repeat", type=int, default=20, help="timed dispatches per kernel and round (default 20)")
+    d.add_argument("--fit-steps", type=int, default=3000)
+    d.add_argument("--fit-device", default="cuda", help="the fit's --device (cpu: check the part here)")
+    d.add_argument("--skip", default="", help="comma-separated parts to skip: vk, ext, tests, fit")
+    args = ap.parse_args()
+    return prepare(args) if args.step == "prepare" else device(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
