@@ -349,6 +349,16 @@ void bind_render(py::module_& m) {
         "name: {'settings': {name: value}, 'model_materials': [{where, name, file, material, evaluate}], "
         "'other_materials': [{where, name, type}]}. Raises RenderFileError '<origin>: <where>: <problem>'.");
 
+    m.def(
+        "render_environment",
+        [](const std::string& json_text, const std::string& base_dir, const std::string& origin) {
+            // A sky of the viewer's sizes bakes in milliseconds: no cancellation needed.
+            return array_from_image(hr::load_environment_json(json_text, base_dir, origin).image());
+        },
+        py::arg("json_text"), py::arg("base_dir"), py::arg("origin"),
+        "The radiance image (H, W, 3) float32 of a scene's \"environment\" object given as JSON text, as the "
+        "tracer lights with it: read, baked (sky) and scaled by the scene loader, negative and non-finite texels "
+        "zeroed, before its rotation_deg (which turns lookups, not the image). Errors as load_scene_json's.");
     m.def("render_write_exr", [](const FloatArray& a, const std::string& path) { hr::write_exr(image_from_array(a), path); },
           py::arg("image"), py::arg("path"), "Write (H, W, 3) linear float32 OpenEXR, atomically.");
     m.def(

@@ -292,7 +292,8 @@ def _cmd_edit(args: argparse.Namespace) -> int:
 def _cmd_view(args: argparse.Namespace) -> int:
     from hybridbrdf.viewer import write_page
 
-    info = write_page(args.model, args.out, args.sources)
+    info = write_page(args.model, args.out, args.sources, env=args.env,
+                      source_options={"size": args.source_size, "spp": args.source_spp})
     print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {info['materials']} materials): open it in a browser "
           f"with WebGL2; it needs no network")
     return 0
@@ -597,11 +598,25 @@ def build_parser() -> argparse.ArgumentParser:
                                     "network), that renders each material of MODEL on a sphere with WebGL2, from the "
                                     "GLSL that hbrdf-codegen writes: a material picker, the analytic part alone, "
                                     "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
-                                    "exposure and the light's direction (docs/VIEWER.md).")
+                                    "exposure, and light from an environment map (default the path tracer's sky) or "
+                                    "the sun alone (docs/VIEWER.md).")
     vw.add_argument("model", help="model file")
     vw.add_argument("sources", nargs="*", metavar="SOURCE",
-                    help="BRDF sources the materials were fitted to (listed on the page)")
+                    help="BRDF sources the materials were fitted to: each is shown beside the material the fit "
+                         "named after it, as the path tracer's render of the measurement and BRDF slices of the "
+                         "model, its f_a and the measurement (docs/VIEWER.md)")
     vw.add_argument("--out", "-o", required=True, help="HTML file to write")
+    vw.add_argument("--env", metavar="sky|MAP", default="sky",
+                    help="environment map the page lights with: 'sky' (default: the path tracer's sky, a sun of "
+                         "irradiance pi) or an equirectangular .exr / .hdr map (the tracer's mapping; maps wider "
+                         "than 1024 texels are area-averaged down)")
+    from hybridbrdf import viewer_sources
+
+    vw.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
+                    help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
+    vw.add_argument("--source-spp", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SPP, metavar="N",
+                    help="samples per pixel of each SOURCE's measured render (default: %(default)s; about 4 s "
+                         "per RGL source on 2 cores)")
     vw.set_defaults(func=_cmd_view)
 
     info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "

@@ -347,6 +347,7 @@ private:
         }
     }
 
+public:
     EnvironmentLight read_environment(const json& e) {
         const std::string w = "environment";
         if (!e.is_object()) r_.fail(w, "expected an object");
@@ -379,6 +380,7 @@ private:
         r_.fail(w + ".type", "unknown environment type '" + type + "'; expected sky, file or constant");
     }
 
+private:
     // The sky's image; every parameter is checked, with its key, before the
     // image is allocated (a [100000, 50000] resolution is an error, not bad_alloc).
     Image read_sky(const json& e) {
@@ -576,6 +578,13 @@ Scene load_scene_json(const std::string& json_text, const std::string& base_dir,
     const json root = parse_scene_text(json_text, origin);
     const Reader reader(origin, base_dir);
     return Loader(reader, options).load(root);
+}
+
+EnvironmentLight load_environment_json(const std::string& json_text, const std::string& base_dir,
+                                       const std::string& origin, const SceneLoadOptions& options) {
+    const json root = parse_scene_text(json_text, origin);
+    const Reader reader(origin, base_dir);
+    return Loader(reader, options).read_environment(root);
 }
 
 SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_dir, const std::string& origin) {

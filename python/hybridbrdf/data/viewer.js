@@ -45,19 +45,106 @@
     }
     return s;
   }
-  const program = gl.createProgram();
-  gl.attachShader(program, compile(gl.VERTEX_SHADER, vertex));
-  gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fragment));
-  gl.linkProgram(program);
-  if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
-    throw new Error("shader link failed: " + gl.getProgramInfoLog(program));
+  function link(fragmentSource, names) {
+    const program = gl.createProgram();
+    gl.attachShader(program, compile(gl.VERTEX_SHADER, vertex));
+    gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fragmentSource));
+    gl.linkProgram(program);
+    if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
+      throw new Error("shader link failed: " + gl.getProgramInfoLog(program));
+    }
+    const loc = {};
+    names.forEach(function (n) { loc[n] = gl.getUniformLocation(program, n); });
+    return { program: program, u: loc };
   }
-  gl.useProgram(program);
-  const u = {};
-  ["u_kd", "u_eta", "u_alpha", "u_pack", "u_analytic", "u_sun", "u_irradiance", "u_gain", "u_cam_pos",
-    "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"].forEach(function (n) {
-    u[n] = gl.getUniformLocation(program, n);
+  // The sums of samples live in float textures (RGBA32F render targets): core WebGL2 samples them,
+  // rendering into them needs EXT_color_buffer_float, which every desktop WebGL2 exposes.
+  if (!gl.getExtension("EXT_color_buffer_float")) {
+    fail("This viewer needs WebGL2's EXT_color_buffer_float (float render targets), which this browser does not provide.");
+    return;
+  }
+  let accumulate, display;
+  try {
+    accumulate = link(fragment, ["u_kd", "u_eta", "u_alpha", "u_pack", "u_analytic", "u_light", "u_sun",
+      "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
+      "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
+    display = link(data.display, ["u_accum", "u_gain"]);
+  } catch (e) {
+    fail(e.message);
+    return;
+  }
+  const u = accumulate.u;
+
+  function floatTexture(unit, internal, format, w, h, pixels) {
+    const t = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0 + unit);
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    gl.texImage2D(gl.TEXTURE_2D, 0, internal, w, h, 0, format, gl.FLOAT, pixels);
+    return t;
+  }
+
+  // The environment (hybridbrdf.viewer_lighting): float32 RGB texels, rows from the zenith down.
+  // Its sampling tables are built here as the tracer's EnvironmentLight builds them: weights
+  // luminance x sin(theta) of the row's centre, prefix sums in double precision, a row of zeros
+  // never chosen, an all-zero map sampled uniformly.
+  const env = data.environment, EW = env.width, EH = env.height;
+  (function () {
+    const bytes = atob(env.rgb), raw = new Uint8Array(bytes.length);
+    for (let i = 0; i < bytes.length; ++i) raw[i] = bytes.charCodeAt(i);
+    const rgb = new Float32Array(raw.buffer);
+    const weights = new Float64Array(EW * EH), texels = new Float32Array(4 * EW * EH);
+    let total = 0;
+    for (let y = 0; y < EH; ++y) {
+      const sinTheta = Math.sin(Math.PI * (y + 0.5) / EH);
+      for (let x = 0; x < EW; ++x) {
+        const i = y * EW + x, r = rgb[3 * i], g = rgb[3 * i + 1], b = rgb[3 * i + 2];
+        const w = (0.2126 * r + 0.7152 * g + 0.0722 * b) * sinTheta;
+        weights[i] = w > 0 && isFinite(w) ? w : 0;
+        total += weights[i];
+        texels[4 * i] = r; texels[4 * i + 1] = g; texels[4 * i + 2] = b;
+      }
+    }
+    const uniform = !(total > 0);
+    const marginal = new Float32Array(EH + 1), conditional = new Float32Array((EW + 1) * EH);
+    let rowsSum = 0;
+    for (let y = 0; y < EH; ++y) {
+      let rowSum = 0;
+      for (let x = 0; x < EW; ++x) rowSum += uniform ? 1 : weights[y * EW + x];
+      let acc = 0;
+      for (let x = 0; x < EW; ++x) {
+        const w = uniform ? 1 : weights[y * EW + x];
+        conditional[y * (EW + 1) + x] = rowSum > 0 ? acc / rowSum : x / EW;
+        acc += w;
+        // density over (u, v) of this texel: its weight over the mean weight
+        texels[4 * (y * EW + x) + 3] = uniform ? 1 : w * EW * EH / total;
+      }
+      conditional[y * (EW + 1) + EW] = 1;
+      marginal[y] = rowsSum / (uniform ? EW * EH : total);
+      rowsSum += rowSum;
+    }
+    marginal[EH] = 1;
+    floatTexture(1, gl.RGBA32F, gl.RGBA, EW, EH, texels);
+    floatTexture(2, gl.R32F, gl.RED, EH + 1, 1, marginal);
+    floatTexture(3, gl.R32F, gl.RED, EW + 1, EH, conditional);
+  })();
+
+  // Two sum textures, read one and write the other (a float target cannot be blended into without
+  // EXT_float_blend).
+  const targets = [0, 1].map(function () {
+    const tex = floatTexture(4, gl.RGBA32F, gl.RGBA, size, size, null);
+    const fbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+    if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) {
+      throw new Error("float framebuffer incomplete");
+    }
+    return { tex: tex, fbo: fbo };
   });
+  gl.bindFramebuffer(gl.FRAMEBUFFER, null);
 
   // Camera (the tracer's PinholeCamera).
   const cam = data.camera;
@@ -70,7 +157,10 @@
   // ---- state ----
   const mats = data.materials;
   const state = { index: 0, kd: null, eta: null, alpha: null, analytic: false, exposure: 0,
-                  el: data.sun.elevation, az: data.sun.azimuth };
+                  el: data.sun.elevation, az: data.sun.azimuth, light: "environment", rotation: 0 };
+  // Samples per pixel to accumulate (the environment; the sun alone takes one), and per frame.
+  let targetSamples = 256;
+  const SAMPLES_PER_FRAME = 4;
   const select = $("material");
   mats.forEach(function (m, i) { select.add(new Option(m.name, String(i))); });
 
@@ -114,6 +204,15 @@
     const az = numbers("sun_az", [1], -360, 360);
     if (az) state.az = az[0];
     state.analytic = params.get("analytic") === "1";
+    if (params.has("light")) {
+      const light = params.get("light");
+      if (light !== "env" && light !== "sun") throw new Error("URL parameter light=" + JSON.stringify(light) + ": expected env or sun");
+      state.light = light === "sun" ? "sun" : "environment";
+    }
+    const rot = numbers("rotation", [1], -360, 360);
+    if (rot) state.rotation = rot[0];
+    const spp = numbers("spp", [1], 1, 65536);
+    if (spp) targetSamples = Math.round(spp[0]);
   }
 
   const sliders = { kd_r: ["kd", 0], kd_g: ["kd", 1], kd_b: ["kd", 2], eta: ["eta", -1], alpha_x: ["alpha", 0],
@@ -130,11 +229,17 @@
     $("analytic").disabled = !data.has_analytic;
     $("exposure").value = String(state.exposure);
     $("exposure_v").textContent = state.exposure.toFixed(1);
+    $("light").value = state.light;
+    $("rotation").value = String(state.rotation);
+    $("rotation_v").textContent = state.rotation.toFixed(0);
+    $("rotation").disabled = state.light !== "environment";
+    $("sun_el").disabled = $("sun_az").disabled = state.light !== "sun";
     $("sun_el").value = String(state.el);
     $("sun_el_v").textContent = state.el.toFixed(0);
     $("sun_az").value = String(state.az);
     $("sun_az_v").textContent = state.az.toFixed(0);
     const m = mats[state.index];
+    if (window.hbrdfPlots) window.hbrdfPlots.show(data, state.index);  // viewer_plots.js: the measurement beside it
     $("cmd").textContent = editCommand(m);
     $("scene").textContent = sceneJson(m);
     $("render_cmd").textContent = "hbrdf render scene.json -o out.exr --png out.png --exposure " + state.exposure +
@@ -155,8 +260,15 @@
     const s = JSON.parse(JSON.stringify(data.scene));
     s.camera.width = size;
     s.camera.height = size;
-    s.environment.sun_elevation_deg = state.el;
-    s.environment.sun_azimuth_deg = state.az;
+    if (state.light === "sun") {
+      s.environment = JSON.parse(JSON.stringify(data.sun_environment));
+      s.environment.sun_elevation_deg = state.el;
+      s.environment.sun_azimuth_deg = state.az;
+    } else {
+      s.environment = JSON.parse(JSON.stringify(env.spec));
+      s.environment.rotation_deg = state.rotation;
+    }
+    s.spp = state.light === "sun" ? 64 : Math.max(64, targetSamples);
     s.materials.m.material = edited() ? editName(m) : m.name;
     s.materials.m.evaluate = state.analytic && data.has_analytic ? "analytic" : "full";
     return JSON.stringify(s, null, 1);
@@ -173,9 +285,11 @@
       " --out " + quote(data.model_path);
   }
 
-  function draw() {
+  // ---- rendering: sums of samples per pixel in float textures, shown by the display pass ----
+  let current = 0, samples = 0;  // targets[current] holds the sums of `samples` samples per pixel
+  function samplesWanted() { return state.light === "sun" ? 1 : targetSamples; }
+  function setMaterialUniforms() {
     const m = mats[state.index];
-    gl.viewport(0, 0, size, size);
     gl.uniform3fv(u.u_kd, state.kd);
     gl.uniform3fv(u.u_eta, state.eta);
     gl.uniform2fv(u.u_alpha, state.alpha);
@@ -183,27 +297,83 @@
     pack.set(m.pack);
     gl.uniform4fv(u.u_pack, pack);
     gl.uniform1i(u.u_analytic, state.analytic && data.has_analytic ? 1 : 0);
+    gl.uniform1i(u.u_light, state.light === "sun" ? 0 : 1);
     const el = state.el * Math.PI / 180, az = state.az * Math.PI / 180;
     gl.uniform3fv(u.u_sun, [Math.cos(el) * Math.sin(az), Math.sin(el), -Math.cos(el) * Math.cos(az)]);
     gl.uniform1f(u.u_irradiance, data.sun_irradiance);
-    gl.uniform1f(u.u_gain, Math.pow(2, state.exposure));
+    const rot = state.rotation * Math.PI / 180;
+    gl.uniform2f(u.u_env_rotation, Math.cos(rot), Math.sin(rot));
+    gl.uniform2i(u.u_env_size, EW, EH);
+    gl.uniform1i(u.u_env, 1);
+    gl.uniform1i(u.u_env_marginal, 2);
+    gl.uniform1i(u.u_env_conditional, 3);
+    gl.uniform1i(u.u_accum, 0);
     gl.uniform3fv(u.u_cam_pos, cam.position);
     gl.uniform3fv(u.u_cam_fwd, fwd);
     gl.uniform3fv(u.u_cam_right, right);
     gl.uniform3fv(u.u_cam_up, up);
     gl.uniform2f(u.u_tan, tanHalf, tanHalf);
     gl.uniform2f(u.u_size, size, size);
+  }
+  function restart() {  // the picture changed: start the sums again
+    samples = 0;
+    targets.forEach(function (t) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fbo);
+      gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
+    });
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+  }
+  function accumulateFrame() {  // SAMPLES_PER_FRAME more samples per pixel (one for the sun), a draw each
+    const n = Math.min(state.light === "sun" ? 1 : SAMPLES_PER_FRAME, samplesWanted() - samples);
+    if (n <= 0) return;
+    gl.useProgram(accumulate.program);
+    setMaterialUniforms();
+    gl.viewport(0, 0, size, size);
+    gl.activeTexture(gl.TEXTURE0);
+    for (let i = 0; i < n; ++i) {
+      gl.uniform1ui(u.u_sample, samples);
+      gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, targets[1 - current].fbo);
+      gl.drawArrays(gl.TRIANGLES, 0, 3);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      gl.bindTexture(gl.TEXTURE_2D, null);
+      current = 1 - current;
+      samples += 1;
+    }
+  }
+  function present() {
+    gl.useProgram(display.program);
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
+    gl.uniform1i(display.u.u_accum, 0);
+    gl.uniform1f(display.u.u_gain, Math.pow(2, state.exposure));
+    gl.viewport(0, 0, size, size);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
+    gl.bindTexture(gl.TEXTURE_2D, null);
+    $("samples").textContent = samples + " / " + samplesWanted() + " samples per pixel";
     const err = gl.getError();
     if (err !== gl.NO_ERROR) throw new Error("WebGL error " + err);
   }
-  let pending = false;
-  function redraw() {
-    show();
+  let pending = false, dirty = true;
+  function frame() {
+    pending = false;
+    try {
+      if (dirty) { restart(); dirty = false; }
+      accumulateFrame();
+      present();
+    } catch (e) {
+      fail(e.message);
+      return;
+    }
+    if (samples < samplesWanted()) schedule();
+  }
+  function schedule() {
     if (pending) return;
     pending = true;
-    requestAnimationFrame(function () { pending = false; try { draw(); } catch (e) { fail(e.message); } });
+    requestAnimationFrame(frame);
   }
+  function redraw() { show(); dirty = true; schedule(); }  // the picture changed
+  function reexpose() { show(); schedule(); }               // only the exposure changed
 
   select.addEventListener("change", function () { loadMaterial(parseInt(select.value, 10)); redraw(); });
   Object.keys(sliders).forEach(function (id) {
@@ -215,7 +385,9 @@
     });
   });
   $("analytic").addEventListener("change", function () { state.analytic = $("analytic").checked; redraw(); });
-  $("exposure").addEventListener("input", function () { state.exposure = parseFloat($("exposure").value); redraw(); });
+  $("exposure").addEventListener("input", function () { state.exposure = parseFloat($("exposure").value); reexpose(); });
+  $("light").addEventListener("change", function () { state.light = $("light").value; redraw(); });
+  $("rotation").addEventListener("input", function () { state.rotation = parseFloat($("rotation").value); redraw(); });
   $("sun_el").addEventListener("input", function () { state.el = parseFloat($("sun_el").value); redraw(); });
   $("sun_az").addEventListener("input", function () { state.az = parseFloat($("sun_az").value); redraw(); });
   $("reset").addEventListener("click", function () { loadMaterial(state.index); redraw(); });
@@ -223,7 +395,13 @@
   try {
     fromHash();
     show();
-    draw();  // synchronously at load, so that a headless browser's --dump-dom sees the result
+    // The first frame synchronously at load, so that a headless browser's --dump-dom sees a picture;
+    // with readback=1 every sample (the tests compare the converged picture with the tracer's).
+    restart();
+    dirty = false;
+    do accumulateFrame(); while (params.get("readback") === "1" && samples < samplesWanted());
+    present();
+    if (samples < samplesWanted()) schedule();
   } catch (e) {
     fail(e.message);
     return;

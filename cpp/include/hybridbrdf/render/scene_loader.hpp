@@ -43,6 +43,13 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 Scene load_scene_json(const std::string& json_text, const std::string& base_dir, const std::string& origin,
                       const SceneLoadOptions& options = {});
 
+/// The environment light of a scene's "environment" object, given as JSON text
+/// (the object itself, e.g. {"type": "sky", ...}), with the scene loader's
+/// readers and errors ("<origin>: environment.<key>: <problem>"). For viewers
+/// that light with the tracer's environment (hbrdf view).
+EnvironmentLight load_environment_json(const std::string& json_text, const std::string& base_dir,
+                                       const std::string& origin, const SceneLoadOptions& options = {});
+
 /// A material of type "model" as a scene declares it.
 struct ModelMaterialDecl {
     std::string where;          ///< "materials.paper" or "objects[2].material" (for errors)
