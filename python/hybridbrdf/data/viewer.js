@@ -417,5 +417,7 @@
   if (!failed) {
     statusEl.textContent = "";
     document.title = "hbrdf view: ok";
+    // Milliseconds from navigation to the first picture (bench/viewer_load.py reads it).
+    document.body.dataset.loadMs = performance.now().toFixed(0);
   }
 })();
