@@ -243,7 +243,10 @@ DIALECTS: Dict[str, Dict[str, object]] = {
              "sel": lambda cond, t, f: f"select({f}, {t}, {cond})",
              "for_": lambda k, n: f"for (var {k}: i32 = 0; {k} < {n}; {k}++)",
              "block": lambda s: "{ " + s + " }", "deref": lambda n: f"(*{n})", "ref": lambda n: f"&{n}",
-             "immutable_params": True, "returns_arrays": True, "half_to_float": ""},
+             "immutable_params": True, "returns_arrays": True, "half_to_float": "",
+             # FLT_MAX: Tint (Chrome's WGSL compiler) refuses 3.40282347e+38, which is above the largest f32
+             # ("value cannot be represented as 'f32'"; naga rounds it); 3.40282346e+38 is the same float32.
+             "flt_max": "3.40282346e+38f"},
 }
 
 
