@@ -295,7 +295,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
     info = write_page(args.model, args.out, args.sources, env=args.env,
                       source_options={"size": args.source_size, "spp": args.source_spp})
     print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {info['materials']} materials): open it in a browser "
-          f"with WebGL2; it needs no network")
+          f"with WebGPU or WebGL2; it needs no network")
     return 0
 
 
@@ -593,10 +593,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
     mx.set_defaults(func=_cmd_mix)
 
-    vw = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live (WebGL2)",
+    vw = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live "
+                                     "(WebGPU or WebGL2)",
                         description="Write one HTML file, with everything inlined (it opens from disk, without "
-                                    "network), that renders each material of MODEL on a sphere with WebGL2, from the "
-                                    "GLSL that hbrdf-codegen writes: a material picker, the analytic part alone, "
+                                    "network), that renders each material of MODEL on a sphere with WebGPU where the "
+                                    "browser has it, else WebGL2, from the WGSL and GLSL that hbrdf-codegen writes: a "
+                                    "material picker, the analytic part alone, "
                                     "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
                                     "exposure, and light from an environment map (default the path tracer's sky) or "
                                     "the sun alone (docs/VIEWER.md).")

@@ -1,7 +1,8 @@
 """``hbrdf view``: one self-contained HTML page that shows a model's materials live on a sphere
-(WebGL2), with the analytic part alone as a toggle, a material picker, kd / eta / alpha sliders that
-preview what ``hbrdf edit`` would write (and the matching command line), exposure and the light's
-direction (docs/VIEWER.md).
+(WebGPU where the browser has it, its WGSL from :mod:`hybridbrdf.viewer_wgsl`; else WebGL2), with
+the analytic part alone as a toggle, a material picker, kd / eta / alpha sliders that preview what
+``hbrdf edit`` would write (and the matching command line), exposure and the light's direction
+(docs/VIEWER.md).
 
 The page's shader is the GLSL that ``hbrdf-codegen --target glsl`` writes (the same template as
 every dialect), preceded by ``#version 300 es`` and precision qualifiers: GLSL ES 3.00 reads that
@@ -31,7 +32,7 @@ from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from hybridbrdf import viewer_lighting
+from hybridbrdf import viewer_lighting, viewer_wgsl
 from hybridbrdf.codegen import generate
 from hybridbrdf.model_file import HybridModel
 
@@ -326,6 +327,7 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
     a = model.arch
     heads = a.get("output_layer", "shared") == "material"
     glsl = generate(model, "glsl", materials=[model.materials[0]], model_path=model_path)
+    wgsl = generate(model, "wgsl", materials=[model.materials[0]], model_path=model_path)
     rows = _material_rows(model)
     n_pack = len(rows[0]["pack"])
     if n_pack > MAX_PACKED_FLOATS:
@@ -346,6 +348,10 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
         "fragment": fragment_shader(glsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
                                     a["n_out"]),
         "display": DISPLAY_SHADER,
+        # the WebGPU backend (docs/VIEWER.md, "WebGPU"): hbrdf-codegen --target wgsl and the page's WGSL
+        "wgsl": viewer_wgsl.compute_shader(wgsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
+                                           a["n_out"]),
+        "wgsl_display": viewer_wgsl.DISPLAY_SHADER,
         # the page fills in the material, the light, analytic or full, and the size
         "scene": tracer_scene(model_path, model.materials[0], spp=64, environment=env["spec"]),
         "sun_environment": tracer_scene(model_path, model.materials[0], light="sun")["environment"],
@@ -363,9 +369,10 @@ def render_page(model: HybridModel, model_path: str, sources: Sequence[str] = ()
     folder = pathlib.Path(__file__).resolve().parent / "data"
     html = (folder / "viewer.html").read_text(encoding="utf-8")
     js = (folder / "viewer.js").read_text(encoding="utf-8")
+    js = (folder / "viewer_webgpu.js").read_text(encoding="utf-8") + "\n" + js  # the WebGPU backend viewer.js uses
     js = (folder / "viewer_plots.js").read_text(encoding="utf-8") + "\n" + js  # first: its "use strict" opens the script
-    if "</script" in js.lower():
-        raise AssertionError("viewer.js and viewer_plots.js must not contain </script")
+    if "</script" in js.lower() or "<script" in js.lower():
+        raise AssertionError("viewer.js, viewer_webgpu.js and viewer_plots.js must not contain <script or </script")
     return html.replace("/*HBRDF_DATA*/", script_json(data)).replace("/*HBRDF_SCRIPT*/", js)
 
 

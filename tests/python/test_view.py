@@ -64,9 +64,15 @@ def chromium():
 needs_renderer = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="build without the renderer")
 
 
-def open_page(page, hash_="", extra_flags=()):
-    """(title, status line, dom, the page's console lines) of the page opened from its path."""
+def open_page(page, hash_="", extra_flags=(), backend="webgl2"):
+    """(title, status line, dom, the page's console lines) of the page opened from its path.
+    ``backend``: put ``backend=...`` in front of the URL's fragment (``None``: the fragment as
+    given). These tests are the WebGL2 backend's: the page would first ask for a WebGPU adapter,
+    and chromium without WebGPU flags answers none and logs "No available adapters." on the console
+    (the automatic choice is tested in test_view_webgpu.py)."""
     exe = chromium()
+    if backend is not None:
+        hash_ = f"backend={backend}" + ("&" + hash_ if hash_ else "")
     url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
     with tempfile.TemporaryDirectory() as profile:
         r = subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *extra_flags, "--dump-dom", url],

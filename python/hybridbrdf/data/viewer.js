@@ -25,66 +25,12 @@
   const canvas = $("view");
   canvas.width = size;
   canvas.height = size;
-  const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
-  if (!gl) {
-    fail("This viewer needs WebGL2, which this browser does not provide (or has turned off).");
+  // Which backend draws (docs/VIEWER.md, "WebGPU"): WebGPU where navigator.gpu gives an adapter and
+  // a device, else WebGL2; backend=webgpu|webgl2 in the URL forces one.
+  const backendWanted = params.get("backend");
+  if (backendWanted !== null && backendWanted !== "webgpu" && backendWanted !== "webgl2") {
+    fail("URL parameter backend=" + JSON.stringify(backendWanted) + ": expected webgpu or webgl2");
     return;
-  }
-
-  const NVEC = Math.ceil(data.n_pack / 4);
-  const fragment = data.fragment;  // hybridbrdf.viewer.fragment_shader
-  const vertex = "#version 300 es\nvoid main() { vec2 v = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));" +
-    " gl_Position = vec4(v * 2.0 - 1.0, 0.0, 1.0); }\n";
-
-  function compile(type, source) {
-    const s = gl.createShader(type);
-    gl.shaderSource(s, source);
-    gl.compileShader(s);
-    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) {
-      throw new Error("shader compile failed: " + gl.getShaderInfoLog(s));
-    }
-    return s;
-  }
-  function link(fragmentSource, names) {
-    const program = gl.createProgram();
-    gl.attachShader(program, compile(gl.VERTEX_SHADER, vertex));
-    gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fragmentSource));
-    gl.linkProgram(program);
-    if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
-      throw new Error("shader link failed: " + gl.getProgramInfoLog(program));
-    }
-    const loc = {};
-    names.forEach(function (n) { loc[n] = gl.getUniformLocation(program, n); });
-    return { program: program, u: loc };
-  }
-  // The sums of samples live in float textures (RGBA32F render targets): core WebGL2 samples them,
-  // rendering into them needs EXT_color_buffer_float, which every desktop WebGL2 exposes.
-  if (!gl.getExtension("EXT_color_buffer_float")) {
-    fail("This viewer needs WebGL2's EXT_color_buffer_float (float render targets), which this browser does not provide.");
-    return;
-  }
-  let accumulate, display;
-  try {
-    accumulate = link(fragment, ["u_kd", "u_eta", "u_alpha", "u_pack", "u_analytic", "u_light", "u_sun",
-      "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
-      "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
-    display = link(data.display, ["u_accum", "u_gain"]);
-  } catch (e) {
-    fail(e.message);
-    return;
-  }
-  const u = accumulate.u;
-
-  function floatTexture(unit, internal, format, w, h, pixels) {
-    const t = gl.createTexture();
-    gl.activeTexture(gl.TEXTURE0 + unit);
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
-    gl.texImage2D(gl.TEXTURE_2D, 0, internal, w, h, 0, format, gl.FLOAT, pixels);
-    return t;
   }
 
   // The environment (hybridbrdf.viewer_lighting): float32 RGB texels, rows from the zenith down.
@@ -92,7 +38,7 @@
   // luminance x sin(theta) of the row's centre, prefix sums in double precision, a row of zeros
   // never chosen, an all-zero map sampled uniformly.
   const env = data.environment, EW = env.width, EH = env.height;
-  (function () {
+  const envTables = (function () {
     const bytes = atob(env.rgb), raw = new Uint8Array(bytes.length);
     for (let i = 0; i < bytes.length; ++i) raw[i] = bytes.charCodeAt(i);
     const rgb = new Float32Array(raw.buffer);
@@ -127,24 +73,8 @@
       rowsSum += rowSum;
     }
     marginal[EH] = 1;
-    floatTexture(1, gl.RGBA32F, gl.RGBA, EW, EH, texels);
-    floatTexture(2, gl.R32F, gl.RED, EH + 1, 1, marginal);
-    floatTexture(3, gl.R32F, gl.RED, EW + 1, EH, conditional);
+    return { texels: texels, marginal: marginal, conditional: conditional };
   })();
-
-  // Two sum textures, read one and write the other (a float target cannot be blended into without
-  // EXT_float_blend).
-  const targets = [0, 1].map(function () {
-    const tex = floatTexture(4, gl.RGBA32F, gl.RGBA, size, size, null);
-    const fbo = gl.createFramebuffer();
-    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
-    if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) {
-      throw new Error("float framebuffer incomplete");
-    }
-    return { tex: tex, fbo: fbo };
-  });
-  gl.bindFramebuffer(gl.FRAMEBUFFER, null);
 
   // Camera (the tracer's PinholeCamera).
   const cam = data.camera;
@@ -285,139 +215,294 @@
       " --out " + quote(data.model_path);
   }
 
-  // ---- rendering: sums of samples per pixel in float textures, shown by the display pass ----
-  let current = 0, samples = 0;  // targets[current] holds the sums of `samples` samples per pixel
+  // ---- the sums of samples per pixel, and what the backends draw with ----
+  const NVEC = Math.ceil(data.n_pack / 4);
+  let samples = 0;  // the backend's sums hold `samples` samples per pixel
   function samplesWanted() { return state.light === "sun" ? 1 : targetSamples; }
-  function setMaterialUniforms() {
-    const m = mats[state.index];
-    gl.uniform3fv(u.u_kd, state.kd);
-    gl.uniform3fv(u.u_eta, state.eta);
-    gl.uniform2fv(u.u_alpha, state.alpha);
+  // The shaders' parameters for the current state (both backends).
+  function viewUniforms() {
     const pack = new Float32Array(4 * NVEC);
-    pack.set(m.pack);
-    gl.uniform4fv(u.u_pack, pack);
-    gl.uniform1i(u.u_analytic, state.analytic && data.has_analytic ? 1 : 0);
-    gl.uniform1i(u.u_light, state.light === "sun" ? 0 : 1);
-    const el = state.el * Math.PI / 180, az = state.az * Math.PI / 180;
-    gl.uniform3fv(u.u_sun, [Math.cos(el) * Math.sin(az), Math.sin(el), -Math.cos(el) * Math.cos(az)]);
-    gl.uniform1f(u.u_irradiance, data.sun_irradiance);
-    const rot = state.rotation * Math.PI / 180;
-    gl.uniform2f(u.u_env_rotation, Math.cos(rot), Math.sin(rot));
-    gl.uniform2i(u.u_env_size, EW, EH);
-    gl.uniform1i(u.u_env, 1);
-    gl.uniform1i(u.u_env_marginal, 2);
-    gl.uniform1i(u.u_env_conditional, 3);
-    gl.uniform1i(u.u_accum, 0);
-    gl.uniform3fv(u.u_cam_pos, cam.position);
-    gl.uniform3fv(u.u_cam_fwd, fwd);
-    gl.uniform3fv(u.u_cam_right, right);
-    gl.uniform3fv(u.u_cam_up, up);
-    gl.uniform2f(u.u_tan, tanHalf, tanHalf);
-    gl.uniform2f(u.u_size, size, size);
+    pack.set(mats[state.index].pack);
+    const el = state.el * Math.PI / 180, az = state.az * Math.PI / 180, rot = state.rotation * Math.PI / 180;
+    return { kd: state.kd, eta: state.eta, alpha: state.alpha, pack: pack,
+             analytic: state.analytic && data.has_analytic, light: state.light === "sun" ? 0 : 1,
+             sun: [Math.cos(el) * Math.sin(az), Math.sin(el), -Math.cos(el) * Math.cos(az)],
+             irradiance: data.sun_irradiance, rotation: [Math.cos(rot), Math.sin(rot)], envSize: [EW, EH],
+             camPos: cam.position, camFwd: fwd, camRight: right, camUp: up, tan: [tanHalf, tanHalf], size: [size, size] };
   }
-  function restart() {  // the picture changed: start the sums again
-    samples = 0;
-    targets.forEach(function (t) {
-      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fbo);
-      gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
+
+  // ---- the WebGL2 backend: sums in float textures, a draw per sample, the display pass ----
+  // The interface of viewer_webgpu.js's backend (name, begin, restart, accumulate, present, settle,
+  // readback); here everything is synchronous: settle gives null and readback the pixels.
+  function createWebGL2() {
+    const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
+    if (!gl) throw new Error("This viewer needs WebGL2, which this browser does not provide (or has turned off).");
+    const fragment = data.fragment;  // hybridbrdf.viewer.fragment_shader
+    const vertex = "#version 300 es\nvoid main() { vec2 v = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));" +
+      " gl_Position = vec4(v * 2.0 - 1.0, 0.0, 1.0); }\n";
+
+    function compile(type, source) {
+      const s = gl.createShader(type);
+      gl.shaderSource(s, source);
+      gl.compileShader(s);
+      if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) {
+        throw new Error("shader compile failed: " + gl.getShaderInfoLog(s));
+      }
+      return s;
+    }
+    function link(fragmentSource, names) {
+      const program = gl.createProgram();
+      gl.attachShader(program, compile(gl.VERTEX_SHADER, vertex));
+      gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fragmentSource));
+      gl.linkProgram(program);
+      if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
+        throw new Error("shader link failed: " + gl.getProgramInfoLog(program));
+      }
+      const loc = {};
+      names.forEach(function (n) { loc[n] = gl.getUniformLocation(program, n); });
+      return { program: program, u: loc };
+    }
+    // The sums of samples live in float textures (RGBA32F render targets): core WebGL2 samples them,
+    // rendering into them needs EXT_color_buffer_float, which every desktop WebGL2 exposes.
+    if (!gl.getExtension("EXT_color_buffer_float")) {
+      throw new Error("This viewer needs WebGL2's EXT_color_buffer_float (float render targets), which this browser does not provide.");
+    }
+    const accumulate = link(fragment, ["u_kd", "u_eta", "u_alpha", "u_pack", "u_analytic", "u_light", "u_sun",
+      "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
+      "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
+    const display = link(data.display, ["u_accum", "u_gain"]);
+    const u = accumulate.u;
+
+    function floatTexture(unit, internal, format, w, h, pixels) {
+      const t = gl.createTexture();
+      gl.activeTexture(gl.TEXTURE0 + unit);
+      gl.bindTexture(gl.TEXTURE_2D, t);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+      gl.texImage2D(gl.TEXTURE_2D, 0, internal, w, h, 0, format, gl.FLOAT, pixels);
+      return t;
+    }
+    floatTexture(1, gl.RGBA32F, gl.RGBA, EW, EH, envTables.texels);
+    floatTexture(2, gl.R32F, gl.RED, EH + 1, 1, envTables.marginal);
+    floatTexture(3, gl.R32F, gl.RED, EW + 1, EH, envTables.conditional);
+
+    // Two sum textures, read one and write the other (a float target cannot be blended into without
+    // EXT_float_blend).
+    const targets = [0, 1].map(function () {
+      const tex = floatTexture(4, gl.RGBA32F, gl.RGBA, size, size, null);
+      const fbo = gl.createFramebuffer();
+      gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
+      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+      if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) {
+        throw new Error("float framebuffer incomplete");
+      }
+      return { tex: tex, fbo: fbo };
     });
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+
+    let current = 0;  // targets[current] holds the sums
+    function setUniforms(v) {
+      gl.uniform3fv(u.u_kd, v.kd);
+      gl.uniform3fv(u.u_eta, v.eta);
+      gl.uniform2fv(u.u_alpha, v.alpha);
+      gl.uniform4fv(u.u_pack, v.pack);
+      gl.uniform1i(u.u_analytic, v.analytic ? 1 : 0);
+      gl.uniform1i(u.u_light, v.light);
+      gl.uniform3fv(u.u_sun, v.sun);
+      gl.uniform1f(u.u_irradiance, v.irradiance);
+      gl.uniform2f(u.u_env_rotation, v.rotation[0], v.rotation[1]);
+      gl.uniform2i(u.u_env_size, v.envSize[0], v.envSize[1]);
+      gl.uniform1i(u.u_env, 1);
+      gl.uniform1i(u.u_env_marginal, 2);
+      gl.uniform1i(u.u_env_conditional, 3);
+      gl.uniform1i(u.u_accum, 0);
+      gl.uniform3fv(u.u_cam_pos, v.camPos);
+      gl.uniform3fv(u.u_cam_fwd, v.camFwd);
+      gl.uniform3fv(u.u_cam_right, v.camRight);
+      gl.uniform3fv(u.u_cam_up, v.camUp);
+      gl.uniform2f(u.u_tan, v.tan[0], v.tan[1]);
+      gl.uniform2f(u.u_size, v.size[0], v.size[1]);
+    }
+    return {
+      name: "WebGL2",
+      begin: function () {},
+      restart: function () {  // the picture changed: start the sums again
+        targets.forEach(function (t) {
+          gl.bindFramebuffer(gl.FRAMEBUFFER, t.fbo);
+          gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
+        });
+        gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      },
+      accumulate: function (first, n, v) {  // n more samples per pixel, a draw each
+        gl.useProgram(accumulate.program);
+        setUniforms(v);
+        gl.viewport(0, 0, size, size);
+        gl.activeTexture(gl.TEXTURE0);
+        for (let i = 0; i < n; ++i) {
+          gl.uniform1ui(u.u_sample, first + i);
+          gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
+          gl.bindFramebuffer(gl.FRAMEBUFFER, targets[1 - current].fbo);
+          gl.drawArrays(gl.TRIANGLES, 0, 3);
+          gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+          gl.bindTexture(gl.TEXTURE_2D, null);
+          current = 1 - current;
+        }
+      },
+      present: function (gain) {
+        gl.useProgram(display.program);
+        gl.activeTexture(gl.TEXTURE0);
+        gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
+        gl.uniform1i(display.u.u_accum, 0);
+        gl.uniform1f(display.u.u_gain, gain);
+        gl.viewport(0, 0, size, size);
+        gl.drawArrays(gl.TRIANGLES, 0, 3);
+        gl.bindTexture(gl.TEXTURE_2D, null);
+        const err = gl.getError();
+        if (err !== gl.NO_ERROR) throw new Error("WebGL error " + err);
+      },
+      settle: function () { return null; },
+      readback: function () {  // the canvas's pixels (RGBA, bottom row first)
+        const px = new Uint8Array(4 * size * size);
+        gl.finish();  // drawn before reading: a readPixels that waits logs a "GPU stall" performance message
+        gl.readPixels(0, 0, size, size, gl.RGBA, gl.UNSIGNED_BYTE, px);
+        return px;
+      },
+    };
   }
-  function accumulateFrame() {  // SAMPLES_PER_FRAME more samples per pixel (one for the sun), a draw each
+
+  // ---- drawing: the same for both backends ----
+  let backend = null;
+  // A backend's value or Promise, then fn: synchronous for WebGL2 (the first picture is drawn at load,
+  // so that a headless browser's --dump-dom sees it), chained for WebGPU.
+  function then(value, fn) { return value && typeof value.then === "function" ? value.then(fn) : fn(value); }
+  function showSamples() {
+    $("samples").textContent = samples + " / " + samplesWanted() + " samples per pixel (" + backend.name + ")";
+  }
+  // SAMPLES_PER_FRAME more samples per pixel (one for the sun), after a restart when dirty.
+  function accumulateFrame() {
     const n = Math.min(state.light === "sun" ? 1 : SAMPLES_PER_FRAME, samplesWanted() - samples);
     if (n <= 0) return;
-    gl.useProgram(accumulate.program);
-    setMaterialUniforms();
-    gl.viewport(0, 0, size, size);
-    gl.activeTexture(gl.TEXTURE0);
-    for (let i = 0; i < n; ++i) {
-      gl.uniform1ui(u.u_sample, samples);
-      gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
-      gl.bindFramebuffer(gl.FRAMEBUFFER, targets[1 - current].fbo);
-      gl.drawArrays(gl.TRIANGLES, 0, 3);
-      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-      gl.bindTexture(gl.TEXTURE_2D, null);
-      current = 1 - current;
-      samples += 1;
-    }
+    backend.accumulate(samples, n, viewUniforms());
+    samples += n;
   }
-  function present() {
-    gl.useProgram(display.program);
-    gl.activeTexture(gl.TEXTURE0);
-    gl.bindTexture(gl.TEXTURE_2D, targets[current].tex);
-    gl.uniform1i(display.u.u_accum, 0);
-    gl.uniform1f(display.u.u_gain, Math.pow(2, state.exposure));
-    gl.viewport(0, 0, size, size);
-    gl.drawArrays(gl.TRIANGLES, 0, 3);
-    gl.bindTexture(gl.TEXTURE_2D, null);
-    $("samples").textContent = samples + " / " + samplesWanted() + " samples per pixel";
-    const err = gl.getError();
-    if (err !== gl.NO_ERROR) throw new Error("WebGL error " + err);
-  }
-  let pending = false, dirty = true;
+  function restart() { backend.restart(); samples = 0; }
+  let pending = false, dirty = true, busy = false, again = false;
   function frame() {
     pending = false;
+    if (failed) return;
+    let settled;
     try {
+      backend.begin();
       if (dirty) { restart(); dirty = false; }
       accumulateFrame();
-      present();
+      backend.present(Math.pow(2, state.exposure));
+      showSamples();
+      settled = backend.settle();
     } catch (e) {
       fail(e.message);
       return;
     }
-    if (samples < samplesWanted()) schedule();
+    if (!settled) {
+      if (samples < samplesWanted()) schedule();
+      return;
+    }
+    busy = true;  // one frame of GPU work in flight at most
+    settled.then(function () {
+      busy = false;
+      if (again || dirty || samples < samplesWanted()) { again = false; schedule(); }
+    }, function (e) { fail(e.message); });
   }
   function schedule() {
-    if (pending) return;
+    if (busy) { again = true; return; }
+    if (pending || failed) return;
     pending = true;
     requestAnimationFrame(frame);
   }
   function redraw() { show(); dirty = true; schedule(); }  // the picture changed
   function reexpose() { show(); schedule(); }               // only the exposure changed
 
-  select.addEventListener("change", function () { loadMaterial(parseInt(select.value, 10)); redraw(); });
-  Object.keys(sliders).forEach(function (id) {
-    $(id).addEventListener("input", function () {
-      const key = sliders[id][0], c = sliders[id][1], v = parseFloat($(id).value);
-      if (c < 0) state[key] = [v, v, v]; else state[key][c] = v;
-      state.edited[key] = true;
-      redraw();
+  // The controls, from the first picture on (WebGPU starts asynchronously: before it there is no
+  // state or backend to change).
+  function listen() {
+    select.addEventListener("change", function () { loadMaterial(parseInt(select.value, 10)); redraw(); });
+    Object.keys(sliders).forEach(function (id) {
+      $(id).addEventListener("input", function () {
+        const key = sliders[id][0], c = sliders[id][1], v = parseFloat($(id).value);
+        if (c < 0) state[key] = [v, v, v]; else state[key][c] = v;
+        state.edited[key] = true;
+        redraw();
+      });
     });
-  });
-  $("analytic").addEventListener("change", function () { state.analytic = $("analytic").checked; redraw(); });
-  $("exposure").addEventListener("input", function () { state.exposure = parseFloat($("exposure").value); reexpose(); });
-  $("light").addEventListener("change", function () { state.light = $("light").value; redraw(); });
-  $("rotation").addEventListener("input", function () { state.rotation = parseFloat($("rotation").value); redraw(); });
-  $("sun_el").addEventListener("input", function () { state.el = parseFloat($("sun_el").value); redraw(); });
-  $("sun_az").addEventListener("input", function () { state.az = parseFloat($("sun_az").value); redraw(); });
-  $("reset").addEventListener("click", function () { loadMaterial(state.index); redraw(); });
+    $("analytic").addEventListener("change", function () { state.analytic = $("analytic").checked; redraw(); });
+    $("exposure").addEventListener("input", function () { state.exposure = parseFloat($("exposure").value); reexpose(); });
+    $("light").addEventListener("change", function () { state.light = $("light").value; redraw(); });
+    $("rotation").addEventListener("input", function () { state.rotation = parseFloat($("rotation").value); redraw(); });
+    $("sun_el").addEventListener("input", function () { state.el = parseFloat($("sun_el").value); redraw(); });
+    $("sun_az").addEventListener("input", function () { state.az = parseFloat($("sun_az").value); redraw(); });
+    $("reset").addEventListener("click", function () { loadMaterial(state.index); redraw(); });
+  }
 
-  try {
+  // The first picture at load; with readback=1 every sample (the tests compare the converged picture
+  // with the tracer's), then the pixels into #readback (RGBA, bottom row first), then the title.
+  function firstPicture(b) {
+    backend = b;
     fromHash();
     show();
-    // The first frame synchronously at load, so that a headless browser's --dump-dom sees a picture;
-    // with readback=1 every sample (the tests compare the converged picture with the tracer's).
+    listen();
+    backend.begin();
     restart();
     dirty = false;
-    do accumulateFrame(); while (params.get("readback") === "1" && samples < samplesWanted());
-    present();
-    if (samples < samplesWanted()) schedule();
-  } catch (e) {
-    fail(e.message);
-    return;
+    const readback = params.get("readback") === "1";
+    do accumulateFrame(); while (readback && samples < samplesWanted());
+    const gain = Math.pow(2, state.exposure);
+    backend.present(gain);
+    showSamples();
+    return then(backend.settle(), function () {
+      if (samples < samplesWanted()) schedule();
+      if (!readback) return null;
+      return then(backend.readback(gain), function (px) {
+        let bin = "";
+        for (let i = 0; i < px.length; i += 0x8000) bin += String.fromCharCode.apply(null, px.subarray(i, i + 0x8000));
+        readbackEl.textContent = size + " " + btoa(bin);
+      });
+    });
   }
-  if (params.get("readback") === "1") {  // the tests read the pixels back (RGBA, bottom row first)
-    const px = new Uint8Array(4 * size * size);
-    gl.finish();  // drawn before reading: a readPixels that waits logs a "GPU stall" performance message
-    gl.readPixels(0, 0, size, size, gl.RGBA, gl.UNSIGNED_BYTE, px);
-    let bin = "";
-    for (let i = 0; i < px.length; i += 0x8000) bin += String.fromCharCode.apply(null, px.subarray(i, i + 0x8000));
-    readbackEl.textContent = size + " " + btoa(bin);
-  }
-  if (!failed) {
+  function loaded() {
+    if (failed) return;
     statusEl.textContent = "";
     document.title = "hbrdf view: ok";
     // Milliseconds from navigation to the first picture (bench/viewer_load.py reads it).
     document.body.dataset.loadMs = performance.now().toFixed(0);
+  }
+  function startWebGL2() {
+    try {
+      then(firstPicture(createWebGL2()), loaded);
+    } catch (e) {
+      fail(e.message);
+    }
+  }
+  const NO_WEBGPU = "backend=webgpu: this browser gives no WebGPU device";
+  if (backendWanted === "webgl2" || (backendWanted === null && !navigator.gpu)) {
+    startWebGL2();  // synchronously at load, as before WebGPU
+  } else {
+    // WebGPU is asynchronous: the title stays "hbrdf view" until the first picture (and the readback)
+    // is done, or says the error.
+    const envCdf = new Float32Array(envTables.marginal.length + envTables.conditional.length);
+    envCdf.set(envTables.marginal);
+    envCdf.set(envTables.conditional, envTables.marginal.length);
+    window.hbrdfWebGPU.create({ canvas: canvas, size: size, compute: data.wgsl, display: data.wgsl_display, nvec: NVEC,
+                                env: { width: EW, height: EH, texels: envTables.texels, cdf: envCdf }, fail: fail })
+      .then(function (got) {
+        if (failed) return null;
+        if (!got.backend) {
+          if (backendWanted === "webgpu") { fail(NO_WEBGPU + " (" + got.why + ")."); return null; }
+          startWebGL2();
+          return null;
+        }
+        return then(firstPicture(got.backend), loaded);
+      })
+      .catch(function (e) { fail(e.message); });
   }
 })();

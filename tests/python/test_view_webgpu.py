@@ -1,0 +1,364 @@
+"""``hbrdf view``'s WebGPU backend (docs/VIEWER.md, "WebGPU"): the page in headless chromium with
+WebGPU on SwiftShader, against the C++ path tracer and against the page's own WebGL2 backend.
+
+WebGPU is asynchronous and ``--dump-dom`` does not wait for it (its virtual time runs out while the
+GPU works: the title is still "hbrdf view"), so these tests drive chromium through its DevTools
+protocol on a pipe (``--remote-debugging-pipe``: JSON messages on file descriptors 3 and 4, no
+package needed) and read the document once the page's title says how loading went.
+
+Flags: test_view's CHROMIUM_FLAGS without ``--virtual-time-budget``, and
+``--enable-unsafe-webgpu --use-webgpu-adapter=swiftshader`` (WebGPU on SwiftShader) with
+``--enable-features=Vulkan --use-vulkan=swiftshader``: without the last two the canvas's swap
+chain cannot be shared with the compositor (ANGLE's GL: "Could not find SharedImageBackingFactory
+... WebgpuSwapChainTexture") and the device is lost at the first present.
+
+Skips: chromium missing -> skip unless HBRDF_REQUIRE_BROWSER=1 (test_view.chromium); chromium
+without a WebGPU adapter under these flags -> the browser WebGPU tests skip with that reason,
+unless HBRDF_REQUIRE_WEBGPU=1. The WGSL test needs no browser (naga through the ``wgpu`` package on
+lavapipe; skips as the other WGSL tests, unless HBRDF_REQUIRE_VULKAN=1).
+
+Bounds: as test_view's docstring argues, with the page's 256 samples per pixel against the
+tracer's 64 (environment map) or the page's exact sun: MAD(page, tracer seed 0) <= MAD(tracer
+seed 0, tracer seed 1) + 1. WebGPU against WebGL2 (the same page and state): each is an estimate
+of the same image E with 256 samples per pixel, E + n_gpu and E + n_gl with |n| about half the
+tracer's noise; even independent, MAD(gpu, gl) ~ E|n_gpu - n_gl| ~ 0.7 E|n_t|, below MAD(t0, t1) ~
+1.4 E|n_t|, so MAD(gpu, gl) <= MAD(t0, t1) + 1 holds (the 1 for the two 8-bit roundings). The
+backends draw the same random numbers, so in practice they agree far closer (measured: 0, the
+same bytes, on SwiftShader). The sun alone is one exact evaluation per pixel in both: at most 1
+(8-bit rounding) at every interior pixel."""
+
+import base64
+import json
+import os
+import pathlib
+import re
+import select
+import subprocess
+import tempfile
+import time
+import urllib.parse
+
+import numpy as np
+import pytest
+
+from hybridbrdf import viewer
+from hybridbrdf.codegen import generate
+from hybridbrdf.model_file import load_model
+from helpers import run_cli
+from test_view import (CHROMIUM_FLAGS, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
+                       interior_mask, mad, needs_renderer, open_page, page_state, tracer_pixels, unescape)
+
+#: Headless chromium with WebGPU on SwiftShader (module docstring). No virtual time: the page's
+#: title says when it is done.
+WEBGPU_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-budget")] + [
+    "--enable-unsafe-webgpu", "--use-webgpu-adapter=swiftshader", "--enable-features=Vulkan",
+    "--use-vulkan=swiftshader"]
+#: Seconds a page may take to say "hbrdf view: ok" or an error.
+PAGE_TIMEOUT = 180
+
+
+class _DevTools:
+    """Chromium's DevTools protocol over --remote-debugging-pipe: requests written to its fd 3,
+    answers read from its fd 4, each message JSON ended by a NUL byte."""
+
+    def __init__(self, exe, flags, url, profile, stderr):
+        to_r, self.to_w = os.pipe()
+        self.from_r, from_w = os.pipe()
+
+        def child():  # chromium reads fd 3 and writes fd 4 (copies first: the pipes may hold 3 or 4)
+            a, b = os.dup(to_r), os.dup(from_w)
+            os.dup2(a, 3)
+            os.dup2(b, 4)
+
+        self.proc = subprocess.Popen([exe, *flags, f"--user-data-dir={profile}", "--remote-debugging-pipe", url],
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=stderr,
+                                     preexec_fn=child, close_fds=False)
+        os.close(to_r)
+        os.close(from_w)
+        self.buf = b""
+        self.next_id = 0
+
+    def call(self, method, params=None, session=None, timeout=60.0):
+        self.next_id += 1
+        msg = {"id": self.next_id, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        os.write(self.to_w, json.dumps(msg).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        while True:
+            while b"\0" in self.buf:
+                raw, self.buf = self.buf.split(b"\0", 1)
+                answer = json.loads(raw)
+                if answer.get("id") == self.next_id:
+                    if "error" in answer:
+                        raise RuntimeError(f"DevTools {method}: {answer['error']}")
+                    return answer["result"]
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([self.from_r], [], [], left)[0]:
+                raise TimeoutError(f"DevTools {method}: no answer in {timeout} s")
+            chunk = os.read(self.from_r, 1 << 20)
+            if not chunk:
+                raise RuntimeError(f"DevTools {method}: chromium closed the pipe (exit {self.proc.poll()})")
+            self.buf += chunk
+
+    def evaluate(self, session, expression):
+        r = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True}, session)
+        return r["result"].get("value")
+
+    def close(self):
+        try:
+            self.call("Browser.close", timeout=10)
+        except Exception:
+            pass
+        try:
+            self.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()  # our own chromium, by its handle
+            self.proc.wait()
+        os.close(self.to_w)
+        os.close(self.from_r)
+
+
+def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT):
+    """As test_view.open_page: (title, status line, dom, console lines), the page opened from its
+    path, read when its title is "hbrdf view: ..." (ok or an error) or after ``timeout`` seconds."""
+    exe = chromium()
+    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+    with tempfile.TemporaryDirectory() as profile, tempfile.TemporaryFile() as err:
+        tools = _DevTools(exe, WEBGPU_FLAGS if flags is None else flags, url, profile, err)
+        try:
+            deadline = time.monotonic() + timeout
+            while True:
+                pages = [t for t in tools.call("Target.getTargets")["targetInfos"] if t["type"] == "page"]
+                if pages or time.monotonic() > deadline:
+                    break
+                time.sleep(0.1)
+            assert pages, "chromium opened no page"
+            session = tools.call("Target.attachToTarget", {"targetId": pages[0]["targetId"], "flatten": True})["sessionId"]
+            while True:
+                title = tools.evaluate(session, "document.location.href.startsWith('file:') ? document.title : ''")
+                if (title or "").startswith("hbrdf view:") or time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
+            dom = tools.evaluate(session, "document.documentElement.outerHTML")
+        finally:
+            tools.close()
+        err.seek(0)
+        stderr = err.read().decode("utf-8", "replace")
+    title = re.search(r"<title>(.*?)</title>", dom, re.S).group(1)
+    status = re.search(r'<div id="status">(.*?)</div>', dom, re.S)
+    console = [line for line in stderr.splitlines() if ":CONSOLE" in line]
+    return title, status.group(1) if status else "", dom, console
+
+
+_PROBE = """<!DOCTYPE html><html><head><meta charset="utf-8"><title>probe</title></head><body><script>
+(async function () {
+  try {
+    const a = navigator.gpu && await navigator.gpu.requestAdapter();
+    if (!a) { document.title = "hbrdf view: no adapter"; return; }
+    await a.requestDevice();
+    document.title = "hbrdf view: webgpu";
+  } catch (e) { document.title = "hbrdf view: " + e.message; }
+})();
+</script></body></html>"""
+
+
+@pytest.fixture(scope="module")
+def webgpu(tmp_path_factory):
+    """Skips (or fails, HBRDF_REQUIRE_WEBGPU=1) when chromium gives no WebGPU device under WEBGPU_FLAGS."""
+    probe = tmp_path_factory.mktemp("probe") / "probe.html"
+    probe.write_text(_PROBE)
+    title = open_page_devtools(probe, timeout=60)[0]
+    if title != "hbrdf view: webgpu":
+        why = f"chromium gives no WebGPU device with {' '.join(WEBGPU_FLAGS[-4:])} ({title!r})"
+        if os.environ.get("HBRDF_REQUIRE_WEBGPU") == "1":
+            pytest.fail(why + " and HBRDF_REQUIRE_WEBGPU=1")
+        pytest.skip(why)
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    out = tmp_path_factory.mktemp("view_webgpu") / "page.html"
+    r = run_cli("view", MODEL, "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def samples_line(dom):
+    return re.search(r'<div id="samples">(.*?)</div>', dom, re.S).group(1)
+
+
+def webgpu_state(page, hash_):
+    """As test_view.page_state for the WebGPU backend: (canvas (SIZE, SIZE, 3) uint8 top row first,
+    the scene the page shows for the tracer, its hbrdf edit line); asserts a clean load by WebGPU."""
+    title, status, dom, console = open_page_devtools(page, f"backend=webgpu&readback=1&size={SIZE}&" + hash_)
+    assert title == "hbrdf view: ok", (title, status)
+    assert console == [], console
+    assert samples_line(dom).endswith("samples per pixel (WebGPU)"), samples_line(dom)
+    size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
+    px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)
+    scene = json.loads(unescape(re.search(r'<pre id="scene">(.*?)</pre>', dom, re.S).group(1)))
+    cmd = unescape(re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1))
+    return px[::-1, :, :3], scene, cmd  # bottom row first, as WebGL2's readPixels
+
+
+# ---- (1), (2): against the path tracer ----
+
+@needs_renderer
+@pytest.mark.parametrize("material,analytic,rotation", [("cc_ibiza_sunset_rgb.rgl", False, -40),
+                                                       ("paper_white_rgb.rgl", True, 70)],
+                         ids=["glossy_full", "diffuse_analytic"])
+def test_webgpu_matches_tracer_under_the_environment(webgpu, page, material, analytic, rotation):
+    """(1) WebGPU's Monte Carlo under the map (256 samples per pixel) against the tracer's 64 (bound
+    in the module docstring); the map turns the same way (the opposite turn is far off)."""
+    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256")
+    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
+                                        rotation=rotation)
+    diff, noise = assert_matches_tracer(img, scene, max_noise=6.0)
+    mirrored = viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
+    assert mad(img, tracer_pixels(mirrored), interior_mask()) > noise + 4.0
+
+
+@needs_renderer
+@pytest.mark.parametrize("material,analytic", [("paper_white_rgb.rgl", False), ("cc_ibiza_sunset_rgb.rgl", True)],
+                         ids=["diffuse_full", "glossy_analytic"])
+def test_webgpu_matches_tracer_in_the_sun(webgpu, page, material, analytic):
+    """(2) The sun alone (one exact sample per pixel) against the tracer's 64 samples."""
+    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
+    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
+                                        light="sun", elevation=40, azimuth=130)
+    assert_matches_tracer(img, scene)
+
+
+# ---- (3): WebGPU against WebGL2 ----
+
+@needs_renderer
+def test_webgpu_and_webgl2_agree(webgpu, page):
+    """(3) The same page and state drawn by both backends (WebGL2 as test_view opens it): under the
+    map within the tracer's two-seed noise + 1 (module docstring); the sun alone within 1 at every
+    interior pixel (the same float32 expression, rounded to 8 bits)."""
+    mask = interior_mask()
+    state = "material=cc_ibiza_sunset_rgb.rgl&rotation=25&spp=256"
+    gpu, scene, _ = webgpu_state(page, state)
+    gl, gl_scene, _ = page_state(page, state)
+    assert gl_scene == scene
+    t0, t1 = tracer_pixels(scene, seed=0), tracer_pixels(scene, seed=1)
+    noise = mad(t0, t1, mask)
+    diff = mad(gpu, gl, mask)
+    assert diff <= noise + 1.0, (diff, noise)
+    # The same random numbers and float32 operations: the same bytes on SwiftShader (measured 0); 0.1
+    # leaves room for a compiler that contracts multiply-adds differently. A port that took a pixel's
+    # numbers from another pixel (rows counted from the top) is 0.26 off, the tracer's noise 1.9.
+    assert diff <= 0.1, diff
+    sun = "material=cc_ibiza_sunset_rgb.rgl&light=sun&sun_el=30&sun_az=-60&alpha=0.05,0.4"
+    gpu = webgpu_state(page, sun)[0].astype(np.int32)
+    gl = page_state(page, sun)[0].astype(np.int32)
+    assert np.abs(gpu - gl)[mask].max() <= 1, np.abs(gpu - gl)[mask].max()
+    assert gpu[mask].max() > 50  # a lit sphere
+
+
+# ---- (4): a clean load; other architectures ----
+
+def test_webgpu_is_chosen_and_logs_nothing(webgpu, page):
+    """(4) The page as a user opens it (no backend parameter, no readback) in a browser with WebGPU:
+    WebGPU draws, nothing on the console, the load time set at the first picture, two scripts."""
+    html = page.read_text(encoding="utf-8")
+    assert html.count("<script") == 2 and html.lower().count("</script") == 2
+    title, status, dom, console = open_page_devtools(page, "")
+    assert (title, status.strip(), console) == ("hbrdf view: ok", "", [])
+    assert re.search(r"samples per pixel \(WebGPU\)$", samples_line(dom)), samples_line(dom)
+    assert re.search(r'data-load-ms="\d+"', dom)
+
+
+@pytest.mark.parametrize("model", [HEADS_MODEL, NEURAL_MODEL], ids=["heads", "neural"])
+def test_webgpu_other_architectures_load(webgpu, tmp_path, model):
+    """(4) A model with material output layers (the head from the uniform buffer) and the neural baseline."""
+    out = tmp_path / "p.html"
+    r = run_cli("view", model, "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    img = webgpu_state(out, "spp=16")[0]
+    assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
+
+
+def test_webgpu_compile_error_one_line(webgpu, page, tmp_path):
+    """(4) WGSL that the browser's compiler refuses (here an i32 + u32 put into the page's shader) is
+    one line on the page and in its title, with the line and column getCompilationInfo gives."""
+    html = page.read_text(encoding="utf-8")
+    good = "let c1: f32 = hbrdf_view_env_cdf[start + lo + 1];"
+    assert html.count(good) == 1
+    broken = tmp_path / "broken.html"
+    broken.write_text(html.replace(good, good.replace("1]", "1u]")), encoding="utf-8")
+    title, status, _, _ = open_page_devtools(broken, "backend=webgpu")
+    line = unescape(status)
+    assert re.fullmatch(r"compute WGSL compile failed: line \d+:\d+: .*\(i32, u32\).*", line), line
+    assert title == "hbrdf view: error: " + line
+
+
+# ---- (5): a browser without WebGPU ----
+
+def test_without_webgpu(page):
+    """(5) Chromium without WebGPU flags (no adapter): backend=webgpu is one line on the page; the
+    page left to choose draws with WebGL2, the browser's "No available adapters." its only console
+    line; a backend that does not exist is one line."""
+    title, status, dom, console = open_page(page, "", backend="webgpu")
+    line = "backend=webgpu: this browser gives no WebGPU device (navigator.gpu.requestAdapter() gave no adapter)."
+    assert (unescape(status), title) == (line, "hbrdf view: error: " + line), (title, status)
+    title, status, dom, console = open_page(page, "", backend=None)
+    assert (title, status.strip()) == ("hbrdf view: ok", "")
+    assert samples_line(dom).endswith("samples per pixel (WebGL2)"), samples_line(dom)
+    assert all('"No available adapters."' in c for c in console), console
+    title, status, _, _ = open_page(page, "", backend="vulkan")
+    line = 'URL parameter backend="vulkan": expected webgpu or webgl2'
+    assert (unescape(status), title) == (line, "hbrdf view: error: " + line), (title, status)
+
+
+# ---- (6): the WGSL without a browser ----
+
+@pytest.mark.parametrize("model_file", [MODEL, HEADS_MODEL, NEURAL_MODEL], ids=["hybrid", "heads", "neural"])
+def test_wgsl_is_the_generated_code_and_validates(model_file):
+    """(6) The page's WGSL: hbrdf-codegen's WGSL unchanged, then the page's; naga (wgpu on lavapipe)
+    accepts it and the display pass, and makes their pipelines with the bind group layouts that
+    viewer_webgpu.js makes."""
+    from slang_wgsl_tools import skip_without_wgpu, wgpu_device, wgsl_errors
+
+    model = load_model(model_file)
+    data = viewer.page_data(model, model_file)
+    wgsl = generate(model, "wgsl", materials=[model.materials[0]], model_path=model_file)
+    assert data["wgsl"].startswith(wgsl) and "fn hbrdf_view_main(" in data["wgsl"][len(wgsl):]
+    skip_without_wgpu()
+    import wgpu
+
+    for code in (data["wgsl"], data["wgsl_display"]):
+        errors = wgsl_errors(code)
+        assert errors is None, errors[-3000:]
+        # Chrome's compiler (Tint) refuses a float literal beyond f32's range, where naga rounds it
+        # (codegen's FLT_MAX was 3.40282347e+38f): none in the page's WGSL.
+        literals = [float(x) for x in re.findall(r"(?<![\w.])(\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)f", code)]
+        assert literals and max(literals) <= float(np.finfo(np.float32).max)
+    device = wgpu_device()
+    C, F = wgpu.ShaderStage.COMPUTE, wgpu.ShaderStage.FRAGMENT
+    compute_layout = device.create_bind_group_layout(entries=[
+        {"binding": 0, "visibility": C, "buffer": {"type": "uniform"}},
+        {"binding": 1, "visibility": C, "buffer": {"type": "uniform", "has_dynamic_offset": True}},
+        {"binding": 2, "visibility": C, "buffer": {"type": "storage"}},
+        {"binding": 3, "visibility": C, "buffer": {"type": "read-only-storage"}},
+        {"binding": 4, "visibility": C, "buffer": {"type": "read-only-storage"}}])
+    display_layout = device.create_bind_group_layout(entries=[
+        {"binding": 0, "visibility": F, "buffer": {"type": "read-only-storage"}},
+        {"binding": 1, "visibility": F, "buffer": {"type": "uniform"}}])
+    device.create_compute_pipeline(
+        layout=device.create_pipeline_layout(bind_group_layouts=[compute_layout]),
+        compute={"module": device.create_shader_module(code=data["wgsl"]), "entry_point": "hbrdf_view_main"})
+    display = device.create_shader_module(code=data["wgsl_display"])
+    device.create_render_pipeline(
+        layout=device.create_pipeline_layout(bind_group_layouts=[display_layout]),
+        vertex={"module": display, "entry_point": "hbrdf_view_vertex"},
+        fragment={"module": display, "entry_point": "hbrdf_view_fragment", "targets": [{"format": "rgba8unorm"}]},
+        primitive={"topology": "triangle-list"})
+    # the uniform block as viewer_webgpu.js fills it: the head's floats, then the packed material
+    from hybridbrdf import viewer_wgsl
+
+    assert f"pack: array<vec4f, {(data['n_pack'] + 3) // 4}>" in data["wgsl"]
+    js = (pathlib.Path(viewer.__file__).parent / "data" / "viewer_webgpu.js").read_text()
+    assert f"const PARAMS_HEAD_FLOATS = {viewer_wgsl.PARAMS_HEAD_BYTES // 4};" in js
+    assert f"const WORKGROUP = {viewer_wgsl.WORKGROUP};" in js
