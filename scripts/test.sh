@@ -36,4 +36,4 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
   ctest --test-dir build-asan --output-on-failure -R "cpp_unit_tests|cpp_render_tests"
 
 echo "== Python tests =="
-HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 "$PY" -m pytest tests/python
+HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest tests/python
