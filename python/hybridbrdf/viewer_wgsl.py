@@ -2,7 +2,7 @@
 
 :func:`compute_shader` is ``hbrdf-codegen --target wgsl`` output (the generated code of the same
 template as every dialect, unchanged) followed by the page's own WGSL: a port of the GLSL ES
-``main`` of :mod:`hybridbrdf.viewer` (``viewer._MAIN``) as a compute shader that adds one sample
+``main`` of :mod:`hybridbrdf.viewer_glsl` (``viewer_glsl._MAIN``) as a compute shader that adds one sample
 per pixel to a storage buffer of sums per dispatch. It computes what the WebGL2 shader computes,
 operation by operation: the same random numbers (a Weyl sequence in 32-bit fixed point shifted
 per pixel by a hash, of the pixel counted from the bottom row as ``gl_FragCoord`` counts it), the
@@ -15,7 +15,7 @@ output-layer head, as the WebGL2 page's uniforms), so the picker and the sliders
 The environment's texels and its sampling tables are read-only storage buffers.
 
 :data:`DISPLAY_SHADER` is the display pass (a full-screen triangle): the mean of the sums,
-2^exposure x, clipped to [0, 1], the sRGB OETF, exactly as ``viewer.DISPLAY_SHADER``.
+2^exposure x, clipped to [0, 1], the sRGB OETF, exactly as ``viewer_glsl.DISPLAY_SHADER``.
 
 Bindings (the page's viewer_webgpu.js creates them with explicit layouts):
 
@@ -272,7 +272,7 @@ fn hbrdf_view_main(@builtin(global_invocation_id) id: vec3u) {{
 """
 
 #: The display pass: the mean of the sums, 2^exposure x, clipped to [0, 1], the sRGB OETF (8 bits
-#: in the target): viewer.DISPLAY_SHADER in WGSL. A full-screen triangle; @builtin(position) counts
+#: in the target): viewer_glsl.DISPLAY_SHADER in WGSL. A full-screen triangle; @builtin(position) counts
 #: rows from the top, as the sums are stored.
 DISPLAY_SHADER = """struct HbrdfViewDisplay {
     gain: f32,

@@ -237,7 +237,7 @@
   function createWebGL2() {
     const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
     if (!gl) throw new Error("This viewer needs WebGL2, which this browser does not provide (or has turned off).");
-    const fragment = data.fragment;  // hybridbrdf.viewer.fragment_shader
+    const fragment = data.fragment;  // hybridbrdf.viewer_glsl.fragment_shader
     const vertex = "#version 300 es\nvoid main() { vec2 v = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));" +
       " gl_Position = vec4(v * 2.0 - 1.0, 0.0, 1.0); }\n";
 
