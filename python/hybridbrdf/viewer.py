@@ -173,7 +173,11 @@ def write_page(model_path: str, out: str, sources: Sequence[str] = (), env: Opti
     from hybridbrdf.model_file import load_model
     from hybridbrdf.util import atomic_write_bytes, check_writable
 
-    refuse_output_over_input(out, [model_path, *sources, *([env] if env not in (None, "sky") else [])], "--out")
+    from hybridbrdf.sources import expand_sources
+
+    # The files the SOURCE arguments stand for (a folder or a glob names several), not the arguments.
+    inputs = [model_path, *expand_sources(sources), *([env] if env not in (None, "sky") else [])]
+    refuse_output_over_input(out, inputs, "--out")
     check_writable(out, "page")
     model = load_model(model_path)
     page = render_page(model, model_path, sources, viewer_lighting.environment_spec(env), source_options).encode("utf-8")

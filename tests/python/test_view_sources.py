@@ -193,6 +193,19 @@ def test_bad_sources_one_line_and_nothing_written(synthetic_model, tmp_path, cap
     assert not out.exists()
 
 
+def test_out_over_a_source_of_a_folder_refused(synthetic_model, tmp_path, capsys):
+    """`--out` naming a file that a SOURCE folder (or glob) stands for is refused before anything is
+    read or written: the check is against the expanded sources, not the arguments."""
+    folder = tmp_path / "measured"
+    folder.mkdir()
+    victim = folder / "plastic.bsdf"
+    victim.write_bytes(b"a measurement's bytes")
+    for arg in (str(folder), str(folder / "*.bsdf")):
+        assert _error(capsys, "view", synthetic_model, arg, "--out", str(victim)) == (
+            f"hbrdf view: error: {victim}: --out names the input {victim}; writing it would destroy that input")
+    assert victim.read_bytes() == b"a measurement's bytes"
+
+
 @pytest.fixture(scope="module")
 def plastic_dom(synthetic_page):
     title, status, dom, console = open_page(synthetic_page, f"material=plastic&analytic=1&size={S}&readback=1")
