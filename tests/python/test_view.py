@@ -99,11 +99,17 @@ def page_state(page, hash_):
     # page without readback=1 must log nothing at all (test_page_is_self_contained_and_logs_nothing).
     console = [line for line in console if "GPU stall due to ReadPixels" not in line]
     assert console == [], console
+    return read_state(dom)
+
+
+def read_state(dom):
+    """(canvas as (SIZE, SIZE, 3) uint8 top row first, the scene the page shows, its hbrdf edit line)
+    of a page's DOM opened with readback=1."""
     size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
     px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)
     scene = json.loads(unescape(re.search(r'<pre id="scene">(.*?)</pre>', dom, re.S).group(1)))
     cmd = unescape(re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1))
-    return px[::-1, :, :3], scene, cmd  # readPixels gives the bottom row first
+    return px[::-1, :, :3], scene, cmd  # the readback gives the bottom row first
 
 
 def page_pixels(page, hash_):

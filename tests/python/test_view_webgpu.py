@@ -27,7 +27,6 @@ backends draw the same random numbers, so in practice they agree far closer (mea
 same bytes, on SwiftShader). The sun alone is one exact evaluation per pixel in both: at most 1
 (8-bit rounding) at every interior pixel."""
 
-import base64
 import json
 import os
 import pathlib
@@ -46,7 +45,8 @@ from hybridbrdf.codegen import generate
 from hybridbrdf.model_file import load_model
 from helpers import run_cli
 from test_view import (CHROMIUM_FLAGS, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
-                       interior_mask, mad, needs_renderer, open_page, page_state, tracer_pixels, unescape)
+                       interior_mask, mad, needs_renderer, open_page, page, page_state, read_state, tracer_pixels,
+                       unescape)  # noqa: F401 (page: the module-scoped page fixture)
 
 #: Headless chromium with WebGPU on SwiftShader (module docstring). No virtual time: the page's
 #: title says when it is done.
@@ -176,14 +176,6 @@ def webgpu(tmp_path_factory):
         pytest.skip(why)
 
 
-@pytest.fixture(scope="module")
-def page(tmp_path_factory):
-    out = tmp_path_factory.mktemp("view_webgpu") / "page.html"
-    r = run_cli("view", MODEL, "--out", str(out))
-    assert r.returncode == 0, r.stderr
-    return out
-
-
 def samples_line(dom):
     return re.search(r'<div id="samples">(.*?)</div>', dom, re.S).group(1)
 
@@ -195,11 +187,7 @@ def webgpu_state(page, hash_):
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console
     assert samples_line(dom).endswith("samples per pixel (WebGPU)"), samples_line(dom)
-    size, b64 = re.search(r'<pre id="readback">(\d+) ([A-Za-z0-9+/=]+)</pre>', dom).groups()
-    px = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(int(size), int(size), 4)
-    scene = json.loads(unescape(re.search(r'<pre id="scene">(.*?)</pre>', dom, re.S).group(1)))
-    cmd = unescape(re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1))
-    return px[::-1, :, :3], scene, cmd  # bottom row first, as WebGL2's readPixels
+    return read_state(dom)
 
 
 # ---- (1), (2): against the path tracer ----
