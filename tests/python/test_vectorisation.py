@@ -25,6 +25,11 @@ REQUIRED = {
         "eval_soa": {16, 32},       # f_a inlined whole; SoA in and out
         "aos_to_soa": {16, 32},     # the AoS kernel's transposes around it
         "soa_to_aos": {16, 32},
+        "sample_soa": {16, 32},     # MIS/GGX/cosine sampling: both warps per lane, polynomial sincos
+        "sample_aos_to_soa": {16, 32},
+        "sample_soa_to_aos": {16, 32},
+        "pdf_soa": {16, 32},
+        "pdf_aos_to_soa": {16, 32},
     },
     "cpp/src/model_batch.cpp": {
         "dense_portable": {16},     # the baseline layer kernel (the AVX2/AVX-512 ones are intrinsics)

@@ -79,7 +79,9 @@ template <typename T> HBRDF_INLINE T pdf_ggx_vndf(const Vec3<T>& wi, const Vec3<
     const Vec3<T> s = wi + wo;
     const T inv_len = inverse_length_or_zero(s);
     const T pdf = ggx_D(s * inv_len, a) * T(0.5) * smith_g1_over_2cos(wo, a);
-    return (inv_len > T(0) && wo.z > T(0)) ? pdf : T(0);
+    // Two selects rather than one on an "&&", which GCC 12 cannot vectorise here (src/batch.cpp).
+    const T pdf_h = inv_len > T(0) ? pdf : T(0);
+    return wo.z > T(0) ? pdf_h : T(0);
 }
 
 }  // namespace hbrdf

@@ -98,7 +98,6 @@ HBRDF_INLINE T pdf(const AnalyticBrdfT<T>& brdf, const Vec3<T>& wi_in, const Vec
     const T inv_len_i = inverse_length_or_zero(wi_in);
     const Vec3<T> wi = wi_in * inv_len_i;
     const Vec3<T> wo = wo_in * inverse_length_or_zero(wo_in);
-    const bool valid = inv_len_i > T(0) && wo.z > T(0);  // z > 0 is false for NaN
     T p;
     if constexpr (S == Strategy::Cosine) {
         p = square_to_cosine_hemisphere_pdf(wi);
@@ -108,7 +107,11 @@ HBRDF_INLINE T pdf(const AnalyticBrdfT<T>& brdf, const Vec3<T>& wi_in, const Vec
         const T p_ggx = ggx_lobe_probability(brdf, wo);
         p = p_ggx * pdf_ggx_vndf(wi, wo, brdf.alpha()) + (T(1) - p_ggx) * square_to_cosine_hemisphere_pdf(wi);
     }
-    return valid ? p : T(0);
+    // wi valid and wo above the horizon ("z > 0" is false for NaN). Two selects, not one
+    // select on an "&&": GCC 12 cannot vectorise that select in the batched pdf and sampling
+    // kernels (src/batch.cpp) once the pdf's own selects are inlined beside it.
+    p = inv_len_i > T(0) ? p : T(0);
+    return wo.z > T(0) ? p : T(0);
 }
 
 /// Runtime-dispatched pdf().
