@@ -103,9 +103,9 @@ HBRDF_ALWAYS_INLINE void eval_aos_body(const AnalyticBrdf& brdf, std::size_t n, 
 // sin and cos of x for |x| <= 2 pi (any |x| < 2^21 stays finite but loses accuracy), branch-
 // free so that it vectorises; x = k pi/2 + r with |r| <= pi/4 (three-part Cody-Waite pi/2,
 // so r is exact to a float ulp for these k), the Cephes minimax polynomials of sinf and
-// cosf on r, and the quadrant k mod 4 swaps and negates them. Within 2 float ulps of
-// std::sin / std::cos on [-pi/4, 2 pi] (measured by tests/cpp/test_sampling.cpp), where the
-// samplers use it; near a zero of sin or cos, within 2 ulps of 1 instead (absolute).
+// cosf on r, and the quadrant k mod 4 swaps and negates them. Cephes states about 1 float ulp
+// for these polynomials on |r| <= pi/4; no test measures sincos_reduced() alone:
+// tests/cpp/test_sampling.cpp bounds its effect, the sampled directions against sample<S>().
 HBRDF_ALWAYS_INLINE void sincos_reduced(float x, float& sin_x, float& cos_x) {
     // Round-to-nearest by adding and removing 1.5 * 2^23: vectorises on SSE2, unlike nearbyintf.
     constexpr float kRound = 12582912.0f;
