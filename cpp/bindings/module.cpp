@@ -34,6 +34,20 @@ hbrdf::Strategy parse_strategy(const std::string& name) {
     }
 }
 
+// (wi (N,3), pdf (N,), weight (N,3)) for wo (N,3) and u (N,2), both checked first; `fill(n, wo, u,
+// wi, pdf, weight)` writes them without the GIL (the batched kernel or the scalar sampler).
+template <typename Fill>
+py::tuple sample_rows(const FloatArray& wo, const FloatArray& u, Fill fill) {
+    const py::ssize_t n = check_rows(wo, "wo", 3, -1);
+    check_rows(u, "u", 2, n);
+    FloatArray wi({n, py::ssize_t(3)}), pdf({n}), weight({n, py::ssize_t(3)});
+    {
+        py::gil_scoped_release release;
+        fill(std::size_t(n), wo.data(), u.data(), wi.mutable_data(), pdf.mutable_data(), weight.mutable_data());
+    }
+    return py::make_tuple(wi, pdf, weight);
+}
+
 hbrdf::AnalyticParams make_params(const std::array<float, 3>& kd, const std::array<float, 3>& eta,
                                   const std::array<float, 2>& alpha) {
     hbrdf::AnalyticParams p;
@@ -117,45 +131,29 @@ PYBIND11_MODULE(_core, m) {
     m.def("sample", [](const FloatArray& wo, const FloatArray& u, const hbrdf::AnalyticParams& p,
                        const std::string& strategy) {
         const hbrdf::Strategy s = parse_strategy(strategy);
-        const py::ssize_t n = check_rows(wo, "wo", 3, -1);
-        check_rows(u, "u", 2, n);
-        FloatArray wi({n, py::ssize_t(3)}), pdf({n}), weight({n, py::ssize_t(3)});
-        {
-            py::gil_scoped_release release;
-            hbrdf::sample_aos(s, p, std::size_t(n), wo.data(), u.data(), wi.mutable_data(), pdf.mutable_data(),
-                              weight.mutable_data());
-        }
-        return py::make_tuple(wi, pdf, weight);
+        return sample_rows(wo, u, [&](std::size_t n, const float* o, const float* uu, float* wi, float* pdf, float* w) {
+            hbrdf::sample_aos(s, p, n, o, uu, wi, pdf, w);
+        });
     }, py::arg("wo"), py::arg("u"), py::arg("params"), py::arg("strategy") = "mis",
        "Sample wi for each wo from u in [0,1)^2: returns (wi (N,3), pdf (N,), weight (N,3)).");
 
     m.def("sample_scalar", [](const FloatArray& wo, const FloatArray& u, const hbrdf::AnalyticParams& p,
                               const std::string& strategy) {
         const hbrdf::Strategy s = parse_strategy(strategy);
-        const py::ssize_t n = check_rows(wo, "wo", 3, -1);
-        check_rows(u, "u", 2, n);
-        FloatArray wi({n, py::ssize_t(3)}), pdf({n}), weight({n, py::ssize_t(3)});
-        {
-            py::gil_scoped_release release;
+        return sample_rows(wo, u, [&](std::size_t n, const float* o, const float* uu, float* wi, float* pdf, float* w) {
             const hbrdf::AnalyticBrdf brdf(p);
-            const float* o = wo.data();
-            const float* uu = u.data();
-            float* wi_out = wi.mutable_data();
-            float* pdf_out = pdf.mutable_data();
-            float* w_out = weight.mutable_data();
-            for (py::ssize_t i = 0; i < n; ++i) {
+            for (std::size_t i = 0; i < n; ++i) {
                 const hbrdf::BrdfSample r = hbrdf::sample(s, brdf, hbrdf::Vec3<float>(o[3 * i], o[3 * i + 1], o[3 * i + 2]),
                                                           hbrdf::Vec2<float>(uu[2 * i], uu[2 * i + 1]));
-                wi_out[3 * i] = r.wi.x;
-                wi_out[3 * i + 1] = r.wi.y;
-                wi_out[3 * i + 2] = r.wi.z;
-                pdf_out[i] = r.pdf;
-                w_out[3 * i] = r.weight.x;
-                w_out[3 * i + 1] = r.weight.y;
-                w_out[3 * i + 2] = r.weight.z;
+                wi[3 * i] = r.wi.x;
+                wi[3 * i + 1] = r.wi.y;
+                wi[3 * i + 2] = r.wi.z;
+                pdf[i] = r.pdf;
+                w[3 * i] = r.weight.x;
+                w[3 * i + 1] = r.weight.y;
+                w[3 * i + 2] = r.weight.z;
             }
-        }
-        return py::make_tuple(wi, pdf, weight);
+        });
     }, py::arg("wo"), py::arg("u"), py::arg("params"), py::arg("strategy") = "mis",
        "As sample, through the scalar sampler (hbrdf::sample, sampling.hpp: libm sin/cos, one lane at a time): "
        "the reference the batched kernel and the generated C++ header are compared with.");

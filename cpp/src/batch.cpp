@@ -59,22 +59,25 @@ HBRDF_ALWAYS_INLINE void eval_soa_body(const AnalyticBrdf& brdf, std::size_t n, 
 // body, transpose back. 256 pairs = 9 KiB of buffers, well inside L1.
 constexpr std::size_t kChunk = 256;
 
+// m (wi, wo) pairs of (m, 3) rows into buf[0..2] (wi's x, y, z) and buf[3..5] (wo's).
+HBRDF_ALWAYS_INLINE void pairs_to_soa(const float* a, const float* b, std::size_t m, float (*buf)[kChunk]) {
+    // vectorises: aos_to_soa (tests/python/test_vectorisation.py)
+    for (std::size_t i = 0; i < m; ++i) {
+        buf[0][i] = a[3 * i + 0];
+        buf[1][i] = a[3 * i + 1];
+        buf[2][i] = a[3 * i + 2];
+        buf[3][i] = b[3 * i + 0];
+        buf[4][i] = b[3 * i + 1];
+        buf[5][i] = b[3 * i + 2];
+    }
+}
+
 HBRDF_ALWAYS_INLINE void eval_aos_body(const AnalyticBrdf& brdf, std::size_t n, const float* wi, const float* wo,
                                        float* f) {
     alignas(64) float buf[9][kChunk];
     for (std::size_t start = 0; start < n; start += kChunk) {
         const std::size_t m = std::min(kChunk, n - start);
-        const float* a = wi + 3 * start;
-        const float* b = wo + 3 * start;
-        // vectorises: aos_to_soa (tests/python/test_vectorisation.py)
-        for (std::size_t i = 0; i < m; ++i) {
-            buf[0][i] = a[3 * i + 0];
-            buf[1][i] = a[3 * i + 1];
-            buf[2][i] = a[3 * i + 2];
-            buf[3][i] = b[3 * i + 0];
-            buf[4][i] = b[3 * i + 1];
-            buf[5][i] = b[3 * i + 2];
-        }
+        pairs_to_soa(wi + 3 * start, wo + 3 * start, m, buf);
         eval_soa_body(brdf, m, ConstSoA3{buf[0], buf[1], buf[2]}, ConstSoA3{buf[3], buf[4], buf[5]},
                       SoA3{buf[6], buf[7], buf[8]});
         float* out = f + 3 * start;
@@ -256,17 +259,7 @@ HBRDF_ALWAYS_INLINE void pdf_body(const AnalyticBrdf& brdf, std::size_t n, const
     alignas(64) float buf[6][kChunk];
     for (std::size_t start = 0; start < n; start += kChunk) {
         const std::size_t m = std::min(kChunk, n - start);
-        const float* a = wi + 3 * start;
-        const float* b = wo + 3 * start;
-        // vectorises: pdf_aos_to_soa (tests/python/test_vectorisation.py)
-        for (std::size_t i = 0; i < m; ++i) {
-            buf[0][i] = a[3 * i + 0];
-            buf[1][i] = a[3 * i + 1];
-            buf[2][i] = a[3 * i + 2];
-            buf[3][i] = b[3 * i + 0];
-            buf[4][i] = b[3 * i + 1];
-            buf[5][i] = b[3 * i + 2];
-        }
+        pairs_to_soa(wi + 3 * start, wo + 3 * start, m, buf);
         pdf_soa_kernel<S>(brdf, m, buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], pdf_out + start);
     }
 }

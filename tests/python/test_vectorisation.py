@@ -23,13 +23,12 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 REQUIRED = {
     "cpp/src/batch.cpp": {
         "eval_soa": {16, 32},       # f_a inlined whole; SoA in and out
-        "aos_to_soa": {16, 32},     # the AoS kernel's transposes around it
+        "aos_to_soa": {16, 32},     # the AoS kernels' transposes around it (eval and pdf)
         "soa_to_aos": {16, 32},
         "sample_soa": {16, 32},     # MIS/GGX/cosine sampling: both warps per lane, polynomial sincos
         "sample_aos_to_soa": {16, 32},
         "sample_soa_to_aos": {16, 32},
         "pdf_soa": {16, 32},
-        "pdf_aos_to_soa": {16, 32},
     },
     "cpp/src/model_batch.cpp": {
         "dense_portable": {16},     # the baseline layer kernel (the AVX2/AVX-512 ones are intrinsics)
