@@ -75,10 +75,9 @@ def prepare(args) -> int:
     import torch
 
     import hybridbrdf as hb
-    import hybridbrdf.codegen_network as cg
     from hybridbrdf.codegen import generate, material_constant
     from hybridbrdf.metrics import cosine_hemisphere
-    from shader_forms import ACT4, form_fma, form_mat4, form_rows4, form_tree, pairs4_shader
+    from shader_forms import FORMS, form_glsl, pairs4_shader
     from shader_kernels import eval_compute_shader
 
     subprocess.run(["cmake", "--build", str(ROOT / "build"), "--target", "hbrdf_vk_runner"], check=True)
@@ -118,25 +117,15 @@ def prepare(args) -> int:
                          "ref": ref, "same_as": same_as}
 
     # The code forms of bench/shader_forms.py (its first material, as there).
-    form_fns = {"fma": form_fma, "tree": form_tree, "acc4": lambda *a, **k: form_tree(*a, **k, parts=4),
-                "rows4": form_rows4, "mat4": form_mat4}
     for tag in ("32x2", "32x3"):
         m = models[tag]
         mat = m.materials[0]
         mc, ref = material_constant(mat), reference(tag, mat)
-        default = cg.unrolled_layer
         glsl = generate(m, "glsl", [mat])
         add(f"{tag}.unrolled", glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=ref)
-        try:
-            for form, fn in form_fns.items():
-                cg.unrolled_layer = fn
-                g = generate(m, "glsl", [mat])
-                if form == "mat4":
-                    g = g.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1)
-                add(f"{tag}.{form}", g, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=ref,
-                    same_as=f"{tag}.unrolled")
-        finally:
-            cg.unrolled_layer = default
+        for form in FORMS:
+            add(f"{tag}.{form}", form_glsl(m, mat, form), eval_compute_shader("hbrdf_eval", mc, "model.glsl"),
+                ref=ref, same_as=f"{tag}.unrolled")
         add(f"{tag}.pairs4", *pairs4_shader(glsl, mc), pairs_per_item=4, ref=ref, same_as=f"{tag}.unrolled")
         if tag == "32x2":  # f_a alone, and the kernel without a BRDF (reading pairs, writing f)
             add("fa", glsl, eval_compute_shader("hbrdf_eval_analytic", mc, "model.glsl"),

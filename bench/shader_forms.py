@@ -121,6 +121,27 @@ def form_mat4(layer, index, last, fp16=False, let=None):
     return out
 
 
+#: The forms besides the generator's own ``unrolled`` (one-pair-per-invocation forms: the network
+#: written differently, the rest of the shader unchanged).
+FORMS = {"fma": form_fma, "tree": form_tree, "acc4": lambda *a, **k: form_tree(*a, **k, parts=4),
+         "rows4": form_rows4, "mat4": form_mat4}
+
+
+def form_glsl(model, material, name):
+    """``model``'s GLSL for ``material`` with its network in the form ``name`` (``unrolled`` or a
+    key of :data:`FORMS`)."""
+    if name == "unrolled":
+        return generate(model, "glsl", [material])
+    default = cg.unrolled_layer
+    cg.unrolled_layer = FORMS[name]
+    try:
+        glsl = generate(model, "glsl", [material])
+    finally:
+        cg.unrolled_layer = default
+    # mat4 calls a vec4 activation the generated code does not define
+    return glsl.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1) if name == "mat4" else glsl
+
+
 def pairs4_shader(glsl, material):
     """The generated file with a vec4-lane copy of hbrdf_mlp, and a kernel evaluating 4 pairs
     per invocation (hybrid models: f = exp(o) + sigmoid(g) f_a)."""
@@ -208,22 +229,11 @@ def main() -> int:
     n = args.pairs
     rng = np.random.default_rng(7)
     pairs = np.concatenate([cosine_hemisphere(rng, n), cosine_hemisphere(rng, n)], axis=1).astype(np.float32)
-    default = cg.unrolled_layer
-    forms = {"unrolled": default, "fma": form_fma, "tree": form_tree,
-             "acc4": lambda *a, **k: form_tree(*a, **k, parts=4), "rows4": form_rows4, "mat4": form_mat4}
     with tempfile.TemporaryDirectory() as d:
         fused = fusion_probe(d, env)
         pairs.tofile(pathlib.Path(d) / "in.bin")
-        shaders = {}
-        try:
-            for name, form in forms.items():
-                cg.unrolled_layer = form
-                glsl = generate(model, "glsl", [mat])
-                if name == "mat4":
-                    glsl = glsl.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1)
-                shaders[name] = (glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), n, 3)
-        finally:
-            cg.unrolled_layer = default
+        shaders = {name: (form_glsl(model, mat, name), eval_compute_shader("hbrdf_eval", mc, "model.glsl"), n, 3)
+                   for name in ("unrolled", *FORMS)}
         shaders["pairs4"] = (*pairs4_shader(generate(model, "glsl", [mat]), mc), n // 4, 12)
         # Interleaved rounds, best time per form: a slow first process or a busy moment
         # elsewhere on the machine then cannot favour one form.
