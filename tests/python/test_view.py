@@ -408,6 +408,21 @@ def test_env_file_lights_page_and_tracer_alike(tmp_path):
     assert_matches_tracer(img, scene, max_noise=6.0)
 
 
+@needs_renderer
+def test_reduced_map_is_said_on_the_page(tmp_path):
+    """A map wider than the page carries: the page says it lights with an averaged copy."""
+    from hybridbrdf import _core
+
+    env = tmp_path / "wide.exr"
+    _core.render_write_exr(np.full((1024, 2048, 3), 0.5, np.float32), str(env))
+    out = tmp_path / "p.html"
+    assert run_cli("view", MODEL, "--env", str(env), "--out", str(out)).returncode == 0
+    title, status, dom, console = open_page(out, "light=sun")
+    assert title == "hbrdf view: ok" and console == [], (title, status, console)
+    info = unescape(re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1))
+    assert "the map is area-averaged from 2048 x 1024 to 1024 x 512 texels here" in info, info
+
+
 def test_env_refused_with_its_name(tmp_path):
     """A map the tracer's reader refuses: one line naming it, nothing written."""
     out = tmp_path / "p.html"

@@ -177,7 +177,9 @@
     $("info").textContent = "origin: " + m.origin + (data.has_analytic ? "\nfitted kd " + fitted(m.kd) + ", eta " + fitted(m.eta) +
       ", alpha " + fitted(m.alpha) : "") +
       (data.sources.length ? "\nsources given to hbrdf view: " + data.sources.join(", ") : "") +
-      (data.training_sources.length ? "\ntrained on: " + data.training_sources.join(", ") : "");
+      (data.training_sources.length ? "\ntrained on: " + data.training_sources.join(", ") : "") +
+      (data.environment.exact ? "" : "\nthe map is area-averaged from " + data.environment.source_size.join(" x ") +
+       " to " + data.environment.width + " x " + data.environment.height + " texels here; the tracer's scene uses it whole");
   }
   function fmt(v) { return v.map(String).join(","); }  // slider values as typed: hbrdf edit rounds them to float32
   function fitted(v) { return v.map(function (x) { return x.toPrecision(4); }).join(","); }
