@@ -82,6 +82,8 @@ def png_bytes(rgb: np.ndarray) -> bytes:
 
 
 def png_data_uri(rgb: np.ndarray) -> str:
+    """``rgb`` as a ``data:image/png;base64,...`` URI (:func:`png_bytes`), what the page's policy
+    allows as an image source."""
     return "data:image/png;base64," + base64.b64encode(png_bytes(rgb)).decode("ascii")
 
 
@@ -216,6 +218,8 @@ def render_measured(scene: Dict[str, Any], src) -> Tuple[np.ndarray, float]:
 
 
 def check_settings(size: int, spp: int) -> None:
+    """Refuse a measured render's ``--source-size`` outside [8, 1024] or ``--source-spp`` outside
+    [1, 65536] (ValueError naming the flag), before anything is rendered."""
     if not 8 <= int(size) <= 1024:
         raise ValueError(f"--source-size {size}: must be in [8, 1024]")
     if not 1 <= int(spp) <= 65536:
