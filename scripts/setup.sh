@@ -14,6 +14,7 @@ apt_packages=(
   glslang-tools spirv-tools        # shader validation
   mesa-vulkan-drivers libvulkan-dev vulkan-validationlayers   # lavapipe + loader + validation layer
   doctest-dev                      # C++ unit tests
+  valgrind                         # the speed guard counts instructions under callgrind (bench/speed_guard.py)
   nlohmann-json3-dev               # model-file header parsing in libhybridbrdf
   libassimp-dev libtinyexr-dev libstb-dev   # the path tracer: OBJ/PLY meshes, EXR and HDR/PNG images
   libllvm19                        # Mitsuba's llvm_ad_rgb (the plugin's tests): Dr.Jit needs LLVM >= 16 here

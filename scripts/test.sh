@@ -1,39 +1,85 @@
 #!/usr/bin/env bash
-# Runs every test: sets up first (idempotent), then
-#   1. the C++ unit tests and the installed-package consumer (ctest, Release),
-#   2. the speed guard: the kernels' speed ratios in one run against their floors
-#      (bench/speed_guard.py; fails when a kernel stops vectorising),
-#   3. the C++ unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer,
-#   4. the Python suite (pytest).
-set -euo pipefail
+# Runs every test. Each stage runs even when an earlier one failed, so that one run shows all
+# that is wrong; the run ends with one summary line per stage and exits 1 if any failed.
+#   setup       scripts/setup.sh (idempotent; HBRDF_TEST_SETUP=0 skips it)
+#   build       the Release build (libhybridbrdf, tools, C++ tests, renderer)
+#   ctest       the C++ unit tests and the installed-package consumer
+#   guard       the speed guard: each kernel's instructions per evaluation under callgrind,
+#               as ratios against floors (bench/speed_guard.py; fails when a kernel stops vectorising)
+#   sanitizers  the C++ unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer
+#   python      the Python suite (pytest on every core: pytest-xdist)
+# HBRDF_TEST_STAGES="build ctest ..." runs a subset (default: all, in the order above);
+# PYTEST_ARGS replaces pytest's arguments (default: tests/python -n JOBS); CTEST_ARGS adds to ctest's.
+set -uo pipefail
 cd "$(dirname "$0")/.."
 
-bash scripts/setup.sh
 PY=${PYTHON:-python3}
 JOBS=${JOBS:-$(nproc)}
+STAGES=${HBRDF_TEST_STAGES:-setup build ctest guard sanitizers python}
+if [ "${HBRDF_TEST_SETUP:-1}" = 0 ]; then STAGES=${STAGES//setup/}; fi
 
-echo "== C++ tests (Release) =="
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
-cmake --build build -j "$JOBS" > /dev/null
-ctest --test-dir build --output-on-failure
+stage_setup() { bash scripts/setup.sh; }
 
-echo "== Speed guard (Release build, one core) =="
-"$PY" bench/speed_guard.py
+stage_build() {
+  cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null && cmake --build build -j "$JOBS" > /dev/null
+}
 
-echo "== C++ tests under ASan + UBSan =="
-cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null
-cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null
-# Guard against a silently unsanitised build (a flag typo would pass everything).
-# (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
-symbols=$(nm -C build-asan/tests/cpp/hbrdf_tests)
-grep __asan_init <<< "$symbols" > /dev/null || { echo "test: ASan build is not instrumented" >&2; exit 1; }
-grep __ubsan_handle <<< "$symbols" > /dev/null || { echo "test: UBSan build is not instrumented" >&2; exit 1; }
-# The consumer test links an installed static library and is not sanitised. The renderer's
-# tests run too (Embree, TBB and assimp are not instrumented; tests/cpp/lsan.supp says which
-# third-party leak is suppressed and why).
-ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  LSAN_OPTIONS=suppressions=$PWD/tests/cpp/lsan.supp \
-  ctest --test-dir build-asan --output-on-failure -R "cpp_unit_tests|cpp_render_tests"
+stage_ctest() {
+  local args=()
+  if [ -n "${CTEST_ARGS:-}" ]; then read -r -a args <<< "$CTEST_ARGS"; fi
+  ctest --test-dir build --output-on-failure -j "$JOBS" "${args[@]}"
+}
 
-echo "== Python tests =="
-HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest tests/python
+stage_guard() { "$PY" bench/speed_guard.py; }
+
+stage_sanitizers() {
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null || return
+  cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
+  # Guard against a silently unsanitised build (a flag typo would pass everything).
+  # (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
+  local symbols
+  symbols=$(nm -C build-asan/tests/cpp/hbrdf_tests) || return
+  grep __asan_init <<< "$symbols" > /dev/null || { echo "test: ASan build is not instrumented" >&2; return 1; }
+  grep __ubsan_handle <<< "$symbols" > /dev/null || { echo "test: UBSan build is not instrumented" >&2; return 1; }
+  # The consumer test links an installed static library and is not sanitised. The renderer's
+  # tests run too (Embree, TBB and assimp are not instrumented; tests/cpp/lsan.supp says which
+  # third-party leak is suppressed and why).
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    LSAN_OPTIONS=suppressions=$PWD/tests/cpp/lsan.supp \
+    ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_render_tests"
+}
+
+stage_python() {
+  local args
+  if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS"); fi
+  HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest "${args[@]}"
+}
+
+summary=()
+failed=0
+for stage in $STAGES; do
+  if ! declare -F "stage_$stage" > /dev/null; then
+    echo "test: unknown stage '$stage' (stages: setup build ctest guard sanitizers python)" >&2
+    exit 2
+  fi
+  echo "== $stage =="
+  start=$SECONDS
+  "stage_$stage"
+  rc=$?
+  took=$((SECONDS - start))
+  if [ "$rc" = 0 ]; then
+    summary+=("$(printf 'test: %-10s passed  %4d s' "$stage" "$took")")
+  else
+    summary+=("$(printf 'test: %-10s FAILED  %4d s (exit %d)' "$stage" "$took" "$rc")")
+    failed=1
+  fi
+done
+
+echo
+echo "== summary =="
+printf '%s\n' "${summary[@]}"
+if [ "$failed" = 1 ]; then
+  echo "test: FAILED (every stage above ran; see each FAILED one's output)"
+  exit 1
+fi
+echo "test: all stages passed ($SECONDS s)"

@@ -1,12 +1,25 @@
-// The speed guard's timing driver (bench/speed_guard.py builds and runs it): one process, one
-// pinned core, every kernel timed in the same interleaved rounds, so that the ratios it
-// prints compare kernels under the same machine load. Prints one JSON object of rates
-// (evaluations or samples per second, best round of each kernel) and the FMA peak.
+// The speed guard's native driver (bench/speed_guard.py builds and runs it). Two modes over the
+// same kernels and the same direction pairs:
 //
-//   speed_guard_driver MODEL MATERIAL_INDEX PAIRS ROUNDS
+//   speed_guard_driver MODEL MATERIAL_INDEX PAIRS ROUNDS time
+//       One process, one pinned core, every kernel timed in the same interleaved rounds, so
+//       that the ratios it prints compare kernels under the same machine load. Prints one JSON
+//       object of rates (evaluations or samples per second, best round of each kernel) and the
+//       FMA peak. These ratios depend on the core's SIMD scaling: they are benchmark figures.
+//
+//   speed_guard_driver MODEL MATERIAL_INDEX PAIRS 0 count      (under valgrind --tool=callgrind)
+//       Each kernel runs once on PAIRS pairs and once on 2 x PAIRS, each run between callgrind
+//       client requests that zero the counters and dump them under the kernel's name. The
+//       difference of the two counts over PAIRS is the kernel's instructions per item in steady
+//       state (set-up and remainder loops cancel). Instructions depend on the compiled code and
+//       the instruction set chosen, not on the core that runs them: these are what CI guards.
+//       Callgrind's CPU has no AVX-512, so the library takes its AVX2+FMA kernels there.
+#include <valgrind/callgrind.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <string>
 #include <vector>
@@ -23,9 +36,9 @@ using Clock = std::chrono::steady_clock;
 
 struct Kernel {
     std::string name;
-    std::size_t items;              // evaluations per call
-    std::function<void()> setup;    // selects the instruction set; not timed
-    std::function<void()> run;
+    std::size_t items;                     // items per timed call (the scalar paths get a slice)
+    std::function<void()> setup;           // selects the instruction set; not timed or counted
+    std::function<void(std::size_t)> run;  // runs the kernel on the first n pairs
     double best_s = 1e30;
 };
 
@@ -34,44 +47,79 @@ void use_simd(bool baseline, const char* model_cap) {
     hbrdf::limit_model_simd(model_cap);
 }
 
+void time_kernels(std::vector<Kernel>& kernels, int rounds) {
+    for (int r = 0; r < rounds + 1; ++r)  // round 0 warms caches and page tables, and is not kept
+        for (Kernel& k : kernels) {
+            k.setup();
+            const auto t0 = Clock::now();
+            k.run(k.items);
+            const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
+            if (r > 0 && dt < k.best_s) k.best_s = dt;
+        }
+}
+
+// Dumps are named "<kernel>@<items>"; bench/speed_guard.py reads them back.
+void count_kernels(std::vector<Kernel>& kernels, std::size_t n) {
+    if (!RUNNING_ON_VALGRIND) {
+        std::fprintf(stderr, "speed_guard_driver: count mode needs valgrind --tool=callgrind\n");
+        std::exit(2);
+    }
+    for (Kernel& k : kernels) {
+        k.setup();
+        for (const std::size_t items : {n, 2 * n}) {
+            const std::string label = k.name + "@" + std::to_string(items);
+            CALLGRIND_ZERO_STATS;
+            CALLGRIND_START_INSTRUMENTATION;
+            k.run(items);
+            CALLGRIND_STOP_INSTRUMENTATION;
+            CALLGRIND_DUMP_STATS_AT(label.c_str());
+        }
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc != 5) {
-        std::fprintf(stderr, "usage: speed_guard_driver MODEL MATERIAL_INDEX PAIRS ROUNDS\n");
+    if (argc != 6 || (std::strcmp(argv[5], "time") != 0 && std::strcmp(argv[5], "count") != 0)) {
+        std::fprintf(stderr, "usage: speed_guard_driver MODEL MATERIAL_INDEX PAIRS ROUNDS time|count\n");
         return 2;
     }
+    const bool counting = std::strcmp(argv[5], "count") == 0;
     const hbrdf::HybridModel model = hbrdf::HybridModel::load(argv[1]);
     const int mat = std::atoi(argv[2]);
     const std::size_t n = std::strtoull(argv[3], nullptr, 10);
     const int rounds = std::atoi(argv[4]);
 
-    const hbrdf::bench::DirectionPairs pairs = hbrdf::bench::cosine_direction_pairs(n);
+    // Counting runs every kernel on 2 x PAIRS pairs at most.
+    const std::size_t capacity = counting ? 2 * n : n;
+    const hbrdf::bench::DirectionPairs pairs = hbrdf::bench::cosine_direction_pairs(capacity);
     const std::vector<float> &wi = pairs.wi, &wo = pairs.wo, &u = pairs.u;
-    std::vector<float> out(3 * n), pdf(n), wis(3 * n), weight(3 * n);
+    std::vector<float> out(3 * capacity), pdf(capacity), wis(3 * capacity), weight(3 * capacity);
     const hbrdf::AnalyticParams p = model.materials().at(mat).params;
     const float* s = pairs.soa.data();
     float* o = out.data();
-    // The scalar paths are 5-50x slower than the batched ones: they get a slice.
-    const std::size_t n_scalar = n / 8;
+    const std::size_t plane = capacity;  // the SoA planes' stride
+    // The scalar paths are 5-50x slower than the batched ones: when timed they get a slice.
+    const std::size_t n_scalar = counting ? n : n / 8;
 
-    const auto fa_soa = [&] {
-        hbrdf::eval_analytic_soa(p, n, {s, s + n, s + 2 * n}, {s + 3 * n, s + 4 * n, s + 5 * n}, {o, o + n, o + 2 * n});
+    const auto fa_soa = [&](std::size_t k) {
+        hbrdf::eval_analytic_soa(p, k, {s, s + plane, s + 2 * plane}, {s + 3 * plane, s + 4 * plane, s + 5 * plane},
+                                 {o, o + plane, o + 2 * plane});
     };
-    const auto fa_aos = [&] { hbrdf::eval_analytic_aos(p, n, wi.data(), wo.data(), o); };
-    const auto mis = [&] {
-        hbrdf::sample_aos(hbrdf::Strategy::Mis, p, n, wo.data(), u.data(), wis.data(), pdf.data(), weight.data());
+    const auto fa_aos = [&](std::size_t k) { hbrdf::eval_analytic_aos(p, k, wi.data(), wo.data(), o); };
+    const auto mis = [&](std::size_t k) {
+        hbrdf::sample_aos(hbrdf::Strategy::Mis, p, k, wo.data(), u.data(), wis.data(), pdf.data(), weight.data());
     };
-    const auto model_batch = [&] { model.eval_batch(mat, n, wi.data(), wo.data(), o); };
-    const auto model_scalar = [&] {
-        for (std::size_t i = 0; i < n_scalar; ++i) {
+    const auto model_batch = [&](std::size_t k) { model.eval_batch(mat, k, wi.data(), wo.data(), o); };
+    const auto model_scalar = [&](std::size_t k) {
+        for (std::size_t i = 0; i < k; ++i) {
             const hbrdf::Vec3<float> v =
                 model.eval(mat, hbrdf::Vec3<float>(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),
                            hbrdf::Vec3<float>(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]));
             o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
         }
     };
-    const auto header = [&] { header_eval(n_scalar, wi.data(), wo.data(), o); };
+    const auto header = [&](std::size_t k) { header_eval(k, wi.data(), wo.data(), o); };
 
     const auto simd = [] { use_simd(false, "avx512"); };
     const auto baseline = [] { use_simd(true, "avx512"); };
@@ -89,14 +137,14 @@ int main(int argc, char** argv) {
         {"model_scalar", n_scalar, simd, model_scalar},
         {"header", n_scalar, simd, header},
     };
-    for (int r = 0; r < rounds + 1; ++r)  // round 0 warms caches and page tables, and is not kept
-        for (Kernel& k : kernels) {
-            k.setup();
-            const auto t0 = Clock::now();
-            k.run();
-            const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
-            if (r > 0 && dt < k.best_s) k.best_s = dt;
-        }
+    if (counting) {
+        count_kernels(kernels, n);
+        use_simd(false, "avx512");
+        std::printf("{\"simd\": \"%s\", \"model_simd\": \"%s\", \"pairs\": %zu, \"flops_per_eval\": %.1f}\n",
+                    hbrdf::simd_path(), hbrdf::model_simd_path(), n, model.flops_per_eval());
+        return 0;
+    }
+    time_kernels(kernels, rounds);
     use_simd(false, "avx512");
     const hbrdf::fma_peak::Peak peak = hbrdf::fma_peak::measure(0.3);
 
