@@ -33,7 +33,10 @@ stage_ctest() {
 stage_guard() { "$PY" bench/speed_guard.py; }
 
 stage_sanitizers() {
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHBRDF_SANITIZE=address,undefined > /dev/null || return
+  # -O1 -g1: the optimisation level ASan's documentation recommends, with line tables for its stack
+  # traces; it builds in a third of -O2 -g's time (62 s against ~180 s on 2 cores).
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
+    -DHBRDF_SANITIZE=address,undefined > /dev/null || return
   cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
   # Guard against a silently unsanitised build (a flag typo would pass everything).
   # (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
@@ -55,13 +58,16 @@ stage_python() {
   HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest "${args[@]}"
 }
 
-summary=()
-failed=0
 for stage in $STAGES; do
   if ! declare -F "stage_$stage" > /dev/null; then
     echo "test: unknown stage '$stage' (stages: setup build ctest guard sanitizers python)" >&2
     exit 2
   fi
+done
+
+summary=()
+failed=0
+for stage in $STAGES; do
   echo "== $stage =="
   start=$SECONDS
   "stage_$stage"
