@@ -54,7 +54,7 @@ stage_sanitizers() {
 
 stage_python() {
   local args
-  if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS"); fi
+  if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS" --dist worksteal); fi
   HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest "${args[@]}"
 }
 
