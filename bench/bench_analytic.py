@@ -5,8 +5,8 @@ Paths, all measured in this one run on 2^20 cosine-weighted direction pairs:
   * C++ batched, native (cpp/tools/bench.cpp, built here if missing): SoA and
     AoS evaluation, MIS sampling; AVX2+FMA and the baseline kernels
   * C++ through the Python bindings (what a Python user gets)
-  * PyTorch float32 (hybridbrdf.torch_brdf), one thread
-  * NumPy float64 (the textbook transcription hybridbrdf.reference)
+  * PyTorch float32 (hybridbrdf.brdf.torch_brdf), one thread
+  * NumPy float64 (the textbook transcription hybridbrdf.brdf.reference)
 
 The process is pinned to one core. Prints a table and the ratio of each path
 to NumPy; --json writes the figures. Usage:
@@ -30,9 +30,9 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf import torch_brdf
-from hybridbrdf.reference import sample_mis as numpy_sample_mis
-from hybridbrdf.reference import textbook_fa as numpy_fa
+from hybridbrdf.brdf import torch_brdf
+from hybridbrdf.brdf.reference import sample_mis as numpy_sample_mis
+from hybridbrdf.brdf.reference import textbook_fa as numpy_fa
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

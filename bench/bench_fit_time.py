@@ -41,10 +41,12 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
-from hybridbrdf.fitting import FitSettings, fit, material_names  # noqa: E402
-from hybridbrdf.metrics import cmae, metric_directions, smape  # noqa: E402
-from hybridbrdf.model_file import HybridModel  # noqa: E402
-from hybridbrdf.models import build_model  # noqa: E402
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.sources.names import material_names
+from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape  # noqa: E402
+from hybridbrdf.model.file import HybridModel  # noqa: E402
+from hybridbrdf.model.networks import build_model  # noqa: E402
 from bench_analytic import cpu_name  # noqa: E402
 from rgl_paper_comparison import PAPER, beats_paper  # noqa: E402
 

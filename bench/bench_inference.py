@@ -57,8 +57,9 @@ sys.path.insert(0, str(ROOT / "tests" / "python"))  # shader_kernels
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf import _core  # noqa: E402
-from hybridbrdf.codegen import generate, material_constant  # noqa: E402
-from hybridbrdf.random_model import random_model  # noqa: E402
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.codegen.literals import material_constant
+from hybridbrdf.model.random import random_model  # noqa: E402
 from bench_analytic import best_rate  # noqa: E402
 from shader_kernels import eval_compute_shader  # noqa: E402
 
@@ -176,7 +177,7 @@ def material_bytes(model) -> int:
 
 def rgl_accuracy(path):
     """Mean SMAPE and cMAE over the five raw RGL rows (CONVENTIONS protocol), hybrid and f_a."""
-    from hybridbrdf.fitting import evaluate
+    from hybridbrdf.evaluate.evaluation import evaluate
 
     model = hb.load_model(path)
     sources = [hb.open_source(str(p)) for p in sorted((ROOT.parent / "shared" / "data" / "rgl").glob("*.bsdf"))]
@@ -194,7 +195,7 @@ def alternatives(n_pairs=1_000_000, seed=7):
     _core.MerlTable) and its published NBRDF network (_core.NbrdfNetwork). Returns
     {name: (C++ object, mean SMAPE, mean cMAE)} over the five, scored like the models
     (CONVENTIONS protocol), and the objects of the first material for timing."""
-    from hybridbrdf.metrics import cmae, metric_directions, smape
+    from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
     from hybridbrdf.sources.merl import MERL_DIMS, MERL_SCALES, MERLSource, _evaluate_at_nodes
     from hybridbrdf.sources.nbrdf import open_nbrdf
 
@@ -282,7 +283,7 @@ def main() -> int:
     args = ap.parse_args()
     n = args.pairs
     rng = np.random.default_rng(7)
-    from hybridbrdf.metrics import cosine_hemisphere
+    from hybridbrdf.evaluate.directions import cosine_hemisphere
 
     wi = cosine_hemisphere(rng, n).astype(np.float32)
     wo = cosine_hemisphere(rng, n).astype(np.float32)

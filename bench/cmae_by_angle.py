@@ -22,8 +22,8 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import source_material
-from hybridbrdf.metrics import metric_directions, smape_terms
+from hybridbrdf.sources.names import source_material
+from hybridbrdf.evaluate.metrics import metric_directions, smape_terms
 
 
 def main() -> int:

@@ -29,8 +29,11 @@ import time
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import FitSettings, evaluate, fit, material_names
-from hybridbrdf.models import parse_mlp
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.evaluate.evaluation import evaluate
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.sources.names import material_names
+from hybridbrdf.fit.settings import parse_mlp
 
 
 def fitted_model(sources, args, arch: str, mlp: str, latent: int) -> hb.HybridModel:

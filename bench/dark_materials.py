@@ -24,8 +24,10 @@ import sys
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import FitSettings, TrainingPool, fit
-from hybridbrdf.models import parse_mlp
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.pool import TrainingPool
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit.settings import parse_mlp
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 NBRDF = ["ilm_solo_m_68_rgb", "chm_orange_rgb", "cm_military_green_rgb", "ilm_l3_37_dark_green_rgb",

@@ -125,7 +125,8 @@ def build(model, material, fn, d: pathlib.Path, tag: str):
     """{row: (kind, path)} of the kernel of ``fn`` in every dialect (kind: spirv for the runner,
     wgsl / glsl / spirv for wgpu); None where a compiler refuses it (reason printed)."""
     from bench_inference import compile_shader
-    from hybridbrdf.codegen import generate, material_constant
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.codegen.literals import material_constant
     from shader_kernels import eval_compute_shader
     from slang_wgsl_tools import compile_slang
 
@@ -228,7 +229,7 @@ def main() -> int:
 
     import hybridbrdf as hb
     from bench_inference import LVP, RUNNER, VK_RUNS, lavapipe_rate
-    from hybridbrdf.metrics import cosine_hemisphere
+    from hybridbrdf.evaluate.directions import cosine_hemisphere
 
     if args.rounds < 1 or not 64 <= args.pairs <= 65535 * 64:
         raise SystemExit("--rounds must be >= 1 and 64 <= --pairs <= 65535 * 64")

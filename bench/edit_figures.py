@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.render import render
+from hybridbrdf.render.tracer import render
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from render_error import scene, srgb  # noqa: E402

@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.metrics import reciprocity_error
+from hybridbrdf.evaluate.metrics import reciprocity_error
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

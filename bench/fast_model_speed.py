@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from bench_inference import LVP, RUNNER, VK_RUNS, compile_shader, lavapipe_rate, spirv_counts  # noqa: E402
-from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
+from hybridbrdf.evaluate.directions import cosine_hemisphere
 
 BASELINE = "results/rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
 HARNESSES = {"synthetic": "made in the shader from a hash of the invocation index (glsl/eval_synthetic.comp.j2)",

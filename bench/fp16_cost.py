@@ -18,9 +18,9 @@ import tempfile
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import source_material
-from hybridbrdf.metrics import cmae, metric_directions, smape
-from hybridbrdf.precision import half_rounded
+from hybridbrdf.sources.names import source_material
+from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
+from hybridbrdf.model.precision import half_rounded
 
 
 def main() -> int:

@@ -140,7 +140,7 @@ def main(argv=None) -> int:
         run("scenes", int(200_000 * k), lambda i: (fs.mutate_doc(scene, rng),), fs.check_scene, counts, failures)
 
     ck_bytes, ck_state, ck_settings = fs.checkpoint_seed(work)
-    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fit import checkpoint as ckpt
 
     run("checkpoint bytes", int(20_000 * k),
         lambda i: (fs.mutate_bytes(ck_bytes, rng), work / "ck.pt", ck_settings), fs.check_checkpoint, counts, failures)

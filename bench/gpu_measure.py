@@ -75,8 +75,9 @@ def prepare(args) -> int:
     import torch
 
     import hybridbrdf as hb
-    from hybridbrdf.codegen import generate, material_constant
-    from hybridbrdf.metrics import cosine_hemisphere
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.codegen.literals import material_constant
+    from hybridbrdf.evaluate.directions import cosine_hemisphere
     from shader_forms import FORMS, form_glsl, pairs4_shader
     from shader_kernels import eval_compute_shader
 

@@ -21,7 +21,7 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import source_material
+from hybridbrdf.sources.names import source_material
 
 
 def main() -> int:

@@ -24,7 +24,8 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
-from hybridbrdf.fitting import FitSettings, fit  # noqa: E402
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.fit import fit
 from hybridbrdf.sources import expand_sources, open_source  # noqa: E402
 
 

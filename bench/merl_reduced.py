@@ -26,9 +26,10 @@ import time
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fit_settings import ADD_STEPS, FINETUNE_STEPS, FitSettings, parse_mlp
-from hybridbrdf.fitting import evaluate, fit
-from hybridbrdf.render import render
+from hybridbrdf.fit.settings import ADD_STEPS, FINETUNE_STEPS, FitSettings, parse_mlp
+from hybridbrdf.evaluate.evaluation import evaluate
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The Mitsuba 3 plugin (hybridbrdf.mitsuba) at work: for materials fitted to raw RGL files, the
+"""The Mitsuba 3 plugin (hybridbrdf.render.mitsuba) at work: for materials fitted to raw RGL files, the
 render error of the plugin against Mitsuba's own ``measured`` plugin on the same file (the
 reference), and the frame time of each, in scalar_rgb or llvm_ad_rgb.
 
@@ -48,8 +48,8 @@ def main() -> int:
 
     mi.set_variant(args.variant)
     import hybridbrdf as hb
-    import hybridbrdf.mitsuba as hbmi
-    from hybridbrdf.render import write_exr
+    import hybridbrdf.render.mitsuba as hbmi
+    from hybridbrdf.render.tracer import write_exr
     from mitsuba_scenes import environment_map, mitsuba_scene
 
     hbmi.register()

@@ -22,8 +22,8 @@ import time
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.fit_settings import ADD_STEPS, FitSettings
-from hybridbrdf.fitting import evaluate
+from hybridbrdf.fit.settings import ADD_STEPS, FitSettings
+from hybridbrdf.evaluate.evaluation import evaluate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
@@ -35,7 +35,7 @@ JOINT = ROOT / "results" / "rgl54_hybrid_32x2_e09_120k_refit01.safetensors"
 def add_to(prior: str, src, out: str, settings: FitSettings, args) -> "hb.HybridModel":
     """``src`` added alone to ``prior`` as ``hbrdf add SRC --out OUT`` adds it to the shipped prior:
     a fine-tune unless --keep-network (the prior's own materials are not kept)."""
-    from hybridbrdf.adding import add
+    from hybridbrdf.fit.adding import add
 
     return add([src], out=out, settings=settings, progress=False, keep_network=args.keep_network,
                finetune_steps=args.finetune_steps, prior=prior)

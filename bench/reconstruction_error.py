@@ -17,7 +17,7 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.metrics import cmae, metric_directions, smape
+from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -11,7 +11,7 @@ the same directions and their difference is mostly the BRDF (docs/BENCHMARKS.md,
 "Rendering error"). The reference is the raw measurement at the same spp and seed; the
 noise level is the MAE between two reference renders with different seeds. MAE: mean
 over the pixels of the objects and RGB of |image - reference| (linear HDR). Frame time:
-wall seconds of ``hybridbrdf.render.render`` on all cores, best of ``--runs``; rows marked
+wall seconds of ``hybridbrdf.render.tracer.render`` on all cores, best of ``--runs``; rows marked
 "python" evaluate their BRDF through a Python reader (a GIL round trip per batch) and are
 not the cost a C++ or GPU renderer would pay.
 
@@ -29,8 +29,8 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import source_material
-from hybridbrdf.render import render
+from hybridbrdf.sources.names import source_material
+from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"

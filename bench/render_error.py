@@ -25,8 +25,8 @@ import sys
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import format_tag, source_material
-from hybridbrdf.render import render
+from hybridbrdf.sources.names import format_tag, source_material
+from hybridbrdf.render.tracer import render
 
 
 def scene(material, size, spp, seed):

@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from hybridbrdf.render import render
+from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 THREADS = [0]  # set from --threads

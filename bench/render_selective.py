@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-from hybridbrdf.render import render
+from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -24,7 +24,7 @@ import pathlib
 import sys
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import evaluate
+from hybridbrdf.evaluate.evaluation import evaluate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -66,7 +66,7 @@ def nbrdf_rows(data: pathlib.Path, n_pairs: int, seed: int = 7):
     import numpy as np
 
     from hybridbrdf import _core
-    from hybridbrdf.metrics import cmae, metric_directions, smape
+    from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
     from hybridbrdf.sources.nbrdf import open_nbrdf
 
     wi, wo = metric_directions(n_pairs, seed)

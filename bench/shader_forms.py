@@ -33,9 +33,10 @@ sys.path.insert(0, str(ROOT / "bench"))
 sys.path.insert(0, str(ROOT / "tests" / "python"))  # shader_kernels
 
 import hybridbrdf as hb  # noqa: E402
-import hybridbrdf.codegen_network as cg  # noqa: E402
-from hybridbrdf.codegen import float_literal as lit, generate, material_constant  # noqa: E402
-from hybridbrdf.metrics import cosine_hemisphere  # noqa: E402
+import hybridbrdf.codegen.network as cg  # noqa: E402
+from hybridbrdf.codegen.literals import float_literal as lit, material_constant
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.evaluate.directions import cosine_hemisphere
 from shader_kernels import eval_compute_shader  # noqa: E402
 
 RUNNER = ROOT / "build" / "hbrdf_vk_runner"

@@ -30,8 +30,10 @@ import pathlib
 import sys
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import FitSettings, evaluate, fit
-from hybridbrdf.models import parse_mlp
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.evaluate.evaluation import evaluate
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit.settings import parse_mlp
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))

@@ -116,8 +116,9 @@ def build_library(source: pathlib.Path, build: pathlib.Path) -> pathlib.Path:
 
 def build_driver(work: pathlib.Path, source: pathlib.Path = ROOT, library: pathlib.Path | None = None) -> pathlib.Path:
     """The driver linked against ``library`` (default: ``source``/build's) and the model's generated header."""
-    from hybridbrdf.codegen import generate, material_constant
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.codegen.literals import material_constant
+    from hybridbrdf.model.file import load_model
 
     library = library or source / "build" / "libhybridbrdf.a"
     model = load_model(str(MODEL))
@@ -134,7 +135,7 @@ def build_driver(work: pathlib.Path, source: pathlib.Path = ROOT, library: pathl
 
 
 def material_index() -> int:
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.model.file import load_model
 
     return list(load_model(str(MODEL)).materials).index(MATERIAL)
 

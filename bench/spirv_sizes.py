@@ -17,7 +17,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 
 import hybridbrdf as hb  # noqa: E402
-from hybridbrdf.codegen import generate, material_constant  # noqa: E402
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.codegen.literals import material_constant
 from shader_kernels import spirv_size  # noqa: E402
 
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Train the shipped prior (hybridbrdf.prior): one network for every measured material of
+"""Train the shipped prior (hybridbrdf.model.prior): one network for every measured material of
 ../shared/data (5 raw RGL files, the NBRDF reconstructions of 49 RGL, 80 MERL and 8 Nielsen
 materials: 142), written into the package (python/hybridbrdf/data/prior.safetensors).
 
@@ -22,8 +22,8 @@ import sys
 import time
 
 import hybridbrdf as hb
-from hybridbrdf.fit_settings import FitSettings, parse_mlp
-from hybridbrdf.fitting import fit
+from hybridbrdf.fit.settings import FitSettings, parse_mlp
+from hybridbrdf.fit.fit import fit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))

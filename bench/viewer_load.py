@@ -40,8 +40,8 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 
-from hybridbrdf.model_file import HybridModel, load_model  # noqa: E402
-from hybridbrdf.viewer import write_page  # noqa: E402
+from hybridbrdf.model.file import HybridModel, load_model  # noqa: E402
+from hybridbrdf.viewer.page import write_page  # noqa: E402
 from test_view_webgpu import open_page_devtools  # noqa: E402  (chromium over DevTools, WebGL2 and WebGPU flags)
 
 

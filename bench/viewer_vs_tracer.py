@@ -19,7 +19,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 
 import test_view as tv  # noqa: E402  (the tests' page, tracer and mask helpers)
-from hybridbrdf import viewer  # noqa: E402
+from hybridbrdf.viewer.scene import tracer_scene  # noqa: E402
 
 CASES = [("paper_white_rgb.rgl", False, 70), ("cc_ibiza_sunset_rgb.rgl", False, -40), ("cc_ibiza_sunset_rgb.rgl", True, 0)]
 
@@ -37,7 +37,7 @@ def main() -> int:
             t0, t1 = tv.tracer_pixels(scene, 0), tv.tracer_pixels(scene, 1)
             mirrored = "-"
             if rotation:
-                other = viewer.tracer_scene(tv.MODEL, material, width=tv.SIZE, height=tv.SIZE, analytic=analytic,
+                other = tracer_scene(tv.MODEL, material, width=tv.SIZE, height=tv.SIZE, analytic=analytic,
                                             rotation=-rotation)
                 mirrored = f"{tv.mad(img, tv.tracer_pixels(other), mask):.2f}"
             print(f"{material:26} {'f_a' if analytic else 'full':>8} {rotation:>8} {tv.mad(img, t0, mask):>8.2f} "

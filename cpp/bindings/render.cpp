@@ -1,5 +1,5 @@
 // hybridbrdf._core — bindings of the reference path tracer (docs/RENDERING.md).
-// The Python front end is python/hybridbrdf/render.py; these functions are its
+// The Python front end is python/hybridbrdf/render/tracer.py; these functions are its
 // plumbing. Loading and rendering run on a thread of their own, GIL released,
 // while the calling thread watches for Ctrl-C; measured materials are Python
 // callables that take the GIL back once per batch.

@@ -2,7 +2,7 @@
 // document, the versions, the arch table, the material records and names, the tensors the
 // architecture needs, the parameter ranges, and the interval-propagation bound that keeps every
 // network value inside float32. HybridModel::load (model_load.cpp) runs them in the Python
-// loader's order (python/hybridbrdf/model_file.py), with its words.
+// loader's order (python/hybridbrdf/model/file.py), with its words.
 #include "model_validate.hpp"
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 // hybridbrdf — a model file checked against the model contract (spec/model.json), internal to
 // libhybridbrdf. Each function is one step of HybridModel::load (model_load.cpp) and throws
 // ModelFileError naming the file and the problem. The checks, their order and their words are
-// the Python loader's (python/hybridbrdf/model_file.py); tests/data/malformed_models.json holds
+// the Python loader's (python/hybridbrdf/model/file.py); tests/data/malformed_models.json holds
 // the shared table of broken files both must reject alike.
 #pragma once
 

@@ -2,7 +2,7 @@
 
 The analytic component f_a (Lambert + anisotropic GGX with exact dielectric
 Fresnel) is evaluated and sampled by the C++ library (``hybridbrdf._core``);
-``hybridbrdf.torch_brdf`` holds the same formulas in PyTorch for fitting.
+``hybridbrdf.brdf.torch_brdf`` holds the same formulas in PyTorch for fitting.
 Conventions: ``docs/CONVENTIONS.md``.
 """
 
@@ -16,15 +16,16 @@ from hybridbrdf._core import (
 )
 from hybridbrdf import _core
 from hybridbrdf._core import __version__ as _core_version
-from hybridbrdf.adding import add
-from hybridbrdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
+from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
-from hybridbrdf.fit_settings import FitSettings
-from hybridbrdf.model_file import HybridModel, load_model
-from hybridbrdf.prior import load_prior, prior_path
-from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open_source
+from hybridbrdf.fit.adding import add
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.model.prior import load_prior, prior_path
+from hybridbrdf.sources import expand_sources, open_source
+from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.version import __version__
 
-__version__ = "0.1.0"
 if _core_version != __version__:  # a stale extension from an older build
     raise ImportError(f"hybridbrdf {__version__} found extension hybridbrdf._core {_core_version}; reinstall the package")
 

@@ -1,7 +1,7 @@
 """The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``view``, ``info``, ``demo``, ``render``.
 
 ``hbrdf <command> --help`` documents every flag. The fit flags, their help and defaults are
-generated from :class:`hybridbrdf.fitting.FitSettings` (:func:`add_fit_flags`), and so is the
+generated from :class:`hybridbrdf.fit.fit.FitSettings` (:func:`add_fit_flags`), and so is the
 README's synopsis of ``hbrdf fit`` (:func:`fit_synopsis`; a test keeps the README current).
 
 A SOURCE is a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF), a folder, a
@@ -17,6 +17,7 @@ import json
 import sys
 
 from hybridbrdf import spec
+from hybridbrdf.version import __version__
 
 EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
           "or synthetic:NAME (synthetic:all = every built-in material).")
@@ -29,7 +30,7 @@ def _open_all(specs):
 
 
 def _fit_fields():
-    from hybridbrdf.fit_settings import FitSettings
+    from hybridbrdf.fit.settings import FitSettings
 
     return [f for f in dataclasses.fields(FitSettings) if f.metadata.get("flag")]
 
@@ -50,9 +51,9 @@ def add_fit_flags(parser: argparse.ArgumentParser, sections=None, skip=()) -> No
 def settings_from_args(args: argparse.Namespace, sparse: bool = False):
     """FitSettings from parsed flags: a flag left unset keeps its value in the recipe
     (``--recipe``, default hybridbrdf: the fields' defaults). ``sparse``: the settings of a
-    sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit_settings.ADD_STEPS`."""
-    from hybridbrdf.fit_settings import ADD_STEPS, FitSettings, parse_mlp
-    from hybridbrdf.fitting import default_device
+    sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit.settings.ADD_STEPS`."""
+    from hybridbrdf.fit.settings import ADD_STEPS, FitSettings, parse_mlp
+    from hybridbrdf.fit.fit import default_device
 
     values = {}
     for f in _fit_fields():
@@ -130,10 +131,11 @@ def _check_out_is_no_source(out: str, sources) -> None:
 def _cmd_fit(args: argparse.Namespace) -> int:
     import os
 
-    from hybridbrdf import checkpoint as ckpt
-    from hybridbrdf import distributed as dd
-    from hybridbrdf.fitting import fit, format_table, frozen_arch_settings
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.fit import checkpoint as ckpt
+    from hybridbrdf.fit import distributed as dd
+    from hybridbrdf.fit.fit import fit, frozen_arch_settings
+    from hybridbrdf.evaluate.evaluation import format_table
+    from hybridbrdf.model.file import load_model
 
     settings = settings_from_args(args)
     settings.check()
@@ -153,7 +155,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         raise ValueError("--frozen keeps MODEL's network and --init trains it further: give one of them")
     init = None
     if settings.init_from:
-        from hybridbrdf.prior import prior_path
+        from hybridbrdf.model.prior import prior_path
 
         init = load_model(prior_path() if settings.init_from == "prior" else settings.init_from)
     for start_model in (frozen, init):
@@ -201,7 +203,7 @@ def _write_preview(model_path: str, sources, png: str) -> None:
     """The picture that ends `hbrdf fit`. The model is written by then: a preview that cannot be
     rendered (a build without the renderer, a source the tracer's reader refuses) is reported in
     one line and does not fail the command."""
-    from hybridbrdf.preview import ROWS, render_preview
+    from hybridbrdf.render.preview import ROWS, render_preview
 
     try:
         info = render_preview(model_path, sources, png)
@@ -214,8 +216,8 @@ def _write_preview(model_path: str, sources, png: str) -> None:
 
 
 def _cmd_add(args: argparse.Namespace) -> int:
-    from hybridbrdf.adding import add
-    from hybridbrdf.fitting import format_table
+    from hybridbrdf.fit.adding import add
+    from hybridbrdf.evaluate.evaluation import format_table
 
     settings = settings_from_args(args, sparse=True)
     if args.to is not None and (args.keep_network or (args.finetune_steps is not None and not args.refine)):
@@ -278,8 +280,8 @@ def _write_new_material(model, name: str, out: str) -> int:
 
 
 def _cmd_edit(args: argparse.Namespace) -> int:
-    from hybridbrdf.editing import parse_assignments
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.model.editing import parse_assignments
+    from hybridbrdf.model.file import load_model
     from hybridbrdf.util import check_writable
 
     values = parse_assignments(args.set)
@@ -290,7 +292,7 @@ def _cmd_edit(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from hybridbrdf.viewer import write_page
+    from hybridbrdf.viewer.page import write_page
 
     info = write_page(args.model, args.out, args.sources, env=args.env,
                       source_options={"size": args.source_size, "spp": args.source_spp})
@@ -300,7 +302,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _cmd_mix(args: argparse.Namespace) -> int:
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.model.file import load_model
     from hybridbrdf.util import check_writable
 
     check_writable(args.out, "model")
@@ -310,9 +312,9 @@ def _cmd_mix(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from hybridbrdf.fit_settings import PAIRS
-    from hybridbrdf.fitting import evaluate, format_extended_table, format_table
-    from hybridbrdf.model_file import load_model
+    from hybridbrdf.fit.settings import PAIRS
+    from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, format_table
+    from hybridbrdf.model.file import load_model
 
     problem = PAIRS.problem(args.pairs)  # the range of fit's --eval-pairs (argparse takes counts up to 1e9)
     if problem:
@@ -351,8 +353,8 @@ def _shown(value) -> str:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from hybridbrdf.model_file import load_model
-    from hybridbrdf.training_record import environment_line
+    from hybridbrdf.model.file import load_model
+    from hybridbrdf.fit.record import environment_line
 
     if args.albedo_samples < 0:
         raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
@@ -361,7 +363,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     written_by = getattr(model, "written_by", None)
     print(f"{args.model}: hybridbrdf model, format {spec.FORMAT_VERSION}, conventions {spec.CONVENTIONS_VERSION}"
           + (f", written by hybridbrdf {_shown(written_by)}" if written_by is not None else ""))
-    heads = a.get("output_layer", "shared") == "material"
+    heads = model.output_layer == "material"
     print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "
           f"{a['n_in']} inputs -> {a['n_out']} outputs"
           + (", output layer per material" if heads else ""))
@@ -408,13 +410,13 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
-#: What a fit records besides its settings (hybridbrdf.fitting.fit), printed by ``hbrdf info``.
+#: What a fit records besides its settings (hybridbrdf.fit.fit.fit), printed by ``hbrdf info``.
 RECORDED_TIMINGS = ("train_seconds", "train_seconds_from_step", "resumed_at_step", "compile_seconds")
 
 
 def _settings_line(title: str, recorded: dict, sections, extra=()) -> str:
     """``title: key value, ...`` for the FitSettings fields of ``sections`` a model file records."""
-    from hybridbrdf.fit_settings import FitSettings
+    from hybridbrdf.fit.settings import FitSettings
 
     keys = [f.name for f in dataclasses.fields(FitSettings) if f.metadata["section"] in sections
             and f.name != "sources"] + list(extra)
@@ -432,7 +434,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from hybridbrdf.render import RenderMaterialError, render, settings
+    from hybridbrdf.render.tracer import RenderMaterialError, render, settings
 
     # One flag per scene setting (the library's table); None = keep the scene's value.
     overrides = {s["name"]: getattr(args, s["name"]) for s in settings()}
@@ -469,9 +471,9 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 
 def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
-    """--spp, --max-depth, ...: one flag per scene setting of the library's table (hybridbrdf.render.settings()),
+    """--spp, --max-depth, ...: one flag per scene setting of the library's table (hybridbrdf.render.tracer.settings()),
     typed and documented by it; the library checks the ranges when rendering (one-line errors)."""
-    from hybridbrdf.render import settings
+    from hybridbrdf.render.tracer import settings
 
     for s in settings():
         flag = "--" + s["name"].replace("_", "-")
@@ -490,8 +492,7 @@ def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
 # One piece by design: argparse's declarative table of the subcommands and their options, one
 # block per subcommand; splitting it would only scatter the table (the project's ~80-line rule).
 def build_parser() -> argparse.ArgumentParser:
-    from hybridbrdf import __version__
-    from hybridbrdf.fit_settings import positive_int
+    from hybridbrdf.fit.settings import positive_int
 
     parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.", epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"hybridbrdf {__version__}")
@@ -528,7 +529,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "training; --out is written only when the fit succeeds.", epilog=EPILOG)
     ad.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
     ad.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
-                                                 "shipped prior, hybridbrdf.prior; the model then holds the new "
+                                                 "shipped prior, hybridbrdf.model.prior; the model then holds the new "
                                                  "materials only)")
     ad.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
     add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
@@ -612,7 +613,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="environment map the page lights with: 'sky' (default: the path tracer's sky, a sun of "
                          "irradiance pi) or an equirectangular .exr / .hdr map (the tracer's mapping; maps wider "
                          "than 1024 texels are area-averaged down)")
-    from hybridbrdf import viewer_sources
+    from hybridbrdf.viewer import measured as viewer_sources
 
     vw.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
                     help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
@@ -656,7 +657,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from hybridbrdf.distributed import RankLostError
+    from hybridbrdf.fit.distributed import RankLostError
 
     parser = build_parser()
     args = parser.parse_args(argv)

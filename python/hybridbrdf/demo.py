@@ -16,7 +16,7 @@ from typing import Dict
 import numpy as np
 
 from hybridbrdf._core import STRATEGIES
-from hybridbrdf.analytic import AnalyticParams, analytic_eval, sample
+from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
 
 #: Built-in analytic materials (no measured data needed).
 DEMO_MATERIALS: Dict[str, AnalyticParams] = {
@@ -66,7 +66,7 @@ def run_demo(out: str, samples: int = 200_000) -> None:
     import matplotlib.pyplot as plt
     import torch
 
-    from hybridbrdf.torch_brdf import eval_analytic as torch_eval
+    from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
 
     if samples < 1:
         raise ValueError(f"--samples must be positive, got {samples}")

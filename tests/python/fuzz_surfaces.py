@@ -27,7 +27,7 @@ import numpy as np
 import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.random_model import random_model
+from hybridbrdf.model.random import random_model
 
 VALID, REJECTED = "valid", "rejected"
 
@@ -242,7 +242,7 @@ def check_scene(doc, origin: str = "fuzz-scene.json") -> str:
 def check_material_name(name: str, seed_bytes: bytes, path: pathlib.Path) -> str:
     """A model whose material 1 is ``name``: both loaders refuse it alike, or accept it and
     every target's code carries it only inside its constant and inert comments."""
-    from hybridbrdf.codegen import generate
+    from hybridbrdf.codegen.main import generate
 
     doc = seed_metadata(seed_bytes)
     doc["materials"][1]["name"] = name
@@ -316,9 +316,9 @@ def check_cli_flag(command: str, flag: str, value: str) -> str:
 
 def checkpoint_seed(workdir: pathlib.Path):
     """(bytes, state, settings) of a valid checkpoint at step 10 of a tiny fit of synthetic:gold."""
-    from hybridbrdf import checkpoint as ckpt
-    from hybridbrdf.fit_settings import FitSettings
-    from hybridbrdf.fitting import fit
+    from hybridbrdf.fit import checkpoint as ckpt
+    from hybridbrdf.fit.settings import FitSettings
+    from hybridbrdf.fit.fit import fit
     from hybridbrdf.sources import open_source
 
     settings = FitSettings(width=8, depth=1, steps=20, batch=64, pool=256, eval_pairs=200, seed=5)
@@ -359,9 +359,9 @@ def mutate_checkpoint_state(state, rng: np.random.Generator):
 
 
 def check_checkpoint(data: bytes, path: pathlib.Path, settings) -> str:
-    """A checkpoint through hybridbrdf.checkpoint.load (what ``hbrdf fit --resume`` runs before
+    """A checkpoint through hybridbrdf.fit.checkpoint.load (what ``hbrdf fit --resume`` runs before
     any source is opened): refused with one line naming it, or valid; never altered."""
-    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fit import checkpoint as ckpt
 
     path.write_bytes(data)
     try:
@@ -409,12 +409,12 @@ SPECIAL_KINDS = ("fifo", "dev-zero", "sparse", "symlink-loop", "folder")
 
 def _readers() -> Dict[str, tuple]:
     """name -> (file name, reader(path)): every reader that opens a file a user names."""
-    from hybridbrdf import checkpoint
-    from hybridbrdf.render import load_scene_dict
+    from hybridbrdf.fit import checkpoint
+    from hybridbrdf.render.tracer import load_scene_dict
     from hybridbrdf.sources import open_source
 
     def environment(path):  # the tracer's environment-map reader (C++), through a 4 x 4 render
-        from hybridbrdf.render import render
+        from hybridbrdf.render.tracer import render
 
         render({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
                 "environment": {"type": "file", "file": os.fspath(path)},
@@ -574,7 +574,7 @@ def check_scene_file(text: str, path: pathlib.Path) -> str:
     path.write_text(text)
 
     def read():
-        from hybridbrdf.render import load_scene_dict
+        from hybridbrdf.render.tracer import load_scene_dict
 
         data, base, origin = load_scene_dict(str(path))
         if hasattr(_core, "read_scene_decl"):
@@ -594,7 +594,7 @@ def tabulated_scene_text(n_materials: int) -> str:
 
 def check_tabulated_budget(n_materials: int, path: pathlib.Path) -> str:
     """A scene whose tables are over the budget: refused at load, before any table is built."""
-    from hybridbrdf.render import render
+    from hybridbrdf.render.tracer import render
 
     path.write_text(tabulated_scene_text(n_materials))
     return check_hostile(f"tabulated scene of {n_materials} materials", lambda: render(str(path)), str(path))
@@ -673,7 +673,7 @@ def check_output_over_input(command: str, kind: str, which: str, workdir: pathli
     before = {p: p.read_bytes() for p in (model, scene)}
     out = _alias(model if which == "model" else scene, kind, workdir)
     if command == "codegen":
-        from hybridbrdf.codegen import main
+        from hybridbrdf.codegen.main import main
 
         argv, prog = [str(model), "--target", "glsl", "--scene", str(scene), "-o", out], "hbrdf-codegen"
     else:

@@ -3,7 +3,7 @@ matrices, a source with exact values, model files, the command line, a scene for
 renderer, the Mitsuba oracle and the Vulkan (lavapipe) runner.
 
 Direction generators and the float64 textbook reference live in the package
-(hybridbrdf.directions, hybridbrdf.reference): the benchmarks use them too."""
+(hybridbrdf.evaluate.directions, hybridbrdf.brdf.reference): the benchmarks use them too."""
 
 from __future__ import annotations
 
@@ -18,10 +18,10 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.precision import half_rounded
-from hybridbrdf.random_model import random_model
+from hybridbrdf.model.precision import half_rounded
+from hybridbrdf.model.random import random_model
 from hybridbrdf.sources.base import BRDFSource
-from hybridbrdf.torch_brdf import eval_analytic
+from hybridbrdf.brdf.torch_brdf import eval_analytic
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 HARD_DIRECTIONS_FILE = ROOT / "tests" / "data" / "hard_directions.json"

@@ -18,8 +18,8 @@ mi.set_variant("llvm_ad_rgb")
 import drjit as dr  # noqa: E402
 from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain  # noqa: E402
 
-import hybridbrdf.mitsuba as hbmi  # noqa: E402
-from hybridbrdf.render import render  # noqa: E402
+import hybridbrdf.render.mitsuba as hbmi  # noqa: E402
+from hybridbrdf.render.tracer import render  # noqa: E402
 
 from mitsuba_scenes import agreement, hbrdf_scene, mitsuba_scene  # noqa: E402
 

@@ -15,12 +15,12 @@ from typing import Optional
 
 import jinja2
 
-from hybridbrdf.codegen_literals import DIALECTS, material_constant
+from hybridbrdf.codegen.literals import DIALECTS, material_constant
 
 SHADER_DIR = pathlib.Path(__file__).resolve().parents[2] / "glsl"
 
 #: What differs between the kernels' dialects: the vector types, and the generated code's own
-#: declarations (let, var) and out-argument (ref: &pdf in WGSL) from hybridbrdf.codegen_literals.DIALECTS.
+#: declarations (let, var) and out-argument (ref: &pdf in WGSL) from hybridbrdf.codegen.literals.DIALECTS.
 KERNEL_DIALECTS = {t: {"v3": DIALECTS[t]["v3"], "v2": DIALECTS[t]["v2"],
                        **{k: DIALECTS[t][k] for k in ("let", "var", "ref")}}
                    for t in ("glsl", "hlsl", "slang", "wgsl")}

@@ -10,9 +10,10 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.adding import merge
-from hybridbrdf.fit_settings import FitSettings
-from hybridbrdf.fitting import evaluate, fit
+from hybridbrdf.fit.adding import merge
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.evaluate.evaluation import evaluate
+from hybridbrdf.fit.fit import fit
 from hybridbrdf.sources import open_source
 
 from helpers import run_cli
@@ -120,7 +121,7 @@ def test_add_takes_only_the_settings_that_apply():
 
 
 def test_keep_network_on_the_prior_writes_the_new_materials_only_on_its_network(base_file, tmp_path, monkeypatch):
-    import hybridbrdf.prior as prior_module
+    import hybridbrdf.model.prior as prior_module
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)  # a small stand-in for the shipped prior
     out = tmp_path / "mine.safetensors"
@@ -153,7 +154,7 @@ def test_add_on_the_prior_fine_tunes_its_network_and_leaves_the_prior_file_alone
     """The default onto the prior: the sparse fit, then the network trained with the new material.
     Its cMAE on pairs it was not trained on must end below the sparse fit's (the network's extra
     freedom is used), and the prior's file is never written."""
-    import hybridbrdf.prior as prior_module
+    import hybridbrdf.model.prior as prior_module
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
     before = _file_digest(base_file)
@@ -227,7 +228,7 @@ def test_warm_started_fit_resumes_its_checkpoint_exactly(base_file, tmp_path):
 
 
 def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch):
-    import hybridbrdf.prior as prior_module
+    import hybridbrdf.model.prior as prior_module
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", tmp_path / "absent" / "prior.safetensors")
     out = tmp_path / "mine.safetensors"
@@ -238,7 +239,7 @@ def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch
 
 def test_the_shipped_prior_is_installed_with_the_package_and_valid():
     """The checkout's prior (python/hybridbrdf/data) must reach the installed package, bit for bit."""
-    from hybridbrdf.prior import PRIOR_FILE
+    from hybridbrdf.model.prior import PRIOR_FILE
 
     from helpers import ROOT
 
@@ -284,7 +285,7 @@ def test_several_starts_keep_the_start_of_lowest_loss(base_file):
 
 def test_several_starts_pick_the_better_fit_when_the_nearest_is_not_it(base_file, monkeypatch):
     """Put the worse start first (row m k + 0): the selection must still keep the other."""
-    import hybridbrdf.fitting as fitting
+    import hybridbrdf.fit.fit as fitting
 
     base = hb.load_model(base_file)
     real = fitting.start_from_nearest
@@ -307,7 +308,7 @@ def test_several_starts_pick_the_better_fit_when_the_nearest_is_not_it(base_file
 def test_refine_trains_the_base_network_and_records_each_base_materials_drift(base_file, tmp_path):
     """--refine: BASE's network moves, BASE's materials are replayed against BASE's output, and the
     drift each records is the SMAPE / cMAE of the refined model against BASE, recomputed here."""
-    from hybridbrdf.metrics import cmae, metric_directions, smape
+    from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 
     out = tmp_path / "refined.safetensors"
     settings = FitSettings(**{**TINY, "eval_pairs": 20_000})
@@ -355,11 +356,12 @@ def test_a_fine_tuned_model_goes_through_every_consumer_like_a_fitted_one(base_f
     """A fine-tuned file (its record nests the sparse fit's) loads in libhybridbrdf, which agrees
     with PyTorch in float64; the generated C++ header computes what the library computes; the
     path tracer renders it; and, where Mitsuba 3 is installed, the plugin loads and evaluates it."""
-    import hybridbrdf.prior as prior_module
+    import hybridbrdf.model.prior as prior_module
     from hybridbrdf import _core
-    from hybridbrdf.codegen import generate, load_scene
-    from hybridbrdf.directions import cosine_directions
-    from hybridbrdf.render import render
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.codegen.scene import load_scene
+    from hybridbrdf.evaluate.directions import cosine_directions
+    from hybridbrdf.render.tracer import render
     from test_codegen import _build_driver, _run_driver, tracer_scene
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
@@ -388,7 +390,7 @@ def test_a_fine_tuned_model_goes_through_every_consumer_like_a_fitted_one(base_f
         import mitsuba as mi
 
         mi.set_variant("scalar_rgb")
-        from hybridbrdf import mitsuba as hbmi
+        from hybridbrdf.render import mitsuba as hbmi
     except ImportError:
         return
     hbmi.register()

@@ -5,9 +5,9 @@ import numpy as np
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.reference import textbook_fa
-from hybridbrdf.torch_brdf import eval_analytic as torch_fa
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.brdf.reference import textbook_fa
+from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_fa
 
 from helpers import PARAM_CORNERS, hard_directions, hard_pairs, random_params, valid_upper
 
@@ -103,8 +103,8 @@ def test_reciprocity_cpp_and_torch(rng):
 
 def test_torch_sampler_matches_cpp(rng):
     """Same (wo, u): the PyTorch sampler and pdf reproduce the C++ ones."""
-    from hybridbrdf.torch_brdf import pdf as torch_pdf
-    from hybridbrdf.torch_brdf import sample as torch_sample
+    from hybridbrdf.brdf.torch_brdf import pdf as torch_pdf
+    from hybridbrdf.brdf.torch_brdf import sample as torch_sample
 
     n = 20000
     for _ in range(5):
@@ -128,7 +128,7 @@ def test_torch_sampler_matches_cpp(rng):
 
 def test_torch_sampler_hard_cases():
     """The PyTorch sampler keeps the hard-case contract of the C++ one."""
-    from hybridbrdf.torch_brdf import sample as torch_sample
+    from hybridbrdf.brdf.torch_brdf import sample as torch_sample
 
     d = hard_directions()
     us = np.array([[0, 0], [0.5, 0.5], [1, 1], [np.nan, 0.5], [-1, 2], [0.999999, 0.1]])

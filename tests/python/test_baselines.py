@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hybridbrdf import _core
-from hybridbrdf.directions import cosine_directions
+from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.sources.merl import MERL_DIMS, MERL_SCALES, MERLSource
 from hybridbrdf.sources.nbrdf import open_nbrdf
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hybridbrdf import _core
-from hybridbrdf.codegen import generate
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.random_model import random_model
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.model.random import random_model
 
 from helpers import compile_spirv, run_on_lavapipe, saved_random_model, skip_without_vulkan
 from shader_kernels import render_shader

@@ -8,7 +8,7 @@ import pytest
 
 import hybridbrdf as hb
 
-from hybridbrdf.fit_settings import FitSettings
+from hybridbrdf.fit.settings import FitSettings
 
 from helpers import ROOT, run_cli
 
@@ -120,7 +120,7 @@ def test_every_fit_setting_flag_reaches_fit_settings_and_hbrdf_info():
     import dataclasses
 
     from hybridbrdf.cli import _settings_line, build_parser, settings_from_args
-    from hybridbrdf.fit_settings import FitSettings
+    from hybridbrdf.fit.settings import FitSettings
 
     fields = [f for f in dataclasses.fields(FitSettings) if f.metadata.get("flag")]
     assert {f.name for f in fields} >= {"arch", "width", "steps", "loss_eps", "specular", "sparse_init", "frozen_from"}
@@ -182,7 +182,7 @@ def test_recipe_paper_sets_the_papers_values_and_flags_still_win():
     assert parsed("--recipe", "fast", "--mlp", "32x2").width == 32
     assert parsed("--recipe", "fast", "--output-layer", "shared").output_layer == "shared"
     # hbrdf add: a sparse fit's steps, whatever the recipe, unless given.
-    from hybridbrdf.fit_settings import ADD_STEPS
+    from hybridbrdf.fit.settings import ADD_STEPS
 
     assert parsed(command="add").steps == ADD_STEPS == parsed("--recipe", "paper", command="add").steps
     assert parsed("--steps", "9", command="add").steps == 9
@@ -194,8 +194,8 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes_with_the_papers_valu
     """A setting added after a checkpoint was written had its paper value then (each setting was
     introduced with the paper's behaviour as default): such a checkpoint resumes under --recipe
     paper and is refused, naming the setting, under the default recipe."""
-    from hybridbrdf import checkpoint as ckpt
-    from hybridbrdf.fitting import fit
+    from hybridbrdf.fit import checkpoint as ckpt
+    from hybridbrdf.fit.fit import fit
     from hybridbrdf.sources import open_source
 
     path = tmp_path / "ck.pt"

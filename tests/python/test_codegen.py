@@ -13,9 +13,11 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.codegen import float_literal, generate, load_scene, main as codegen_main, material_constant
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.random_model import random_model
+from hybridbrdf.codegen.literals import float_literal, material_constant
+from hybridbrdf.codegen.main import generate, main as codegen_main
+from hybridbrdf.codegen.scene import load_scene
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.model.random import random_model
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, saved_random_model
 from shader_kernels import every_function_shader, spirv_size

@@ -14,9 +14,10 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf.codegen import comment_text, float_literal, generate, main as codegen_main, material_constant
+from hybridbrdf.codegen.literals import comment_text, float_literal, material_constant
+from hybridbrdf.codegen.main import generate, main as codegen_main
 from hybridbrdf.names import name_problem, names_problem, shader_constant_key
-from hybridbrdf.random_model import random_model
+from hybridbrdf.model.random import random_model
 
 from helpers import compile_spirv, run_cli
 from test_codegen import every_function_shader

@@ -35,7 +35,7 @@ def test_two_writers_of_one_model_path_leave_one_complete_file(tmp_path):
 
 
 def test_two_renders_to_one_image_leave_one_of_the_two(tmp_path):
-    from hybridbrdf.render import read_image as read_exr
+    from hybridbrdf.render.tracer import read_image as read_exr
 
     path = tmp_path / "s.json"
     path.write_text(json.dumps(scene(analytic_material())))

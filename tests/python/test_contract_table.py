@@ -18,9 +18,9 @@ import pytest
 import torch
 
 from hybridbrdf import spec
-from hybridbrdf.codegen import generate
-from hybridbrdf.models import activation_fn, combine
-from hybridbrdf.random_model import random_model
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.model.networks import activation_fn, combine
+from hybridbrdf.model.random import random_model
 
 from helpers import skip_without_vulkan
 from shader_kernels import render_shader

@@ -10,8 +10,8 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.random_model import random_model
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.model.random import random_model
 
 from helpers import hard_pairs, valid_upper
 
@@ -183,7 +183,7 @@ def _numpy_hybrid_half(model_tensors, arch, wi, wo, m):
     """hybrid-half in NumPy float64 from the textbook forms: h = (wi + wo) / |wi + wo|, the
     network input [wi, wo, h.z, wi.h, z], hardGeLU layers, f_t = exp(o[0:3]) + sigmoid(o[3:6]) f_a
     with reference.textbook_fa: an oracle independent of the library's and the model's code."""
-    from hybridbrdf.reference import textbook_fa
+    from hybridbrdf.brdf.reference import textbook_fa
     t = {k: np.asarray(v, dtype=np.float64) for k, v in model_tensors.items()}
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)

@@ -1,4 +1,4 @@
-"""Data-parallel fitting under torchrun (hybridbrdf.distributed, docs/FITTING.md "Fitting on
+"""Data-parallel fitting under torchrun (hybridbrdf.fit.distributed, docs/FITTING.md "Fitting on
 several processes"): two local ranks over loopback (gloo) give the 1-rank model, Ctrl-C leaves a
 checkpoint that resumes on another number of ranks, a rank that dies ends the run with one line
 and leaves the checkpoint and an existing --out alone, and a batch that does not split is refused."""
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf import checkpoint as ckpt
+from hybridbrdf.fit import checkpoint as ckpt
 
 FIT = ["fit", "synthetic:gold", "synthetic:plastic", "--mlp", "16x2", "--batch", "256", "--pool", "8192",
        "--eval-pairs", "20000", "--seed", "3", "--quiet"]

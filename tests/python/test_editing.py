@@ -1,4 +1,4 @@
-"""Editing and interpolation of fitted materials (hybridbrdf.editing, hbrdf edit / mix) on a
+"""Editing and interpolation of fitted materials (hybridbrdf.model.editing, hbrdf edit / mix) on a
 prior whose materials were fitted to measurements (paper Sec. 5.1).
 
 The tests run on the shared-output prior shipped before material output layers
@@ -15,8 +15,8 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.codegen import generate
-from hybridbrdf.editing import parse_assignments
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.model.editing import parse_assignments
 
 from helpers import hard_pairs, run_cli, valid_upper
 

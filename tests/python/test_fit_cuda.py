@@ -15,7 +15,8 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.fitting import FitSettings, fit
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.fit import fit
 
 CUDA = torch.cuda.is_available()
 pytestmark = pytest.mark.skipif(not CUDA, reason="no CUDA device visible to torch")

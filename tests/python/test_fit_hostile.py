@@ -17,13 +17,13 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import spec
-from hybridbrdf import checkpoint as ckpt
+from hybridbrdf.fit import checkpoint as ckpt
 from hybridbrdf.cli import build_parser
 from hybridbrdf.cli import main as cli_main
-from hybridbrdf.fit_settings import FitSettings
-from hybridbrdf.fitting import fit
-from hybridbrdf.models import build_model
-from hybridbrdf.torch_brdf import eval_analytic, pdf
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.model.networks import build_model
+from hybridbrdf.brdf.torch_brdf import eval_analytic, pdf
 from hybridbrdf.util import atomic_write_bytes, remove_stale_temporaries
 
 from helpers import AnalyticTestSource, hard_directions, hard_pairs

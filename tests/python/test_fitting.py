@@ -8,8 +8,10 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import spec
-from hybridbrdf.fitting import FitSettings, fit, log_cos_loss
-from hybridbrdf.metrics import metric_directions, smape
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit.loss import log_cos_loss
+from hybridbrdf.evaluate.metrics import metric_directions, smape
 
 from helpers import AnalyticTestSource
 
@@ -68,7 +70,7 @@ def test_analytic_expectile_fits_an_upper_envelope():
 
 
 def test_per_material_epsilon_makes_the_loss_brightness_invariant():
-    from hybridbrdf.fitting import TrainingPool
+    from hybridbrdf.fit.pool import TrainingPool
 
     rng = np.random.default_rng(1)
     ref, f = torch.tensor(rng.random((2, 64, 3))), torch.tensor(rng.random((2, 64, 3)))
@@ -122,7 +124,7 @@ def test_loss_without_cos_weighs_grazing_pairs_like_the_others():
     """With the paper's log(eps + cos f), a pair's gradient shrinks with cos(theta_i): at grazing
     incidence cos f falls below eps and the loss stops looking. loss_cos=False weighs a relative
     error the same at every angle."""
-    from hybridbrdf.fitting import training_loss
+    from hybridbrdf.fit.loss import training_loss
 
     cos = torch.tensor([1.0, 0.02], dtype=torch.float64)
     ref = torch.full((1, 2, 3), 0.5, dtype=torch.float64)
@@ -134,7 +136,7 @@ def test_loss_without_cos_weighs_grazing_pairs_like_the_others():
 
 
 def test_loss_without_cos_fits_grazing_angles_better():
-    from hybridbrdf.metrics import smape_terms
+    from hybridbrdf.evaluate.metrics import smape_terms
 
     src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
     wi, wo = metric_directions(50_000, seed=7)
@@ -249,8 +251,8 @@ def test_a_resumed_fit_records_the_time_of_every_segment(tmp_path, monkeypatch):
     # rather than report its last segment alone.
     import types
 
-    from hybridbrdf import checkpoint as hb_checkpoint
-    from hybridbrdf import training_loop
+    from hybridbrdf.fit import checkpoint as hb_checkpoint
+    from hybridbrdf.fit import loop as training_loop
 
     ticks = iter(range(0, 10 ** 9, 1000))
     monkeypatch.setattr(training_loop, "time", types.SimpleNamespace(perf_counter=lambda: float(next(ticks))))
@@ -312,7 +314,7 @@ def test_every_architecture_trains_without_nan(arch, latent):
 
 
 def test_specular_pairs_follow_the_ggx_half_vector_distribution():
-    from hybridbrdf.fitting import specular_pairs
+    from hybridbrdf.fit.pool import specular_pairs
 
     alpha = 0.1
     wi, wo = specular_pairs(np.random.default_rng(5), 200_000, alpha)
@@ -337,7 +339,7 @@ def test_specular_pairs_follow_the_ggx_half_vector_distribution():
 
 
 def test_specular_pool_keeps_the_cosine_pairs_and_adds_mirror_pairs():
-    from hybridbrdf.fitting import TrainingPool
+    from hybridbrdf.fit.pool import TrainingPool
 
     src = sources()[:1]
     plain = TrainingPool(src, 4000, seed=1)
@@ -366,7 +368,7 @@ def test_bad_settings_and_inputs():
 
 
 def test_same_material_from_two_formats_gets_qualified_names():
-    from hybridbrdf.fitting import material_names
+    from hybridbrdf.sources.names import material_names
 
     a, b, c = AnalyticTestSource("gold", P_PLAIN), AnalyticTestSource("gold", P_RETRO), AnalyticTestSource("x", P_PLAIN)
     a.path, b.path = "/d/rgl/gold.bsdf", "/d/nbrdf/gold.h5"
@@ -397,7 +399,7 @@ def test_fitting_is_stable_on_every_shared_material():
 
 def _applied_rates(settings):
     """The learning rate the optimiser applies at each step of a fit with ``settings``."""
-    from hybridbrdf.fit_schedule import optimizer_and_schedule
+    from hybridbrdf.fit.schedule import optimizer_and_schedule
 
     module = torch.nn.Module()
     module.register_parameter("z", torch.nn.Parameter(torch.zeros(3)))

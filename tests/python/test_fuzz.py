@@ -187,7 +187,7 @@ def test_checkpoint_bytes(tmp_path, seed_checkpoint, cut, edits):
 @FEW
 @given(seed=st.integers(0, 2**32 - 1))
 def test_checkpoint_structure(tmp_path, seed_checkpoint, seed):
-    from hybridbrdf import checkpoint as ckpt
+    from hybridbrdf.fit import checkpoint as ckpt
 
     _, state, settings = seed_checkpoint
     edited = fs.mutate_checkpoint_state(state, np.random.default_rng(seed))

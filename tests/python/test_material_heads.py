@@ -12,13 +12,13 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.editing import edit, mix
-from hybridbrdf.random_model import random_model
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.model.editing import edit, mix
+from hybridbrdf.model.random import random_model
 
 
 def numpy_hybrid_with_heads(t, arch, wi, wo, m):
-    from hybridbrdf.reference import textbook_fa
+    from hybridbrdf.brdf.reference import textbook_fa
 
     t = {k: np.asarray(v, dtype=np.float64) for k, v in t.items()}
     z = np.broadcast_to(t["materials.z"][m], (len(wi), arch["latent"]))
@@ -85,8 +85,8 @@ def test_edit_keeps_the_head_and_mix_blends_it(head_model):
 
 
 def test_a_sparse_fit_gives_new_materials_heads_and_keeps_the_hidden_layers(tmp_path):
-    from hybridbrdf.fit_settings import FitSettings
-    from hybridbrdf.fitting import fit
+    from hybridbrdf.fit.settings import FitSettings
+    from hybridbrdf.fit.fit import fit
     from hybridbrdf.sources import open_source
 
     base = fit([open_source("synthetic:plastic"), open_source("synthetic:gold")],
@@ -109,8 +109,8 @@ def test_a_sparse_fit_gives_new_materials_heads_and_keeps_the_hidden_layers(tmp_
 
 
 def test_the_neural_baseline_keeps_one_output_layer():
-    from hybridbrdf.fit_settings import FitSettings
-    from hybridbrdf.models import build_model
+    from hybridbrdf.fit.settings import FitSettings
+    from hybridbrdf.model.networks import build_model
 
     with pytest.raises(ValueError, match="analytic part"):
         build_model("neural", 2, 8, 1, 12, "relu", output_layer="material")
@@ -127,7 +127,8 @@ def test_generated_code_takes_a_scenes_one_head_as_literals(tmp_path):
     hold the default material's head as literals too."""
     from test_codegen import _build_driver, _run_driver, tracer_scene
 
-    from hybridbrdf.codegen import generate, load_scene
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.codegen.scene import load_scene
     from helpers import saved_random_model
 
     path, model = saved_random_model(tmp_path, "hybrid", output_layer="material")

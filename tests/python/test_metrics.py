@@ -3,7 +3,7 @@
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.metrics import cmae, directional_albedo, mae, metric_directions, reciprocity_error, smape
+from hybridbrdf.evaluate.metrics import cmae, directional_albedo, mae, metric_directions, reciprocity_error, smape
 
 
 def test_smape_by_hand():

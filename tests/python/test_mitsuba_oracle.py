@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.reference import textbook_fa
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.brdf.reference import textbook_fa
 
 from helpers import mitsuba_f
 

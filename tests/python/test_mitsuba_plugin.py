@@ -1,4 +1,4 @@
-"""The Mitsuba 3 plugin (hybridbrdf.mitsuba): its queries against libhybridbrdf under the two
+"""The Mitsuba 3 plugin (hybridbrdf.render.mitsuba): its queries against libhybridbrdf under the two
 projects' conventions, Mitsuba's own chi-square test of its sampler and renders that agree with
 hbrdf render within Monte Carlo noise, in scalar_rgb here and in llvm_ad_rgb in a subprocess
 (tests/python/mitsuba_llvm_checks.py: a process holds one Mitsuba variant at a time)."""
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf.render import render, write_exr
+from hybridbrdf.render.tracer import render, write_exr
 
 import mitsuba as mi  # noqa: E402  (a test extra)
 mi.set_variant("scalar_rgb")
-import hybridbrdf.mitsuba as hbmi  # noqa: E402
+import hybridbrdf.render.mitsuba as hbmi  # noqa: E402
 
 from mitsuba_scenes import agreement, environment_map, hbrdf_scene, mitsuba_scene  # noqa: E402
 

@@ -24,8 +24,8 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.model_file import HybridModel
-from hybridbrdf.models import build_model
+from hybridbrdf.model.file import HybridModel
+from hybridbrdf.model.networks import build_model
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 TABLE = json.loads((ROOT / "tests" / "data" / "malformed_models.json").read_text())
@@ -258,7 +258,7 @@ def test_the_recorded_pre_exp_max_bounds_every_reader(tmp_path, arch):
     assert cpp.pre_exp_max == 2.0
     for got in (loaded.eval(wi, wo, "m", dtype=torch.float64), cpp.eval(wi, wo, 0), cpp.eval_scalar(wi, wo, 0)):
         assert np.allclose(got, expected, rtol=1e-5), (arch, float(np.max(got)))
-    from hybridbrdf.codegen import generate
+    from hybridbrdf.codegen.main import generate
 
     for target in ("glsl", "hlsl", "cpp"):
         assert "HBRDF_PRE_EXP_MAX = 2.0f;" in generate(loaded, target), target

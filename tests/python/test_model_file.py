@@ -10,7 +10,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import spec
-from hybridbrdf.random_model import random_model
+from hybridbrdf.model.random import random_model
 
 from helpers import hard_pairs, valid_upper
 

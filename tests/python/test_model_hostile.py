@@ -10,8 +10,8 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.model_file import network_overflow_problem
-from hybridbrdf.random_model import random_model
+from hybridbrdf.model.file import network_overflow_problem
+from hybridbrdf.model.random import random_model
 
 from helpers import hard_pairs, run_cli
 

@@ -1,4 +1,4 @@
-"""The fit preview (hybridbrdf.preview): each cell of its grid shows the material and the
+"""The fit preview (hybridbrdf.render.preview): each cell of its grid shows the material and the
 evaluation its labels say.
 
 Oracle: a model whose network is switched off (f_c = exp(-80) = 0, f_g = sigmoid(80) = 1) holds
@@ -12,9 +12,9 @@ import pytest
 import torch
 
 from hybridbrdf import _core
-from hybridbrdf.model_file import HybridModel
-from hybridbrdf.models import build_model
-from hybridbrdf.preview import ROWS, preview_scenes, render_grid
+from hybridbrdf.model.file import HybridModel
+from hybridbrdf.model.networks import build_model
+from hybridbrdf.render.preview import ROWS, preview_scenes, render_grid
 
 pytestmark = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="build without the renderer")
 

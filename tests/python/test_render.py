@@ -16,7 +16,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core
-from hybridbrdf import render as hr
+from hybridbrdf.render import tracer as hr
 
 from helpers import run_cli, sphere_on_floor_scene
 

@@ -1,5 +1,5 @@
 """Hostile input and interruption for the renderer (docs/RENDERING.md, "Cancellation" and "Limits
-and validation"): Ctrl-C and SIGTERM stop ``hbrdf render`` and ``hybridbrdf.render.render()`` within
+and validation"): Ctrl-C and SIGTERM stop ``hbrdf render`` and ``hybridbrdf.render.tracer.render()`` within
 about one tile and leave the previous output files untouched; sizes beyond the limits, negative or
 non-finite values, unwritable outputs and bad measured sources are one-line errors, raised before any
 rendering (the C++ side of the same rules: tests/cpp/test_render_hostile.cpp)."""
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from hybridbrdf import _core
-from hybridbrdf import render as hr
+from hybridbrdf.render import tracer as hr
 
 from helpers import run_cli, sphere_on_floor_scene
 
@@ -387,7 +387,7 @@ def test_a_measured_factory_error_is_one_line():
 
 def _scene_with_files(tmp_path):
     """A scene file naming a model file, a measured source and a mesh (files that exist)."""
-    from hybridbrdf.random_model import random_model
+    from hybridbrdf.model.random import random_model
 
     _, model = random_model("hybrid", latent=2, width=8, depth=1)
     model.save(tmp_path / "m.safetensors")

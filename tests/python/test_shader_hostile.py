@@ -23,8 +23,9 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.codegen import generate, material_constant
-from hybridbrdf.random_model import random_model
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.codegen.literals import material_constant
+from hybridbrdf.model.random import random_model
 
 from helpers import hard_directions, saved_random_model, skip_without_vulkan
 from shader_kernels import render_shader

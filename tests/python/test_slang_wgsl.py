@@ -20,9 +20,10 @@ import numpy as np
 import pytest
 
 from hybridbrdf import spec
-from hybridbrdf.codegen import generate, main as codegen_main, material_constant
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.random_model import random_model
+from hybridbrdf.codegen.main import generate, main as codegen_main
+from hybridbrdf.codegen.literals import material_constant
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.model.random import random_model
 
 from helpers import compile_spirv, half_rounded_copy, hard_pairs, run_on_lavapipe, saved_random_model
 from helpers import skip_without_vulkan

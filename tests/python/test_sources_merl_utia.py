@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf.metrics import smape
-from hybridbrdf.sources import BRDFFormatError, open_source
+from hybridbrdf.evaluate.metrics import smape
+from hybridbrdf.sources.base import BRDFFormatError
+from hybridbrdf.sources import open_source
 from hybridbrdf.sources.merl import MERLSource, open_merl, write_merl
 from hybridbrdf.sources.utia import UTIASource, open_utia, read_utia_table, write_utia
 
-from hybridbrdf.directions import cosine_directions
+from hybridbrdf.evaluate.directions import cosine_directions
 
 from helpers import rot_y, rot_z
 

@@ -19,11 +19,12 @@ import h5py
 import numpy as np
 import pytest
 
-from hybridbrdf.metrics import smape
-from hybridbrdf.sources import BRDFFormatError, open_source
+from hybridbrdf.evaluate.metrics import smape
+from hybridbrdf.sources.base import BRDFFormatError
+from hybridbrdf.sources import open_source
 from hybridbrdf.sources.nbrdf import NBRDFSource, nbrdf_origin, open_nbrdf
 
-from hybridbrdf.directions import cosine_directions
+from hybridbrdf.evaluate.directions import cosine_directions
 
 from helpers import mitsuba_f, mitsuba_measured, rot_y, rot_z
 

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.metrics import smape
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.evaluate.metrics import smape
 from hybridbrdf.sources import open_source
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
 from hybridbrdf.sources.rgl import RGLSource, open_rgl

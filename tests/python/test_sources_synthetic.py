@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 import hybridbrdf as hb
-from hybridbrdf.sources import BRDFFormatError, BRDFSource, expand_sources, open_source
+from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources import synthetic as syn
 from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic
 
-from hybridbrdf.directions import cosine_directions
-from hybridbrdf.reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
+from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.brdf.reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
 
 from helpers import hard_pairs, mitsuba_f, valid_upper
 

@@ -23,8 +23,9 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import inputs
-from hybridbrdf.random_model import random_model
-from hybridbrdf.sources import BRDFFormatError, open_source
+from hybridbrdf.model.random import random_model
+from hybridbrdf.sources.base import BRDFFormatError
+from hybridbrdf.sources import open_source
 from hybridbrdf.sources import merl, nbrdf, rgl, utia
 
 # Each reader and the largest file it reads (a sparse file one byte beyond it must be refused).
@@ -187,14 +188,14 @@ def test_model_files_that_are_fifos_or_devices_are_refused(tmp_path, kind):
 
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_scene_files_that_are_fifos_or_devices_are_refused(tmp_path, kind):
-    from hybridbrdf.render import load_scene_dict
+    from hybridbrdf.render.tracer import load_scene_dict
 
     path = make_special(str(tmp_path / "s.json"), kind)
     assert_refused_at_once(lambda: load_scene_dict(path), path, KINDS[kind])
 
 
 def test_scene_file_larger_than_the_bound_is_refused_from_its_size(tmp_path):
-    from hybridbrdf.render import MAX_SCENE_BYTES, load_scene_dict
+    from hybridbrdf.render.tracer import MAX_SCENE_BYTES, load_scene_dict
 
     path = tmp_path / "s.json"
     with open(path, "wb") as fh:
@@ -205,7 +206,7 @@ def test_scene_file_larger_than_the_bound_is_refused_from_its_size(tmp_path):
 
 
 def test_checkpoint_that_is_a_device_is_refused(tmp_path):
-    from hybridbrdf import checkpoint
+    from hybridbrdf.fit import checkpoint
 
     path = make_special(str(tmp_path / "c.ckpt"), "zero")
     assert_refused_at_once(lambda: checkpoint.read(path), path, KINDS["zero"], checkpoint.CheckpointError)
@@ -257,7 +258,7 @@ def test_codegen_of_a_fifo_model_does_not_hang(tmp_path):
     os.mkfifo(model)
     out = tmp_path / "o.glsl"
     out.write_text("previous code")
-    r = run([sys.executable, "-m", "hybridbrdf.codegen", model, "--target", "glsl", "-o", str(out)])
+    r = run([sys.executable, "-m", "hybridbrdf.codegen.main", model, "--target", "glsl", "-o", str(out)])
     assert_one_line_error(r, "hbrdf-codegen", model, KINDS["fifo"])
     assert out.read_text() == "previous code"
 
@@ -300,7 +301,7 @@ def test_libhybridbrdf_refuses_special_model_files_in_the_same_words(tmp_path, k
 
 
 def test_a_scene_naming_a_fifo_model_does_not_hang_the_render(tmp_path):
-    from hybridbrdf import render as hr
+    from hybridbrdf.render import tracer as hr
 
     model = make_special(str(tmp_path / "m.safetensors"), "fifo")
     scene = {"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0], "fov_deg": 40, "width": 4, "height": 4},

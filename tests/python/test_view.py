@@ -1,4 +1,4 @@
-"""``hbrdf view`` (hybridbrdf.viewer, docs/VIEWER.md): the page in a real browser.
+"""``hbrdf view`` (hybridbrdf.viewer.page, docs/VIEWER.md): the page in a real browser.
 
 Chromium headless with software WebGL2 (ANGLE on SwiftShader) opens the page from its file path
 with ``--dump-dom``; the page draws at load and, with ``#readback=1``, writes its canvas's pixels
@@ -6,7 +6,7 @@ into the DOM and its outcome into the title ("hbrdf view: ok" or "hbrdf view: er
 Without chromium the browser tests skip, unless HBRDF_REQUIRE_BROWSER=1 (then they fail).
 
 The oracle for the pixels is the C++ path tracer rendering the same camera, light and material
-(hybridbrdf.viewer.tracer_scene: direct light only). Bound on the mean absolute difference (8-bit sRGB
+(hybridbrdf.viewer.page.tracer_scene: direct light only). Bound on the mean absolute difference (8-bit sRGB
 units) over the pixels the sphere covers entirely:
     MAD(page, tracer seed 0) <= MAD(tracer seed 0, tracer seed 1) + 1.
 Why: the tracer's images are E + n_i with independent noise n_i of its sample count (64 per pixel),
@@ -33,8 +33,10 @@ import numpy as np
 import pytest
 
 from hybridbrdf import _core
-from hybridbrdf import viewer
-from hybridbrdf.model_file import load_model
+from hybridbrdf.viewer import page as viewer
+from hybridbrdf.viewer.scene import CAMERA, srgb8, tracer_scene
+from hybridbrdf.viewer.glsl import DISPLAY_SHADER
+from hybridbrdf.model.file import load_model
 from helpers import run_cli
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -117,15 +119,15 @@ def page_pixels(page, hash_):
 
 
 def tracer_pixels(scene, seed=0):
-    from hybridbrdf.render import render
+    from hybridbrdf.render.tracer import render
 
     img, _ = render(scene, seed=seed, spp=SPP, threads=2)
-    return viewer.srgb8(img)
+    return srgb8(img)
 
 
 def interior_mask():
     """Pixels the unit sphere covers entirely (the page's camera; corners and centre hit it)."""
-    cam = viewer.CAMERA
+    cam = CAMERA
     pos, look, up = (np.array(cam[k], dtype=np.float64) for k in ("position", "look_at", "up"))
     f = (look - pos) / np.linalg.norm(look - pos)
     r = np.cross(f, up)
@@ -171,7 +173,7 @@ def test_page_matches_tracer(page, analytic):
     """(1) The page's sphere against the tracer's image of the scene the page shows for it."""
     material = "paper_white_rgb.rgl"
     img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
-    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
+    assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
                                         light="sun", elevation=40, azimuth=130)
     assert_matches_tracer(img, scene)
 
@@ -186,11 +188,11 @@ def test_page_matches_tracer_under_the_environment(page, material, analytic, rot
     page: 256 samples per pixel against the tracer's 64 (bound in the module docstring); the map's
     rotation turns the same way in both (the opposite turn is far off)."""
     img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256")
-    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
+    assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
                                         rotation=rotation)
     diff, noise = assert_matches_tracer(img, scene, max_noise=6.0)
     if rotation:
-        mirrored = viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
+        mirrored = tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
         assert mad(img, tracer_pixels(mirrored), interior_mask()) > noise + 4.0
 
 
@@ -340,7 +342,7 @@ def test_bad_url_parameters_one_line(page, hash_, line):
 def test_fragment_shader_is_the_generated_glsl_as_es300(tmp_path, model_file):
     """The page's shader: ES 3.00 lines, then hbrdf-codegen's GLSL unchanged, then the page's main;
     glslang compiles it as a GLSL ES 3.00 fragment shader (without a browser)."""
-    from hybridbrdf.codegen import generate
+    from hybridbrdf.codegen.main import generate
 
     model = load_model(model_file)
     frag = viewer.page_data(model, model_file)["fragment"]
@@ -349,13 +351,13 @@ def test_fragment_shader_is_the_generated_glsl_as_es300(tmp_path, model_file):
     exe = shutil.which("glslangValidator")
     if exe is None:
         pytest.skip("glslangValidator not installed (scripts/setup.sh installs glslang-tools)")
-    for name, source in (("page.frag", frag), ("display.frag", viewer.DISPLAY_SHADER)):
+    for name, source in (("page.frag", frag), ("display.frag", DISPLAY_SHADER)):
         (tmp_path / name).write_text(source)
         r = subprocess.run([exe, "-S", "frag", str(tmp_path / name)], capture_output=True, text=True)
         assert r.returncode == 0, (name, r.stdout[-3000:])
 
 
-# ---- the environment map (hybridbrdf.viewer_lighting) ----
+# ---- the environment map (hybridbrdf.viewer.lighting) ----
 
 def _irradiance_up(image):
     """Irradiance on an upward-facing surface from an equirect map (the tracer's mapping: texel rows
@@ -371,7 +373,8 @@ def test_reduced_map_keeps_the_light():
     """A map wider than the page carries is area-averaged, rows by their solid angle: the sky's
     irradiance on an upward surface (its 1 degree sun included) is kept, and a map that fits is
     passed through untouched."""
-    from hybridbrdf import _core, viewer_lighting
+    from hybridbrdf import _core
+    from hybridbrdf.viewer import lighting as viewer_lighting
 
     big = dict(viewer_lighting.DEFAULT_ENVIRONMENT, resolution=[2048, 1024], sun_size_deg=0.5)
     image = np.asarray(_core.render_environment(json.dumps(big), ".", "test"))

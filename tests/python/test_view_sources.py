@@ -1,4 +1,4 @@
-"""``hbrdf view MODEL SOURCE...``: the measurement beside the model (hybridbrdf.viewer_sources,
+"""``hbrdf view MODEL SOURCE...``: the measurement beside the model (hybridbrdf.viewer.measured,
 data/viewer_plots.js; docs/VIEWER.md, "The measurement beside the model").
 
 Independent references:
@@ -6,7 +6,7 @@ Independent references:
   reader's own eval, f_a against reference.textbook_fa (float64, CONVENTIONS.md literally) with the
   model's parameters, the model against its PyTorch float64 evaluation (the page's numbers come from
   the C++ library in float32);
-- the measured render: the tracer's render of the scene built here from viewer.tracer_scene as
+- the measured render: the tracer's render of the scene built here from tracer_scene as
   documented, decoded from the page's PNG by Pillow (not the page's encoder), equal pixel for pixel;
   and, for synthetic:plastic (exactly an f_a), against the tracer's render of the scene the page
   itself prints for the model's f_a with the same parameters (bound: the noise between two seeds + 1,
@@ -29,10 +29,14 @@ import numpy as np
 import pytest
 import torch
 
-from hybridbrdf import _core, viewer, viewer_sources
-from hybridbrdf.model_file import load_model
-from hybridbrdf.random_model import random_model
-from hybridbrdf.reference import textbook_fa
+from hybridbrdf import _core
+
+from hybridbrdf.viewer.scene import srgb8, tracer_scene
+
+from hybridbrdf.viewer import measured as viewer_sources
+from hybridbrdf.model.file import load_model
+from hybridbrdf.model.random import random_model
+from hybridbrdf.brdf.reference import textbook_fa
 from hybridbrdf.sources import open_source
 from helpers import run_cli
 from test_view import chromium, open_page, unescape
@@ -97,14 +101,14 @@ def png_pixels(uri):
 
 def measured_render(model_path, material, source, size=S, spp=SPP, seed=0):
     """The tracer's render of the measurement in the page's scene, built here as documented."""
-    from hybridbrdf.render import render
+    from hybridbrdf.render.tracer import render
 
-    scene = viewer.tracer_scene(model_path, material, width=size, height=size, spp=spp)
+    scene = tracer_scene(model_path, material, width=size, height=size, spp=spp)
     p = load_model(model_path).analytic_params(material)
     scene["materials"]["m"] = {"type": "measured", "source": source if source.startswith("synthetic:") else
                                os.path.abspath(source),
                                "sampling_params": {"kd": p.kd.tolist(), "eta": p.eta.tolist(), "alpha": p.alpha.tolist()}}
-    return viewer.srgb8(render(scene, seed=seed)[0])
+    return srgb8(render(scene, seed=seed)[0])
 
 
 def check_slices(model_path, data, material, source):
@@ -145,7 +149,7 @@ def test_slices_are_the_evaluations(synthetic_model, synthetic_page):
 @needs_renderer
 def test_measured_render_is_the_page_scene_rendered(synthetic_model, synthetic_page):
     """The embedded PNG is, pixel for pixel, the tracer's render of the page's scene with the
-    measurement as its material, tone-mapped as the page (viewer.srgb8)."""
+    measurement as its material, tone-mapped as the page (srgb8)."""
     data = page_json(synthetic_page)
     for i, (material, source) in {0: ("plastic", "synthetic:plastic"),
                                   2: ("brushed_aluminium", "synthetic:brushed_aluminium")}.items():
@@ -254,12 +258,12 @@ def test_measured_plastic_matches_the_page_scene_of_its_fa(synthetic_page, plast
     """synthetic:plastic is exactly the f_a of the model's plastic: its embedded render agrees with the
     tracer's render of the scene the page prints for that f_a (the page's camera and light) within
     the noise of two seeds of that render + 1 (8-bit units)."""
-    from hybridbrdf.render import render
+    from hybridbrdf.render.tracer import render
 
     title, status, dom, console = plastic_dom
     scene = json.loads(unescape(re.search(r'<pre id="scene">(.*?)</pre>', dom, re.S).group(1)))
     assert scene["materials"]["m"]["evaluate"] == "analytic" and scene["camera"]["width"] == S
-    t0, t1 = (viewer.srgb8(render(scene, spp=SPP, seed=k)[0]) for k in (0, 1))
+    t0, t1 = (srgb8(render(scene, spp=SPP, seed=k)[0]) for k in (0, 1))
     img = png_pixels(page_json(synthetic_page)["sources_panel"]["materials"][0]["image"])
     noise = np.abs(t0.astype(int) - t1.astype(int)).mean()
     diff = np.abs(img.astype(int) - t0.astype(int)).mean()

@@ -40,9 +40,10 @@ import urllib.parse
 import numpy as np
 import pytest
 
-from hybridbrdf import viewer
-from hybridbrdf.codegen import generate
-from hybridbrdf.model_file import load_model
+from hybridbrdf.viewer import page as viewer
+from hybridbrdf.viewer.scene import tracer_scene
+from hybridbrdf.codegen.main import generate
+from hybridbrdf.model.file import load_model
 from helpers import run_cli
 from test_view import (CHROMIUM_FLAGS, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
                        interior_mask, mad, needs_renderer, open_page, page, page_state, read_state, tracer_pixels,
@@ -200,10 +201,10 @@ def test_webgpu_matches_tracer_under_the_environment(webgpu, page, material, ana
     """(1) WebGPU's Monte Carlo under the map (256 samples per pixel) against the tracer's 64 (bound
     in the module docstring); the map turns the same way (the opposite turn is far off)."""
     img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256")
-    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
+    assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
                                         rotation=rotation)
     diff, noise = assert_matches_tracer(img, scene, max_noise=6.0)
-    mirrored = viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
+    mirrored = tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
     assert mad(img, tracer_pixels(mirrored), interior_mask()) > noise + 4.0
 
 
@@ -213,7 +214,7 @@ def test_webgpu_matches_tracer_under_the_environment(webgpu, page, material, ana
 def test_webgpu_matches_tracer_in_the_sun(webgpu, page, material, analytic):
     """(2) The sun alone (one exact sample per pixel) against the tracer's 64 samples."""
     img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
-    assert scene == viewer.tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
+    assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
                                         light="sun", elevation=40, azimuth=130)
     assert_matches_tracer(img, scene)
 
@@ -344,9 +345,9 @@ def test_wgsl_is_the_generated_code_and_validates(model_file):
         fragment={"module": display, "entry_point": "hbrdf_view_fragment", "targets": [{"format": "rgba8unorm"}]},
         primitive={"topology": "triangle-list"})
     # the uniform block as viewer_webgpu.js fills it: the head's floats, then the packed material
-    from hybridbrdf import viewer_wgsl
+    from hybridbrdf.viewer import wgsl as viewer_wgsl
 
     assert f"pack: array<vec4f, {(data['n_pack'] + 3) // 4}>" in data["wgsl"]
-    js = (pathlib.Path(viewer.__file__).parent / "data" / "viewer_webgpu.js").read_text()
+    js = (pathlib.Path(viewer.__file__).parent / "viewer_webgpu.js").read_text()
     assert f"const PARAMS_HEAD_FLOATS = {viewer_wgsl.PARAMS_HEAD_BYTES // 4};" in js
     assert f"const WORKGROUP = {viewer_wgsl.WORKGROUP};" in js

@@ -451,7 +451,7 @@ private:
             MeasuredDecl d = read_measured_decl(r_, m, w);
             if (!options_.measured)
                 r_.fail(w, "measured materials ('" + d.source +
-                               "') are evaluated by Python readers: render this scene with hybridbrdf.render "
+                               "') are evaluated by Python readers: render this scene with hybridbrdf.render.tracer "
                                "or 'hbrdf render'");
             BatchEval eval;
             try {

@@ -14,7 +14,7 @@ from hybridbrdf.sources.base import BRDFSource
 
 
 class ModelMaterialSource(BRDFSource):
-    """Material ``material`` of a :class:`~hybridbrdf.model_file.HybridModel`, evaluated by
+    """Material ``material`` of a :class:`~hybridbrdf.model.file.HybridModel`, evaluated by
     PyTorch in float64 (the reference the C++ library is tested against): the full model f_t,
     no cosine. ``origin`` names the model."""
 

@@ -358,7 +358,7 @@ class LambertGGXDielectric(SyntheticBRDF):
     @property
     def analytic_params(self):
         """The same material as :class:`hybridbrdf.AnalyticParams` (float32 C++ model)."""
-        from hybridbrdf.analytic import AnalyticParams
+        from hybridbrdf.brdf.analytic import AnalyticParams
 
         return AnalyticParams(kd=self.kd, eta=self.eta, alpha=(self.alpha_x, self.alpha_y))
 

@@ -6,7 +6,7 @@
 // it: the scene loader reads and checks each row (set_setting), RenderOptions
 // inherits RenderSettings (a scene's settings become render options by one
 // copy), and the Python bindings export the table, from which
-// hybridbrdf.render takes the overrides it accepts and `hbrdf render` its
+// hybridbrdf.render.tracer takes the overrides it accepts and `hbrdf render` its
 // flags. A new setting is one member and one row.
 #pragma once
 

@@ -1,0 +1,1 @@
+"""hbrdf-codegen: GLSL, HLSL, Slang, WGSL, C++ and BRDF Explorer sources from a model file."""

@@ -1,0 +1,121 @@
+"""Code generation: a model file becomes self-contained GLSL, HLSL, Slang, WGSL, C++ or BRDF Explorer code.
+
+    hbrdf-codegen MODEL --target glsl|hlsl|slang|wgsl|cpp|brdfexplorer [--materials a,b | --scene SCENE.json] -o OUT
+
+One Jinja2 template (``codegen/hbrdf.j2``) serves every shader and header target; a small
+dialect table (:data:`DIALECTS`) holds what differs between the languages.
+The generated code defines, with the same names in every dialect:
+
+- ``struct HbrdfMaterial { kd, eta, alpha_x, alpha_y, z[] }`` and one constant
+  ``HBRDF_MATERIAL_<NAME>`` per material (name upper-cased, other characters ``_``);
+- ``hbrdf_eval(wi, wo, m)`` (the full model, f without the cosine),
+  ``hbrdf_eval_analytic(wi, wo, m)``, ``hbrdf_eval_depth(wi, wo, m, depth)`` (f_a from depth
+  ``HBRDF_NEURAL_MAX_DEPTH`` on, the scene's neural_max_depth), ``hbrdf_pdf(wi, wo, m)`` and
+  ``hbrdf_sample(wo, u, m, out pdf)`` (MIS of cosine and GGX lobes, as the library);
+- in C++ everything lives in namespace ``hbrdf`` with its own ``hbrdf::float3``.
+
+Weights are printed with 9 significant digits, which round-trips float32 exactly.
+
+This module is the entry point (:func:`generate` and the ``hbrdf-codegen`` command); the parts
+live in one module each of this package: :mod:`~hybridbrdf.codegen.literals` (literals, comments,
+the dialect table), :mod:`~hybridbrdf.codegen.scene` (the scene plan), :mod:`~hybridbrdf.codegen.network`
+(the network's layers and unrolled statements), :mod:`~hybridbrdf.codegen.source` (the template
+rendered for one dialect) and :mod:`~hybridbrdf.codegen.brdfexplorer`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Dict, Optional, Sequence
+
+from hybridbrdf.codegen.brdfexplorer import generate_brdfexplorer
+from hybridbrdf.codegen.literals import DIALECTS
+from hybridbrdf.codegen.source import MLP_FORMS, generate_source
+from hybridbrdf.codegen.scene import load_scene
+from hybridbrdf.errors import InputFileError, one_line_text
+from hybridbrdf.inputs import refuse_output_over_input
+from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.util import atomic_write_bytes, check_writable
+
+TARGETS = ("glsl", "hlsl", "slang", "wgsl", "cpp", "brdfexplorer")
+
+
+def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
+             model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
+             precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None) -> str:
+    """Source code of ``model`` for ``target`` (one of :data:`TARGETS`), for all or
+    the named materials. For brdfexplorer the first (or only) material gives the parameters'
+    default values; kd, eta, alpha and the latent code become sliders.
+
+    ``mlp_form`` is "unrolled" (straight-line code, weights as literals), "loops"
+    (weights in constant arrays, loops over them) or "auto": unrolled for the shading languages
+    (shader compilers turn constant arrays indexed in loops into per-invocation memory;
+    see docs/CODEGEN.md), loops for C++ (the C++ compiler vectorises the loops).
+    With ``precision="fp16"`` the layer weights are rounded to IEEE binary16: unrolled
+    code prints the rounded values (exactly), loops store them packed two per 32-bit word.
+    ``scene`` is the plan :func:`load_scene` makes of a path-tracer scene: ``{"name", "materials":
+    [{"name", "evaluate"}], "neural_max_depth" (optional), "not_emitted" (optional)}``."""
+    if target == "brdfexplorer":
+        return generate_brdfexplorer(model, materials, model_path, extra_args)
+    if target not in DIALECTS:
+        raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
+    return generate_source(model, target, materials, model_path, extra_args, scene, precision, mlp_form, literal_head)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="hbrdf-codegen",
+                                 description="Generate GLSL, HLSL, Slang, WGSL or C++ code from a model file.")
+    ap.add_argument("model", help="model file written by hbrdf fit")
+    ap.add_argument("--target", required=True, choices=TARGETS,
+                    help="output language: glsl (GLSL 4.50), hlsl (DXC/glslang), slang (slangc), wgsl (WebGPU; "
+                         "hbrdf_sample takes pdf as ptr<function, f32>), cpp (C++17 header), brdfexplorer (Disney "
+                         "BRDF Explorer .brdf); docs/CODEGEN.md")
+    ap.add_argument("--materials", help="comma-separated material names to include (default: all)")
+    ap.add_argument("--scene", help="path-tracer scene file (docs/RENDERING.md): emit only its materials of type "
+                                    "\"model\" in MODEL and specialise the code (isotropic-only GGX, no network for "
+                                    "analytic-only scenes, latent folded for one material, neural_max_depth as "
+                                    "HBRDF_NEURAL_MAX_DEPTH and hbrdf_eval_depth)")
+    ap.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
+                    help="layer weights: fp32 (exact) or fp16 (rounded to IEEE half: exact half values as literals "
+                         "in unrolled code, two per 32-bit word in loops)")
+    ap.add_argument("--mlp-form", choices=MLP_FORMS, default="auto",
+                    help="network code: unrolled (weights as literals), loops (weights in constant arrays) or auto "
+                         "(default: unrolled for GLSL/HLSL/Slang/WGSL, loops for C++)")
+    ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
+    args = ap.parse_args(argv)
+    try:
+        # Before any work: -o naming the model or the scene (by any path) would replace it with code.
+        refuse_output_over_input(args.out, [args.model, args.scene], "-o/--out")
+        model = load_model(args.model)
+        materials = [m for m in args.materials.split(",") if m] if args.materials else None
+        if args.scene and materials:
+            raise ValueError("give either --materials or --scene, not both")
+        if args.scene and args.target == "brdfexplorer":
+            raise ValueError("--scene specialises shader code for a path-tracer scene; a BRDF Explorer file "
+                             "shows one material: give --materials NAME instead")
+        check_writable(args.out, "generated code")
+        scene = load_scene(args.scene, model, args.model) if args.scene else None
+        extra = (f" --materials {args.materials}" if args.materials else "") + (f" --scene {args.scene}" if args.scene else "")
+        if args.precision != "fp32":
+            extra += f" --precision {args.precision}"
+        if args.mlp_form != "auto":
+            extra += f" --mlp-form {args.mlp_form}"
+        if args.target == "brdfexplorer" and args.precision != "fp32":
+            raise ValueError("--precision fp16 is not available for brdfexplorer")
+        text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra,
+                        scene=scene, precision=args.precision, mlp_form=args.mlp_form)
+        if scene is not None:
+            materials = [m["name"] for m in scene["materials"]]
+        atomic_write_bytes(args.out, text.encode("utf-8"))
+    except (InputFileError, ValueError, KeyError, OSError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        print(f"hbrdf-codegen: error: {one_line_text(str(msg))}", file=sys.stderr)
+        return 1
+    print(f"wrote {args.out} ({args.target}, {len(materials or model.materials)} materials)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

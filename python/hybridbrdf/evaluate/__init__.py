@@ -1,0 +1,1 @@
+"""Evaluation: the metrics of the paper, their directions, the per-material tables."""

@@ -1,0 +1,1 @@
+"""Fitting: settings, the training pool, loss, schedule, loop, record, checkpoints, ranks, hbrdf add."""

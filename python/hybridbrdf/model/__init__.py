@@ -1,0 +1,1 @@
+"""Fitted models: the model file, the networks, editing, precision, the shipped prior."""

@@ -1,0 +1,36 @@
+"""The shipped prior: a network to add new measurements to (``hbrdf add`` without ``--to``).
+
+The prior is a hybrid model (32x2, latent 8, material output layers) whose network was fitted to
+every measured material of the project's data (the raw RGL files and the NBRDF reconstructions
+of RGL, MERL and Nielsen), with the default recipe; it ships inside the package (about 170 KB: the
+network and each training material's (p, z, head), which sparse fitting scores as starting
+points). ``hbrdf add`` fits a measurement's (p, z, head) on the prior's frozen network, then by
+default fine-tunes the network with it; the written model holds the new materials only
+(docs/FITTING.md, "Adding to the prior" and "The shipped prior").
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+from hybridbrdf.errors import InputFileError
+
+#: Where the package keeps the prior.
+PRIOR_FILE = pathlib.Path(__file__).resolve().parents[1] / "data" / "prior.safetensors"
+
+
+def prior_path() -> str:
+    """The shipped prior's model file; InputFileError if this installation lacks it (a source
+    checkout before ``bench/train_prior.py`` has run)."""
+    if not PRIOR_FILE.is_file():
+        raise InputFileError(os.fspath(PRIOR_FILE), "the shipped prior is missing from this installation; "
+                                                    "pass --to BASE (or train one: python bench/train_prior.py)")
+    return os.fspath(PRIOR_FILE)
+
+
+def load_prior():
+    """The shipped prior as a :class:`~hybridbrdf.model.file.HybridModel`."""
+    from hybridbrdf.model.file import load_model
+
+    return load_model(prior_path())
