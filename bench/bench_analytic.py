@@ -6,7 +6,7 @@ Paths, all measured in this one run on 2^20 cosine-weighted direction pairs:
     AoS evaluation, MIS sampling; AVX2+FMA and the baseline kernels
   * C++ through the Python bindings (what a Python user gets)
   * PyTorch float32 (hybridbrdf.brdf.torch_brdf), one thread
-  * NumPy float64 (the textbook transcription hybridbrdf.brdf.reference)
+  * NumPy float64 (the textbook transcription tests/python/textbook_reference.py)
 
 The process is pinned to one core. Prints a table and the ratio of each path
 to NumPy; --json writes the figures. Usage:
@@ -31,10 +31,11 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf.brdf import torch_brdf
-from hybridbrdf.brdf.reference import sample_mis as numpy_sample_mis
-from hybridbrdf.brdf.reference import textbook_fa as numpy_fa
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "python"))  # the float64 textbook oracle the tests check against
+from textbook_reference import sample_mis as numpy_sample_mis  # noqa: E402
+from textbook_reference import textbook_fa as numpy_fa  # noqa: E402
 
 TARGET_EVALS_PER_S = 50e6
 

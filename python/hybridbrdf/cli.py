@@ -1,7 +1,7 @@
 """The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``view``, ``info``, ``demo``, ``render``.
 
 ``hbrdf <command> --help`` documents every flag. The fit flags, their help and defaults are
-generated from :class:`hybridbrdf.fit.fit.FitSettings` (:func:`add_fit_flags`), and so is the
+generated from :class:`hybridbrdf.fit.settings.FitSettings` (:func:`add_fit_flags`), and so is the
 README's synopsis of ``hbrdf fit`` (:func:`fit_synopsis`; a test keeps the README current).
 
 A SOURCE is a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF), a folder, a
@@ -14,24 +14,42 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
+import signal
 import sys
+import threading
 
 from hybridbrdf import spec
+from hybridbrdf.demo import run_demo
+from hybridbrdf.errors import InputFileError, one_line_text
+from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, format_table
+from hybridbrdf.fit import checkpoint as ckpt, distributed as dd
+from hybridbrdf.fit.adding import add
+from hybridbrdf.fit.distributed import RankLostError
+from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
+from hybridbrdf.fit.record import environment_line
+from hybridbrdf.fit.settings import ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
+from hybridbrdf.model.editing import parse_assignments
+from hybridbrdf.model.file import load_model
+from hybridbrdf.model.prior import prior_path
+from hybridbrdf.render.preview import ROWS, render_preview
+from hybridbrdf.render.tracer import RenderMaterialError, render
+from hybridbrdf.render.tracer import settings as render_settings
+from hybridbrdf.sources import expand_sources, open_source
+from hybridbrdf.util import check_writable
 from hybridbrdf.version import __version__
+from hybridbrdf.viewer import measured as viewer_sources
+from hybridbrdf.viewer.page import write_page
 
 EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
           "or synthetic:NAME (synthetic:all = every built-in material).")
 
 
 def _open_all(specs):
-    from hybridbrdf.sources import expand_sources, open_source
-
     return [open_source(s) for s in expand_sources(specs)]
 
 
 def _fit_fields():
-    from hybridbrdf.fit.settings import FitSettings
-
     return [f for f in dataclasses.fields(FitSettings) if f.metadata.get("flag")]
 
 
@@ -52,9 +70,6 @@ def settings_from_args(args: argparse.Namespace, sparse: bool = False):
     """FitSettings from parsed flags: a flag left unset keeps its value in the recipe
     (``--recipe``, default hybridbrdf: the fields' defaults). ``sparse``: the settings of a
     sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit.settings.ADD_STEPS`."""
-    from hybridbrdf.fit.settings import ADD_STEPS, FitSettings, parse_mlp
-    from hybridbrdf.fit.fit import default_device
-
     values = {}
     for f in _fit_fields():
         v = getattr(args, f.name, None)  # a command may offer a subset of the flags (hbrdf add)
@@ -100,10 +115,6 @@ def fit_synopsis() -> str:
 def _check_fit_outputs(args: argparse.Namespace) -> None:
     """--out and --checkpoint: writable, and not the same file (the model would replace the
     checkpoint a later --resume needs). Raises InputFileError naming the path."""
-    import os
-
-    from hybridbrdf.errors import InputFileError
-    from hybridbrdf.util import check_writable
 
     check_writable(args.out, "model")
     if getattr(args, "preview_path", None):
@@ -118,9 +129,6 @@ def _check_fit_outputs(args: argparse.Namespace) -> None:
 
 def _check_out_is_no_source(out: str, sources) -> None:
     """Refuse to write the model over one of the files it is fitted to."""
-    import os
-
-    from hybridbrdf.errors import InputFileError
 
     target = os.path.realpath(out)
     for src in sources:
@@ -129,20 +137,11 @@ def _check_out_is_no_source(out: str, sources) -> None:
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
-    import os
-
-    from hybridbrdf.fit import checkpoint as ckpt
-    from hybridbrdf.fit import distributed as dd
-    from hybridbrdf.fit.fit import fit, frozen_arch_settings
-    from hybridbrdf.evaluate.evaluation import format_table
-    from hybridbrdf.model.file import load_model
 
     settings = settings_from_args(args)
     settings.check()
     args.preview_path = None if args.no_preview else (args.preview or os.path.splitext(args.out)[0] + ".png")
     if args.preview_path and os.path.abspath(args.preview_path) == os.path.abspath(args.out):
-        from hybridbrdf.errors import InputFileError
-
         raise InputFileError(args.out, "--out and --preview name the same file")
     # Under torchrun (WORLD_SIZE > 1): a data-parallel fit, rank 0 writes the files.
     ranks = dd.Ranks(world=dd.launched_world_size())
@@ -155,8 +154,6 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         raise ValueError("--frozen keeps MODEL's network and --init trains it further: give one of them")
     init = None
     if settings.init_from:
-        from hybridbrdf.model.prior import prior_path
-
         init = load_model(prior_path() if settings.init_from == "prior" else settings.init_from)
     for start_model in (frozen, init):
         if start_model is not None:
@@ -203,8 +200,6 @@ def _write_preview(model_path: str, sources, png: str) -> None:
     """The picture that ends `hbrdf fit`. The model is written by then: a preview that cannot be
     rendered (a build without the renderer, a source the tracer's reader refuses) is reported in
     one line and does not fail the command."""
-    from hybridbrdf.render.preview import ROWS, render_preview
-
     try:
         info = render_preview(model_path, sources, png)
     except (RuntimeError, ValueError, OSError) as exc:
@@ -216,9 +211,6 @@ def _write_preview(model_path: str, sources, png: str) -> None:
 
 
 def _cmd_add(args: argparse.Namespace) -> int:
-    from hybridbrdf.fit.adding import add
-    from hybridbrdf.evaluate.evaluation import format_table
-
     settings = settings_from_args(args, sparse=True)
     if args.to is not None and (args.keep_network or (args.finetune_steps is not None and not args.refine)):
         raise ValueError("--keep-network and --finetune-steps are for adding to the shipped prior or with --refine; "
@@ -280,10 +272,6 @@ def _write_new_material(model, name: str, out: str) -> int:
 
 
 def _cmd_edit(args: argparse.Namespace) -> int:
-    from hybridbrdf.model.editing import parse_assignments
-    from hybridbrdf.model.file import load_model
-    from hybridbrdf.util import check_writable
-
     values = parse_assignments(args.set)
     check_writable(args.out, "model")
     model = load_model(args.model)
@@ -292,8 +280,6 @@ def _cmd_edit(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from hybridbrdf.viewer.page import write_page
-
     info = write_page(args.model, args.out, args.sources, env=args.env,
                       source_options={"size": args.source_size, "spp": args.source_spp})
     print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {info['materials']} materials): open it in a browser "
@@ -302,9 +288,6 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _cmd_mix(args: argparse.Namespace) -> int:
-    from hybridbrdf.model.file import load_model
-    from hybridbrdf.util import check_writable
-
     check_writable(args.out, "model")
     model = load_model(args.model)
     blend = model.mix(args.a, args.b, args.t, args.as_name, conserve_energy=args.conserve_energy)
@@ -312,10 +295,6 @@ def _cmd_mix(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from hybridbrdf.fit.settings import PAIRS
-    from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, format_table
-    from hybridbrdf.model.file import load_model
-
     problem = PAIRS.problem(args.pairs)  # the range of fit's --eval-pairs (argparse takes counts up to 1e9)
     if problem:
         raise ValueError(f"--pairs {problem}")
@@ -342,8 +321,6 @@ def _shown(value) -> str:
     """A value from a model file's free-form records (training, metrics, origin) as ``hbrdf
     info`` prints it: floats with 6 significant digits, anything else as one printable line.
     Those records are informative, not part of the contract, so no value of them may stop info."""
-    from hybridbrdf.errors import one_line_text
-
     if isinstance(value, (bool, int)):
         return str(value)
     if isinstance(value, float):
@@ -353,9 +330,6 @@ def _shown(value) -> str:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from hybridbrdf.model.file import load_model
-    from hybridbrdf.fit.record import environment_line
-
     if args.albedo_samples < 0:
         raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
     model = load_model(args.model)
@@ -416,28 +390,20 @@ RECORDED_TIMINGS = ("train_seconds", "train_seconds_from_step", "resumed_at_step
 
 def _settings_line(title: str, recorded: dict, sections, extra=()) -> str:
     """``title: key value, ...`` for the FitSettings fields of ``sections`` a model file records."""
-    from hybridbrdf.fit.settings import FitSettings
-
     keys = [f.name for f in dataclasses.fields(FitSettings) if f.metadata["section"] in sections
             and f.name != "sources"] + list(extra)
     return f"{title}: " + ", ".join(f"{k} {_shown(recorded[k])}" for k in keys if recorded.get(k) is not None)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from hybridbrdf.demo import run_demo
-
     run_demo(args.out, samples=args.samples)
     return 0
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    import signal
-    import threading
-
-    from hybridbrdf.render.tracer import RenderMaterialError, render, settings
 
     # One flag per scene setting (the library's table); None = keep the scene's value.
-    overrides = {s["name"]: getattr(args, s["name"]) for s in settings()}
+    overrides = {s["name"]: getattr(args, s["name"]) for s in render_settings()}
     # SIGTERM stops the render as Ctrl-C does: the library runs Python's signal handlers while it
     # works, and an exception from one cancels the render before any file is written.
     terminated = []
@@ -473,9 +439,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
     """--spp, --max-depth, ...: one flag per scene setting of the library's table (hybridbrdf.render.tracer.settings()),
     typed and documented by it; the library checks the ranges when rendering (one-line errors)."""
-    from hybridbrdf.render.tracer import settings
-
-    for s in settings():
+    for s in render_settings():
         flag = "--" + s["name"].replace("_", "-")
         default = str(s["default"]).lower() if s["type"] == "bool" else s["default"]
         help_text = f"{s['doc']} (default: the scene's, else {default})".replace("%", "%%")
@@ -489,176 +453,206 @@ def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
                                 help=help_text)
 
 
-# One piece by design: argparse's declarative table of the subcommands and their options, one
-# block per subcommand; splitting it would only scatter the table (the project's ~80-line rule).
-def build_parser() -> argparse.ArgumentParser:
-    from hybridbrdf.fit.settings import positive_int
+def _add_fit_parser(sub) -> None:
+    """``hbrdf fit``."""
+    p = sub.add_parser("fit", help="fit one shared network + per-material parameters to BRDF sources",
+                       description="Jointly fit a collection of BRDFs (paper Sec. 3.3) and write a model file. "
+                                   "Prints the per-material metrics table.", epilog=EPILOG)
+    p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    p.add_argument("--out", required=True, help="model file to write (safetensors)")
+    add_fit_flags(p)
+    p.add_argument("--compile", action="store_true",
+                   help="compile each training step with torch.compile: 1.1-1.6x the steps per second on a CPU "
+                        "(most at 32x2/32x3) after a one-time compilation of a minute or two (needs a C++ compiler; "
+                        "docs/FITTING.md)")
+    p.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
+    p.add_argument("--checkpoint-every", type=positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
+    p.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
+    p.add_argument("--preview", metavar="PNG",
+                   help="picture of the fitted materials to write: spheres under the example scene's sky, the exact "
+                        "material beside the hybrid beside its f_a alone, rendered by the path tracer (the first "
+                        "8 materials; default: --out with .png)")
+    p.add_argument("--no-preview", action="store_true", help="write no preview picture")
+    p.set_defaults(func=_cmd_fit)
 
-    parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.", epilog=EPILOG)
-    parser.add_argument("--version", action="version", version=f"hybridbrdf {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
 
-    fit = sub.add_parser("fit", help="fit one shared network + per-material parameters to BRDF sources",
-                         description="Jointly fit a collection of BRDFs (paper Sec. 3.3) and write a model file. "
-                                     "Prints the per-material metrics table.", epilog=EPILOG)
-    fit.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
-    fit.add_argument("--out", required=True, help="model file to write (safetensors)")
-    add_fit_flags(fit)
-    fit.add_argument("--compile", action="store_true",
-                     help="compile each training step with torch.compile: 1.1-1.6x the steps per second on a CPU "
-                          "(most at 32x2/32x3) after a one-time compilation of a minute or two (needs a C++ compiler; "
-                          "docs/FITTING.md)")
-    fit.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
-    fit.add_argument("--checkpoint-every", type=positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
-    fit.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
-    fit.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
-    fit.add_argument("--preview", metavar="PNG",
-                     help="picture of the fitted materials to write: spheres under the example scene's sky, the exact "
-                          "material beside the hybrid beside its f_a alone, rendered by the path tracer (the first "
-                          "8 materials; default: --out with .png)")
-    fit.add_argument("--no-preview", action="store_true", help="write no preview picture")
-    fit.set_defaults(func=_cmd_fit)
+def _add_add_parser(sub) -> None:
+    """``hbrdf add``."""
+    p = sub.add_parser("add", help="add BRDF sources to the shipped prior (fine-tuned) or to a model (network kept)",
+                       description="Onto the shipped prior (no --to): each source's analytic parameters and latent "
+                                   "code are fitted on the prior's frozen network (paper Sec. 4.2), then the network "
+                                   "is trained further together with them (--finetune-steps); the model holds the "
+                                   "new materials and their own network. --keep-network stops after the first part. "
+                                   "With --to BASE: the sparse fit only, BASE's network kept bit-exact, and the model "
+                                   "holds BASE's materials followed by the new ones. Inputs are checked before any "
+                                   "training; --out is written only when the fit succeeds.", epilog=EPILOG)
+    p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    p.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
+                                                "shipped prior, hybridbrdf.model.prior; the model then holds the new "
+                                                "materials only)")
+    p.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
+    add_fit_flags(p, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
+    p.add_argument("--keep-network", action="store_true",
+                   help="onto the shipped prior: fit only the sources' parameters and latent codes, the network "
+                        "bit-identical to the prior's (for engines that already ship it)")
+    p.add_argument("--finetune-steps", type=positive_int, default=None,
+                   help="onto the shipped prior: steps of the fine-tune after the --steps sparse steps "
+                        "(default: 5000; --lr, --network-lr and the loss flags apply to both); with --refine, "
+                        "the refinement's steps")
+    p.add_argument("--refine", action="store_true",
+                   help="with --to BASE: after the sparse fit, train BASE's network further with the new materials "
+                        "and BASE's own, replayed against BASE's outputs with their (p, z) free; each BASE "
+                        "material's drift (SMAPE and cMAE against BASE) is printed and recorded")
+    p.add_argument("--max-drift", type=float, default=None, metavar="X",
+                   help="with --refine: the largest drift (SMAPE against BASE's own output) a BASE material may "
+                        "take; above it nothing is written (default: 0.75)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
+    p.set_defaults(func=_cmd_add)
 
-    ad = sub.add_parser("add", help="add BRDF sources to the shipped prior (fine-tuned) or to a model (network kept)",
-                        description="Onto the shipped prior (no --to): each source's analytic parameters and latent "
-                                    "code are fitted on the prior's frozen network (paper Sec. 4.2), then the network "
-                                    "is trained further together with them (--finetune-steps); the model holds the "
-                                    "new materials and their own network. --keep-network stops after the first part. "
-                                    "With --to BASE: the sparse fit only, BASE's network kept bit-exact, and the model "
-                                    "holds BASE's materials followed by the new ones. Inputs are checked before any "
-                                    "training; --out is written only when the fit succeeds.", epilog=EPILOG)
-    ad.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
-    ad.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
-                                                 "shipped prior, hybridbrdf.model.prior; the model then holds the new "
-                                                 "materials only)")
-    ad.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
-    add_fit_flags(ad, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
-    ad.add_argument("--keep-network", action="store_true",
-                    help="onto the shipped prior: fit only the sources' parameters and latent codes, the network "
-                         "bit-identical to the prior's (for engines that already ship it)")
-    ad.add_argument("--finetune-steps", type=positive_int, default=None,
-                    help="onto the shipped prior: steps of the fine-tune after the --steps sparse steps "
-                         "(default: 5000; --lr, --network-lr and the loss flags apply to both); with --refine, "
-                         "the refinement's steps")
-    ad.add_argument("--refine", action="store_true",
-                    help="with --to BASE: after the sparse fit, train BASE's network further with the new materials "
-                         "and BASE's own, replayed against BASE's outputs with their (p, z) free; each BASE "
-                         "material's drift (SMAPE and cMAE against BASE) is printed and recorded")
-    ad.add_argument("--max-drift", type=float, default=None, metavar="X",
-                    help="with --refine: the largest drift (SMAPE against BASE's own output) a BASE material may "
-                         "take; above it nothing is written (default: 0.75)")
-    ad.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
-    ad.set_defaults(func=_cmd_add)
 
-    ev = sub.add_parser("eval", help="per-material SMAPE/cMAE of a model against BRDF sources",
-                        description="Evaluate a model against the sources its materials were fitted to (matched by "
-                                    "name): SMAPE and cMAE of the analytic part and of the full model.", epilog=EPILOG)
-    ev.add_argument("model", help="model file")
-    ev.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
-    ev.add_argument("--pairs", type=positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
-    ev.add_argument("--all-metrics", action="store_true",
-                    help="also print MAE, reciprocity error (SMAPE of f(wi,wo) vs f(wo,wi)) and directional albedo "
-                         "at 45 degrees for the reference, the analytic part and the model")
-    ev.set_defaults(func=_cmd_eval)
+def _add_eval_parser(sub) -> None:
+    """``hbrdf eval``."""
+    p = sub.add_parser("eval", help="per-material SMAPE/cMAE of a model against BRDF sources",
+                       description="Evaluate a model against the sources its materials were fitted to (matched by "
+                                   "name): SMAPE and cMAE of the analytic part and of the full model.", epilog=EPILOG)
+    p.add_argument("model", help="model file")
+    p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
+    p.add_argument("--pairs", type=positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
+    p.add_argument("--all-metrics", action="store_true",
+                   help="also print MAE, reciprocity error (SMAPE of f(wi,wo) vs f(wo,wi)) and directional albedo "
+                        "at 45 degrees for the reference, the analytic part and the model")
+    p.set_defaults(func=_cmd_eval)
 
-    ed = sub.add_parser("edit", help="add an edited copy of a material (new analytic parameters, same latent code)",
-                        description="Paper Sec. 5.1: change the analytic parameters of a fitted material (diffuse "
-                                    "colour kd, index of refraction eta, GGX roughness alpha; two alpha values make "
-                                    "it anisotropic) and keep its latent code, so the network's correction follows. "
-                                    "Writes MODEL's materials plus the edited one to --out and prints its maximum "
-                                    "directional albedo (a warning when it exceeds 1). --out is written only when "
-                                    "everything is valid.")
-    ed.add_argument("model", help="model file holding the material")
-    ed.add_argument("material", help="name of the material to start from")
-    ed.add_argument("--set", action="append", required=True, metavar="KEY=VALUES",
-                    help="a new parameter: kd=R,G,B or kd=V (in [0, 1]), eta=V or eta=R,G,B (in [1, 10]), "
-                         "alpha=V (isotropic) or alpha=AX,AY (anisotropic; in [1e-4, 1]); repeatable")
-    ed.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
-    ed.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
-    ed.add_argument("--conserve-energy", action="store_true",
-                    help="scale the new kd down (hue kept) until the maximum directional albedo is at most 0.99")
-    ed.set_defaults(func=_cmd_edit)
 
-    mx = sub.add_parser("mix", help="add a blend of two materials (analytic parameters and latent codes)",
-                        description="Paper Sec. 5.1: the linear blend (1 - t) A + t B of two materials' analytic "
-                                    "parameters and latent codes, added to MODEL's materials and written to --out; "
-                                    "t = 0 and 1 reproduce A and B exactly. Prints the blend's maximum directional "
-                                    "albedo.")
-    mx.add_argument("model", help="model file holding both materials")
-    mx.add_argument("a", metavar="A", help="material at t = 0")
-    mx.add_argument("b", metavar="B", help="material at t = 1")
-    mx.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
-    mx.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
-    mx.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
-    mx.add_argument("--conserve-energy", action="store_true",
-                    help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
-    mx.set_defaults(func=_cmd_mix)
+def _add_edit_parser(sub) -> None:
+    """``hbrdf edit``."""
+    p = sub.add_parser("edit", help="add an edited copy of a material (new analytic parameters, same latent code)",
+                       description="Paper Sec. 5.1: change the analytic parameters of a fitted material (diffuse "
+                                   "colour kd, index of refraction eta, GGX roughness alpha; two alpha values make "
+                                   "it anisotropic) and keep its latent code, so the network's correction follows. "
+                                   "Writes MODEL's materials plus the edited one to --out and prints its maximum "
+                                   "directional albedo (a warning when it exceeds 1). --out is written only when "
+                                   "everything is valid.")
+    p.add_argument("model", help="model file holding the material")
+    p.add_argument("material", help="name of the material to start from")
+    p.add_argument("--set", action="append", required=True, metavar="KEY=VALUES",
+                   help="a new parameter: kd=R,G,B or kd=V (in [0, 1]), eta=V or eta=R,G,B (in [1, 10]), "
+                        "alpha=V (isotropic) or alpha=AX,AY (anisotropic; in [1e-4, 1]); repeatable")
+    p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
+    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    p.add_argument("--conserve-energy", action="store_true",
+                   help="scale the new kd down (hue kept) until the maximum directional albedo is at most 0.99")
+    p.set_defaults(func=_cmd_edit)
 
-    vw = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live "
-                                     "(WebGPU or WebGL2)",
-                        description="Write one HTML file, with everything inlined (it opens from disk, without "
-                                    "network), that renders each material of MODEL on a sphere with WebGPU where the "
-                                    "browser has it, else WebGL2, from the WGSL and GLSL that hbrdf-codegen writes: a "
-                                    "material picker, the analytic part alone, "
-                                    "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
-                                    "exposure, and light from an environment map (default the path tracer's sky) or "
-                                    "the sun alone (docs/VIEWER.md).")
-    vw.add_argument("model", help="model file")
-    vw.add_argument("sources", nargs="*", metavar="SOURCE",
-                    help="BRDF sources the materials were fitted to: each is shown beside the material the fit "
-                         "named after it, as the path tracer's render of the measurement and BRDF slices of the "
-                         "model, its f_a and the measurement (docs/VIEWER.md)")
-    vw.add_argument("--out", "-o", required=True, help="HTML file to write")
-    vw.add_argument("--env", metavar="sky|MAP", default="sky",
-                    help="environment map the page lights with: 'sky' (default: the path tracer's sky, a sun of "
-                         "irradiance pi) or an equirectangular .exr / .hdr map (the tracer's mapping; maps wider "
-                         "than 1024 texels are area-averaged down)")
-    from hybridbrdf.viewer import measured as viewer_sources
 
-    vw.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
-                    help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
-    vw.add_argument("--source-spp", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SPP, metavar="N",
-                    help="samples per pixel of each SOURCE's measured render (default: %(default)s; about 4 s "
-                         "per RGL source on 2 cores)")
-    vw.set_defaults(func=_cmd_view)
+def _add_mix_parser(sub) -> None:
+    """``hbrdf mix``."""
+    p = sub.add_parser("mix", help="add a blend of two materials (analytic parameters and latent codes)",
+                       description="Paper Sec. 5.1: the linear blend (1 - t) A + t B of two materials' analytic "
+                                   "parameters and latent codes, added to MODEL's materials and written to --out; "
+                                   "t = 0 and 1 reproduce A and B exactly. Prints the blend's maximum directional "
+                                   "albedo.")
+    p.add_argument("model", help="model file holding both materials")
+    p.add_argument("a", metavar="A", help="material at t = 0")
+    p.add_argument("b", metavar="B", help="material at t = 1")
+    p.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
+    p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
+    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    p.add_argument("--conserve-energy", action="store_true",
+                   help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
+    p.set_defaults(func=_cmd_mix)
 
-    info = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
-                                                                            "training settings and materials.")
-    info.add_argument("model", help="model file")
-    info.add_argument("--albedo-samples", type=int, default=1 << 11, metavar="N",
-                      help="incident samples per outgoing direction for each material's maximum directional albedo "
-                           "(44 outgoing directions; default: %(default)s, about 1%% noise; hbrdf edit and mix use "
-                           "8192; 0: do not estimate it)")
-    info.set_defaults(func=_cmd_info)
 
-    demo = sub.add_parser(
+def _add_view_parser(sub) -> None:
+    """``hbrdf view``."""
+    p = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live "
+                                    "(WebGPU or WebGL2)",
+                       description="Write one HTML file, with everything inlined (it opens from disk, without "
+                                   "network), that renders each material of MODEL on a sphere with WebGPU where the "
+                                   "browser has it, else WebGL2, from the WGSL and GLSL that hbrdf-codegen writes: a "
+                                   "material picker, the analytic part alone, "
+                                   "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
+                                   "exposure, and light from an environment map (default the path tracer's sky) or "
+                                   "the sun alone (docs/VIEWER.md).")
+    p.add_argument("model", help="model file")
+    p.add_argument("sources", nargs="*", metavar="SOURCE",
+                   help="BRDF sources the materials were fitted to: each is shown beside the material the fit "
+                        "named after it, as the path tracer's render of the measurement and BRDF slices of the "
+                        "model, its f_a and the measurement (docs/VIEWER.md)")
+    p.add_argument("--out", "-o", required=True, help="HTML file to write")
+    p.add_argument("--env", metavar="sky|MAP", default="sky",
+                   help="environment map the page lights with: 'sky' (default: the path tracer's sky, a sun of "
+                        "irradiance pi) or an equirectangular .exr / .hdr map (the tracer's mapping; maps wider "
+                        "than 1024 texels are area-averaged down)")
+
+    p.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
+                   help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
+    p.add_argument("--source-spp", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SPP, metavar="N",
+                   help="samples per pixel of each SOURCE's measured render (default: %(default)s; about 4 s "
+                        "per RGL source on 2 cores)")
+    p.set_defaults(func=_cmd_view)
+
+
+def _add_info_parser(sub) -> None:
+    """``hbrdf info``."""
+    p = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
+                                                                         "training settings and materials.")
+    p.add_argument("model", help="model file")
+    p.add_argument("--albedo-samples", type=int, default=1 << 11, metavar="N",
+                   help="incident samples per outgoing direction for each material's maximum directional albedo "
+                        "(44 outgoing directions; default: %(default)s, about 1%% noise; hbrdf edit and mix use "
+                        "8192; 0: do not estimate it)")
+    p.set_defaults(func=_cmd_info)
+
+
+def _add_demo_parser(sub) -> None:
+    """``hbrdf demo``."""
+    p = sub.add_parser(
         "demo",
         help="plot BRDF slices of built-in analytic materials and print their albedo",
         description="Plot in-plane slices and polar lobes of f_a for a few built-in analytic materials "
         "(C++ library, checked against the float64 PyTorch implementation) and print each material's "
         "directional albedo estimated with every sampling strategy.",
     )
-    demo.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
-    demo.add_argument("--samples", type=int, default=200_000, help="samples per albedo estimate (default: %(default)s)")
-    demo.set_defaults(func=_cmd_demo)
+    p.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
+    p.add_argument("--samples", type=int, default=200_000, help="samples per albedo estimate (default: %(default)s)")
+    p.set_defaults(func=_cmd_demo)
 
-    rn = sub.add_parser("render", help="render a scene with the Embree path tracer",
-                        description="Render a JSON scene (docs/RENDERING.md) with the reference path tracer: "
-                                    "linear float32 OpenEXR, optionally a tone-mapped sRGB PNG.")
-    rn.add_argument("scene", help="scene file (JSON)")
-    rn.add_argument("-o", "--out", required=True, help="OpenEXR file to write (linear RGB, float32)")
-    rn.add_argument("--png", help="also write an 8-bit sRGB PNG")
-    _add_render_setting_flags(rn)
-    rn.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops (default: %(default)s)")
-    rn.add_argument("--tonemap", choices=("clamp", "aces"), default="clamp", help="PNG tone map (default: %(default)s)")
-    rn.add_argument("--quiet", action="store_true", help="no progress bar")
-    rn.set_defaults(func=_cmd_render)
+
+def _add_render_parser(sub) -> None:
+    """``hbrdf render``."""
+    p = sub.add_parser("render", help="render a scene with the Embree path tracer",
+                       description="Render a JSON scene (docs/RENDERING.md) with the reference path tracer: "
+                                   "linear float32 OpenEXR, optionally a tone-mapped sRGB PNG.")
+    p.add_argument("scene", help="scene file (JSON)")
+    p.add_argument("-o", "--out", required=True, help="OpenEXR file to write (linear RGB, float32)")
+    p.add_argument("--png", help="also write an 8-bit sRGB PNG")
+    _add_render_setting_flags(p)
+    p.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops (default: %(default)s)")
+    p.add_argument("--tonemap", choices=("clamp", "aces"), default="clamp", help="PNG tone map (default: %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_render)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``hbrdf`` parser: one subcommand per ``_add_<command>_parser``."""
+    parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.", epilog=EPILOG)
+    parser.add_argument("--version", action="version", version=f"hybridbrdf {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_fit_parser(sub)
+    _add_add_parser(sub)
+    _add_eval_parser(sub)
+    _add_edit_parser(sub)
+    _add_mix_parser(sub)
+    _add_view_parser(sub)
+    _add_info_parser(sub)
+    _add_demo_parser(sub)
+    _add_render_parser(sub)
     return parser
 
 
 def main(argv=None) -> int:
-    from hybridbrdf.fit.distributed import RankLostError
-
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -668,8 +662,6 @@ def main(argv=None) -> int:
         print(f"hbrdf {args.command}: {exc if str(exc) else 'interrupted'}", file=sys.stderr)
         return 130
     except (ValueError, KeyError, OSError, FloatingPointError, RankLostError) as exc:
-        from hybridbrdf.errors import one_line_text
-
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         print(f"hbrdf {args.command}: error: {one_line_text(str(msg))}", file=sys.stderr)  # one line, always
         return 1

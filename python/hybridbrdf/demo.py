@@ -14,9 +14,11 @@ import tempfile
 from typing import Dict
 
 import numpy as np
+import torch
 
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
+from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
 
 #: Built-in analytic materials (no measured data needed).
 DEMO_MATERIALS: Dict[str, AnalyticParams] = {
@@ -64,10 +66,6 @@ def run_demo(out: str, samples: int = 200_000) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import torch
-
-    from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
-
     if samples < 1:
         raise ValueError(f"--samples must be positive, got {samples}")
     theta_o = np.linspace(-89.5, 89.5, 359)

@@ -2,8 +2,8 @@
 matrices, a source with exact values, model files, the command line, a scene for the
 renderer, the Mitsuba oracle and the Vulkan (lavapipe) runner.
 
-Direction generators and the float64 textbook reference live in the package
-(hybridbrdf.evaluate.directions, hybridbrdf.brdf.reference): the benchmarks use them too."""
+Direction generators live in the package (hybridbrdf.evaluate.directions) and the float64
+textbook oracle beside this file (textbook_reference.py): the benchmarks use them too."""
 
 from __future__ import annotations
 

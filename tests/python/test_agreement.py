@@ -6,7 +6,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf.evaluate.directions import cosine_directions
-from hybridbrdf.brdf.reference import textbook_fa
+from textbook_reference import textbook_fa
 from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_fa
 
 from helpers import PARAM_CORNERS, hard_directions, hard_pairs, random_params, valid_upper

@@ -183,7 +183,7 @@ def _numpy_hybrid_half(model_tensors, arch, wi, wo, m):
     """hybrid-half in NumPy float64 from the textbook forms: h = (wi + wo) / |wi + wo|, the
     network input [wi, wo, h.z, wi.h, z], hardGeLU layers, f_t = exp(o[0:3]) + sigmoid(o[3:6]) f_a
     with reference.textbook_fa: an oracle independent of the library's and the model's code."""
-    from hybridbrdf.brdf.reference import textbook_fa
+    from textbook_reference import textbook_fa
     t = {k: np.asarray(v, dtype=np.float64) for k, v in model_tensors.items()}
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)

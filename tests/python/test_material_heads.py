@@ -18,7 +18,7 @@ from hybridbrdf.model.random import random_model
 
 
 def numpy_hybrid_with_heads(t, arch, wi, wo, m):
-    from hybridbrdf.brdf.reference import textbook_fa
+    from textbook_reference import textbook_fa
 
     t = {k: np.asarray(v, dtype=np.float64) for k, v in t.items()}
     z = np.broadcast_to(t["materials.z"][m], (len(wi), arch["latent"]))

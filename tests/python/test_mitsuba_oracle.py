@@ -9,7 +9,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf.evaluate.directions import cosine_directions
-from hybridbrdf.brdf.reference import textbook_fa
+from textbook_reference import textbook_fa
 
 from helpers import mitsuba_f
 

@@ -10,7 +10,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
-from hybridbrdf.model.file import network_overflow_problem
+from hybridbrdf.model.validate import network_overflow_problem
 from hybridbrdf.model.random import random_model
 
 from helpers import hard_pairs, run_cli

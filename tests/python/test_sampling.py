@@ -10,7 +10,7 @@ import torch
 from scipy import stats
 
 import hybridbrdf as hb
-from hybridbrdf.brdf.reference import ggx_lobe_probability, sample_mis
+from textbook_reference import ggx_lobe_probability, sample_mis
 from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_fa
 
 from helpers import spherical

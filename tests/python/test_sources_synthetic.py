@@ -14,11 +14,13 @@ import pytest
 import hybridbrdf as hb
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
 from hybridbrdf.sources import expand_sources, open_source
+from hybridbrdf.brdf import microfacet
+from hybridbrdf.sources import spectral
 from hybridbrdf.sources import synthetic as syn
 from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic
 
 from hybridbrdf.evaluate.directions import cosine_directions
-from hybridbrdf.brdf.reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
+from textbook_reference import fresnel_textbook, pdf_vndf, sample_vndf, textbook_fa
 
 from helpers import hard_pairs, mitsuba_f, valid_upper
 
@@ -287,11 +289,11 @@ def test_plastic_is_exactly_the_analytic_model():
 def test_fresnel_dielectric_matches_the_textbook():
     c = np.linspace(0.0, 1.0, 1001)
     for eta in (1.2, 1.5, 2.5, 10.0):
-        got = syn.fresnel_dielectric(c, eta)
+        got = microfacet.fresnel_dielectric(c, eta)
         ref = fresnel_textbook(c, eta)
         assert np.allclose(got, ref, rtol=1e-12, atol=1e-15)
-    assert np.all(syn.fresnel_dielectric(c, 1.0) == 0.0)  # eta = 1: no interface, including c = 0
-    assert np.allclose(syn.fresnel_dielectric(c, [1.5, 2.0, 3.0])[:, 1], fresnel_textbook(c, 2.0), rtol=1e-12)
+    assert np.all(microfacet.fresnel_dielectric(c, 1.0) == 0.0)  # eta = 1: no interface, including c = 0
+    assert np.allclose(microfacet.fresnel_dielectric(c, [1.5, 2.0, 3.0])[:, 1], fresnel_textbook(c, 2.0), rtol=1e-12)
 
 
 # ---- conductors: closed forms and Mitsuba 3 ----------------------------------
@@ -322,8 +324,8 @@ def test_conductor_normal_incidence_is_the_closed_form(m):
     f0 = m.eval(z, z)[0] * 4.0 * np.pi * m.alpha_x * m.alpha_y
     assert np.allclose(f0, m.tint * normal_incidence_reflectance(m.eta, m.k), rtol=1e-12, atol=0)
     c = np.array([1.0])
-    assert np.allclose(syn.fresnel_conductor(c, m.eta, m.k)[0], normal_incidence_reflectance(m.eta, m.k), rtol=1e-13)
-    assert np.allclose(syn.fresnel_conductor(np.array([0.0]), m.eta, m.k), 1.0, rtol=1e-15)
+    assert np.allclose(microfacet.fresnel_conductor(c, m.eta, m.k)[0], normal_incidence_reflectance(m.eta, m.k), rtol=1e-13)
+    assert np.allclose(microfacet.fresnel_conductor(np.array([0.0]), m.eta, m.k), 1.0, rtol=1e-15)
 
 
 @pytest.mark.parametrize("symbol,eta,k", [("Au", syn.GOLD_ETA, syn.GOLD_K), ("Cu", syn.COPPER_ETA, syn.COPPER_K),
@@ -345,7 +347,7 @@ def test_gold_is_coloured():
 def test_conductor_fresnel_matches_mitsuba():
     c = np.linspace(0.0, 1.0, 201)
     for eta, k in ((0.143119, 3.98316), (1.65746, 9.22387), (0.2, 2.0), (2.5, 0.3)):
-        ours = syn.fresnel_conductor(c, [eta], [k])[:, 0]
+        ours = microfacet.fresnel_conductor(c, [eta], [k])[:, 0]
         ref = np.array([float(mi.fresnel_conductor(float(x), mi.Complex2f(eta, k))) for x in c])
         assert (np.abs(ours - ref) / ref).max() < 2e-6  # Mitsuba: float32, a different (Moeller) form
 
@@ -564,35 +566,35 @@ def test_thin_film_airy_sum_matches_the_transfer_matrix_method():
     c = rng.uniform(0.01, 1.0, 300)
     lam = np.linspace(380.0, 780.0, 41)
     for n2, d, n3 in ((1.5, 600.0, 2.5), (1.33, 350.0, 1.0), (2.2, 800.0, 1.5), (1.2, 100.0, 3.0)):
-        got = syn.thin_film_reflectance(c, n2, d, n3, lam)
+        got = spectral.thin_film_reflectance(c, n2, d, n3, lam)
         ref = transfer_matrix_reflectance(c[:, None], n2, d, n3, lam[None, :])
         assert np.allclose(got, ref, rtol=1e-10, atol=1e-13)
 
 
 def test_thin_film_reduces_to_the_bare_interface():
     c = np.linspace(0.0, 1.0, 501)
-    lam = syn.WAVELENGTHS_NM
+    lam = spectral.WAVELENGTHS_NM
     bare = fresnel_textbook(c, 2.5)[:, None]
     for n2, d in ((1.5, 0.0), (1.0, 700.0), (2.5, 450.0)):  # no film, an air film, a film of base index
-        assert np.allclose(syn.thin_film_reflectance(c, n2, d, 2.5, lam), bare, rtol=1e-12, atol=1e-15)
+        assert np.allclose(spectral.thin_film_reflectance(c, n2, d, 2.5, lam), bare, rtol=1e-12, atol=1e-15)
     # Through the colour pipeline too: a flat spectrum keeps its value in every channel.
     film = syn.ThinFilmGGX("bare", eta_film=1.5, thickness_nm=0.0, eta_base=2.5, alpha=0.1)
     assert np.allclose(film.fresnel(c), bare, rtol=1e-12, atol=1e-15)
     # Free film at exactly grazing incidence: total reflection, no 0/0.
-    assert np.allclose(syn.thin_film_reflectance(np.array([0.0]), 1.33, 300.0, 1.0, lam), 1.0)
+    assert np.allclose(spectral.thin_film_reflectance(np.array([0.0]), 1.33, 300.0, 1.0, lam), 1.0)
 
 
 def test_colour_matching_functions_match_mitsubas_cie_tables():
     lam = np.arange(380.0, 781.0, 5.0)
     ref = np.array([list(mi.cie1931_xyz(float(x))) for x in lam])
-    ours = syn.cie1931_xyz(lam)
+    ours = spectral.cie1931_xyz(lam)
     # Wyman et al. 2013 quote their multi-lobe fit within ~1% of the peak; allow 2.5%.
     assert np.abs(ours - ref).max() < 0.025 * ref.max()
     # The resulting film colour differs from one integrated with the tables by little.
     film = open_synthetic("thin_film")
     c = np.linspace(0.05, 1.0, 40)
-    spectrum = syn.thin_film_reflectance(c, film.eta_film, film.thickness_nm, film.eta_base, lam)
-    rgb_tab = np.clip(spectrum @ syn.spectral_to_rgb_weights(lam, cmf=ref).T, 0.0, 1.0)
+    spectrum = spectral.thin_film_reflectance(c, film.eta_film, film.thickness_nm, film.eta_base, lam)
+    rgb_tab = np.clip(spectrum @ spectral.spectral_to_rgb_weights(lam, cmf=ref).T, 0.0, 1.0)
     assert np.abs(film.fresnel(c) - rgb_tab).max() < 0.02
 
 

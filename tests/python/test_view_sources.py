@@ -36,7 +36,7 @@ from hybridbrdf.viewer.scene import srgb8, tracer_scene
 from hybridbrdf.viewer import measured as viewer_sources
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.random import random_model
-from hybridbrdf.brdf.reference import textbook_fa
+from textbook_reference import textbook_fa
 from hybridbrdf.sources import open_source
 from helpers import run_cli
 from test_view import chromium, open_page, unescape

@@ -44,11 +44,6 @@ template <typename T> HBRDF_INLINE T smith_g1_over_2cos(const Vec3<T>& w, const 
     return T(1) / (w.z + std::sqrt(w.z * w.z + t));
 }
 
-/// Separable Smith G1(w) for w.z > 0 (0 below the horizon).
-template <typename T> HBRDF_INLINE T smith_g1(const Vec3<T>& w, const GgxAlpha<T>& a) {
-    return w.z > T(0) ? T(2) * w.z * smith_g1_over_2cos(w, a) : T(0);
-}
-
 /// Visible-normal sampling of GGX with spherical caps (Dupuy & Benyoub 2023,
 /// "Sampling Visible GGX Normals with Spherical Caps", Listing 3): stretch wo
 /// to the alpha = 1 configuration, sample the spherical cap of directions

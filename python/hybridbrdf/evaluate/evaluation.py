@@ -11,10 +11,10 @@ from typing import Dict, List, Optional, Sequence
 import numpy as np
 import torch
 
-from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
+from hybridbrdf.evaluate.metrics import cmae, directional_albedo, mae, metric_directions, reciprocity_error, smape
 from hybridbrdf.model.file import HybridModel
-from hybridbrdf.sources.names import source_material
 from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.sources.names import source_material
 
 
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
@@ -50,8 +50,6 @@ def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1
 
 
 def _extended_metrics(model, name, src, ref, f, fa, n_small, seed) -> Dict[str, float]:
-    from hybridbrdf.evaluate.metrics import directional_albedo, mae, reciprocity_error
-
     full = lambda a, b: model._eval(a, b, name, torch.float32)[0]  # noqa: E731
     analytic = lambda a, b: model._eval(a, b, name, torch.float32)[1]  # noqa: E731
     out = {"mae": mae(ref, f), "reciprocity_reference": reciprocity_error(src.eval, n_small, seed),

@@ -20,18 +20,22 @@ from typing import Callable, List, Optional, Sequence, Union
 import numpy as np
 
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.fit.settings import MAX_DRIFT, FitSettings
+from hybridbrdf.fit.fit import fit, frozen_arch_settings
+from hybridbrdf.fit.settings import ADD_STEPS, FINETUNE_STEPS, MAX_DRIFT, STEPS, FitSettings
 from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.model.prior import prior_path
 from hybridbrdf.names import names_problem
+from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.sources.model import ModelMaterialSource
+from hybridbrdf.sources.names import material_names
+from hybridbrdf.util import check_writable
 
 SourceLike = Union[str, os.PathLike, BRDFSource]
 
 
 def _open(sources: Sequence[SourceLike]) -> List[BRDFSource]:
     """BRDFSource objects as given; paths, folders, globs and synthetic:NAME opened, in order."""
-    from hybridbrdf.sources import expand_sources, open_source
-
     opened: List[BRDFSource] = []
     for s in sources:
         if isinstance(s, BRDFSource):
@@ -45,8 +49,6 @@ def check_additions(base: HybridModel, sources: Sequence[BRDFSource]) -> List[st
     """The names the new materials will have; raises InputFileError (naming the source's file)
     for a name already in ``base``, and ValueError when base and new names together break the
     contract (two names sharing a shader constant)."""
-    from hybridbrdf.sources.names import material_names
-
     names = material_names(sources)  # the name rule and clashes among the new ones
     taken = set(base.materials)
     for src, name in zip(sources, names):
@@ -112,9 +114,6 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     :data:`~hybridbrdf.fit.settings.ADD_STEPS` sparse steps. Raises InputFileError /
     ModelFileError / ValueError, one line naming the input, before any training for every input
     that can be checked."""
-    from hybridbrdf.fit.fit import fit
-    from hybridbrdf.util import check_writable
-
     if out is not None:
         check_writable(out, "model")
     on_prior = to is None
@@ -139,8 +138,6 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
 
 def _resolve_base(to: Optional[Union[str, os.PathLike]], prior: Optional[Union[str, os.PathLike]]):
     """The base model's path: ``to``, or without it ``prior`` or the shipped prior's file."""
-    from hybridbrdf.model.prior import prior_path
-
     if to is not None:
         return to
     return prior if prior is not None else prior_path()
@@ -150,8 +147,6 @@ def _check_options(on_prior: bool, refine: bool, keep_network: bool, finetune_st
                    max_drift: float):
     """(whether the network is trained after the sparse fit, its steps); ValueError for options
     that contradict each other or are out of range."""
-    from hybridbrdf.fit.settings import FINETUNE_STEPS, STEPS
-
     if refine and on_prior:
         raise ValueError("--refine refines the network of --to BASE; onto the shipped prior the network is "
                          "fine-tuned by default")
@@ -171,9 +166,6 @@ def _check_options(on_prior: bool, refine: bool, keep_network: bool, finetune_st
 def _sparse_settings(settings: Optional[FitSettings], base: HybridModel, to) -> FitSettings:
     """A copy of ``settings`` (default: the default recipe with ADD_STEPS steps) for the sparse fit
     on ``base``'s frozen network, its network fields taken from ``base``, checked."""
-    from hybridbrdf.fit.settings import ADD_STEPS
-    from hybridbrdf.fit.fit import frozen_arch_settings
-
     settings = dataclasses.replace(settings) if settings is not None else FitSettings(steps=ADD_STEPS)
     settings.frozen_from, settings.init_from = os.fspath(to), None
     frozen_arch_settings(settings, base)
@@ -200,8 +192,6 @@ def _finetune(opened: List[BRDFSource], added: HybridModel, settings: FitSetting
               log: Callable[[str], None]) -> HybridModel:
     """``hbrdf add`` onto a prior: its network and the new materials' (p, z) trained together for
     ``steps``, started from the sparse fit ``added``; the record keeps that sparse fit."""
-    from hybridbrdf.fit.fit import fit
-
     tuned_settings = dataclasses.replace(settings, steps=steps, frozen_from=None,
                                          init_from="prior" if prior is None else os.fspath(base_path))
     log(f"fine-tune: the network and the new materials' (p, z) together, {steps} steps")
@@ -230,9 +220,6 @@ def _refine(base: HybridModel, added: HybridModel, opened: List[BRDFSource], set
     """``hbrdf add --to BASE --refine``: BASE's network trained further with the new materials
     (started from their sparse fit) and BASE's own (replayed against BASE's outputs, their
     (p, z) free); each BASE material's drift measured against BASE on the metric pairs."""
-    from hybridbrdf.fit.fit import fit
-    from hybridbrdf.sources.model import ModelMaterialSource
-
     start = merge(base, added)  # every material's starting point, by name
     replayed = [ModelMaterialSource(base, name) for name in base.materials]
     tuned_settings = dataclasses.replace(settings, steps=steps, frozen_from=None, init_from=base_path,

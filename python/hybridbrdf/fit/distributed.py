@@ -17,10 +17,14 @@ from __future__ import annotations
 import datetime
 import os
 import signal
+import sys
+import threading
 from dataclasses import dataclass
 from typing import Optional
 
 import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
 
 #: How long a rank waits in a collective for the others before it gives up (a rank that died
 #: mid-step is usually noticed at once, when its sockets close; this bounds the other cases).
@@ -68,8 +72,6 @@ def join(device: str) -> Ranks:
     world = launched_world_size()
     if world == 1:
         return Ranks()
-    import torch.distributed as dist
-
     local = int(os.environ.get("LOCAL_RANK", "0"))
     if not dist.is_initialized():
         cuda = device.startswith("cuda")
@@ -81,11 +83,8 @@ def join(device: str) -> Ranks:
 
 def leave(ranks: Ranks) -> None:
     """Leave the process group (a no-op for a single process)."""
-    if ranks.distributed:
-        import torch.distributed as dist
-
-        if dist.is_initialized():
-            dist.destroy_process_group()
+    if ranks.distributed and dist.is_initialized():
+        dist.destroy_process_group()
 
 
 def end_process(code: int) -> None:
@@ -93,8 +92,6 @@ def end_process(code: int) -> None:
     standard streams, then ``os._exit`` without the interpreter's teardown, where gloo's worker
     threads can still hold references and abort the process (SIGABRT, "terminate called
     without an active exception"; seen in a test, and pytorch/pytorch#179291 describes it)."""
-    import sys
-
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
@@ -123,8 +120,6 @@ def wrap(module: torch.nn.Module, ranks: Ranks, device: str) -> torch.nn.Module:
     backward), or ``module`` itself for a single process."""
     if not ranks.distributed:
         return module
-    from torch.nn.parallel import DistributedDataParallel
-
     ids = [torch.device(device).index] if device.startswith("cuda") else None
     return DistributedDataParallel(module, device_ids=ids)
 
@@ -133,8 +128,6 @@ def any_rank(flag: bool, ranks: Ranks, device: str) -> bool:
     """True on every rank when ``flag`` is true on any (so that all stop at the same step)."""
     if not ranks.distributed:
         return flag
-    import torch.distributed as dist
-
     t = torch.tensor([1.0 if flag else 0.0], device=device)
     dist.all_reduce(t, op=dist.ReduceOp.MAX)
     return bool(t.item() > 0)
@@ -151,8 +144,6 @@ class StopRequest:
 
     def install(self) -> "StopRequest":
         """Take over SIGINT and SIGTERM until :meth:`restore` (main thread only)."""
-        import threading
-
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._previous[sig] = signal.signal(sig, self._handle)

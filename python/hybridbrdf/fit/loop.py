@@ -16,12 +16,13 @@ from dataclasses import dataclass
 from typing import Any, Callable, List, Optional
 
 import torch
+from tqdm import tqdm
 
 from hybridbrdf.fit import checkpoint as ckpt
 from hybridbrdf.fit import distributed as dd
 from hybridbrdf.fit.schedule import optimizer_and_schedule
-from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.fit.pool import TrainingPool
+from hybridbrdf.fit.settings import FitSettings
 
 
 class FitInterrupted(KeyboardInterrupt):
@@ -99,8 +100,6 @@ def _rank_lost(exc: RuntimeError, ranks: dd.Ranks, step: int, checkpoint: Option
 
 
 def _progress_bar(settings: FitSettings, start: int):
-    from tqdm import tqdm
-
     return tqdm(total=settings.steps, initial=start, desc=f"fit {settings.arch} {settings.width}x{settings.depth}",
                 unit="step", dynamic_ncols=True, mininterval=0.5)
 

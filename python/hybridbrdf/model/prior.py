@@ -15,6 +15,7 @@ import os
 import pathlib
 
 from hybridbrdf.errors import InputFileError
+from hybridbrdf.model.file import load_model
 
 #: Where the package keeps the prior.
 PRIOR_FILE = pathlib.Path(__file__).resolve().parents[1] / "data" / "prior.safetensors"
@@ -31,6 +32,4 @@ def prior_path() -> str:
 
 def load_prior():
     """The shipped prior as a :class:`~hybridbrdf.model.file.HybridModel`."""
-    from hybridbrdf.model.file import load_model
-
     return load_model(prior_path())

@@ -110,7 +110,7 @@ def register() -> None:
 _CLASSES = {}
 
 
-# One piece by design (the project's ~80-line rule): the plugin class is defined inside this
+# One piece by design (the project's ~60-line rule): the plugin class is defined inside this
 # function because Mitsuba's BSDF base class is per variant, so each variant needs its own class.
 def _bsdf_class():
     """The plugin class for the current variant (Mitsuba's BSDF base class differs per variant)."""

@@ -12,12 +12,16 @@ its Python reader (docs/RENDERING.md, "measured"), which dominates the time.
 
 from __future__ import annotations
 
+import time
 import math
 import os
 import tempfile
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
+from hybridbrdf.model.file import load_model
+from hybridbrdf.render.tracer import render, write_png
+from hybridbrdf.sources import expand_sources, open_source
 
 #: The sky of scenes/sphere_env.json, the example scene (kept here: an installed package has no scenes/).
 EXAMPLE_SKY = {"type": "sky", "sun_elevation_deg": 35, "sun_azimuth_deg": 60, "sun_irradiance": [6, 5.6, 5],
@@ -81,8 +85,6 @@ def render_grid(model_path: str, materials: Sequence[str], sources: Sequence[Opt
                 pixels_per_sphere: int = 72, spp: int = 16) -> np.ndarray:
     """The preview's linear radiance image (rows x pixels, columns x pixels, 3); a left-out
     sphere's square is black."""
-    from hybridbrdf.render.tracer import render
-
     n = pixels_per_sphere
     image = np.zeros((len(ROWS) * n, len(materials) * n, 3), dtype=np.float32)
     for r, c, scene in preview_scenes(model_path, materials, sources, pixels_per_sphere, spp):
@@ -99,17 +101,12 @@ def render_preview(model_path: str, sources: Sequence[str], png_path: str, pixel
 
     A source that names several materials (a folder, synthetic:all) is expanded; materials of
     the model that no source names (the base of a sparse fit) get no "exact" sphere."""
-    import time
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.image as mpimg
     import matplotlib.pyplot as plt
 
-    from hybridbrdf.model.file import load_model
-    from hybridbrdf.render.tracer import write_png
-    from hybridbrdf.sources import expand_sources, open_source
 
     model = load_model(model_path)
     specs = expand_sources(sources)

@@ -22,6 +22,7 @@ import numpy as np
 from hybridbrdf import _core
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import MAX_JSON_DEPTH, json_depth, read_input_text, refuse_output_over_input, same_file
+from hybridbrdf.sources import open_source
 
 #: Largest scene file read (bytes). Scenes hold settings, materials and objects; meshes and
 #: environment maps are files of their own. The example scenes are about 1 KB.
@@ -49,8 +50,6 @@ def open_measured(source: str):
 
     A missing or malformed source raises open_source's ValueError, which names the file; the library
     reports it as one line, "<scene>: <where>.source: <message>", without a traceback."""
-    from hybridbrdf.sources import open_source
-
     src = open_source(source)
 
     def evaluate(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:

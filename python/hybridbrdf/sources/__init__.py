@@ -25,6 +25,11 @@ import os
 from typing import List
 
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.merl import open_merl
+from hybridbrdf.sources.nbrdf import open_nbrdf
+from hybridbrdf.sources.rgl import open_rgl
+from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic
+from hybridbrdf.sources.utia import open_utia
 
 SYNTHETIC_PREFIX = "synthetic:"
 EXTENSIONS = (".binary", ".bsdf", ".bin", ".h5")
@@ -34,8 +39,6 @@ def open_source(path) -> BRDFSource:
     """Open one BRDF source; the format is detected from the file."""
     spec = os.fspath(path)
     if spec.startswith(SYNTHETIC_PREFIX):
-        from hybridbrdf.sources.synthetic import open_synthetic
-
         return open_synthetic(spec[len(SYNTHETIC_PREFIX):])
     if not os.path.exists(spec):
         raise BRDFFormatError(spec, "no such file")
@@ -43,20 +46,12 @@ def open_source(path) -> BRDFSource:
         raise BRDFFormatError(spec, "is a folder; use expand_sources() for folders and globs")
     ext = os.path.splitext(spec)[1].lower()
     if ext == ".binary":
-        from hybridbrdf.sources.merl import open_merl
-
         return open_merl(spec)
     if ext == ".bsdf":
-        from hybridbrdf.sources.rgl import open_rgl
-
         return open_rgl(spec)
     if ext == ".bin":
-        from hybridbrdf.sources.utia import open_utia
-
         return open_utia(spec)
     if ext == ".h5":
-        from hybridbrdf.sources.nbrdf import open_nbrdf
-
         return open_nbrdf(spec)
     raise BRDFFormatError(spec, f"unknown BRDF format (extension {ext or 'none'!r}; expected one of "
                                 f"{', '.join(EXTENSIONS)} or synthetic:NAME)")
@@ -71,8 +66,6 @@ def expand_sources(specs) -> List[str]:
         spec = os.fspath(spec)
         if spec.startswith(SYNTHETIC_PREFIX):
             if spec == SYNTHETIC_PREFIX + "all":
-                from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS
-
                 out.extend(SYNTHETIC_PREFIX + n for n in SYNTHETIC_MATERIALS)
             else:
                 out.append(spec)

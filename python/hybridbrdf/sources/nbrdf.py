@@ -200,17 +200,10 @@ def _read_dense(f, spec: str, name: str) -> Optional[Tuple[np.ndarray, np.ndarra
     return kernel, bias
 
 
-def read_nbrdf_layers(path) -> List[Tuple[str, np.ndarray, np.ndarray, str]]:
-    """The Dense layers of an NBRDF network: a list of (name, kernel (in, out),
-    bias (out,), activation), validated (6 inputs, 3 outputs, chained shapes,
-    finite weights, known activations). Raises :class:`BRDFFormatError`."""
-    import h5py
+def _read_dense_layers(spec: str, config) -> List[Tuple[str, np.ndarray, np.ndarray]]:
+    """(name, kernel, bias) of each Dense layer of the HDF5 weights file, in the file's layer order."""
+    import h5py  # HDF5 is loaded only when an NBRDF file is read
 
-    spec = os.fspath(path)
-    # A regular file of a sane size before HDF5 opens it: opening a FIFO would block.
-    check_input_file(spec, "NBRDF .h5 file", MAX_H5_BYTES, BRDFFormatError)
-    json_path = os.path.splitext(spec)[0] + ".json"
-    config = _read_keras_config(json_path)
     # Config layers that carry no weights may lack a group in the h5.
     weightless_ok = set() if config is None else {l["config"].get("name") for l in config if l["class_name"] != "Dense"}
     dense: List[Tuple[str, np.ndarray, np.ndarray]] = []
@@ -236,37 +229,54 @@ def read_nbrdf_layers(path) -> List[Tuple[str, np.ndarray, np.ndarray, str]]:
         raise BRDFFormatError(spec, f"not a readable Keras HDF5 weights file ({type(exc).__name__}: {exc})") from None
     if not dense:
         raise BRDFFormatError(spec, "no Dense layer with weights")
+    return dense
 
+
+def _config_activations(json_path: str, config, dense) -> List[str]:
+    """The Dense layers' activations from the Keras JSON config, checked against the weights read."""
+    cfg_dense = [l for l in config if l["class_name"] == "Dense"]
+    for l in config:
+        cls = l["class_name"]
+        if cls not in ("Dense", "Lambda") + _IDENTITY_LAYERS:
+            raise BRDFFormatError(json_path, f"unsupported Keras layer class {cls!r}")
+    if config and config[-1]["class_name"] != "Lambda":
+        raise BRDFFormatError(json_path, "the last layer is not the Lambda output transform exp(x) - 1")
+    if sum(l["class_name"] == "Lambda" for l in config) != 1:
+        raise BRDFFormatError(json_path, "expected exactly one Lambda layer (the output transform)")
+    cfg_names = [l["config"].get("name") for l in cfg_dense]
+    h5_names = [n for n, _, _ in dense]
+    if cfg_names != h5_names:
+        raise BRDFFormatError(json_path, f"Dense layers {cfg_names} do not match the weights file's {h5_names}")
+    acts = []
+    for l, (name, kernel, _) in zip(cfg_dense, dense):
+        units = l["config"].get("units")
+        if units is not None and units != kernel.shape[1]:
+            raise BRDFFormatError(json_path, f"layer '{name}' has {units} units but its kernel is {kernel.shape}")
+        if l["config"].get("use_bias", True) is False:
+            raise BRDFFormatError(json_path, f"layer '{name}' has use_bias = false, but a bias was read")
+        acts.append(l["config"].get("activation", "linear"))
+    return acts
+
+
+def read_nbrdf_layers(path) -> List[Tuple[str, np.ndarray, np.ndarray, str]]:
+    """The Dense layers of an NBRDF network: a list of (name, kernel (in, out),
+    bias (out,), activation), validated (6 inputs, 3 outputs, chained shapes,
+    finite weights, known activations). Raises :class:`BRDFFormatError`."""
+    spec = os.fspath(path)
+    # A regular file of a sane size before HDF5 opens it: opening a FIFO would block.
+    check_input_file(spec, "NBRDF .h5 file", MAX_H5_BYTES, BRDFFormatError)
+    json_path = os.path.splitext(spec)[0] + ".json"
+    config = _read_keras_config(json_path)
+    dense = _read_dense_layers(spec, config)
     # Activations: from the JSON config when present, else the published network's.
     if config is None:
         acts = ["relu"] * (len(dense) - 1) + ["linear"]
     else:
-        cfg_dense = [l for l in config if l["class_name"] == "Dense"]
-        for l in config:
-            cls = l["class_name"]
-            if cls not in ("Dense", "Lambda") + _IDENTITY_LAYERS:
-                raise BRDFFormatError(json_path, f"unsupported Keras layer class {cls!r}")
-        if config and config[-1]["class_name"] != "Lambda":
-            raise BRDFFormatError(json_path, "the last layer is not the Lambda output transform exp(x) - 1")
-        if sum(l["class_name"] == "Lambda" for l in config) != 1:
-            raise BRDFFormatError(json_path, "expected exactly one Lambda layer (the output transform)")
-        cfg_names = [l["config"].get("name") for l in cfg_dense]
-        h5_names = [n for n, _, _ in dense]
-        if cfg_names != h5_names:
-            raise BRDFFormatError(json_path, f"Dense layers {cfg_names} do not match the weights file's {h5_names}")
-        acts = []
-        for l, (name, kernel, _) in zip(cfg_dense, dense):
-            units = l["config"].get("units")
-            if units is not None and units != kernel.shape[1]:
-                raise BRDFFormatError(json_path, f"layer '{name}' has {units} units but its kernel is {kernel.shape}")
-            if l["config"].get("use_bias", True) is False:
-                raise BRDFFormatError(json_path, f"layer '{name}' has use_bias = false, but a bias was read")
-            acts.append(l["config"].get("activation", "linear"))
+        acts = _config_activations(json_path, config, dense)
     for (name, _, _), act in zip(dense, acts):
         if not isinstance(act, str) or act not in ACTIVATIONS:  # a custom activation is a dict
             raise BRDFFormatError(json_path if config is not None else spec,
                                   f"layer '{name}' has unsupported activation {act!r}")
-
     width = INPUT_DIM
     for name, kernel, _ in dense:
         if kernel.shape[0] != width:

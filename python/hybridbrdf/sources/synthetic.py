@@ -25,15 +25,8 @@ reciprocal, non-negative and finite for every pair of directions strictly
 above the horizon (grazing included), and their directional albedo stays at
 or below 1 (checked by tests/python/test_sources_synthetic.py).
 
-Shared numerics follow the project's conventions so that a synthetic
-material in f_a's family agrees with the C++ library to rounding:
-
-- the GGX visibility term is written ``G1(w) / (2 w.z) = 1 / (w.z + sqrt(w.z^2
-  + ax^2 wx^2 + ay^2 wy^2))``, which never divides by a grazing cosine;
-- the Fresnel cosine is ``(wo.h + wi.h) / 2`` (equal to wo.h in exact
-  arithmetic, symmetric in wi, wo in floating point), so reciprocity holds to
-  rounding (1e-15 relative);
-- squares are written as products.
+The shared numerics (half vector, GGX, Fresnel) are :mod:`hybridbrdf.brdf.microfacet`'s; the thin
+film's spectral tools are :mod:`hybridbrdf.sources.spectral`'s.
 """
 
 from __future__ import annotations
@@ -43,13 +36,13 @@ from typing import Callable, Dict, Sequence
 
 import numpy as np
 
+from hybridbrdf.brdf.analytic import AnalyticParams
+from hybridbrdf.brdf.microfacet import dot, fresnel_conductor, fresnel_dielectric, ggx_microfacet, half_vector
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.spectral import (MAX_OPTICAL_THICKNESS_NM, WAVELENGTHS_NM, spectral_to_rgb_weights,
+                                         thin_film_reflectance)
 
 INV_PI = 1.0 / np.pi
-
-# ---------------------------------------------------------------------------
-# Building blocks (float64, vectorised)
-# ---------------------------------------------------------------------------
 
 
 def _rgb(value, name: str) -> np.ndarray:
@@ -71,239 +64,6 @@ def _in_range(value: float, lo: float, hi: float, name: str) -> float:
     if not (lo <= value <= hi):  # written so that NaN fails
         raise ValueError(f"{name} = {value!r} is outside [{lo:g}, {hi:g}]")
     return value
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
-def half_vector(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
-    """h = normalize(wi + wo) for (M,3) unit directions above the horizon.
-
-    The sum is scaled by its largest component before normalising, so the
-    length never underflows: for wi ~ -wo, both grazing, h is +z, the limit
-    from above that docs/CONVENTIONS.md prescribes (wi.z + wo.z > 0 always).
-    """
-    v = wi + wo
-    v = v / np.max(np.abs(v), axis=1, keepdims=True)
-    return v / np.sqrt(_dot(v, v))[:, None]
-
-
-def ggx_D(h: np.ndarray, alpha_x: float, alpha_y: float) -> np.ndarray:
-    """Anisotropic GGX (Trowbridge-Reitz) normal distribution D(h), (M,).
-
-    D(h) = 1 / (pi ax ay (hx^2/ax^2 + hy^2/ay^2 + hz^2)^2)
-    (Walter et al. 2007, "Microfacet Models for Refraction through Rough
-    Surfaces", EGSR; anisotropic form: Heitz 2014, "Understanding the
-    Masking-Shadowing Function in Microfacet-Based BRDFs", JCGT 3(2)).
-    """
-    hx = h[:, 0] / alpha_x
-    hy = h[:, 1] / alpha_y
-    t = hx * hx + hy * hy + h[:, 2] * h[:, 2]
-    return 1.0 / (np.pi * alpha_x * alpha_y * t * t)
-
-
-def smith_G1_over_2cos(w: np.ndarray, alpha_x: float, alpha_y: float) -> np.ndarray:
-    """GGX Smith masking divided by twice the cosine, G1(w) / (2 w.z), (M,).
-
-    G1(w) = 2 / (1 + sqrt(1 + (ax^2 wx^2 + ay^2 wy^2) / wz^2)) (Heitz 2014,
-    anisotropic GGX), rewritten as 1 / (wz + sqrt(wz^2 + ax^2 wx^2 +
-    ay^2 wy^2)) so that it never divides by a grazing cosine; bounded by
-    1 / min(ax, ay) for unit w with wz >= 0.
-    """
-    ax_wx = alpha_x * w[:, 0]
-    ay_wy = alpha_y * w[:, 1]
-    wz = w[:, 2]
-    return 1.0 / (wz + np.sqrt(wz * wz + ax_wx * ax_wx + ay_wy * ay_wy))
-
-
-def ggx_microfacet(wi: np.ndarray, wo: np.ndarray, alpha_x: float, alpha_y: float):
-    """The Fresnel-free GGX reflection lobe D G / (4 wi.z wo.z) and its Fresnel cosine.
-
-    Returns ``(lobe (M,), cos_theta_d (M,))`` with separable Smith G =
-    G1(wi) G1(wo) (Walter et al. 2007; Heitz 2014) and cos_theta_d =
-    (wo.h + wi.h) / 2: the angle Fresnel is evaluated at, symmetric in wi
-    and wo so that every material built on it is reciprocal to rounding.
-    """
-    h = half_vector(wi, wo)
-    lobe = ggx_D(h, alpha_x, alpha_y) * smith_G1_over_2cos(wi, alpha_x, alpha_y) * smith_G1_over_2cos(
-        wo, alpha_x, alpha_y
-    )
-    cos_theta_d = 0.5 * (_dot(wo, h) + _dot(wi, h))
-    return lobe, cos_theta_d
-
-
-def fresnel_dielectric(cos_theta_i, eta) -> np.ndarray:
-    """Exact unpolarised Fresnel reflectance of a dielectric interface, air -> eta.
-
-    ``cos_theta_i``: (M,) cosines (clamped to [0, 1]); ``eta``: a real index
-    >= 1, scalar or per channel (C,). Returns (M,) or (M, C).
-
-    Textbook form (Cook & Torrance 1982, "A Reflectance Model for Computer
-    Graphics", ACM TOG 1(1)), c = cos, g = sqrt(eta^2 - 1 + c^2):
-    F = 0.5 ((g-c)/(g+c))^2 (1 + ((c(g+c)-1)/(c(g-c)+1))^2), evaluated in the
-    cancellation-free rearrangement of docs/CONVENTIONS.md: e = eta^2 - 1,
-    s = g + c, a = c s - 1, b = c e + s, F = e^2 (a^2 s^2 + b^2) / (2 s^4 b^2).
-    The only 0/0 (c = 0 and eta = 1) returns 0.
-    """
-    c = np.clip(np.asarray(cos_theta_i, dtype=np.float64), 0.0, 1.0)
-    eta = np.asarray(eta, dtype=np.float64)
-    if eta.ndim == 1:
-        c = c[:, None]
-    e = eta * eta - 1.0
-    s = np.sqrt(e + c * c) + c
-    a = c * s - 1.0
-    b = c * e + s
-    s2 = s * s
-    num = e * e * (a * a * s2 + b * b)
-    den = 2.0 * s2 * s2 * b * b
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
-
-
-def fresnel_conductor(cos_theta_i, eta, k) -> np.ndarray:
-    """Exact unpolarised Fresnel reflectance of a conductor, air -> eta + i k.
-
-    ``cos_theta_i``: (M,) cosines (clamped to [0, 1]); ``eta``, ``k``: per
-    channel (C,). Returns (M, C) in [0, 1].
-
-    Complex Fresnel equations (Born & Wolf, "Principles of Optics", 1.5.2,
-    with a complex index; pbrt-v4's FrComplex): sin^2 theta_t = sin^2 theta_i /
-    eta^2, cos theta_t = sqrt(1 - sin^2 theta_t) (principal branch),
-    r_par = (eta cos_i - cos_t) / (eta cos_i + cos_t),
-    r_perp = (cos_i - eta cos_t) / (cos_i + eta cos_t),
-    F = (|r_par|^2 + |r_perp|^2) / 2. At normal incidence this is
-    ((n-1)^2 + k^2) / ((n+1)^2 + k^2); at grazing incidence 1.
-    """
-    c = np.clip(np.asarray(cos_theta_i, dtype=np.float64), 0.0, 1.0)[:, None]
-    eta_c = np.asarray(eta, dtype=np.float64) + 1j * np.asarray(k, dtype=np.float64)
-    sin2_i = (1.0 - c) * (1.0 + c)  # 1 - c^2 without cancellation near c = 1
-    cos_t = np.sqrt(1.0 - sin2_i / (eta_c * eta_c))
-    eta_cos_i = eta_c * c
-    eta_cos_t = eta_c * cos_t
-    r_par = (eta_cos_i - cos_t) / (eta_cos_i + cos_t)
-    r_perp = (c - eta_cos_t) / (c + eta_cos_t)
-    return 0.5 * (r_par.real * r_par.real + r_par.imag * r_par.imag + r_perp.real * r_perp.real
-                  + r_perp.imag * r_perp.imag)
-
-
-# ---- spectral tools for the thin film --------------------------------------
-
-#: Wavelengths (nm) at which the thin-film reflectance is integrated: 380-780 nm
-#: in 5 nm steps. The interference phase 2 eta_film d cos / lambda (cycles) moves
-#: by 2 eta_film d x 5 nm / lambda^2 between samples: at most 0.1 cycle at 380 nm
-#: for an optical thickness eta_film d <= MAX_OPTICAL_THICKNESS_NM, so the sum
-#: resolves every fringe (0.06 cycle for the built-in film).
-WAVELENGTHS_NM = np.linspace(380.0, 780.0, 81)
-MAX_OPTICAL_THICKNESS_NM = 1500.0
-
-#: CIE XYZ -> linear sRGB (Rec. 709 primaries, D65 white; IEC 61966-2-1).
-XYZ_TO_LINEAR_SRGB = np.array(
-    [
-        [3.2404542, -1.5371385, -0.4985314],
-        [-0.9692660, 1.8760108, 0.0415560],
-        [0.0556434, -0.2040259, 1.0572252],
-    ]
-)
-
-
-def cie1931_xyz(wavelength_nm) -> np.ndarray:
-    """CIE 1931 2-degree colour matching functions, (L,) -> (L, 3).
-
-    The multi-lobe piecewise-Gaussian fit of Wyman, Sloan & Shirley 2013,
-    "Simple Analytic Approximations to the CIE XYZ Color Matching Functions",
-    JCGT 2(2), Sec. 2.1 (within about 1% of the tabulated functions), so that
-    the library carries no table.
-    """
-    lam = np.asarray(wavelength_nm, dtype=np.float64)
-
-    def g(mu, inv_sigma_lo, inv_sigma_hi):
-        t = (lam - mu) * np.where(lam < mu, inv_sigma_lo, inv_sigma_hi)
-        return np.exp(-0.5 * t * t)
-
-    x = 0.362 * g(442.0, 0.0624, 0.0374) + 1.056 * g(599.8, 0.0264, 0.0323) - 0.065 * g(501.1, 0.0490, 0.0382)
-    y = 0.821 * g(568.8, 0.0213, 0.0247) + 0.286 * g(530.9, 0.0613, 0.0322)
-    z = 1.217 * g(437.0, 0.0845, 0.0278) + 0.681 * g(459.0, 0.0385, 0.0725)
-    return np.stack([x, y, z], axis=-1)
-
-
-def spectral_to_rgb_weights(wavelength_nm, cmf=None) -> np.ndarray:
-    """Weights W (3, L) with rgb = W @ R(lambda) for a reflectance spectrum R.
-
-    W = diag(1 / (M X 1)) M X^T with X the colour matching functions at the
-    sample wavelengths (``cmf``, default :func:`cie1931_xyz`) and M the
-    XYZ -> linear sRGB matrix: reflectances are integrated under an
-    equal-energy illuminant and white-balanced per channel, so that a flat
-    spectrum R(lambda) = r maps to rgb = (r, r, r) exactly (each row of W
-    sums to 1). Rows have negative entries: saturated spectra can fall
-    outside [0, 1] and are clamped by the caller.
-    """
-    xyz = cie1931_xyz(wavelength_nm) if cmf is None else np.asarray(cmf, dtype=np.float64)
-    w = XYZ_TO_LINEAR_SRGB @ xyz.T  # (3, L)
-    return w / w.sum(axis=1, keepdims=True)
-
-
-def _amplitude(a, b):
-    """Fresnel amplitude (a - b) / (a + b) for a, b >= 0; -1 where both vanish
-    (an interface between equal indices met at exactly grazing incidence:
-    the limit from above)."""
-    den = a + b
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0.0, (a - b) / np.where(den > 0.0, den, 1.0), -1.0)
-
-
-def thin_film_reflectance(cos_theta_i, eta_film: float, thickness_nm: float, eta_base: float,
-                          wavelength_nm) -> np.ndarray:
-    """Airy reflectance of a dielectric film on a dielectric base, (M,) x (L,) -> (M, L).
-
-    Light comes from air (index 1), crosses a non-absorbing film of index
-    ``eta_film`` and thickness ``thickness_nm`` and meets a dielectric base
-    ``eta_base`` (both >= 1, non-dispersive). Per polarisation the reflected
-    amplitude is the Airy sum of all internal reflections (Born & Wolf 1.6.4;
-    Belcour & Barla 2017, "A Practical Extension to Microfacet Theory for the
-    Modeling of Varying Iridescence", ACM TOG 36(4), Sec. 3):
-
-        r = (r12 + r23 e^{i delta}) / (1 + r12 r23 e^{i delta}),
-        delta = 4 pi eta_film d cos(theta_2) / lambda,
-
-    with real Fresnel amplitudes r12, r23 (s: (n_a c_a - n_b c_b)/(n_a c_a +
-    n_b c_b), p: (n_b c_a - n_a c_b)/(n_b c_a + n_a c_b)). All cosines are
-    real because eta_film, eta_base >= 1 (no total internal reflection), so
-    |r|^2 = (r12^2 + r23^2 + 2 r12 r23 cos delta) / (1 + r12^2 r23^2 + 2 r12
-    r23 cos delta), evaluated as 1 - (1 - r12^2)(1 - r23^2) / (1 + r12^2 r23^2
-    + 2 r12 r23 cos delta) (the same value). Returns (R_s + R_p) / 2. With
-    d = 0, eta_film = 1 or eta_film = eta_base it reduces to the
-    single-interface Fresnel formula.
-    """
-    c1 = np.clip(np.asarray(cos_theta_i, dtype=np.float64), 0.0, 1.0)[:, None]
-    inv_lam = 1.0 / np.asarray(wavelength_nm, dtype=np.float64)[None, :]
-    n2, n3 = float(eta_film), float(eta_base)
-    sin2_1 = (1.0 - c1) * (1.0 + c1)
-    c2 = np.sqrt(1.0 - sin2_1 / (n2 * n2))  # real: n2 >= 1
-    c3 = np.sqrt(1.0 - sin2_1 / (n3 * n3))  # real: n2 sin(theta_2) = sin(theta_1) <= 1 <= n3
-    cos_delta = np.cos(((4.0 * np.pi * n2 * thickness_nm) * c2) * inv_lam)
-    # |1 + r12 r23 e^{i delta}|^2 - |r12 + r23 e^{i delta}|^2 = (1 - r12^2)(1 - r23^2), so
-    # R = 1 - (1 - r12^2)(1 - r23^2) / |1 + r12 r23 e^{i delta}|^2: one division per
-    # sample, and exactly 1 where the film transmits nothing (r12 = -1 at grazing).
-    loss = np.zeros(np.broadcast_shapes(c1.shape, inv_lam.shape))
-    for r12, r23 in (
-        (_amplitude(c1, n2 * c2), _amplitude(n2 * c2, n3 * c3)),  # s
-        (_amplitude(n2 * c1, c2), _amplitude(n3 * c2, n2 * c3)),  # p
-    ):
-        transmit = 0.5 * (1.0 - r12 * r12) * (1.0 - r23 * r23)
-        den = (2.0 * r12 * r23) * cos_delta
-        den += 1.0 + r12 * r12 * r23 * r23
-        # den vanishes only for a free film (eta_base = 1) at exactly grazing
-        # incidence, where transmit = 0 too and |r| -> 1.
-        np.maximum(den, np.finfo(np.float64).tiny, out=den)
-        np.divide(transmit, den, out=den)
-        loss += den
-    return 1.0 - loss
-
-
-# ---------------------------------------------------------------------------
-# Materials
-# ---------------------------------------------------------------------------
 
 
 class SyntheticBRDF(BRDFSource):
@@ -358,8 +118,6 @@ class LambertGGXDielectric(SyntheticBRDF):
     @property
     def analytic_params(self):
         """The same material as :class:`hybridbrdf.AnalyticParams` (float32 C++ model)."""
-        from hybridbrdf.brdf.analytic import AnalyticParams
-
         return AnalyticParams(kd=self.kd, eta=self.eta, alpha=(self.alpha_x, self.alpha_y))
 
     def _eval(self, wi, wo):
@@ -502,7 +260,7 @@ class OrenNayarFujii(SyntheticBRDF):
     def _eval(self, wi, wo):
         A = 1.0 / (1.0 + (0.5 * np.pi - 2.0 / 3.0) * self.sigma)
         B = self.sigma * A
-        s = _dot(wi, wo) - wi[:, 2] * wo[:, 2]
+        s = dot(wi, wo) - wi[:, 2] * wo[:, 2]
         t = np.where(s > 0.0, np.maximum(wi[:, 2], wo[:, 2]), 1.0)
         # A + B s / t >= A - B >= 0 for sigma <= 1; the clamp only removes rounding.
         return self.rho * INV_PI * np.maximum(A + B * s / t, 0.0)[:, None]
@@ -709,29 +467,3 @@ def open_synthetic(name: str) -> BRDFSource:
 def synthetic_names() -> Sequence[str]:
     """Names of the built-in materials, in order."""
     return list(SYNTHETIC_MATERIALS)
-
-
-__all__ = [
-    "SYNTHETIC_MATERIALS",
-    "MAX_OPTICAL_THICKNESS_NM",
-    "WAVELENGTHS_NM",
-    "CharlieSheen",
-    "ClearCoat",
-    "LambertGGXDielectric",
-    "OrenNayarFujii",
-    "Retroreflector",
-    "RoughConductor",
-    "SyntheticBRDF",
-    "ThinFilmGGX",
-    "cie1931_xyz",
-    "fresnel_conductor",
-    "fresnel_dielectric",
-    "ggx_D",
-    "ggx_microfacet",
-    "half_vector",
-    "open_synthetic",
-    "smith_G1_over_2cos",
-    "spectral_to_rgb_weights",
-    "synthetic_names",
-    "thin_film_reflectance",
-]

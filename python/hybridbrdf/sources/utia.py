@@ -46,6 +46,7 @@ import numpy as np
 
 from hybridbrdf.sources.base import (BRDFSource, check_choice, check_file_size, check_finite_table,
                                      read_file_bytes, source_name, table_array)
+from hybridbrdf.util import atomic_write_bytes
 
 N_THETA = 6
 N_PHI = 48
@@ -191,7 +192,6 @@ def write_utia(path, table_or_function: Union[np.ndarray, BRDFSource, Callable])
     if not np.isfinite(table).all():
         raise ValueError("the BRDF table or function holds non-finite values")
     payload = np.ascontiguousarray(np.moveaxis(table, -1, 0), dtype="<f8").tobytes()
-    from hybridbrdf.util import atomic_write_bytes
 
     atomic_write_bytes(path, payload)
 

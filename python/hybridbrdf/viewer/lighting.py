@@ -17,6 +17,7 @@ import os
 from typing import Any, Dict, Optional
 
 import numpy as np
+from hybridbrdf import _core
 
 #: The page's default light: the tracer's procedural sky (a sun disc of irradiance pi, so that a
 #: white Lambert surface facing it has radiance 1 from the sun, and a dim blue sky and grey ground).
@@ -71,8 +72,6 @@ def page_environment(spec: Dict[str, Any], origin: str = "--env") -> Dict[str, A
     """What the page carries of the environment ``spec``: its texels (base64 float32 RGB, rows from
     the zenith down), their size, the spec (for the printed scene; without ``rotation_deg``, which the
     page sets) and whether the texels are the tracer's exactly (false when reduced)."""
-    from hybridbrdf import _core
-
     spec = {k: v for k, v in spec.items() if k != "rotation_deg"}
     image = np.asarray(_core.render_environment(json.dumps(spec), os.getcwd(), origin), dtype=np.float32)
     reduced = reduce_map(image, MAX_ENV_WIDTH)

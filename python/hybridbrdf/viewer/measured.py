@@ -36,7 +36,11 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from hybridbrdf import _core
+from hybridbrdf.errors import InputFileError
 from hybridbrdf.render.tracer import open_measured, render
+from hybridbrdf.sources import SYNTHETIC_PREFIX, expand_sources, open_source
+from hybridbrdf.sources.names import format_tag, source_material
 from hybridbrdf.viewer.scene import srgb8, tracer_scene
 
 #: Default size (pixels, square) and samples per pixel of the measured render: 1.3-2.5 s per RGL
@@ -95,10 +99,6 @@ def pair_sources(model, model_path: str, specs: Sequence[str]) -> List[Tuple[str
     ``hbrdf eval`` expands them). Raises the reader's BRDFFormatError for a source it refuses, and
     InputFileError "<source>: ..." (one line) for a source that names no material of the model or
     one that another source already paired with."""
-    from hybridbrdf.errors import InputFileError
-    from hybridbrdf.sources.names import format_tag, source_material
-    from hybridbrdf.sources import expand_sources, open_source
-
     out: List[Tuple[str, Any, str]] = []
     taken: Dict[str, str] = {}
     for spec in expand_sources(specs):
@@ -158,8 +158,6 @@ def measured_material(model, material: str, source: str) -> Dict[str, Any]:
     fitted f_a as ``sampling_params``: the tracer then samples the measurement as it samples the model
     (cosine and GGX, MIS) instead of by the cosine alone; the BRDF value is always the measurement's,
     so the expectation is the same and only the noise is less (5x less on glossy RGL materials)."""
-    from hybridbrdf.sources import SYNTHETIC_PREFIX
-
     out: Dict[str, Any] = {"type": "measured",
                            "source": source if source.startswith(SYNTHETIC_PREFIX) else os.path.abspath(source)}
     if model.has_analytic:
@@ -231,9 +229,6 @@ def panels(model, model_path: str, sources: Sequence[str], page_scene: Optional[
     "file", "material", "origin", "image", "seconds", "slices"}, per model material in the model's
     order]}. ``page_scene``: the tracer scene the page prints (its camera and light are rendered);
     ``image`` is None in a build without the renderer."""
-    from hybridbrdf import _core
-    from hybridbrdf.sources import SYNTHETIC_PREFIX
-
     if not sources:
         return None
     check_settings(size, spp)

@@ -30,10 +30,11 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 
 from hybridbrdf.codegen.main import generate
-from hybridbrdf.model.file import HybridModel
-from hybridbrdf.viewer import lighting as viewer_lighting
-from hybridbrdf.viewer import measured
-from hybridbrdf.viewer import wgsl as viewer_wgsl
+from hybridbrdf.inputs import refuse_output_over_input
+from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.sources import expand_sources
+from hybridbrdf.util import atomic_write_bytes, check_writable
+from hybridbrdf.viewer import lighting as viewer_lighting, measured, wgsl as viewer_wgsl
 from hybridbrdf.viewer.glsl import DISPLAY_SHADER, fragment_shader
 from hybridbrdf.viewer.scene import CAMERA, DEFAULT_SUN, SUN_IRRADIANCE, tracer_scene
 
@@ -156,11 +157,6 @@ def write_page(model_path: str, out: str, sources: Sequence[str] = (), env: Opti
     """Load ``model_path`` (ModelFileError as ``hbrdf info`` prints it), write the page to ``out``
     atomically; ``env``: ``None``/``"sky"`` or an .exr/.hdr map (``hbrdf view --env``). Returns
     {"bytes", "materials"}."""
-    from hybridbrdf.inputs import refuse_output_over_input
-    from hybridbrdf.model.file import load_model
-    from hybridbrdf.util import atomic_write_bytes, check_writable
-
-    from hybridbrdf.sources import expand_sources
 
     # The files the SOURCE arguments stand for (a folder or a glob names several), not the arguments.
     inputs = [model_path, *expand_sources(sources), *([env] if env not in (None, "sky") else [])]

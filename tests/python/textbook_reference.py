@@ -1,9 +1,11 @@
 """CONVENTIONS.md transcribed literally in NumPy float64: the textbook forms
 (G1 = 2 / (1 + sqrt(1 + ...)), Fresnel with (g - c)/(g + c)), none of the
 library's rewrites or guards. An independent oracle for unit directions
-strictly above the horizon: the tests check the C++ library and the PyTorch
-model against it, and bench/bench_analytic.py times it as the NumPy path.
-Nothing else in the package uses it, so that it stays independent."""
+strictly above the horizon: the tests check the C++ library, the PyTorch
+model and the package's NumPy microfacet maths (hybridbrdf.brdf.microfacet)
+against it, and bench/bench_analytic.py times it as the NumPy path. It lives
+with the tests, outside the package, so that nothing shipped depends on it and
+the package keeps one NumPy definition of each formula."""
 
 import numpy as np
 

@@ -1,0 +1,192 @@
+"""The Python package's folders are its architecture, and the code keeps to the drawing.
+
+- Layers: docs/ARCHITECTURE.md draws the package as lines of folders (and top-level modules);
+  a module imports only from its own line or lines below it, function-level imports included.
+- No import circles between modules (a circle hidden by a function-level import counts).
+- One home per name: ``from hybridbrdf.X import name`` only where X defines ``name`` (or ``name``
+  is X's submodule); no module re-exports another's names. The public namespace (``hybridbrdf``
+  itself, ``__init__.py``) is the one documented exception.
+- The public API and the console scripts are what the README documents.
+
+The import graph is read with ``ast`` from the source tree, so a test fails on the code as written,
+whatever is installed."""
+
+import ast
+import importlib
+import pathlib
+import re
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+PACKAGE = ROOT / "python" / "hybridbrdf"
+
+
+def module_name(path: pathlib.Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def module_path(name: str):
+    base = PACKAGE.parent / name.replace(".", "/")
+    for p in (base / "__init__.py", base.with_suffix(".py")):
+        if p.is_file():
+            return p
+    return None
+
+
+def unit(name: str) -> str:
+    """The layer unit of a module: its folder under hybridbrdf/, or its own name at the top."""
+    parts = name.split(".")
+    if len(parts) == 1:
+        return "__init__"
+    if (PACKAGE / parts[1]).is_dir():
+        return parts[1]
+    return parts[1].removesuffix(".py")
+
+
+def imports(path: pathlib.Path):
+    """[(imported hybridbrdf module, line, [names or None])] of every import statement in the file."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno, None) for a in node.names if a.name.split(".")[0] == "hybridbrdf"]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
+                and node.module.split(".")[0] == "hybridbrdf":
+            names = [a.name for a in node.names]
+            if node.module == "hybridbrdf":  # from hybridbrdf import _core, spec: those modules
+                out += [(f"hybridbrdf.{n}", node.lineno, None) for n in names]
+                continue
+            submodules = [f"{node.module}.{n}" for n in names if module_path(f"{node.module}.{n}")]
+            out.append((node.module, node.lineno, names))
+            out += [(m, node.lineno, None) for m in submodules]
+    return out
+
+
+MODULES = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def drawn_layers():
+    text = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
+    block = re.search(r"<!-- layers -->\n(.*?)<!-- /layers -->", text, re.S)
+    assert block, "docs/ARCHITECTURE.md has no <!-- layers --> drawing"
+    rows = [re.split(r"\s{2,}", line.strip()) for line in block.group(1).splitlines() if line.strip()]
+    # Each row: the units (two or more spaces apart), then the description (after 5+ spaces in the
+    # drawing; the last field). Units are identifiers.
+    layers = {}
+    for height, row in enumerate(reversed(rows)):
+        for name in row:
+            if re.fullmatch(r"[_a-z][_a-z0-9]*", name):
+                layers[name] = height
+    return layers
+
+
+def test_the_drawing_names_every_folder_and_top_level_module():
+    layers = drawn_layers()
+    units = {unit(m) for m in MODULES} | {"_core"}
+    assert units == set(layers), (sorted(units - set(layers)), sorted(set(layers) - units))
+
+
+def test_every_import_goes_down_the_drawing():
+    layers = drawn_layers()
+    wrong = []
+    for name, path in MODULES.items():
+        for target, line, _ in imports(path):
+            a, b = unit(name), unit(target)
+            if a != b and layers[b] >= layers[a]:
+                wrong.append(f"{path.relative_to(ROOT)}:{line}: {a} imports {target} ({b} is not below it)")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_circles():
+    graph = {name: {t for t, _, _ in imports(path) if t in MODULES and t != name} for name, path in MODULES.items()}
+    # A package's __init__ importing its own submodules is not a circle of two modules' code.
+    state, stack, circles = {}, [], []
+
+    def visit(n):
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph[n]):
+            if state.get(m) == 1:
+                circles.append(stack[stack.index(m):] + [m])
+            elif m not in state:
+                visit(m)
+        stack.pop()
+        state[n] = 2
+
+    for n in sorted(graph):
+        if n not in state:
+            visit(n)
+    assert not circles, "\n".join(" -> ".join(c) for c in circles)
+
+
+def defined_names(path: pathlib.Path):
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and node.col_offset == 0:
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)) and node.col_offset == 0:
+            for target in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                names |= {x.id for x in ast.walk(target) if isinstance(x, ast.Name)}
+    return names
+
+
+def test_every_name_is_imported_from_its_home():
+    files = [p for folder in ("python", "tests", "bench", "scripts") for p in (ROOT / folder).rglob("*.py")]
+    wrong = []
+    for path in files:
+        for module, line, names in imports(path):
+            if names is None or module == "hybridbrdf" or module.startswith("hybridbrdf._core"):
+                continue
+            home = module_path(module)
+            assert home is not None, f"{path.relative_to(ROOT)}:{line}: no module {module}"
+            defined = defined_names(home)
+            for n in names:
+                if n not in defined and not module_path(f"{module}.{n}"):
+                    wrong.append(f"{path.relative_to(ROOT)}:{line}: {n} is not defined in {module}")
+    assert not wrong, "\n".join(wrong)
+
+
+# The documented public namespace (README, "Python API"): a name leaves or joins it on purpose.
+PUBLIC = {"ALPHA_MAX", "ALPHA_MIN", "CONVENTIONS_VERSION", "ETA_MAX", "ETA_MIN", "MIS_MIN_LOBE_PROBABILITY",
+          "STRATEGIES", "AnalyticParams", "BRDFFormatError", "BRDFSource", "FitSettings", "HybridModel", "add",
+          "InputFileError", "ModelFileError", "expand_sources", "load_model", "load_prior", "prior_path",
+          "open_source", "analytic_eval", "pdf", "sample", "simd_path"}
+
+
+def test_the_public_namespace():
+    import hybridbrdf
+
+    assert set(hybridbrdf.__all__) == PUBLIC
+    assert all(hasattr(hybridbrdf, n) for n in PUBLIC)
+    assert re.fullmatch(r"\d+\.\d+\.\d+", hybridbrdf.__version__)
+
+
+@pytest.mark.parametrize("script", ["hbrdf", "hbrdf-codegen"])
+def test_console_scripts_resolve(script):
+    text = (ROOT / "pyproject.toml").read_text()
+    target = re.search(rf'^{re.escape(script)} = "([\w.]+):(\w+)"', text, re.M)
+    assert target, f"pyproject.toml names no console script {script}"
+    module = importlib.import_module(target.group(1))
+    assert callable(getattr(module, target.group(2)))
+    assert sys.modules[target.group(1)].__file__.endswith(target.group(1).split(".")[-1] + ".py")
+
+
+# The only imports inside functions: dependencies that one command or one file format needs and
+# the rest of the package does not (docs/ARCHITECTURE.md, "The Python package's layers").
+LAZY = {"matplotlib", "mitsuba", "drjit", "h5py"}
+
+
+def test_imports_are_at_the_top_of_modules():
+    wrong = []
+    for name, path in MODULES.items():
+        tree = ast.parse(path.read_text())
+        top = {id(n) for n in tree.body}
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
+                roots = {a.name.split(".")[0] for a in node.names} if isinstance(node, ast.Import) \
+                    else {(node.module or "").split(".")[0]}
+                if not roots <= LAZY:
+                    wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
+    assert not wrong, "\n".join(wrong)
