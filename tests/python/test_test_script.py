@@ -17,6 +17,10 @@ SCRIPT = ROOT / "scripts" / "test.sh"
 PROBE = ROOT / "tests" / "data" / "test_script" / "probe_stage.py"
 
 
+needs_build = pytest.mark.skipif(not (ROOT / "build" / "CTestTestfile.cmake").exists(),
+                                 reason="needs the Release build tree (scripts/test.sh builds it first)")
+
+
 def run_script(tmp_path, **env):
     settings = dict(HBRDF_TEST_SETUP="0", HBRDF_PROBE_FILE=str(tmp_path / "probe"),
                     PYTEST_ARGS=f"-q -p no:cacheprovider {PROBE}")
@@ -31,8 +35,7 @@ def summary(r):
     return lines[1]
 
 
-@pytest.mark.skipif(not (ROOT / "build" / "CTestTestfile.cmake").exists(),
-                    reason="needs the Release build tree (scripts/test.sh builds it first)")
+@needs_build
 def test_a_failed_ctest_does_not_stop_pytest_and_the_command_fails(tmp_path):
     r = run_script(tmp_path, HBRDF_TEST_STAGES="ctest python", CTEST_ARGS="-R ^deliberate_failure_probe$",
                    HBRDF_DELIBERATE_FAILURE="1")
@@ -45,8 +48,7 @@ def test_a_failed_ctest_does_not_stop_pytest_and_the_command_fails(tmp_path):
     assert "test: FAILED" in text
 
 
-@pytest.mark.skipif(not (ROOT / "build" / "CTestTestfile.cmake").exists(),
-                    reason="needs the Release build tree (scripts/test.sh builds it first)")
+@needs_build
 def test_the_same_stages_pass_without_the_deliberate_failure(tmp_path):
     r = run_script(tmp_path, HBRDF_TEST_STAGES="ctest python", CTEST_ARGS="-R ^deliberate_failure_probe$",
                    HBRDF_DELIBERATE_FAILURE="")
