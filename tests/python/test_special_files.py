@@ -26,10 +26,10 @@ from hybridbrdf import inputs
 from hybridbrdf.model.random import random_model
 from hybridbrdf.sources.base import BRDFFormatError
 from hybridbrdf.sources import open_source
-from hybridbrdf.sources import merl, nbrdf, rgl, utia
+from hybridbrdf.sources import merl, nbrdf, tensor_file, utia
 
 # Each reader and the largest file it reads (a sparse file one byte beyond it must be refused).
-READERS = {".binary": merl.FILE_BYTES, ".bsdf": rgl.MAX_FILE_BYTES, ".bin": utia.FILE_BYTES,
+READERS = {".binary": merl.FILE_BYTES, ".bsdf": tensor_file.MAX_FILE_BYTES, ".bin": utia.FILE_BYTES,
            ".h5": nbrdf.MAX_H5_BYTES}
 KINDS = {"fifo": "is a FIFO, not a regular file", "zero": "is a character device, not a regular file",
          "urandom": "is a character device, not a regular file"}

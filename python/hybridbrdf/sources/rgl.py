@@ -5,11 +5,8 @@ Acquisition and Rendering", ACM TOG 37(6)).
     src = open_rgl("../shared/data/rgl/paper_white_rgb.bsdf")
     f = src.eval(wi, wo)          # (N,3) RGB, no cosine
 
-File layout (``tensor_file`` v1.0, little endian)::
-
-    "tensor_file\\0"  u8 major = 1  u8 minor = 0  u32 field_count
-    field_count times: u16 name_len, name, u16 ndim, u8 dtype, u64 offset, ndim x u64 shape
-    the field data, each at its offset, C order
+File layout: a ``tensor_file`` v1.0 (:mod:`hybridbrdf.sources.tensor_file` reads it); the tables
+are interpolated as Mitsuba's ``Marginal2D`` (:mod:`hybridbrdf.sources.rgl_warp`).
 
 Fields of an RGB file (n_phi x n_theta incident directions, tables of N x N):
 
@@ -85,283 +82,22 @@ where the value is near 0, e.g. where interpolated rgb crosses 0.
 from __future__ import annotations
 
 import os
-import struct
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from hybridbrdf.inputs import read_input_bytes
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.sources.rgl_warp import ContinuousMarginal2D, Slices, bilinear, grid_cell, lerp
+from hybridbrdf.sources.tensor_file import read_tensor_file
 
-#: The 12 bytes every tensor_file starts with.
-TENSOR_MAGIC = b"tensor_file\x00"
-#: The container version this reader understands (header bytes major, minor).
-TENSOR_VERSION = (1, 0)
 #: The RGL format version held in the ``version`` field.
 RGL_VERSION = (1, 0)
-
-# Mitsuba's Struct type codes as written into tensor files.
-_DTYPES = {
-    1: np.dtype("<u1"),
-    2: np.dtype("<i1"),
-    3: np.dtype("<u2"),
-    4: np.dtype("<i2"),
-    5: np.dtype("<u4"),
-    6: np.dtype("<i4"),
-    7: np.dtype("<u8"),
-    8: np.dtype("<i8"),
-    9: np.dtype("<f2"),
-    10: np.dtype("<f4"),
-    11: np.dtype("<f8"),
-}
 
 _F32 = np.dtype("<f4")
 _U8 = np.dtype("<u1")
 _U32 = np.dtype("<u4")
 
 ORIGIN = "RGL measurement (raw .bsdf)"
-
-
-# ----------------------------------------------------------------------------
-# tensor_file container
-# ----------------------------------------------------------------------------
-
-
-#: Largest field rank the reader takes (RGL's tables have rank 4 or 5; numpy allows 64).
-_MAX_RANK = 8
-#: Largest .bsdf file read (bytes): the published RGL files are 0.6-1.1 MB; this leaves room for
-#: far finer tables, and keeps a sparse or endless file from filling memory.
-MAX_FILE_BYTES = 256 << 20
-#: Longest field name quoted in an error message.
-_MAX_NAME_CHARS = 40
-
-
-def read_tensor_file(path) -> Dict[str, np.ndarray]:
-    """Read a Mitsuba ``tensor_file`` into ``{name: array}`` (arrays are copies,
-    in the file's dtype and shape).
-
-    Raises :class:`BRDFFormatError` naming the file for an unreadable or
-    truncated file, a wrong magic or version, an unknown dtype code, a
-    duplicate field or a field whose data lie outside the file."""
-    path = os.fspath(path)
-    cursor = _Cursor(path, read_input_bytes(path, ".bsdf file", MAX_FILE_BYTES, BRDFFormatError))
-    _read_preamble(cursor)
-    headers = _read_field_headers(cursor)
-    return {name: _read_field_data(cursor, name, dtype, shape, offset) for name, dtype, shape, offset in headers}
-
-
-class _Cursor:
-    """A position in a tensor_file's bytes; reading past the end is a "truncated file" error."""
-
-    def __init__(self, path: str, buf: bytes):
-        self.path, self.buf, self.size, self.pos = path, buf, len(buf), 0
-
-    def fail(self, problem: str):
-        raise BRDFFormatError(self.path, problem)
-
-    def check_room(self, need: int, what: str):
-        if self.pos + need > self.size:
-            self.fail(f"truncated file: {what} needs bytes {self.pos}..{self.pos + need} but the file has "
-                      f"{self.size} bytes")
-
-    def take(self, fmt: str, what: str) -> tuple:
-        """Unpack ``fmt`` at the cursor and advance."""
-        need = struct.calcsize(fmt)
-        self.check_room(need, what)
-        vals = struct.unpack_from(fmt, self.buf, self.pos)
-        self.pos += need
-        return vals
-
-
-def _read_preamble(cursor: _Cursor) -> None:
-    """The magic and the container version; leaves the cursor at the field count."""
-    buf, size = cursor.buf, cursor.size
-    if size < len(TENSOR_MAGIC):
-        if TENSOR_MAGIC.startswith(buf):
-            cursor.fail(f"truncated file: {size} bytes, shorter than the tensor_file header")
-        cursor.fail(f"not a tensor_file (.bsdf): the file starts with {buf[:12]!r}")
-    if buf[: len(TENSOR_MAGIC)] != TENSOR_MAGIC:
-        cursor.fail(f"not a tensor_file (.bsdf): wrong magic {buf[:12]!r}, expected {TENSOR_MAGIC!r}")
-    cursor.pos = len(TENSOR_MAGIC)
-    version = cursor.take("<BB", "the container version")
-    if tuple(version) != TENSOR_VERSION:
-        cursor.fail(f"unsupported tensor_file version {version[0]}.{version[1]} (this reader reads 1.0)")
-
-
-def _read_field_headers(cursor: _Cursor) -> List[Tuple[str, np.dtype, Tuple[int, ...], int]]:
-    """(name, dtype, shape, offset) of each field, in file order; names distinct."""
-    (count,) = cursor.take("<I", "the field count")
-    headers: List[Tuple[str, np.dtype, Tuple[int, ...], int]] = []
-    seen = set()
-    for k in range(count):
-        name = _read_field_name(cursor, k)
-        (ndim,) = cursor.take("<H", f"the rank of field {name!r}")
-        if ndim > _MAX_RANK:
-            cursor.fail(f"field {name!r} has rank {ndim}; RGL fields have at most {_MAX_RANK}")
-        code, offset = cursor.take("<BQ", f"the dtype and offset of field {name!r}")
-        shape = cursor.take("<" + "Q" * ndim, f"the shape of field {name!r}")
-        if code not in _DTYPES:
-            cursor.fail(f"field {name!r} has unknown dtype code {code} (expected 1..11)")
-        if name in seen:
-            cursor.fail(f"field {name!r} appears twice")
-        seen.add(name)
-        headers.append((name, _DTYPES[code], shape, offset))
-    return headers
-
-
-def _read_field_name(cursor: _Cursor, k: int) -> str:
-    """Field #k's name (UTF-8), cut to _MAX_NAME_CHARS for messages."""
-    (name_len,) = cursor.take("<H", f"the name length of field #{k}")
-    cursor.check_room(name_len, f"the name of field #{k}")
-    raw = cursor.buf[cursor.pos: cursor.pos + name_len]
-    try:
-        name = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        name = None
-    if name is None:
-        cursor.fail(f"field #{k} has a name that is not UTF-8: {raw[:_MAX_NAME_CHARS]!r}")
-    cursor.pos += name_len
-    if len(name) > _MAX_NAME_CHARS:  # RGL's names are a few letters; keep messages short
-        name = name[:_MAX_NAME_CHARS] + "..."
-    return name
-
-
-def _read_field_data(cursor: _Cursor, name: str, dtype: np.dtype, shape: Tuple[int, ...], offset: int) -> np.ndarray:
-    """A copy of one field's data, which must lie inside the file."""
-    count_items = 1
-    for s in shape:
-        count_items *= s  # Python ints: a corrupt shape cannot overflow
-    nbytes = count_items * dtype.itemsize
-    # (a huge extent beside a 0 is damage too)
-    if offset + nbytes > cursor.size or max(shape, default=0) > cursor.size:
-        cursor.fail(f"truncated file: field {name!r} {dtype.name}{list(shape)} needs bytes "
-                    f"{offset}..{offset + nbytes} but the file has {cursor.size} bytes")
-    arr = np.frombuffer(cursor.buf, dtype=dtype, count=count_items, offset=offset)
-    return arr.reshape(shape).copy()
-
-
-# ----------------------------------------------------------------------------
-# interpolation helpers (Mitsuba's Marginal2D, float64)
-# ----------------------------------------------------------------------------
-
-
-def _lerp(a, b, t):
-    return a + (b - a) * t
-
-
-def _find_interval(values: np.ndarray, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """Index i of the interval [values[i], values[i+1]] holding x (clamped to
-    the first/last interval) and the clamped weight of values[i+1]. A single
-    value gives index 0 and weight 0 (no interpolation along that axis)."""
-    n = len(values)
-    if n == 1:
-        return np.zeros(x.shape, dtype=np.intp), np.zeros(x.shape)
-    i = np.clip(np.searchsorted(values, x, side="left") - 1, 0, n - 2)
-    p0, p1 = values[i], values[i + 1]
-    return i, np.clip((x - p0) / (p1 - p0), 0.0, 1.0)
-
-
-def _grid_cell(u: np.ndarray, n: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Cell index and fraction of u in [0,1] on a grid of n nodes spanning [0,1]
-    (n - 1 patches); u = 1 falls into the last patch with fraction 1."""
-    x = np.clip(u, 0.0, 1.0) * (n - 1)
-    i = np.minimum(x.astype(np.intp), n - 2)
-    return i, x - i
-
-
-def _bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Bilinear interpolant of a (rows, cols) table at (u along cols, v along
-    rows), both in [0,1] (Mitsuba's Marginal2D<0>::eval without normalisation)."""
-    h, w = table.shape
-    col, fx = _grid_cell(u, w)
-    row, fy = _grid_cell(v, h)
-    t = table.ravel()
-    base = row * w + col
-    top = _lerp(t[base], t[base + 1], fx)
-    bottom = _lerp(t[base + w], t[base + w + 1], fx)
-    return _lerp(top, bottom, fy)
-
-
-class _Slices:
-    """Per-query linear interpolation weights over the (phi_i, theta_i)
-    parameter grid: up to four (slice index, weight) corners, where a slice is
-    one (phi_i, theta_i) entry of a table of shape (n_phi, n_theta, ...)."""
-
-    def __init__(self, phi_values, theta_values, phi_i, theta_i):
-        n_phi, n_theta = len(phi_values), len(theta_values)
-        ip, tp = _find_interval(phi_values, phi_i)
-        it, tt = _find_interval(theta_values, theta_i)
-        phi_corners = [(ip, 1.0 - tp)] + ([(ip + 1, tp)] if n_phi > 1 else [])
-        theta_corners = [(it, 1.0 - tt)] + ([(it + 1, tt)] if n_theta > 1 else [])
-        self.corners = [(a * n_theta + b, wa * wb) for a, wa in phi_corners for b, wb in theta_corners]
-
-    def gather(self, table: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """sum over corners of weight * table[slice, index]; table is
-        (n_slices, K) or (n_slices, K, C), giving (M,) or (M, C)."""
-        out = None
-        for s, w in self.corners:
-            v = table[s, index]
-            term = v * (w if v.ndim == 1 else w[:, None])
-            out = term if out is None else out + term
-        return out
-
-
-class _ContinuousMarginal2D:
-    """The inverse of Mitsuba's continuous marginal 2D warp for a stack of
-    tables (one per incident direction), the VNDF warp of the adaptive
-    parameterisation.
-
-    Each slice's bilinear interpolant p(x, y) on [0,1]^2 is normalised to
-    integrate to 1; ``cond[y, j]`` integrates row y over x in [0, x_{j+1}]
-    (trapezoids), ``marg[j]`` integrates the row totals over y in
-    [0, y_{j+1}]. :meth:`invert` maps a point (x, y) to (P(X <= x | y),
-    P(Y <= y)), both in [0,1]; the CDF values are interpolated linearly in
-    the parameters, exactly as Mitsuba's lookups do."""
-
-    def __init__(self, data: np.ndarray):
-        # data: (n_slices, H, W) float64, non-negative, each slice with positive integral
-        s, h, w = data.shape
-        self.h, self.w = h, w
-        cond = np.cumsum(0.5 / (w - 1) * (data[:, :, :-1] + data[:, :, 1:]), axis=2)  # (S, H, W-1)
-        row_total = cond[:, :, -1]
-        marg = np.cumsum(0.5 / (h - 1) * (row_total[:, :-1] + row_total[:, 1:]), axis=1)  # (S, H-1)
-        norm = 1.0 / marg[:, -1]
-        self.data = (data * norm[:, None, None]).reshape(s, h * w)
-        self.cond = (cond * norm[:, None, None]).reshape(s, h * (w - 1))
-        self.marg = marg * norm[:, None]
-
-    def invert(self, u: np.ndarray, v: np.ndarray, sl: _Slices) -> Tuple[np.ndarray, np.ndarray]:
-        """Warp the points (u along x/columns, v along y/rows) to the unit square."""
-        h, w = self.h, self.w
-        col, fx = _grid_cell(u, w)
-        row, fy = _grid_cell(v, h)
-        base = row * w + col
-        v00 = sl.gather(self.data, base)
-        v10 = sl.gather(self.data, base + 1)
-        v01 = sl.gather(self.data, base + w)
-        v11 = sl.gather(self.data, base + w + 1)
-        c0 = _lerp(v00, v01, fy)  # density along the left edge of the patch at height fy
-        c1 = _lerp(v10, v11, fy)
-
-        # x: mass of the linear segment c0 -> c1 over [0, fx] of this patch,
-        # plus the conditional CDF of all patches to the left, over the row total.
-        x = fx * _lerp(c0, c1, 0.5 * fx) / (w - 1)
-        cbase = row * (w - 1)
-        left = np.maximum(col - 1, 0)
-        cdf_left = _lerp(sl.gather(self.cond, cbase + left), sl.gather(self.cond, cbase + (w - 1) + left), fy)
-        x = x + np.where(col > 0, cdf_left, 0.0)
-        r0 = sl.gather(self.cond, cbase + (w - 2))  # row totals of the patch's two rows
-        r1 = sl.gather(self.cond, cbase + (w - 1) + (w - 2))
-        row_total = _lerp(r0, r1, fy)
-        # A row pair without mass (never in the RGL data) would divide 0 by 0;
-        # put such points at x = 0 instead of producing NaN.
-        x = np.divide(x, row_total, out=np.zeros_like(x), where=row_total > 0)
-
-        # y: mass of the linear segment r0 -> r1 over [0, fy], plus the marginal CDF below.
-        y = fy * _lerp(r0, r1, 0.5 * fy) / (h - 1)
-        below = np.maximum(row - 1, 0)
-        y = y + np.where(row > 0, sl.gather(self.marg, below), 0.0)
-        return x, y
 
 
 # ----------------------------------------------------------------------------
@@ -426,7 +162,7 @@ class RGLSource(BRDFSource):
         self._ndf = t["ndf"].astype(np.float64)
         self._sigma = t["sigma"].astype(np.float64)
         vndf = t["vndf"].astype(np.float64)
-        self._vndf = _ContinuousMarginal2D(vndf.reshape(n_phi * n_theta, *vndf.shape[2:]))
+        self._vndf = ContinuousMarginal2D(vndf.reshape(n_phi * n_theta, *vndf.shape[2:]))
         rgb = t["rgb"].astype(np.float64)  # (n_phi, n_theta, 3, N, N)
         n = rgb.shape[-1]
         # (slices, N*N, 3): one gather per corner fetches all three channels.
@@ -465,22 +201,22 @@ class RGLSource(BRDFSource):
         v_m = _phi2u(phi_m - phi_i if self._relative_phi else phi_m)
         v_m = v_m - np.floor(v_m)
 
-        sl = _Slices(self._phi_values, self._theta_values, phi_i, theta_i)
+        sl = Slices(self._phi_values, self._theta_values, phi_i, theta_i)
         x, y = self._vndf.invert(u_m, v_m, sl)
 
         # rgb: bilinear in the warped square, linear in (phi_i, theta_i).
         n = self.resolution
-        col, fx = _grid_cell(x, n)
-        row, fy = _grid_cell(y, n)
+        col, fx = grid_cell(x, n)
+        row, fy = grid_cell(y, n)
         base = row * n + col
         fx, fy = fx[:, None], fy[:, None]
-        top = _lerp(sl.gather(self._rgb, base), sl.gather(self._rgb, base + 1), fx)
-        bottom = _lerp(sl.gather(self._rgb, base + n), sl.gather(self._rgb, base + n + 1), fx)
-        value = _lerp(top, bottom, fy)
+        top = lerp(sl.gather(self._rgb, base), sl.gather(self._rgb, base + 1), fx)
+        bottom = lerp(sl.gather(self._rgb, base + n), sl.gather(self._rgb, base + n + 1), fx)
+        value = lerp(top, bottom, fy)
 
         if self.jacobian:
             # The table was divided by the warp's Jacobian; undo it: D(m) / (4 sigma(w_in)).
-            value = value * (_bilinear(self._ndf, u_m, v_m) / (4.0 * _bilinear(self._sigma, u_i, v_i)))[:, None]
+            value = value * (bilinear(self._ndf, u_m, v_m) / (4.0 * bilinear(self._sigma, u_i, v_i)))[:, None]
         return value / cos_out[:, None]
 
 
@@ -607,4 +343,4 @@ def open_rgl(path) -> RGLSource:
     return RGLSource(path, read_tensor_file(path))
 
 
-__all__ = ["ORIGIN", "RGLSource", "open_rgl", "read_tensor_file"]
+__all__ = ["ORIGIN", "RGLSource", "open_rgl"]
