@@ -65,12 +65,12 @@ RATIOS: List[Ratio] = [
           "8 vectorised lanes with FMA against 4 without (3.70); with the struct-return regression that "
           "stopped the loop vectorising 1.38, with HBRDF_SIMD=baseline 1.0"),
     Ratio("f_a eval AoS: baseline / AVX2+FMA kernel instructions", _fewer("fa_aos", "fa_aos_baseline"), 2.3,
-          "the same kernel behind two vectorised transposes (3.24; struct-return regression 1.44)"),
+          "the same kernel behind two vectorised transposes (3.25; struct-return regression 1.43)"),
     Ratio("f_a MIS sampling: baseline / AVX2+FMA kernel instructions", _fewer("mis", "mis_baseline"), 2.5,
-          "vectorised sampling, both warps per lane and a polynomial sincos (3.68); a loop that stops "
-          "vectorising gives ~1"),
+          "vectorised sampling, both warps per lane and a polynomial sincos (3.73; struct-return regression 1.33); a loop "
+          "that stops vectorising gives ~1"),
     Ratio("hybrid batched: baseline / AVX2+FMA kernel instructions", _fewer("model_batch_avx2", "model_batch_baseline"),
-          3.2, "register-blocked AVX2 layers (4.33); a network that leaves the blocked kernels gives ~1"),
+          3.2, "register-blocked AVX2 layers (4.34); a network that leaves the blocked kernels gives ~1"),
     Ratio("hybrid: scalar path / batched kernel instructions", _fewer("model_batch", "model_scalar"), 11.0,
           "the scalar path is what one-pair calls get (16.3; 3.8 with baseline kernels); callgrind's CPU has "
           "no AVX-512, so the batched kernel is the AVX2 one here"),

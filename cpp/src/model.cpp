@@ -66,6 +66,8 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
         for (int side = 0; side < 2; ++side)
             for (int k = 0; k < 3 * spec::kNeuralFrames; ++k)
                 x[9 * side + k] = dot(Vec3<float>(fr[3 * k], fr[3 * k + 1], fr[3 * k + 2]), side ? wo : wi);
+    } else if (as.directions == spec::DirectionInputs::Reciprocal) {
+        detail::reciprocal_inputs(wi, wo, x, 1);
     } else {
         x[0] = wi.x, x[1] = wi.y, x[2] = wi.z, x[3] = wo.x, x[4] = wo.y, x[5] = wo.z;
         if (as.directions == spec::DirectionInputs::LocalHalf) {

@@ -251,8 +251,12 @@ struct ModelBatchKernels {
         const float* D = rows.D;
         if (as.analytic) {
             analytic_rows(md.analytic_[m], D, rows.D + 6 * kChunk);
-            std::copy(D, D + 6 * kChunk, X);
-            if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(D, X + 6 * kChunk);
+            if (as.directions == spec::DirectionInputs::Reciprocal) {
+                reciprocal_rows(D, X);
+            } else {
+                std::copy(D, D + 6 * kChunk, X);
+                if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(D, X + 6 * kChunk);
+            }
             if (as.extra == spec::ExtraInputs::Log1pFa)
                 for (int c = 0; c < 3; ++c)
                     for (int i = 0; i < kChunk; ++i)
@@ -329,6 +333,17 @@ struct ModelBatchKernels {
             const Vec3<float> h = half_vector(wi, wo);
             x[i] = h.z;
             x[kChunk + i] = cos_theta_d(wi, wo, h);
+        }
+    }
+
+    // The hybrid-reciprocal inputs (nine rows of x) of the normalised rows, by the scalar path's
+    // function (model_math.hpp): m = (wi + wo) / 2 and the products of e = (wi - wo) / 2.
+    HBRDF_KERNEL_INLINE static void reciprocal_rows(const float* __restrict d, float* __restrict x) {
+        // vectorises: reciprocal_rows (tests/python/test_vectorisation.py)
+        for (int i = 0; i < kChunk; ++i) {
+            const Vec3<float> wi(d[i], d[kChunk + i], d[2 * kChunk + i]);
+            const Vec3<float> wo(d[3 * kChunk + i], d[4 * kChunk + i], d[5 * kChunk + i]);
+            detail::reciprocal_inputs(wi, wo, x + i, kChunk);
         }
     }
 

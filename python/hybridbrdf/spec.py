@@ -70,7 +70,14 @@ DIRECTION_INPUTS = {'local': (6, 'wi.x wi.y wi.z wo.x wo.y wo.z (unit, local fra
  'local_half': (8,
                 'wi.x wi.y wi.z wo.x wo.y wo.z, then cos theta_h = h.z and cos theta_d = (wi.h + wo.h) / 2 '
                 'of the half vector h = normalize(wi + wo) (+z where wi + wo cannot be normalised), as f_a '
-                'computes them')}
+                'computes them'),
+ 'reciprocal': (9,
+                'm = (wi + wo) / 2, then the products of e = (wi - wo) / 2: e.x e.x, e.y e.y, e.z e.z, e.x '
+                'e.y, e.x e.z, e.y e.z (unit wi, wo: every input in [-1, 1]). Exchanging wi and wo leaves m '
+                'unchanged and negates e, so every input, and the network, is unchanged bit for bit: f(wi, '
+                'wo) = f(wo, wi) exactly in floating point. The inputs determine the unordered pair {wi, wo} '
+                '= {m + e, m - e} (e up to its sign), so the network loses nothing a reciprocal BRDF depends '
+                'on')}
 #: Extra inputs after the latent code: name -> (count, description).
 EXTRA_INPUTS = {'none': (0, ''), 'log1p_fa': (3, 'log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)')}
 #: Output layers: name -> description (arch.output_layer).
@@ -129,7 +136,17 @@ ARCHS = {'hybrid': {'directions': 'local',
                  'analytic': True,
                  'doc': "the paper's model with the half vector's cos theta_h and cos theta_d as two more "
                         'network inputs: a small network shapes highlights and thin-film colour from them '
-                        'instead of spending neurons on the products that make them'}}
+                        'instead of spending neurons on the products that make them'},
+ 'hybrid-reciprocal': {'directions': 'reciprocal',
+                       'direction_count': 9,
+                       'extra': 'none',
+                       'extra_count': 0,
+                       'n_out': 6,
+                       'combine': 'gated',
+                       'analytic': True,
+                       'doc': "the paper's model, reciprocal by construction: the network sees (wi, wo) "
+                              'through inputs that do not change when they are exchanged, and f_a and the '
+                              'gated combine are symmetric, so f(wi, wo) = f(wo, wi) exactly'}}
 #: Fields of a model file's ``arch`` object, checked in this order by both loaders.
 ARCH_FIELDS = [{'key': 'kind', 'type': 'enum', 'values': 'archs'},
  {'key': 'width', 'type': 'int', 'min': 1, 'max': 256},

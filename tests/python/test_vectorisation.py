@@ -35,6 +35,7 @@ REQUIRED = {
         "normalise_rows": {16, 32, 64},
         "analytic_rows": {16, 32, 64},
         "half_angle_rows": {16, 32, 64},
+        "reciprocal_rows": {16, 32, 64},
         "neural_frames": {16, 32, 64},
         "soa_to_aos": {16, 32, 64},
     },

@@ -62,7 +62,9 @@ public:
         // Invalid inputs became 0 (or NaN): "z > 0" rejects both.
         const bool valid = wi.z > T(0) && wo.z > T(0);
         const Vec3<T> h = half_vector(wi, wo);
-        const T DG = ggx_D(h, alpha_) * smith_g1_over_2cos(wi, alpha_) * smith_g1_over_2cos(wo, alpha_);
+        // G1(wi) G1(wo) multiplied first: a product of two commutes exactly, so f(wi, wo) ==
+        // f(wo, wi) bit for bit ((D G1(wi)) G1(wo) rounds differently from (D G1(wo)) G1(wi)).
+        const T DG = ggx_D(h, alpha_) * (smith_g1_over_2cos(wi, alpha_) * smith_g1_over_2cos(wo, alpha_));
         const T c = cos_theta_d(wi, wo, h);
         const T r = kd_over_pi_.x + fresnel_dielectric(c, eta2_minus_1_.x) * DG;
         const T g = kd_over_pi_.y + fresnel_dielectric(c, eta2_minus_1_.y) * DG;

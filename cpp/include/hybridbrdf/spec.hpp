@@ -109,9 +109,9 @@ inline constexpr int kCombineCount = 4;
 //   exp: f_t = exp(min(o[0:3], pre_exp_max))   (fully neural baseline: no analytic part)
 
 /// What the network sees of wi and wo.
-enum class DirectionInputs { Local, Frames, LocalHalf };
-inline constexpr const char* kDirectionInputsNames[] = {"local", "frames", "local_half"};
-inline constexpr int kDirectionInputsCount = 3;
+enum class DirectionInputs { Local, Frames, LocalHalf, Reciprocal };
+inline constexpr const char* kDirectionInputsNames[] = {"local", "frames", "local_half", "reciprocal"};
+inline constexpr int kDirectionInputsCount = 4;
 
 /// Inputs appended after the latent code.
 enum class ExtraInputs { None, Log1pFa };
@@ -119,9 +119,9 @@ inline constexpr const char* kExtraInputsNames[] = {"none", "log1p_fa"};
 inline constexpr int kExtraInputsCount = 2;
 
 /// Architectures (arch.kind).
-enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput, HybridHalf };
-inline constexpr const char* kModelKindNames[] = {"hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half"};
-inline constexpr int kModelKindCount = 6;
+enum class ModelKind { Hybrid, Neural, Additive, LogMul, AnalyticInput, HybridHalf, HybridReciprocal };
+inline constexpr const char* kModelKindNames[] = {"hybrid", "neural", "additive", "logmul", "analytic-input", "hybrid-half", "hybrid-reciprocal"};
+inline constexpr int kModelKindCount = 7;
 
 /// Whose output layer a material uses (arch.output_layer).
 enum class OutputLayer { Shared, Material };
@@ -147,6 +147,7 @@ inline constexpr ArchSpec kArchs[] = {
     {"logmul", ModelKind::LogMul, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::LogMul, true},  // ablation: f_t = f_a exp(o)
     {"analytic-input", ModelKind::AnalyticInput, DirectionInputs::Local, 6, ExtraInputs::Log1pFa, 3, 6, Combine::Gated, true},  // ablation: as hybrid, with log1p(f_a) appended to the network input
     {"hybrid-half", ModelKind::HybridHalf, DirectionInputs::LocalHalf, 8, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model with the half vector's cos theta_h and cos theta_d as two more network inputs: a small network shapes highlights and thin-film colour from them instead of spending neurons on the products that make them
+    {"hybrid-reciprocal", ModelKind::HybridReciprocal, DirectionInputs::Reciprocal, 9, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model, reciprocal by construction: the network sees (wi, wo) through inputs that do not change when they are exchanged, and f_a and the gated combine are symmetric, so f(wi, wo) = f(wo, wi) exactly
 };
 inline constexpr const ArchSpec& arch_spec(ModelKind k) { return kArchs[static_cast<int>(k)]; }
 

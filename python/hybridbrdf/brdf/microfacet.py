@@ -71,9 +71,9 @@ def ggx_microfacet(wi: np.ndarray, wo: np.ndarray, alpha_x: float, alpha_y: floa
     and wo so that every material built on it is reciprocal to rounding.
     """
     h = half_vector(wi, wo)
-    lobe = ggx_D(h, alpha_x, alpha_y) * smith_G1_over_2cos(wi, alpha_x, alpha_y) * smith_G1_over_2cos(
-        wo, alpha_x, alpha_y
-    )
+    # G1(wi) G1(wo) first: a product of two commutes exactly, so the lobe is reciprocal bit for bit.
+    lobe = ggx_D(h, alpha_x, alpha_y) * (smith_G1_over_2cos(wi, alpha_x, alpha_y)
+                                         * smith_G1_over_2cos(wo, alpha_x, alpha_y))
     cos_theta_d = 0.5 * (dot(wo, h) + dot(wi, h))
     return lobe, cos_theta_d
 

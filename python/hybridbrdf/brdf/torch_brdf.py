@@ -152,7 +152,8 @@ def eval_analytic(
     wo_n = torch.where(valid[..., None], wo_n, up)
 
     h, c = half_vector(wi_n, wo_n)
-    dg = _ggx_D_upper(h, ax, ay) * smith_g1_over_2cos(wi_n, ax, ay) * smith_g1_over_2cos(wo_n, ax, ay)
+    # G1(wi) G1(wo) first, as libhybridbrdf: the product commutes exactly, so f is reciprocal bit for bit.
+    dg = _ggx_D_upper(h, ax, ay) * (smith_g1_over_2cos(wi_n, ax, ay) * smith_g1_over_2cos(wo_n, ax, ay))
     F = fresnel_dielectric(c[..., None], eta * eta - 1.0)
     f = kd * INV_PI + F * dg[..., None]
     return torch.where(valid[..., None], f, torch.zeros_like(f))
@@ -164,6 +165,17 @@ def half_angle_cosines(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
     eval_analytic uses."""
     h, c = half_vector(wi, wo)
     return torch.stack([h[..., 2], c], dim=-1)
+
+
+def reciprocal_inputs(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
+    """The network inputs of the hybrid-reciprocal architecture (spec/model.json, direction_inputs
+    reciprocal), shape (..., 9): m = (wi + wo) / 2, then e.x e.x, e.y e.y, e.z e.z, e.x e.y, e.x e.z,
+    e.y e.z of e = (wi - wo) / 2. Exchanging wi and wo gives the same values bit for bit (the sum
+    commutes, e only changes sign), so a network on them is exactly reciprocal."""
+    m = 0.5 * (wi + wo)
+    e = 0.5 * (wi - wo)
+    ex, ey, ez = e.unbind(-1)
+    return torch.cat([m, torch.stack([ex * ex, ey * ey, ez * ez, ex * ey, ex * ez, ey * ez], dim=-1)], dim=-1)
 
 
 # ---- importance sampling (the library's three strategies, in PyTorch) --------

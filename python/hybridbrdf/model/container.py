@@ -52,7 +52,9 @@ def input_description(kind: str, latent: int) -> str:
     """The network input of an architecture in words (recorded as ``arch.input``)."""
     a = spec.ARCHS[kind]
     directions = {"local": "wi.x wi.y wi.z wo.x wo.y wo.z",
-                  "local_half": "wi.x wi.y wi.z wo.x wo.y wo.z cos_theta_h cos_theta_d"}.get(
+                  "local_half": "wi.x wi.y wi.z wo.x wo.y wo.z cos_theta_h cos_theta_d",
+                  "reciprocal": "m.x m.y m.z e.x^2 e.y^2 e.z^2 e.x*e.y e.x*e.z e.y*e.z (m = (wi + wo) / 2, "
+                                "e = (wi - wo) / 2)"}.get(
         a["directions"], "wi and wo in 3 predicted frames (t, b, n each; 18 values)")
     extra = " log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)" if a["extra"] == "log1p_fa" else ""
     return directions + "".join(f" z_{i}" for i in range(latent)) + extra

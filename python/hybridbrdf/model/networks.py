@@ -38,7 +38,7 @@ import torch
 from torch import nn
 
 from hybridbrdf import spec
-from hybridbrdf.brdf.torch_brdf import _normalize, eval_analytic, half_angle_cosines
+from hybridbrdf.brdf.torch_brdf import _normalize, eval_analytic, half_angle_cosines, reciprocal_inputs
 
 ARCHS = tuple(spec.ARCHS)
 ACTIVATIONS = tuple(spec.ACTIVATIONS)
@@ -256,8 +256,9 @@ class HybridBRDF(nn.Module):
         wi_n, wo_n, valid = _unit_pair(wi, wo)
         f_a = eval_analytic(wi_n[None], wo_n[None], kd[:, None], eta[:, None], alpha[:, None])  # (M, B, 3)
         extra = torch.log1p(f_a) if spec.ARCHS[self.arch]["extra"] == "log1p_fa" else None
-        directions = [wi_n, wo_n]
-        if spec.ARCHS[self.arch]["directions"] == "local_half":
+        kind = spec.ARCHS[self.arch]["directions"]
+        directions = [reciprocal_inputs(wi_n, wo_n)] if kind == "reciprocal" else [wi_n, wo_n]
+        if kind == "local_half":
             directions.append(half_angle_cosines(wi_n, wo_n))
         pre = self._first_layer(torch.cat(directions, dim=-1), z, extra)
         if self.output_layer == "material":
