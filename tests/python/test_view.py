@@ -241,6 +241,20 @@ def test_other_architectures_load(tmp_path, model):
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
 
 
+def test_a_reciprocal_model_loads(tmp_path):
+    """hybrid-reciprocal's network inputs (m and the products of e) through the page's GLSL ES."""
+    from hybridbrdf.model.random import random_model
+
+    _, model = random_model("hybrid-reciprocal", width=16, depth=2, isotropic=[True, False, True])
+    path = tmp_path / "r.safetensors"
+    model.save(path)
+    out = tmp_path / "p.html"
+    r = run_cli("view", str(path), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    img = page_pixels(out, "")
+    assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
+
+
 HOSTILE = ["</script><script>document.title='pwned'</script>", "<!--<script>", "a\"b'c`${x}\\",
            "line\nbreak\r\u2028\u2029end", "<img src=x onerror=\"document.title='pwned'\">", "&amp;&lt;"]
 
