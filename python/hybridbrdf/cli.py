@@ -521,7 +521,9 @@ def _add_eval_parser(sub) -> None:
     p.add_argument("--pairs", type=positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
     p.add_argument("--all-metrics", action="store_true",
                    help="also print MAE, reciprocity error (SMAPE of f(wi,wo) vs f(wo,wi)) and directional albedo "
-                        "at 45 degrees for the reference, the analytic part and the model")
+                        "at 45 degrees for the reference, the analytic part and the model, and the model's largest "
+                        "directional albedo with the outgoing direction where it occurs (above 1: it reflects more "
+                        "light than it receives)")
     p.set_defaults(func=_cmd_eval)
 
 

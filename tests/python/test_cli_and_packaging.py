@@ -66,6 +66,10 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     ext = [line for line in r.stdout.splitlines() if line.startswith("gold")][1].split()
     # gold is reciprocal and so is its analytic fit; the reference albedo of gold at 45 degrees is < 1
     assert float(ext[3]) < 1e-6 and float(ext[4]) < 1e-4 and 0 < float(ext[6]) < 1
+    # the model's largest directional albedo and where: hbrdf info's figure for the same material
+    info = hb.load_model(out).albedo("gold")
+    assert float(ext[9]) == pytest.approx(info["max"], abs=1e-4) and 0 < float(ext[9]) < 1.5
+    assert " ".join(ext[10:]) == f"({info['argmax_deg'][0]:g}, {info['argmax_deg'][1]:g})"
     row = [line for line in r.stdout.splitlines() if line.startswith("gold")][0]
     smape_a, smape_m = (float(x) for x in row.split()[-4:-2])
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
