@@ -527,6 +527,14 @@ def _add_eval_parser(sub) -> None:
     p.set_defaults(func=_cmd_eval)
 
 
+def _add_new_material_flags(p, kd: str, whose: str) -> None:
+    """--as, --out and --conserve-energy: the flags hbrdf edit and hbrdf mix share for the material they add."""
+    p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
+    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    p.add_argument("--conserve-energy", action="store_true",
+                   help=f"scale {kd} down (hue kept) until {whose} maximum directional albedo is at most 0.99")
+
+
 def _add_edit_parser(sub) -> None:
     """``hbrdf edit``."""
     p = sub.add_parser("edit", help="add an edited copy of a material (new analytic parameters, same latent code)",
@@ -541,10 +549,7 @@ def _add_edit_parser(sub) -> None:
     p.add_argument("--set", action="append", required=True, metavar="KEY=VALUES",
                    help="a new parameter: kd=R,G,B or kd=V (in [0, 1]), eta=V or eta=R,G,B (in [1, 10]), "
                         "alpha=V (isotropic) or alpha=AX,AY (anisotropic; in [1e-4, 1]); repeatable")
-    p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
-    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
-    p.add_argument("--conserve-energy", action="store_true",
-                   help="scale the new kd down (hue kept) until the maximum directional albedo is at most 0.99")
+    _add_new_material_flags(p, "the new kd", "the")
     p.set_defaults(func=_cmd_edit)
 
 
@@ -559,10 +564,7 @@ def _add_mix_parser(sub) -> None:
     p.add_argument("a", metavar="A", help="material at t = 0")
     p.add_argument("b", metavar="B", help="material at t = 1")
     p.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
-    p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
-    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
-    p.add_argument("--conserve-energy", action="store_true",
-                   help="scale the blend's kd down (hue kept) until its maximum directional albedo is at most 0.99")
+    _add_new_material_flags(p, "the blend's kd", "its")
     p.set_defaults(func=_cmd_mix)
 
 
