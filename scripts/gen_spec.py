@@ -47,14 +47,14 @@ def max_data_bytes(spec: dict) -> int:
     """The largest tensor data section a model file the contract allows can have: every hidden
     layer max_width wide (the first one's input too), the widest output layer, the neural
     baseline's frame layer, and max_materials materials with the longest latent code and their
-    own output layers. Both loaders refuse a larger file from its size alone, before reading it
+    own output layers and energy-bound tables. Both loaders refuse a larger file from its size alone, before reading it
     (a sparse file costs nothing on disk and would otherwise cost its size in memory)."""
     c = {k: v["value"] for k, v in spec["constants"].items()}
     width, latent = c["max_width"], c["max_latent"]
     n_out = max(a["n_out"] for a in spec["archs"].values())
     frames = 6 * c["neural_frames"]
     floats = (c["max_depth"] * (width * width + width) + n_out * width + n_out + frames * latent + frames
-              + c["max_materials"] * (3 + 3 + 2 + latent + n_out * width + n_out))
+              + c["max_materials"] * (3 + 3 + 2 + latent + n_out * width + n_out + c["energy_nodes"]))
     return 4 * floats
 
 
@@ -115,6 +115,7 @@ def cpp_header(spec: dict) -> str:
     enum("ExtraInputs", spec["extra_inputs"], "Inputs appended after the latent code.")
     enum("ModelKind", spec["archs"], "Architectures (arch.kind).")
     enum("OutputLayer", spec["output_layers"], "Whose output layer a material uses (arch.output_layer).")
+    enum("EnergyBound", spec["energy_bounds"], "How a material's directional albedo is bounded (arch.energy_bound).")
     out += ["/// One architecture: network input = direction inputs, latent code, extra inputs (in that order).",
             "struct ArchSpec {", "    const char* name;", "    ModelKind kind;", "    DirectionInputs directions;",
             "    int direction_count;  ///< inputs before the latent code (= the latent code's offset)",
@@ -139,7 +140,8 @@ def cpp_header(spec: dict) -> str:
         vals = "nullptr, 0"
         default = float(f.get("default", 0)) if f["type"] != "enum" else 0.0
         if f["type"] == "enum":
-            enum_name = {"archs": "ModelKind", "activations": "Activation", "output_layers": "OutputLayer"}[f["values"]]
+            enum_name = {"archs": "ModelKind", "activations": "Activation", "output_layers": "OutputLayer",
+                         "energy_bounds": "EnergyBound"}[f["values"]]
             vals = f"k{enum_name}Names, k{enum_name}Count"
             if "default" in f:  # an enum's default: the index of its name
                 default = float(list(spec[f["values"]]).index(f["default"]))
@@ -181,6 +183,8 @@ def python_module(spec: dict) -> str:
               "EXTRA_INPUTS = " + pprint.pformat({k: (v["count"], v["doc"]) for k, v in spec["extra_inputs"].items()}, width=110, sort_dicts=False),
               "#: Output layers: name -> description (arch.output_layer).",
               "OUTPUT_LAYERS = " + pprint.pformat({k: v["doc"] for k, v in spec["output_layers"].items()}, width=110, sort_dicts=False),
+              "#: Energy bounds: name -> description (arch.energy_bound).",
+              "ENERGY_BOUNDS = " + pprint.pformat({k: v["doc"] for k, v in spec["energy_bounds"].items()}, width=110, sort_dicts=False),
               "#: Architectures; network input = direction inputs, latent code, extra inputs.",
               "ARCHS = " + pprint.pformat(archs, width=110, sort_dicts=False),
               "#: Fields of a model file's ``arch`` object, checked in this order by both loaders.",

@@ -83,7 +83,20 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
     Vec3<float> f;
     for (int c = 0; c < 3; ++c)
         f[c] = detail::combine(as.combine, o[c], as.n_out == 6 ? o[3 + c] : 0.f, fa[c], pre_exp_max_);
+    if (energy_bound_ == EnergyBound::AlbedoTable)  // k(wi.z) k(wo.z): one product, symmetric in wi and wo
+        f = f * (energy_bound_scale(mat.energy_bound, wi.z) * energy_bound_scale(mat.energy_bound, wo.z));
     return f;
+}
+
+float energy_bound_scale(const std::vector<float>& table, float cos_theta) {
+    if (table.empty()) return 1.f;
+    const float t = cos_theta * float(table.size() - 1);
+    float k = 0.f, node = 0.f;
+    for (float kj : table) {
+        k += kj * std::max(0.f, 1.f - std::fabs(t - node));
+        node += 1.f;
+    }
+    return k;
 }
 
 double HybridModel::flops_per_eval() const {

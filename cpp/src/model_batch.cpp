@@ -217,6 +217,7 @@ struct ModelBatchKernels {
             network_inputs(md, m, rows);
             run_network<Dense>(md, m, rows);
             combine<Dense>(md, rows);
+            if (md.energy_bound_ == EnergyBound::AlbedoTable) energy_bound_rows(md.materials_[m].energy_bound, rows);
             float* out = f_aos + 3 * start;
             const float* F = rows.F;
             // vectorises: soa_to_aos (tests/python/test_vectorisation.py)
@@ -291,6 +292,26 @@ struct ModelBatchKernels {
             Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? rows.O : B, a, last);
             if (!last) std::swap(A, B);
         }
+    }
+
+    // f *= k(wi.z) k(wo.z) (spec/model.json, energy_bounds): energy_bound_scale's hat-function sum,
+    // node by node over the whole chunk so that it vectorises, in the scalar path's order.
+    HBRDF_KERNEL_INLINE static void energy_bound_rows(const std::vector<float>& table, const Rows& rows) {
+        alignas(64) float ti[kChunk], to[kChunk], ki[kChunk], ko[kChunk];
+        const float scale = float(table.size() - 1);
+        const float* wiz = rows.D + 2 * kChunk;
+        const float* woz = rows.D + 5 * kChunk;
+        for (int i = 0; i < kChunk; ++i) ti[i] = wiz[i] * scale, to[i] = woz[i] * scale, ki[i] = 0.f, ko[i] = 0.f;
+        float node = 0.f;
+        for (float kj : table) {
+            for (int i = 0; i < kChunk; ++i) {
+                ki[i] += kj * std::max(0.f, 1.f - std::fabs(ti[i] - node));
+                ko[i] += kj * std::max(0.f, 1.f - std::fabs(to[i] - node));
+            }
+            node += 1.f;
+        }
+        for (int c = 0; c < 3; ++c)
+            for (int i = 0; i < kChunk; ++i) rows.F[c * kChunk + i] *= ki[i] * ko[i];
     }
 
     // f in three rows of F from the outputs O and f_a (rows 6-8 of D), 0 where the pair is invalid.

@@ -59,6 +59,7 @@ HybridModel HybridModel::load(const std::string& path) try {
     check_tensors(path, file.tensors, expected_tensors(path, arch, std::int64_t(materials.size())));
     read_material_rows(arch, file.tensors, materials);
     if (arch.row().analytic) read_analytic_params(path, file.tensors, materials);
+    read_energy_bounds(path, arch, file.tensors, materials);
     // Checked last, as in Python.
     if (const std::string overflow = network_overflow_problem(file.tensors, arch); !overflow.empty())
         throw ModelFileError(path, overflow);
@@ -67,6 +68,7 @@ HybridModel HybridModel::load(const std::string& path) try {
     model.kind_ = arch.kind;
     model.activation_ = arch.activation;
     model.output_layer_ = arch.output_layer;
+    model.energy_bound_ = arch.energy_bound;
     model.width_ = arch.width;
     model.depth_ = arch.depth;
     model.latent_ = arch.latent;

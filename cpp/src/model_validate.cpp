@@ -252,6 +252,7 @@ Arch read_arch(const std::string& path, const json& doc) {
     a.n_out = int(field.at("n_out"));
     a.pre_exp_max = float(field.at("pre_exp_max"));
     a.output_layer = static_cast<OutputLayer>(int(field.at("output_layer")));
+    a.energy_bound = static_cast<EnergyBound>(int(field.at("energy_bound")));
     const spec::ArchSpec& as = a.row();
     const int expected_in = as.direction_count + a.latent + as.extra_count;
     if (a.n_in != expected_in || a.n_out != as.n_out)
@@ -316,6 +317,7 @@ TensorShapes expected_tensors(const std::string& path, const Arch& a, std::int64
         expected["frames.bias"] = {6 * spec::kNeuralFrames};
     }
     expected["materials.z"] = {n_mat, a.latent};
+    if (a.energy_bound == EnergyBound::AlbedoTable) expected["materials.energy_bound"] = {n_mat, spec::kEnergyNodes};
     if (as.analytic)
         for (const auto& r : spec::kMaterialRanges) expected[std::string("materials.") + r.tensor] = {n_mat, r.components};
     return expected;
@@ -360,6 +362,21 @@ void read_analytic_params(const std::string& path, const std::map<std::string, T
         mat.params.alpha = Vec2<float>(alpha[0], alpha[1]);
         if (mat.isotropic && mat.params.alpha.x != mat.params.alpha.y)
             throw ModelFileError(path, "material '" + mat.name + "' is marked isotropic but alpha_x != alpha_y");
+    }
+}
+
+void read_energy_bounds(const std::string& path, const Arch& arch, const std::map<std::string, Tensor>& tensors,
+                        std::vector<ModelMaterial>& materials) {
+    if (arch.energy_bound != EnergyBound::AlbedoTable) return;
+    const Tensor& table = tensors.at("materials.energy_bound");
+    const std::size_t K = spec::kEnergyNodes;
+    for (std::size_t i = 0; i < materials.size(); ++i) {
+        const float* row = table.data.data() + i * K;
+        for (std::size_t j = 0; j < K; ++j)
+            if (!(row[j] >= 0.f && row[j] <= 1.f))  // a factor above 1 would add light; NaN fails
+                throw ModelFileError(path, "material '" + materials[i].name + "': energy_bound[" + std::to_string(j) +
+                                               "] = " + num(row[j]) + " is outside [0, 1]");
+        materials[i].energy_bound.assign(row, row + K);
     }
 }
 

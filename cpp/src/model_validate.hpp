@@ -24,6 +24,7 @@ struct Arch {
     ModelKind kind = ModelKind::Hybrid;
     Activation activation = Activation::HardGelu;
     OutputLayer output_layer = OutputLayer::Shared;
+    EnergyBound energy_bound = EnergyBound::None;
     int width = 0, depth = 0, latent = 0, n_in = 0, n_out = 0;
     float pre_exp_max = 0.f;
     const spec::ArchSpec& row() const { return spec::arch_spec(kind); }  ///< the architecture's contract row
@@ -58,6 +59,11 @@ void check_tensors(const std::string& path, const std::map<std::string, Tensor>&
 /// alpha_x == alpha_y for isotropic ones; fills materials[i].params. Material by material.
 void read_analytic_params(const std::string& path, const std::map<std::string, Tensor>& tensors,
                           std::vector<ModelMaterial>& materials);
+
+/// With arch.energy_bound 'albedo_table': each material's table inside [0, 1] (NaN fails); fills
+/// materials[i].energy_bound. Material by material, node by node.
+void read_energy_bounds(const std::string& path, const Arch& arch, const std::map<std::string, Tensor>& tensors,
+                        std::vector<ModelMaterial>& materials);
 
 /// Interval bound of every network value (spec::kMaxNetworkValue; the Python loader's
 /// network_overflow_problem computes the same). Empty when the network cannot overflow float32.

@@ -29,6 +29,7 @@ from hybridbrdf.fit.distributed import RankLostError
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
 from hybridbrdf.fit.settings import ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
+from hybridbrdf.model import energy
 from hybridbrdf.model.editing import parse_assignments
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import prior_path
@@ -262,12 +263,35 @@ def _write_new_material(model, name: str, out: str) -> int:
         p = model.analytic_params(name)
         line += f" kd {p.kd.round(4).tolist()} eta {p.eta.round(4).tolist()} alpha {p.alpha.round(5).tolist()}"
     print(line)
+    bound = model.material_info[model.index(name)].get("energy_bound")
+    if isinstance(bound, dict):
+        print(f"energy bound: max directional albedo {bound['max_albedo_unbounded']:.3f} before it, "
+              f"{bound['max_albedo']:.3f} after (smallest factor {bound['min_factor']:.3f}; docs/ENERGY.md)")
     a = model.albedo(name)
     print(f"max directional albedo {a['max']:.3f} (theta_o {a['argmax_deg'][0]:g}, phi_o {a['argmax_deg'][1]:g} degrees)")
-    if a["max"] > 1.0:
-        print(f"warning: {name} reflects more light than it receives from some directions; "
-              + ("--conserve-energy scales kd down to prevent it" if model.has_analytic
-                 else "this blend of the neural baseline cannot be corrected"), file=sys.stderr)
+    if a["max"] > 1.0:  # only the estimates' noise can leave one above 1 after the bound
+        print(f"warning: the estimate of {name}'s maximum directional albedo exceeds 1", file=sys.stderr)
+    return 0
+
+
+def _cmd_bound(args: argparse.Namespace) -> int:
+    check_writable(args.out, "model")
+    model = load_model(args.model)
+    names = [n.strip() for n in args.materials.split(",")] if args.materials else None
+    for n in names or []:
+        model.index(n)  # KeyError naming the material and the model's
+    bounded = energy.with_bound(model, names, samples=args.samples).save_checked(args.out)
+    changed = 0
+    for m in bounded.material_info:
+        rec = m.get("energy_bound")
+        if isinstance(rec, dict) and (names is None or m["name"] in names):
+            dimmed = rec["min_factor"] < 1.0
+            changed += dimmed
+            if dimmed or args.verbose:
+                print(f"  {m['name']:28s} max albedo {rec['max_albedo_unbounded']:.3f} -> {rec['max_albedo']:.3f} "
+                      f"(smallest factor {rec['min_factor']:.3f})")
+    print(f"wrote {args.out}: {len(names or bounded.materials)} energy-bound table(s) fitted, {changed} material(s) "
+          f"dimmed where they reflected more than {energy.TARGET} of the light")
     return 0
 
 
@@ -340,7 +364,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     heads = model.output_layer == "material"
     print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "
           f"{a['n_in']} inputs -> {a['n_out']} outputs"
-          + (", output layer per material" if heads else ""))
+          + (", output layer per material" if heads else "")
+          + (", energy bound per material" if a.get("energy_bound") == "albedo_table" else ", no energy bound"))
     n_net = sum(v.size for k, v in model.tensors.items() if not k.startswith("materials."))
     n_mat = sum(v[0].size for k, v in model.tensors.items() if k.startswith("materials."))
     print(f"shared network: {n_net} weights ({4 * n_net / 1024:.1f} KiB float32); per material: {n_mat} floats "
@@ -368,6 +393,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         if isinstance(met, dict) and met:
             line += "\n      " + ", ".join(f"{_shown(k)} {_shown(v)}" for k, v in met.items()
                                            if isinstance(v, (int, float)) and not isinstance(v, bool))
+        bound = m.get("energy_bound")
+        if isinstance(bound, dict):
+            line += (f"\n      energy bound: max albedo {_shown(bound.get('max_albedo_unbounded'))} without it, "
+                     f"{_shown(bound.get('max_albedo'))} with it, smallest factor {_shown(bound.get('min_factor'))}")
         if args.albedo_samples:
             a = model.albedo(m["name"], samples=args.albedo_samples)
             line += (f"\n      max directional albedo {a['max']:.3f} (theta_o {a['argmax_deg'][0]:g}, "
@@ -532,7 +561,8 @@ def _add_new_material_flags(p, kd: str, whose: str) -> None:
     p.add_argument("--as", dest="as_name", required=True, metavar="NAME", help="name of the new material")
     p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
     p.add_argument("--conserve-energy", action="store_true",
-                   help=f"scale {kd} down (hue kept) until {whose} maximum directional albedo is at most 0.99")
+                   help=f"also scale {kd} down (hue kept) until {whose} maximum directional albedo is at most 0.99, "
+                        "where kd can do it (the energy-bound table bounds it in any case; docs/ENERGY.md)")
 
 
 def _add_edit_parser(sub) -> None:
@@ -551,6 +581,24 @@ def _add_edit_parser(sub) -> None:
                         "alpha=V (isotropic) or alpha=AX,AY (anisotropic; in [1e-4, 1]); repeatable")
     _add_new_material_flags(p, "the new kd", "the")
     p.set_defaults(func=_cmd_edit)
+
+
+def _add_bound_parser(sub) -> None:
+    """``hbrdf bound``."""
+    p = sub.add_parser("bound", help="fit energy-bound tables so that no material reflects more light than it receives",
+                       description="Fit each material's energy-bound table (docs/ENERGY.md): f = k(wi.z) k(wo.z) f_t "
+                                   "with k <= 1 per material, so that every directional albedo is at most 0.99; "
+                                   "1 (no change) where it already is. Reciprocity is kept exactly. hbrdf fit, add, "
+                                   "edit and mix do this already; this command bounds a model written before "
+                                   "(or refits its tables). --out is written only when everything is valid.")
+    p.add_argument("model", help="model file")
+    p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
+    p.add_argument("--materials", metavar="A,B,...", help="only these materials (default: all); the others keep "
+                                                          "their tables (or none: a table of ones)")
+    p.add_argument("--samples", type=positive_int, default=energy.SAMPLES,
+                   help="MIS samples per direction of the albedo estimate (default: %(default)s)")
+    p.add_argument("--verbose", action="store_true", help="list every material, not only the dimmed ones")
+    p.set_defaults(func=_cmd_bound)
 
 
 def _add_mix_parser(sub) -> None:
@@ -649,6 +697,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_eval_parser(sub)
     _add_edit_parser(sub)
     _add_mix_parser(sub)
+    _add_bound_parser(sub)
     _add_view_parser(sub)
     _add_info_parser(sub)
     _add_demo_parser(sub)

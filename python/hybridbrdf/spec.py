@@ -10,7 +10,7 @@ TENSOR_DTYPE = 'F32'
 MAX_HEADER_BYTES = 67108864
 #: Largest tensor data section of a model file the contract allows (scripts/gen_spec.py
 #: max_data_bytes): a longer file is refused from its size, before it is read.
-MAX_DATA_BYTES = 6460221536
+MAX_DATA_BYTES = 6524221536
 
 #: Default bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6 is far above any measured BRDF value and keeps float32 (and float16 products) from overflowing. A model file records the bound it was trained with (arch.pre_exp_max) and every reader uses the recorded one.
 PRE_EXP_MAX = 16.0
@@ -56,6 +56,10 @@ NAME_RULE = '1 to 64 characters from A-Z a-z 0-9 _ . + -'
 NEURAL_FRAMES = 3
 #: Largest magnitude any network value (hidden layers, output, the neural baseline's raw frames) may reach over all unit directions and the file's latent codes, bounded by interval propagation through |W| and |b| at load. Below it float32 evaluation cannot overflow (FLT_MAX = 3.4e38 leaves 8 orders for rounding), so no weight pattern makes an output NaN.
 MAX_NETWORK_VALUE = 1e+30
+#: Nodes of a material's energy-bound table (arch.energy_bound 'albedo_table'): k(x) at x = cos theta = j / (energy_nodes - 1), j = 0 .. energy_nodes - 1, linear between them. 16 nodes put one every 4 degrees near 80 degrees from the normal, where Fresnel and the network's correction raise a directional albedo fastest.
+ENERGY_NODES = 16
+#: Largest directional albedo hbrdf's energy bound leaves a material (docs/ENERGY.md): 1 less a margin for the Monte Carlo estimate the tables are computed from.
+ENERGY_TARGET = 0.99
 
 #: Hidden-layer activations: name -> formula.
 ACTIVATIONS = {'relu': 'max(x, 0)', 'hardgelu': 'x * clamp((x + hardgelu_knee) / (2 hardgelu_knee), 0, 1)'}
@@ -86,6 +90,13 @@ OUTPUT_LAYERS = {'shared': 'one output layer for every material: mlp.out.weight 
  'material': "each material its own output layer (its 'head'): materials.head_weight (M, n_out, width), "
              'materials.head_bias (M, n_out), and no mlp.out; the hidden layers stay shared. The latent code '
              'still enters the first layer. Architectures with an analytic part only.'}
+#: Energy bounds: name -> description (arch.energy_bound).
+ENERGY_BOUNDS = {'none': "f = f_t: no bound (the paper's model; files written before energy bounds)",
+ 'albedo_table': "f = k(wi.z) k(wo.z) f_t with each material's table materials.energy_bound (M, "
+                 'energy_nodes) in [0, 1]: k(x) = sum_j k_j max(0, 1 - |x (energy_nodes - 1) - j|), linear '
+                 'between the nodes x_j = j / (energy_nodes - 1). The product k(wi.z) k(wo.z) is symmetric, '
+                 'so a reciprocal f_t stays reciprocal bit for bit, and k <= 1 only removes light: fitted so '
+                 'that every directional albedo stays at or below energy_target (docs/ENERGY.md)'}
 #: Architectures; network input = direction inputs, latent code, extra inputs.
 ARCHS = {'hybrid': {'directions': 'local',
             'direction_count': 6,
@@ -156,7 +167,8 @@ ARCH_FIELDS = [{'key': 'kind', 'type': 'enum', 'values': 'archs'},
  {'key': 'n_in', 'type': 'int', 'min': 1, 'max': 256},
  {'key': 'n_out', 'type': 'int', 'min': 1, 'max': 6},
  {'key': 'pre_exp_max', 'type': 'number', 'min': 0.0, 'max': 80.0, 'default': 16.0},
- {'key': 'output_layer', 'type': 'enum', 'values': 'output_layers', 'default': 'shared'}]
+ {'key': 'output_layer', 'type': 'enum', 'values': 'output_layers', 'default': 'shared'},
+ {'key': 'energy_bound', 'type': 'enum', 'values': 'energy_bounds', 'default': 'none'}]
 #: Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.
 MATERIAL_RANGES = [{'tensor': 'kd', 'components': 3, 'min': 0.0, 'max': 1.0},
  {'tensor': 'eta', 'components': 3, 'min': 1.0, 'max': 10.0},

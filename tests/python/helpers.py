@@ -127,13 +127,15 @@ class AnalyticTestSource(BRDFSource):
 # ---- model files ------------------------------------------------------------------
 
 
-def saved_random_model(tmp_path, arch, activation="hardgelu", width=16, depth=2, output_layer="shared"):
+def saved_random_model(tmp_path, arch, activation="hardgelu", width=16, depth=2, output_layer="shared",
+                       energy_bound=False):
     """A random model of ``arch`` (latent 12 for the neural baseline, 4 otherwise; materials
-    isotropic, anisotropic, isotropic; ``output_layer`` shared or material) with ``activation``,
+    isotropic, anisotropic, isotropic; ``output_layer`` shared or material; with ``energy_bound``
+    random energy-bound tables) with ``activation``,
     saved as tmp_path/m.safetensors and loaded back: (path, the loaded model), so that both
     sides of a comparison read one file."""
     _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
-                            isotropic=[True, False, True], output_layer=output_layer)
+                            isotropic=[True, False, True], output_layer=output_layer, energy_bound=energy_bound)
     model.arch["activation"] = activation
     path = tmp_path / "m.safetensors"
     model.save(path)

@@ -24,6 +24,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf import _core, spec
+from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
 
@@ -161,7 +162,15 @@ def good_files(tmp_path_factory):
     for output_layer in ("shared", "material"):
         out[output_layer] = folder / f"good_{output_layer}.safetensors"
         base_model(output_layer=output_layer).save(out[output_layer])
+    # A case with "energy_bound": true starts from the base with energy-bound tables.
+    table = np.linspace(0.25, 1.0, 3 * spec.ENERGY_NODES, dtype=np.float32).reshape(3, spec.ENERGY_NODES)
+    out["energy"] = folder / "good_energy.safetensors"
+    energy.attach(base_model(), table).save(out["energy"])
     return out
+
+
+def _base_file(good_files, case):
+    return good_files["energy" if case.get("energy_bound") else case.get("output_layer", "shared")]
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +181,7 @@ def good_file(good_files):
 @pytest.mark.parametrize("case", TABLE["cases"], ids=[c["name"] for c in TABLE["cases"]])
 def test_both_loaders_reject_each_malformed_file_alike(tmp_path, good_files, case):
     bad = tmp_path / "bad.safetensors"
-    write_case(case, good_files[case.get("output_layer", "shared")], bad)
+    write_case(case, _base_file(good_files, case), bad)
     with pytest.raises(hb.ModelFileError) as py_err:
         hb.load_model(bad)
     with pytest.raises(hb.ModelFileError) as cpp_err:  # libhybridbrdf's errors are the same type

@@ -48,6 +48,7 @@ private:
 using ModelKind = spec::ModelKind;
 using Activation = spec::Activation;
 using OutputLayer = spec::OutputLayer;
+using EnergyBound = spec::EnergyBound;
 
 /// Widest layer and longest input the scalar path keeps on the stack.
 inline constexpr int kMaxLayerWidth = spec::kMaxWidth;
@@ -66,7 +67,16 @@ struct ModelMaterial {
     AnalyticParams params;     ///< unused by the neural baseline
     std::vector<float> latent; ///< z
     DenseLayer head;           ///< the material's own output layer (OutputLayer::Material), else empty
+    /// k_j of the energy bound f = k(wi.z) k(wo.z) f_t (EnergyBound::AlbedoTable: spec::kEnergyNodes
+    /// values in [0, 1]), else empty. docs/ENERGY.md.
+    std::vector<float> energy_bound;
 };
+
+/// k(cos_theta) of an energy-bound table (spec/model.json, energy_bounds): the hat-function sum
+/// sum_j k_j max(0, 1 - |x (K - 1) - j|), linear between the nodes x_j = j / (K - 1). Written as
+/// the generated shaders write it (a loop over the nodes, no index arithmetic), so that every
+/// implementation rounds alike; 1 for an empty table.
+float energy_bound_scale(const std::vector<float>& table, float cos_theta);
 
 class HybridModel {
 public:
@@ -85,6 +95,8 @@ public:
     int conventions_version() const { return conventions_version_; }
     /// Shared (the paper's model) or one output layer per material (spec/model.json, output_layers).
     OutputLayer output_layer_kind() const { return output_layer_; }
+    /// Whether each material's f_t is scaled by its energy-bound table (spec/model.json, energy_bounds).
+    EnergyBound energy_bound_kind() const { return energy_bound_; }
     const std::vector<ModelMaterial>& materials() const { return materials_; }
     /// The shared layers: the hidden layers, then the output layer when it is shared.
     const std::vector<DenseLayer>& layers() const { return layers_; }
@@ -95,7 +107,7 @@ public:
     /// Index of a material by name, or -1.
     int find(const std::string& name) const;
 
-    /// f_t(wi, wo) for material m (no cosine). Directions are normalised; 0 when
+    /// f(wi, wo) for material m (no cosine): f_t, times k(wi.z) k(wo.z) with an energy bound. Directions are normalised; 0 when
     /// either is below the horizon or invalid.
     Vec3<float> eval(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// The analytic part f_a of material m (hybrid kinds; throws for the neural baseline).
@@ -118,6 +130,7 @@ private:
     ModelKind kind_ = ModelKind::Hybrid;
     Activation activation_ = Activation::HardGelu;
     OutputLayer output_layer_ = OutputLayer::Shared;
+    EnergyBound energy_bound_ = EnergyBound::None;
     int width_ = 0, depth_ = 0, latent_ = 0, n_in_ = 0, n_out_ = 0, conventions_version_ = 0;
     float pre_exp_max_ = float(spec::kPreExpMax);
     std::vector<DenseLayer> layers_;  ///< hidden layers, then the output layer when shared

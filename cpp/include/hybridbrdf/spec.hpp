@@ -15,7 +15,7 @@ inline constexpr const char* kTensorDtype = "F32";
 inline constexpr std::uint64_t kMaxHeaderBytes = 67108864ull;
 /// Largest tensor data section of a model file the contract allows (scripts/gen_spec.py
 /// max_data_bytes): a longer file is refused from its size, before it is read.
-inline constexpr std::uint64_t kMaxDataBytes = 6460221536ull;
+inline constexpr std::uint64_t kMaxDataBytes = 6524221536ull;
 
 /// Default bound on every value passed to exp() (f_c, the neural output, logmul): exp(16) = 8.9e6
 /// is far above any measured BRDF value and keeps float32 (and float16 products) from overflowing.
@@ -92,6 +92,14 @@ inline constexpr int kNeuralFrames = 3;
 /// through |W| and |b| at load. Below it float32 evaluation cannot overflow (FLT_MAX = 3.4e38
 /// leaves 8 orders for rounding), so no weight pattern makes an output NaN.
 inline constexpr double kMaxNetworkValue = 1e+30;
+/// Nodes of a material's energy-bound table (arch.energy_bound 'albedo_table'): k(x) at x = cos
+/// theta = j / (energy_nodes - 1), j = 0 .. energy_nodes - 1, linear between them. 16 nodes put one
+/// every 4 degrees near 80 degrees from the normal, where Fresnel and the network's correction
+/// raise a directional albedo fastest.
+inline constexpr int kEnergyNodes = 16;
+/// Largest directional albedo hbrdf's energy bound leaves a material (docs/ENERGY.md): 1 less a
+/// margin for the Monte Carlo estimate the tables are computed from.
+inline constexpr double kEnergyTarget = 0.99;
 
 /// Hidden-layer activations (names as in model files).
 enum class Activation { Relu, HardGelu };
@@ -127,6 +135,11 @@ inline constexpr int kModelKindCount = 7;
 enum class OutputLayer { Shared, Material };
 inline constexpr const char* kOutputLayerNames[] = {"shared", "material"};
 inline constexpr int kOutputLayerCount = 2;
+
+/// How a material's directional albedo is bounded (arch.energy_bound).
+enum class EnergyBound { None, AlbedoTable };
+inline constexpr const char* kEnergyBoundNames[] = {"none", "albedo_table"};
+inline constexpr int kEnergyBoundCount = 2;
 
 /// One architecture: network input = direction inputs, latent code, extra inputs (in that order).
 struct ArchSpec {
@@ -172,6 +185,7 @@ inline constexpr ArchField kArchFields[] = {
     {"n_out", FieldType::Int, 1.0, 6.0, false, 0.0, nullptr, 0},
     {"pre_exp_max", FieldType::Number, 0.0, 80.0, true, 16.0, nullptr, 0},
     {"output_layer", FieldType::Enum, 0.0, 0.0, true, 0.0, kOutputLayerNames, kOutputLayerCount},
+    {"energy_bound", FieldType::Enum, 0.0, 0.0, true, 0.0, kEnergyBoundNames, kEnergyBoundCount},
 };
 
 /// Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.

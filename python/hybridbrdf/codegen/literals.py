@@ -69,6 +69,7 @@ CPP_PRELUDE = """#pragma once
 
 namespace hbrdf {
 
+using std::abs;
 using std::cos;
 using std::exp;
 using std::log;

@@ -59,6 +59,7 @@ def _material_constants(model: HybridModel, plan: Specialisation, head_in_materi
                      "eta": [float_literal(v) for v in eta], "alpha": [float_literal(v) for v in alpha], "z": z,
                      "head_w": t["materials.head_weight"][i].ravel() if head_in_material else [],
                      "head_b": t["materials.head_bias"][i] if head_in_material else [],
+                     "energy": t["materials.energy_bound"][i] if "materials.energy_bound" in t else [],
                      "analytic_only": "true" if plan.flags.get(n, False) else "false"})
     return mats
 
@@ -95,6 +96,7 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
         neural_max_depth=plan.neural_max_depth, depth_limited=plan.neural_max_depth != NO_DEPTH_LIMIT,
         isotropic_only=plan.isotropic_only, fold_latent=plan.fold_latent, fp16=precision == "fp16",
         unrolled=unrolled, mixed=plan.mixed, head_in_material=head_in_material,
+        energy_bound=a.get("energy_bound", "none") == "albedo_table", energy_nodes=spec.ENERGY_NODES,
         head_unrolled=unrolled_head(a["width"], a["n_out"], a["depth"]) if head_in_material and unrolled else [],
         material_names=[comment_text(n) for n in plan.names], materials=_material_constants(model, plan, head_in_material),
         layers=layers, alpha_min=float_literal(spec.ALPHA_MIN), arch=spec.ARCHS[model.kind], c=contract_literals(),

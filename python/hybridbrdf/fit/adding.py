@@ -19,6 +19,7 @@ from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
 
+from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.fit import fit, frozen_arch_settings
 from hybridbrdf.fit.settings import ADD_STEPS, FINETUNE_STEPS, MAX_DRIFT, STEPS, FitSettings
@@ -69,6 +70,11 @@ def merge(base: HybridModel, added: HybridModel, keep_base_materials: bool = Tru
     for key, value in base.tensors.items():
         if not key.startswith("materials.") and not np.array_equal(value, added.tensors[key]):
             raise ValueError(f"cannot merge: tensor {key} differs; the added materials were not fitted to this network")
+    arch = dict(base.arch)
+    if "materials.energy_bound" in base.tensors or "materials.energy_bound" in added.tensors:
+        # A model with tables for some materials: the others get tables of ones (no bound).
+        base, added = _with_unit_tables(base), _with_unit_tables(added)
+        arch["energy_bound"] = "albedo_table"
     tensors = {k: ((np.concatenate([v, added.tensors[k]]) if keep_base_materials else added.tensors[k].copy())
                    if k.startswith("materials.") else v.copy())
                for k, v in base.tensors.items()}
@@ -77,7 +83,16 @@ def merge(base: HybridModel, added: HybridModel, keep_base_materials: bool = Tru
     training["additions"] = list(training.get("additions", [])) + [dict(added.training, materials=added.materials)]
     materials = ([dict(m) for m in base.material_info] if keep_base_materials else []) + \
         [dict(m) for m in added.material_info]
-    return HybridModel(dict(base.arch), materials, tensors, training)
+    return HybridModel(arch, materials, tensors, training)
+
+
+def _with_unit_tables(model: HybridModel) -> HybridModel:
+    """``model`` with energy-bound tables: its own, or ones (no bound) where it has none."""
+    if "materials.energy_bound" in model.tensors:
+        return model
+    tensors = dict(model.tensors)
+    tensors["materials.energy_bound"] = np.ones((len(model.materials), spec.ENERGY_NODES), np.float32)
+    return HybridModel(dict(model.arch, energy_bound="albedo_table"), model.material_info, tensors, model.training)
 
 
 def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = None,

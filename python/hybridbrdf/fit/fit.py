@@ -27,6 +27,7 @@ import torch
 from hybridbrdf.fit import checkpoint as ckpt
 from hybridbrdf.fit import distributed as dd
 from hybridbrdf import spec
+from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
 from hybridbrdf.sources.base import BRDFSource
@@ -242,6 +243,8 @@ def _model_with_metrics(module, names: List[str], sources: Sequence[BRDFSource],
                         start_names: Optional[List[str]]) -> HybridModel:
     """The fitted model with each material's metrics and, for a sparse fit, its start's."""
     model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
+    if settings.energy_bound:
+        model = energy.with_bound(model)
     metrics = evaluate(model, sources, n_pairs=settings.eval_pairs, names=names)
     for info, row in zip(model.material_info, metrics):
         info["metrics"] = {k: v for k, v in row.items() if k not in ("material", "origin")}

@@ -184,6 +184,12 @@ class FitSettings:
                                  "shared by every material ('shared': the paper's model and recipe) "
                                  "(default: %(default)s; docs/FITTING.md)", "network", "--output-layer",
                                  choices=OUTPUT_LAYERS)
+    #: bound every fitted material's directional albedo at spec.ENERGY_TARGET by a table k(cos theta)
+    #: per material, f = k(wi.z) k(wo.z) f_t, computed after the fit (docs/ENERGY.md).
+    energy_bound: bool = _setting(True, "do not bound the fitted materials' directional albedo (by default every "
+                                  "material gets an energy-bound table after the fit, f = k(wi.z) k(wo.z) f_t with "
+                                  "k <= 1, so that it reflects at most 0.99 of the light it receives; docs/ENERGY.md)",
+                                  "network", "--no-energy-bound", action="store_false")
     #: the named set of defaults the settings started from (RECIPES); a label only: the values
     #: themselves are what a checkpoint compares.
     recipe: str = _setting("hybridbrdf", "defaults to start from: hybridbrdf (this project's measured best), paper "

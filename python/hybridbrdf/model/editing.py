@@ -21,11 +21,13 @@ stays at or below :data:`ALBEDO_TARGET` for every outgoing direction of the grid
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, Sequence, Tuple
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
+from hybridbrdf.model import energy
 from hybridbrdf.names import names_problem
 
 #: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
@@ -39,8 +41,8 @@ ALBEDO_PHI_DEG = (0.0, 45.0, 90.0, 135.0)
 #: well inside ALBEDO_TARGET's margin for the shipped prior's materials.
 ALBEDO_SAMPLES = 1 << 13
 #: What ``conserve_energy`` holds the maximum estimated albedo to: 1 less a margin that covers
-#: the estimate's noise.
-ALBEDO_TARGET = 0.99
+#: the estimate's noise (the energy bound's target, spec/model.json).
+ALBEDO_TARGET = spec.ENERGY_TARGET
 
 
 def _lerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
@@ -111,21 +113,28 @@ def edit(model, material, name: str, *, kd=None, eta=None, alpha=None, conserve_
 
 
 def _add_material(model, name, row, info, record, conserve_energy: bool):
-    """``model`` plus the material ``row``; with ``conserve_energy``, its kd scaled (and the
-    scale recorded in ``record``) so that its maximum directional albedo is at most ALBEDO_TARGET."""
-    new = _with_material(model, name, row, info)
-    if not conserve_energy:
-        return new
-    if "kd" not in row:
-        raise ValueError("the neural baseline has no kd to scale: conserve_energy needs a hybrid model")
-    dark = _with_material(model, name, dict(row, kd=np.zeros(3, np.float32)), info)
-    scale = _energy_conserving_kd_scale(new, dark, name)
-    if scale >= 1.0:
-        return new
-    row = dict(row, kd=(row["kd"].astype(np.float64) * scale).astype(np.float32))
-    record["kd"] = _shortest(row["kd"])
-    record["kd_scaled_for_energy"] = scale
-    return _with_material(model, name, row, info)
+    """``model`` plus the material ``row`` with its energy-bound table fitted
+    (:mod:`hybridbrdf.model.energy`: every directional albedo at most its target, whatever the edit);
+    with ``conserve_energy``, first its kd scaled (and the scale recorded in ``record``) so that
+    its f_t's maximum directional albedo is at most ALBEDO_TARGET where kd can do it."""
+    row = {k: v for k, v in row.items() if k != "energy_bound"}  # fitted below, for the new f_t
+    unbounded = energy.unbounded(model)
+    new = _with_material(unbounded, name, row, info)
+    if conserve_energy:
+        if "kd" not in row:
+            raise ValueError("the neural baseline has no kd to scale: conserve_energy needs a hybrid model")
+        dark = _with_material(unbounded, name, dict(row, kd=np.zeros(3, np.float32)), info)
+        scale = _energy_conserving_kd_scale(new, dark, name)
+        if scale is None:
+            record["kd_scaled_for_energy"] = None  # kd cannot do it: the table alone bounds the material
+        elif scale < 1.0:
+            row = dict(row, kd=(row["kd"].astype(np.float64) * scale).astype(np.float32))
+            record["kd"] = _shortest(row["kd"])
+            record["kd_scaled_for_energy"] = scale
+            new = _with_material(unbounded, name, row, info)
+    # The other materials keep their tables (ones where the model had none); the new one's is fitted.
+    old = model.tensors.get("materials.energy_bound", np.ones((len(model.materials), energy.NODES), np.float32))
+    return energy.with_bound(energy.attach(new, np.concatenate([old, np.ones((1, energy.NODES), np.float32)])), [name])
 
 
 def mix(model, a, b, t: float, name: str, conserve_energy: bool = False):
@@ -213,30 +222,21 @@ def albedo_profile(model, material, samples: int = ALBEDO_SAMPLES, seed: int = 1
             "argmax_deg": (float(theta.ravel()[k]), float(phi.ravel()[k]))}
 
 
-def _energy_conserving_kd_scale(edited, dark, material) -> float:
+def _energy_conserving_kd_scale(edited, dark, material) -> Optional[float]:
     """The largest s in [0, 1] with max albedo of (kd -> s kd) <= ALBEDO_TARGET, from the
     albedo's linearity in kd: one sample set, evaluated for the edited material and for the same
-    material with kd = 0 (``dark``)."""
+    material with kd = 0 (``dark``); None when even kd = 0 reflects more."""
     samples = ALBEDO_SAMPLES
     wi, wo, pdf = _albedo_samples(edited, material, samples, seed=1)
     n_wo = len(wo) // samples
     rho_kd = _albedo_estimate(edited.eval(wi, wo, material), wi, pdf, n_wo)
     rho_0 = _albedo_estimate(dark.eval(wi, wo, material), wi, pdf, n_wo)
     if rho_0.max() > ALBEDO_TARGET:
-        k = np.unravel_index(int(np.argmax(rho_0)), rho_0.shape)
-        th, ph = _outgoing_grid_angles(k[0])
-        raise ValueError(f"cannot conserve energy by scaling kd: with kd = 0 the material still reflects "
-                         f"{rho_0.max():.3f} of the light at theta_o {th:g}, phi_o {ph:g} degrees (its specular part "
-                         f"and the network's correction); lower eta, or for a blend choose another t")
+        return None  # with kd = 0 the specular part and the network's correction alone reflect too much
     diffuse = rho_kd - rho_0  # the kd-proportional part, >= 0 up to rounding
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(diffuse > 1e-9, (ALBEDO_TARGET - rho_0) / diffuse, np.inf)
     return float(min(1.0, room.min()))
-
-
-def _outgoing_grid_angles(k: int) -> Tuple[float, float]:
-    n_phi = len(ALBEDO_PHI_DEG)
-    return ALBEDO_THETA_DEG[k // n_phi], ALBEDO_PHI_DEG[k % n_phi]
 
 
 def parse_assignments(items: Sequence[str]) -> Dict[str, Any]:

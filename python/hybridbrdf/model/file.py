@@ -42,11 +42,12 @@ import torch
 
 from hybridbrdf import _core, spec
 from hybridbrdf.brdf.analytic import AnalyticParams
+from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.model import editing
 from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
                                         output_layer)
-from hybridbrdf.model.networks import build_model
+from hybridbrdf.model.networks import build_model, energy_bound_scale
 from hybridbrdf.model.validate import read_document, validate
 from hybridbrdf.util import atomic_write_bytes
 from hybridbrdf.version import __version__
@@ -193,6 +194,10 @@ class HybridModel:
             else:
                 head = (m["head_weight"], m["head_bias"]) if "head_weight" in m else None
                 f, fa = mod.evaluate(wi_t, wo_t, m["kd"], m["eta"], m["alpha"], m["z"], head)
+            if "energy_bound" in m:  # f = k(wi.z) k(wo.z) f_t (spec/model.json, energy_bounds)
+                wi_n, wo_n = (_normalize(w)[0] for w in (wi_t, wo_t))  # invalid rows: +z (f is 0 there)
+                k = energy_bound_scale(m["energy_bound"], wi_n[:, 2]) * energy_bound_scale(m["energy_bound"], wo_n[:, 2])
+                f = f * k[None, :, None]
         out = f[0].double().numpy()
         return out, (fa[0].double().numpy() if fa is not None else None)
 

@@ -92,6 +92,18 @@ def combine(rule: str, o: torch.Tensor, f_a: Optional[torch.Tensor], pre_exp_max
     raise ValueError(f"unknown combine rule {rule!r}; expected one of {', '.join(spec.COMBINES)}")
 
 
+def energy_bound_scale(table: torch.Tensor, cos_theta: torch.Tensor) -> torch.Tensor:
+    """k(cos_theta) of energy-bound tables (spec/model.json, energy_bounds): ``table`` (..., K) and
+    ``cos_theta`` broadcast against its leading dimensions; sum_j k_j max(0, 1 - |x (K - 1) - j|),
+    linear between the nodes x_j = j / (K - 1), summed node by node as libhybridbrdf and the
+    generated shaders do."""
+    t = cos_theta * float(table.shape[-1] - 1)
+    k = torch.zeros_like(t)
+    for j in range(table.shape[-1]):
+        k = k + table[..., j] * torch.clamp(1.0 - torch.abs(t - float(j)), min=0.0)
+    return k
+
+
 class MLP(nn.Module):
     """``depth`` hidden layers of ``width`` units with the chosen activation, then a linear output."""
 

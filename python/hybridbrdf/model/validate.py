@@ -80,6 +80,7 @@ def validate(path: str, doc: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> 
     _check_tensors(path, tensors, _expected_tensors(path, arch, len(names)))
     if spec.ARCHS[arch["kind"]]["analytic"]:
         _read_analytic_params(path, tensors, doc["materials"])
+    _read_energy_bounds(path, arch, tensors, doc["materials"])
     problem = network_overflow_problem(arch, tensors)
     if problem:
         raise ModelFileError(path, problem)
@@ -173,6 +174,8 @@ def _expected_tensors(path: str, arch: Dict[str, Any], n_mat: int) -> Dict[str, 
                                        f"not {arch['kind']}")
         expected["materials.head_weight"] = (n_mat, arch["n_out"], arch["width"])
         expected["materials.head_bias"] = (n_mat, arch["n_out"])
+    if arch["energy_bound"] == "albedo_table":
+        expected["materials.energy_bound"] = (n_mat, spec.ENERGY_NODES)
     return expected
 
 
@@ -207,6 +210,19 @@ def _read_analytic_params(path: str, tensors: Dict[str, np.ndarray], materials: 
         alpha = tensors["materials.alpha"][i]
         if m.get("isotropic", True) and alpha[0] != alpha[1]:
             raise ModelFileError(path, f"material '{name}' is marked isotropic but alpha_x != alpha_y")
+
+
+def _read_energy_bounds(path: str, arch: Dict[str, Any], tensors: Dict[str, np.ndarray],
+                        materials: List[Dict[str, Any]]) -> None:
+    """With arch.energy_bound "albedo_table": every node of every material's table in [0, 1] (a
+    factor above 1 would add light), material by material, node by node (C++ read_energy_bounds)."""
+    if arch["energy_bound"] != "albedo_table":
+        return
+    table = tensors["materials.energy_bound"]
+    for i, m in enumerate(materials):
+        for j, k in enumerate(table[i]):
+            if not 0.0 <= k <= 1.0:
+                raise ModelFileError(path, f"material '{m['name']}': energy_bound[{j}] = {_num(k)} is outside [0, 1]")
 
 
 def network_overflow_problem(arch: Dict[str, Any], tensors: Dict[str, np.ndarray]) -> Optional[str]:

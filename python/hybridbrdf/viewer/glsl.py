@@ -207,14 +207,18 @@ void main() {
 """
 
 
-def fragment_shader(glsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0) -> str:
+def fragment_shader(glsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0, energy: int = 0) -> str:
     """The page's fragment shader (GLSL ES 3.00): :data:`ES_PREFIX`, ``glsl`` (``hbrdf-codegen --target
     glsl`` output, unchanged) and the page's ``main``. ``head_w``/``n_out``: the material output
-    layer's sizes (0 for a shared one); the packed uniforms hold z, then head_w, then head_b."""
+    layer's sizes (0 for a shared one); ``energy``: the energy-bound table's length (0 for none); the
+    packed uniforms hold z, then head_w, then head_b, then the table."""
     head_lines = ""
     if head_w:
         head_lines = (f"    for (int i = 0; i < {head_w}; ++i) m.head_w[i] = hbrdf_view_packed({z_len} + i);\n"
                       f"    for (int i = 0; i < {n_out}; ++i) m.head_b[i] = hbrdf_view_packed({z_len + head_w} + i);\n")
+    if energy:
+        at = z_len + (head_w + n_out if head_w else 0)
+        head_lines += f"    for (int i = 0; i < {energy}; ++i) m.energy[i] = hbrdf_view_packed({at} + i);\n"
     return ES_PREFIX + glsl + _MAIN.format(n_vec=(n_pack + 3) // 4, z_len=z_len, head_lines=head_lines)
 
 

@@ -29,6 +29,7 @@ from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from hybridbrdf import spec
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model.file import HybridModel, load_model
@@ -71,6 +72,8 @@ def _packed(model: HybridModel, i: int) -> List[float]:
     if "materials.head_weight" in t:
         z += [float(v) for v in np.asarray(t["materials.head_weight"][i]).ravel()]
         z += [float(v) for v in t["materials.head_bias"][i]]
+    if "materials.energy_bound" in t:
+        z += [float(v) for v in t["materials.energy_bound"][i]]
     return z
 
 
@@ -108,6 +111,7 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
     wgsl = generate(model, "wgsl", materials=[model.materials[0]], model_path=model_path)
     rows = _material_rows(model)
     n_pack = len(rows[0]["pack"])
+    energy = spec.ENERGY_NODES if "materials.energy_bound" in model.tensors else 0
     if n_pack > MAX_PACKED_FLOATS:
         raise ViewError(f"{model_path}: {n_pack} floats per material (latent code and output layer) is more than "
                         f"the page's uniforms hold ({MAX_PACKED_FLOATS})")
@@ -124,11 +128,11 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
         "sources": [str(s) for s in sources],
         "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN, "environment": env,
         "fragment": fragment_shader(glsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
-                                    a["n_out"]),
+                                    a["n_out"], energy),
         "display": DISPLAY_SHADER,
         # the WebGPU backend (docs/VIEWER.md, "WebGPU"): hbrdf-codegen --target wgsl and the page's WGSL
         "wgsl": viewer_wgsl.compute_shader(wgsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
-                                           a["n_out"]),
+                                           a["n_out"], energy),
         "wgsl_display": viewer_wgsl.DISPLAY_SHADER,
         # the page fills in the material, the light, analytic or full, and the size
         "scene": tracer_scene(model_path, model.materials[0], spp=64, environment=env["spec"]),

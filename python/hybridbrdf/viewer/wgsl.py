@@ -304,7 +304,7 @@ fn hbrdf_view_fragment(@builtin(position) position: vec4f) -> @location(0) vec4f
 """
 
 
-def compute_shader(wgsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0) -> str:
+def compute_shader(wgsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0, energy: int = 0) -> str:
     """The page's WebGPU compute shader: ``wgsl`` (``hbrdf-codegen --target wgsl`` output, unchanged)
     and the page's WGSL (entry point ``hbrdf_view_main``). ``z_len``: the generated struct's latent
     length; ``n_pack``: floats per material in the packed array (z, then head_w, then head_b);
@@ -313,6 +313,9 @@ def compute_shader(wgsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: i
     if head_w:
         head_lines = (f"    for (var i: i32 = 0; i < {head_w}; i++) {{ m.head_w[i] = hbrdf_view_packed({z_len} + i); }}\n"
                       f"    for (var i: i32 = 0; i < {n_out}; i++) {{ m.head_b[i] = hbrdf_view_packed({z_len + head_w} + i); }}\n")
+    if energy:
+        at = z_len + (head_w + n_out if head_w else 0)
+        head_lines += f"    for (var i: i32 = 0; i < {energy}; i++) {{ m.energy[i] = hbrdf_view_packed({at} + i); }}\n"
     return wgsl + _MAIN.format(n_vec=max(1, (n_pack + 3) // 4), z_len=z_len, head_lines=head_lines, wg=WORKGROUP)
 
 
