@@ -26,8 +26,10 @@ and ``hbrdf eval`` on the bounded file.
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -89,10 +91,12 @@ def max_albedo(model, material, args, seed: int):
 def report(label: str, model, materials, args) -> None:
     t0 = time.time()
     free = energy.unbounded(model)
+    if free is not model:  # libhybridbrdf evaluates files (an unsaved model would run in PyTorch)
+        free = free.save_checked(os.path.join(tempfile.mkdtemp(), "unbounded.safetensors"))
     rows = []
     for k, m in enumerate(materials):
         before = max_albedo(free, m, args, seed=1000 + k)
-        after = max_albedo(model, m, args, seed=2000 + k) if free is not model else before
+        after = max_albedo(model, m, args, seed=2000 + k) if model.arch.get("energy_bound") == "albedo_table" else before
         rows.append((m, before, after))
     worst_b = max(rows, key=lambda r: r[1][0])
     worst_a = max(rows, key=lambda r: r[2][0])
@@ -131,6 +135,7 @@ def main() -> int:
                 new = f"e{k}_{len(names)}"
                 model = model.edit(name, new, **kw)
                 names.append(new)
+        model = model.save_checked(os.path.join(tempfile.mkdtemp(), "edits.safetensors"))
         report(f"corner edits of {len(chosen)} materials", model, names, args)
     return 0
 

@@ -16,6 +16,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf.codegen.main import generate
+from hybridbrdf.model import energy
 from hybridbrdf.model.editing import parse_assignments
 
 from helpers import hard_pairs, run_cli, valid_upper
@@ -63,12 +64,14 @@ def test_kd_edit_raises_normal_incidence_albedo_monotonically(prior):
     values = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
     albedo = []
     for kd in values:
-        m = prior.edit(GLOSSY, "e", kd=kd)
+        m = energy.unbounded(prior.edit(GLOSSY, "e", kd=kd))  # f_t: the energy bound caps it at 0.99 (below)
         albedo.append(cosine_albedo(m, "e", 0.0, n=1 << 16)[0])
     albedo = np.array(albedo)
     steps = np.diff(albedo, axis=0)
     # each step of 0.2 in kd adds 0.2 x the gated diffuse albedo: far above the estimate's noise
     assert (steps > 0.02).all(), albedo
+    bounded, err = cosine_albedo(prior.edit(GLOSSY, "e", kd=1.0), "e", 0.0, n=1 << 16)
+    assert albedo[-1].max() > 1.0 and (bounded <= 1.0 + 4 * err).all(), bounded
 
 
 def lobe_width(model, material, theta_o=math.radians(30), n=2001):
@@ -144,8 +147,8 @@ def test_albedo_profile_agrees_with_an_independent_estimate(prior):
 
 
 def test_conserve_energy_scales_kd_until_the_albedo_is_at_most_one(prior):
-    hot = prior.edit(GLOSSY, "hot", kd=1.0, eta=3.0)
-    assert hot.albedo("hot")["max"] > 1.05  # the edit alone reflects too much
+    hot = energy.unbounded(prior.edit(GLOSSY, "hot", kd=1.0, eta=3.0))
+    assert hot.albedo("hot")["max"] > 1.05  # the edit's f_t alone reflects too much
     kept = prior.edit(GLOSSY, "hot", kd=1.0, eta=3.0, conserve_energy=True)
     kd = kept.analytic_params("hot").kd
     assert 0 < kd[0] < 1 and kd[0] == kd[1] == kd[2]  # scaled alike: the hue is kept
@@ -160,15 +163,18 @@ def test_conserve_energy_scales_kd_until_the_albedo_is_at_most_one(prior):
     assert dim.analytic_params("dim").kd[0] == np.float32(0.1)
 
 
-def test_conserve_energy_says_when_kd_cannot_fix_it(prior):
+def test_conserve_energy_records_when_kd_cannot_fix_it_and_the_table_does(prior):
     # No prior material reflects more than 0.78 with kd = 0 (eta 10); a network whose
     # correction f_c alone exceeds 1/pi everywhere does.
     tensors = {k: v.copy() for k, v in prior.tensors.items()}
     tensors["mlp.out.bias"][0:3] += 6.0
     bright = hb.HybridModel(dict(prior.arch), [dict(m) for m in prior.material_info], tensors)
-    with pytest.raises(ValueError, match="with kd = 0 the material still reflects") as err:
-        bright.edit(GLOSSY, "x", kd=1.0, conserve_energy=True)
-    assert "\n" not in str(err.value)
+    edited = bright.edit(GLOSSY, "x", kd=1.0, conserve_energy=True)
+    info = edited.material_info[-1]
+    assert info["edit"]["kd_scaled_for_energy"] is None  # kd cannot do it ...
+    assert info["energy_bound"]["max_albedo_unbounded"] > 2.0
+    ref, err = cosine_albedo(edited, "x", math.radians(60), seed=5)  # ... the table does
+    assert (ref <= 1.0 + 4 * err + 2e-3).all(), ref
 
 
 @pytest.mark.parametrize("call, message", [
@@ -214,7 +220,9 @@ def test_cli_edit_and_mix_write_a_valid_model_and_report_the_albedo(prior, tmp_p
     out = tmp_path / "m.safetensors"
     r = run_cli("edit", str(PRIOR), GLOSSY, "--set", "kd=1", "--set", "eta=3", "--as", "hot", "--out", str(out))
     assert r.returncode == 0, r.stderr
-    assert "max directional albedo 1." in r.stdout and "--conserve-energy" in r.stderr
+    # the edit's f_t reflects more than it receives; its energy-bound table holds it at 0.99
+    assert "energy bound: max directional albedo 1." in r.stdout and "0.990 after" in r.stdout
+    assert "max directional albedo 0.9" in r.stdout
     r = run_cli("mix", str(out), MIX_A, MIX_B, "--t", "0.25", "--as", "blend", "--out", str(out))
     assert r.returncode == 0, r.stderr
     m = hb.load_model(out)
@@ -223,7 +231,11 @@ def test_cli_edit_and_mix_write_a_valid_model_and_report_the_albedo(prior, tmp_p
                                                                  + 0.25 * prior.latent(MIX_B).astype(np.float64)))
     r = run_cli("info", str(out), "--albedo-samples", "1024")
     assert r.returncode == 0, r.stderr
-    assert "EXCEEDS 1" in r.stdout and "blend: a gold-metallic-paint, b blue-acrylic, t 0.25" in r.stdout
+    assert "blend: a gold-metallic-paint, b blue-acrylic, t 0.25" in r.stdout
+    hot = r.stdout.split("\n  hot ")[1].split("\n  blend ")[0]
+    # the edit's record says what its table removed, and the table holds it at 0.99 (the old
+    # materials of this unbounded test prior keep what they had: tables of ones)
+    assert "energy bound: max albedo 1." in hot and "EXCEEDS 1" not in hot
 
 
 @pytest.mark.parametrize("args, message", [
@@ -242,19 +254,23 @@ def test_cli_errors_leave_out_untouched(tmp_path, args, message):
     assert out.read_bytes() == b"keep me"
 
 
-def test_a_blend_can_outshine_both_ends_and_kd_cannot_always_fix_it(prior):
+def test_a_blend_can_outshine_both_ends_and_the_table_bounds_it(prior):
     """Found by bench/edit_guarantees.py: halfway between these two latent codes the network's
-    correction is brighter than at either end, and the blend reflects more than it receives at
-    grazing (docs/EDITING.md); even with kd = 0 it does, so conserve_energy says so instead of guessing."""
+    correction is brighter than at either end, and the blend's f_t reflects more than it receives
+    at grazing (docs/EDITING.md); even with kd = 0 it does, so conserve_energy records that kd
+    cannot fix it, and the blend's energy-bound table bounds it."""
     a, b = "cc_ibiza_sunset_rgb.rgl", "acrylic_felt_orange_rgb"
     blend = prior.mix(a, b, 0.5, "half")
-    assert blend.albedo("half")["max"] > 1.2
+    assert energy.unbounded(blend).albedo("half")["max"] > 1.2
+    assert blend.albedo("half")["max"] <= 1.0  # the target 0.99 leaves room for the estimate's noise
     assert max(prior.albedo(a)["max"], prior.albedo(b)["max"]) < 1.0
-    with pytest.raises(ValueError, match="the network's correction"):
-        prior.mix(a, b, 0.5, "half", conserve_energy=True)
+    fixed = prior.mix(a, b, 0.5, "half", conserve_energy=True)
+    assert fixed.material_info[-1]["mix"]["kd_scaled_for_energy"] is None
+    assert fixed.albedo("half")["max"] <= 1.0
     # nearer an end, scaling kd is enough
     kept = prior.mix(a, b, 0.8, "near", conserve_energy=True)
-    assert kept.albedo("near")["max"] <= 1.0  # the target 0.99 leaves room for the estimate's noise
+    assert 0 < kept.material_info[-1]["mix"]["kd_scaled_for_energy"] < 1
+    assert kept.albedo("near")["max"] <= 1.0
 
 
 def test_albedo_takes_any_sample_count_and_refuses_nonsense(prior):

@@ -34,12 +34,15 @@ def run_shader(tmp_path, target, model, material, wi, wo, **generate_options):
     return run_on_lavapipe(spv, np.concatenate([wi, wo], axis=1))
 
 
-# The paper's 32x3, every architecture of the spec at 16x2 (the activations taken in turn), and
-# material output layers (the head in HbrdfMaterial, read with constant indices).
+# The paper's 32x3, every architecture of the spec at 16x2 (the activations taken in turn),
+# material output layers (the head in HbrdfMaterial, read with constant indices), and energy-bound
+# tables (spec/model.json energy_bounds: the table in HbrdfMaterial, read in a loop) on the
+# reciprocal form with heads and on the neural baseline.
 PAPER = ("hybrid", "hardgelu", 32, 3)
 HEADS = ("hybrid", "hardgelu", 32, 2, "material")
 CASES = ([PAPER] + [(arch, list(spec.ACTIVATIONS)[i % len(spec.ACTIVATIONS)], 16, 2) for i, arch in enumerate(spec.ARCHS)]
-         + [HEADS, ("hybrid-half", "relu", 16, 2, "material")])
+         + [HEADS, ("hybrid-half", "relu", 16, 2, "material"), ("hybrid-reciprocal", "hardgelu", 16, 2, "material", "energy"),
+            ("neural", "relu", 16, 2, "shared", "energy")])
 NEURAL = next(c for c in CASES if not spec.ARCHS[c[0]]["analytic"])
 
 
@@ -52,7 +55,8 @@ FORMS = [(case, target, "unrolled") for case in CASES for target in ("glsl", "hl
 @pytest.mark.parametrize("case,target,mlp_form", FORMS)
 def test_shader_matches_the_library_under_lavapipe(tmp_path, case, target, mlp_form):
     arch, activation, width, depth, output_layer = (tuple(case) + ("shared",))[:5]
-    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer)
+    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer,
+                                     energy_bound="energy" in case)
     rng = np.random.default_rng(11)
     hwi, hwo = hard_pairs()
     wi = np.concatenate([cosine_directions(rng, 100_000), hwi]).astype(np.float32)

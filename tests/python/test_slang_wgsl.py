@@ -68,7 +68,8 @@ FORMS = ([(case, "unrolled", target) for case in CASES for target in TARGETS]
 def test_every_output_matches_the_library(tmp_path, case, mlp_form, target):
     skip_without(target)
     arch, activation, width, depth, output_layer = (tuple(case) + ("shared",))[:5]
-    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer)
+    path, model = saved_random_model(tmp_path, arch, activation, width, depth, output_layer,
+                                     energy_bound="energy" in case)
     wi, wo, u = conformance_inputs(30_000, seed=31)
     material = 1  # the anisotropic one
     out = run_all_outputs(tmp_path, target, model, model.materials[material], wi, wo, u, mlp_form=mlp_form)

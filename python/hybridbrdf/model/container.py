@@ -65,7 +65,7 @@ def arch_description(module) -> Dict[str, Any]:
     latent = module.latent_dim
     return {"kind": kind, "width": module.width, "depth": module.depth, "activation": module.activation,
             "latent": latent, "n_in": module.mlp.hidden[0].in_features, "n_out": module.n_out,
-            "pre_exp_max": module.pre_exp_max, "output_layer": module.output_layer,
+            "pre_exp_max": module.pre_exp_max, "output_layer": module.output_layer, "energy_bound": "none",
             "input": input_description(kind, latent)}
 
 
