@@ -26,7 +26,7 @@ import hybridbrdf as hb
 from hybridbrdf.evaluate.evaluation import evaluate
 from hybridbrdf.model import energy
 from hybridbrdf.sources import expand_sources, open_source
-from hybridbrdf.sources.names import material_names
+from hybridbrdf.sources.names import source_material
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
@@ -37,7 +37,7 @@ def matched_sources(model, specs):
     out = []
     for path in expand_sources(specs):
         src = open_source(path)
-        name = next((n for n in material_names(src) if n in model.materials), None)
+        name = source_material(model, src)
         if name is not None:
             out.append((name, src))
     return out

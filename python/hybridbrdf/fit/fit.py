@@ -26,6 +26,7 @@ import torch
 
 from hybridbrdf.fit import checkpoint as ckpt
 from hybridbrdf.fit import distributed as dd
+from hybridbrdf.fit import guard
 from hybridbrdf import spec
 from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
@@ -137,7 +138,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     module.eval().cpu()
     training = training_record(settings, timing, state.start, state.earlier_seconds, state.timed_from,
                                settings.batch * len(sources) * starts, ranks.world, timing.torch_threads)
-    return _model_with_metrics(module, names, sources, training, settings, frozen, start_names)
+    return _model_with_metrics(module, names, sources, training, settings, frozen, start_names, log)
 
 
 def _check_fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel],
@@ -240,8 +241,9 @@ def _place_starts(module, pool: TrainingPool, eps, eps_analytic, settings: FitSe
 
 def _model_with_metrics(module, names: List[str], sources: Sequence[BRDFSource], training: dict,
                         settings: FitSettings, frozen: Optional[HybridModel],
-                        start_names: Optional[List[str]]) -> HybridModel:
-    """The fitted model with each material's metrics and, for a sparse fit, its start's."""
+                        start_names: Optional[List[str]], log: Callable[[str], None] = print) -> HybridModel:
+    """The fitted model with each material's metrics and, for a sparse fit, its start's; energy-bound
+    tables (settings.energy_bound), and no material worse than its f_a (settings.analytic_guard)."""
     model = HybridModel.from_module(module, names, [s.origin for s in sources], training)
     if settings.energy_bound:
         model = energy.with_bound(model)
@@ -255,4 +257,6 @@ def _model_with_metrics(module, names: List[str], sources: Sequence[BRDFSource],
         start_metrics = evaluate(frozen, sources, n_pairs=settings.eval_pairs, names=start_names)
         for info, name, row in zip(model.material_info, start_names, start_metrics):
             info["sparse_start"] = {"material": name, "smape": row["smape"], "cmae": row["cmae"]}
+    if settings.analytic_guard and model.has_analytic:
+        model = guard.apply(model, sources, names, settings, fit, log)
     return model

@@ -186,6 +186,13 @@ class FitSettings:
                                  choices=OUTPUT_LAYERS)
     #: bound every fitted material's directional albedo at spec.ENERGY_TARGET by a table k(cos theta)
     #: per material, f = k(wi.z) k(wo.z) f_t, computed after the fit (docs/ENERGY.md).
+    #: never leave a material worse than its own f_a (the table's "!"): restart its correction, else
+    #: remove it (material output layers only; docs/FITTING.md, "Never worse than f_a").
+    analytic_guard: bool = _setting(True, "leave a material whose hybrid ends worse than its own f_a as it is (by "
+                                    "default its correction is restarted from a neutral head on the fitted network, "
+                                    "else removed so that it is its f_a; material output layers only; "
+                                    "docs/FITTING.md, \"Never worse than f_a\")", "network", "--no-analytic-guard",
+                                    action="store_false")
     energy_bound: bool = _setting(True, "do not bound the fitted materials' directional albedo (by default every "
                                   "material gets an energy-bound table after the fit, f = k(wi.z) k(wo.z) f_t with "
                                   "k <= 1, so that it reflects at most 0.99 of the light it receives; docs/ENERGY.md)",

@@ -20,7 +20,6 @@ stays at or below :data:`ALBEDO_TARGET` for every outgoing direction of the grid
 
 from __future__ import annotations
 
-import math
 from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
@@ -169,18 +168,6 @@ def _outgoing_grid() -> np.ndarray:
     return wo.reshape(-1, 3)
 
 
-def _stratified_u(n: int, seed: int) -> np.ndarray:
-    """n 2-D points in [0, 1)^2: one jittered point per cell of an nx x (n // nx) grid (nx about
-    sqrt(n)), the n mod nx left over uniform; a fixed seed makes every estimate reproducible."""
-    nx = 1 << (int(math.log2(n)) // 2)
-    ny = n // nx
-    rng = np.random.default_rng(seed)
-    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-    u = np.stack([(i.ravel() + rng.random(nx * ny)) / nx, (j.ravel() + rng.random(nx * ny)) / ny], axis=-1)
-    u = np.concatenate([u, rng.random((n - nx * ny, 2))])
-    return np.minimum(u, np.nextafter(1.0, 0.0))
-
-
 def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Incident directions for every outgoing direction of the grid, drawn by the MIS sampler of
     the material's f_a (cosine sampling for the neural baseline): (wi, wo, pdf), rows grouped
@@ -189,7 +176,7 @@ def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarra
         raise ValueError(f"albedo samples must be a positive integer, got {samples!r}")
     wo_grid = _outgoing_grid()
     wo = np.repeat(wo_grid, samples, axis=0)
-    u = np.tile(_stratified_u(samples, seed), (len(wo_grid), 1))
+    u = np.tile(energy.stratified_u(samples, seed), (len(wo_grid), 1))
     if model.has_analytic:
         params, strategy = model.analytic_params(material), "mis"
     else:
