@@ -138,7 +138,10 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     settings = _sparse_settings(settings, base, to)
     opened = _open_additions(sources, base, out, on_prior)
     settings.sources = [s.path or s.name for s in opened]
-    added = fit(opened, settings, frozen=base, progress=progress, log=log)
+    # A fine-tune or a refine trains on from the sparse fit: the guard and the energy bound act at
+    # their end (a head the guard set to f_a would start them with a gradient of 0).
+    stage = dataclasses.replace(settings, analytic_guard=False, energy_bound=False) if (refine or finetune) else settings
+    added = fit(opened, stage, frozen=base, progress=progress, log=log)
     if refine:
         merged = _refine(base, added, opened, settings, finetune_steps, max_drift, os.fspath(to), progress, log)
     elif finetune:

@@ -8,8 +8,9 @@ raise SMAPE in dark regions). With material output layers (each material its own
 can act on that material alone, the shared hidden layers untouched. Candidates:
 
 - **restart**: the material's (p, z, head) fitted again on the fitted network (a sparse fit of
-  that material alone, ``GUARD_STEPS`` steps) from its own p and z and a neutral head: weights 0
-  and the biases a fit starts from (spec FC_INIT, FG_INIT: a small correction, an open gate);
+  that material alone, ``GUARD_STEPS`` steps or the fit's own if fewer) from its own p and z and a neutral head: weights 0
+  and the biases a fit starts from (spec FC_INIT, FG_INIT: a small correction, an open gate),
+  with the fit's loss epsilon and with a tenth of it (:data:`RESTART_EPS_SCALES`);
 - **tempered**: the fitted head with its biases shifted, the correction's by dc <= 0 (f_c scaled
   by exp(dc), exactly) and the gate's by dg >= 0 (more of f_a), on the grid :data:`TEMPER_GRID`;
 - **analytic**: the head that makes f_t equal f_a exactly: weights 0, the correction's bias -200
@@ -40,6 +41,9 @@ GUARD_STEPS = 2000
 #: (dc, dg) shifts of the tempered candidates: f_c scaled by exp(dc), the gate moved toward 1.
 TEMPER_GRID = tuple((dc, dg) for dc in (0.0, -0.5, -1.0, -2.0, -3.0, -5.0, -8.0) for dg in (0.0, 1.0, 2.0, 4.0, 8.0, 16.0)
                     if (dc, dg) != (0.0, 0.0))
+#: The restarts' loss epsilons, as multiples of the fit's: its own, and a tenth of it (a loss more
+#: relative in dark regions, where a correction that helps cMAE raises SMAPE).
+RESTART_EPS_SCALES = (1.0, 0.1)
 #: Seed of the pairs the candidates are scored on (the metrics use evaluate's seed 7).
 CHOICE_SEED = 11
 #: The analytic head's biases: f_c = exp(-200) = 0 and f_g = sigmoid(200) = 1 in float32.
@@ -102,7 +106,7 @@ def _shifted(model: HybridModel, i: int, dc: float, dg: float) -> HybridModel:
 
 def _described(what) -> str:
     if what["action"] == "restart":
-        return "restarted from a neutral head"
+        return f"restarted from a neutral head (loss eps {what['loss_eps']:g})"
     if what["action"] == "tempered":
         return f"correction tempered (f_c x exp({what['dc']:g}), gate bias +{what['dg']:g})"
     return "its correction removed (f_t = f_a)"
@@ -138,11 +142,14 @@ def apply(model: HybridModel, sources: Sequence, names: List[str], settings, fit
                    "smape_analytic": smape(ref, fa), "cmae_analytic": cmae(ref, fa, wi[:, 2])}
             return row, row["cmae"]
 
-        sparse = dataclasses.replace(settings, steps=steps, sparse_init="nearest", sparse_starts=1, analytic_guard=False,
+        sparse = dataclasses.replace(settings, steps=min(steps, settings.steps), sparse_init="nearest", sparse_starts=1, analytic_guard=False,
                                      energy_bound=False, frozen_from="(the fit itself)", init_from=None)
         start = _only(analytic_head(free, i, spec.FC_INIT, spec.FG_INIT), i)
-        refit = fit([src], sparse, frozen=start, progress=False, log=lambda msg: None)
-        candidates = [({"action": "restart"}, _with_row(free, i, refit, 0))]
+        candidates = []
+        for eps_scale in RESTART_EPS_SCALES:
+            tuned = dataclasses.replace(sparse, loss_eps=settings.loss_eps * eps_scale)
+            refit = fit([src], tuned, frozen=start, progress=False, log=lambda msg: None)
+            candidates.append(({"action": "restart", "loss_eps": tuned.loss_eps}, _with_row(free, i, refit, 0)))
         candidates += [({"action": "tempered", "dc": dc, "dg": dg}, _shifted(free, i, dc, dg)) for dc, dg in TEMPER_GRID]
         candidates.append(({"action": "analytic"}, analytic_head(free, i)))
         scored = [(what, m) + score(m, i) for what, m in candidates]
@@ -167,4 +174,4 @@ def apply(model: HybridModel, sources: Sequence, names: List[str], settings, fit
     return free
 
 
-__all__ = ["ANALYTIC_BIAS", "CHOICE_SEED", "GUARD_STEPS", "TEMPER_GRID", "analytic_head", "apply", "is_worse"]
+__all__ = ["ANALYTIC_BIAS", "CHOICE_SEED", "RESTART_EPS_SCALES", "GUARD_STEPS", "TEMPER_GRID", "analytic_head", "apply", "is_worse"]
