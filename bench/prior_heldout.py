@@ -7,7 +7,7 @@ metrics next to the authors' released model (trained on them) and this project's
 hybrid's, and the seconds per material from the call to the written file.
 
     python bench/prior_heldout.py --prior out/prior_minus5/prior.safetensors [--keep-network]
-        [--finetune-steps N] [--network-lr X] [--steps N] [--starts N] [--pairs 1000000]
+        [--finetune-steps N] [--network-lr X] [--steps N] [--starts N] [--loss-eps EPS] [--pairs 1000000]
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ def main() -> int:
     ap.add_argument("--finetune-steps", type=int, default=None, help="the fine-tune's steps (default: FINETUNE_STEPS)")
     ap.add_argument("--network-lr", type=float, default=None, help="FitSettings.network_lr of the fine-tune")
     ap.add_argument("--finetune-lr", type=float, default=None, help="FitSettings.lr (default: the recipe's)")
+    ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps of both stages (default: the recipe's)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     args = ap.parse_args()
     prior = hb.load_model(args.prior)
@@ -65,6 +66,8 @@ def main() -> int:
         settings.network_lr = args.network_lr
     if args.finetune_lr is not None:
         settings.lr = args.finetune_lr  # the sparse fit's too: FitSettings has one lr
+    if args.loss_eps is not None:
+        settings.loss_eps = args.loss_eps
     rows, seconds, models = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for n, src in zip(PAPER, raw):
