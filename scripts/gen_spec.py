@@ -40,6 +40,8 @@ def load_spec(path: pathlib.Path = SPEC) -> dict:
                 f[key] = resolve(f[key])
     for r in spec["material_ranges"]:
         r["min"], r["max"] = resolve(r["min"]), resolve(r["max"])
+    for q in spec["svbrdf"]["quantities"].values():
+        q["min"], q["max"] = resolve(q["min"]), resolve(q["max"])
     return spec
 
 
@@ -153,7 +155,13 @@ def cpp_header(spec: dict) -> str:
             "    int components;", "    double min, max;", "};", "inline constexpr MaterialRange kMaterialRanges[] = {"]
     for r in spec["material_ranges"]:
         out.append(f"    {{\"{r['tensor']}\", {r['components']}, {_cpp_number(float(r['min']))}, {_cpp_number(float(r['max']))}}},")
-    out += ["};", "", "}  // namespace hbrdf::spec", ""]
+    sv = spec["svbrdf"]
+    out += ["};", "", "/// Textured materials (spec/model.json, svbrdf; docs/SVBRDF.md).",
+            f"inline constexpr int kSvbrdfFormatVersion = {sv['format_version']};",
+            f"inline constexpr int kSvbrdfMaxLayers = {sv['max_layers']};",
+            f"inline constexpr int kSvbrdfMaxSide = {sv['max_side']};",
+            f"inline constexpr int kSvbrdfMapChannels = {sv['map_channels']};",
+            "", "}  // namespace hbrdf::spec", ""]
     return "\n".join(out)
 
 
@@ -190,7 +198,9 @@ def python_module(spec: dict) -> str:
               "#: Fields of a model file's ``arch`` object, checked in this order by both loaders.",
               "ARCH_FIELDS = " + pprint.pformat(spec["arch_fields"], width=110, sort_dicts=False),
               "#: Per-material analytic parameters and their ranges (float32 comparisons), checked in this order.",
-              "MATERIAL_RANGES = " + pprint.pformat(spec["material_ranges"], width=110, sort_dicts=False), ""]
+              "MATERIAL_RANGES = " + pprint.pformat(spec["material_ranges"], width=110, sort_dicts=False),
+              "#: Textured materials: the folder's files, limits, transfers and map quantities (docs/SVBRDF.md).",
+              "SVBRDF = " + pprint.pformat(spec["svbrdf"], width=110, sort_dicts=False), ""]
     del consts
     return "\n".join(lines)
 

@@ -223,6 +223,49 @@ PYBIND11_MODULE(_core, m) {
             return f;
         }, py::arg("wi"), py::arg("wo"), py::arg("material"),
            "f_t through the scalar (tracer and shader twin) path, one pair at a time.")
+        .def("eval_texels", [](const hbrdf::HybridModel& md, const FloatArray& wi, const FloatArray& wo,
+                               const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& material,
+                               const FloatArray& weight, const FloatArray& kd, const FloatArray& eta,
+                               const FloatArray& alpha, const FloatArray& latent) {
+            const py::ssize_t n = check_pairs(wi, wo);
+            if (material.ndim() != 2 || material.shape(0) != n || material.shape(1) < 1 ||
+                material.shape(1) > hbrdf::spec::kSvbrdfMaxLayers)
+                throw std::invalid_argument("material must have shape (N, L), L = 1.." +
+                                            std::to_string(hbrdf::spec::kSvbrdfMaxLayers));
+            const py::ssize_t L = material.shape(1), l = md.latent_dim();
+            const auto shaped = [&](const FloatArray& a, py::ssize_t c, const char* what) {
+                if (a.ndim() != 3 || a.shape(0) != n || a.shape(1) != L || a.shape(2) != c)
+                    throw std::invalid_argument(std::string(what) + " must have shape (N, L, " + std::to_string(c) + ")");
+            };
+            if (weight.ndim() != 2 || weight.shape(0) != n || weight.shape(1) != L)
+                throw std::invalid_argument("weight must have shape (N, L)");
+            shaped(kd, 3, "kd"), shaped(eta, 3, "eta"), shaped(alpha, 2, "alpha"), shaped(latent, l, "latent");
+            for (py::ssize_t i = 0; i < n * L; ++i) check_material(md, material.data()[i]);
+            FloatArray f({n, py::ssize_t(3)});
+            {
+                py::gil_scoped_release release;
+                float* o = f.mutable_data();
+                hbrdf::TexelLayer layers[hbrdf::spec::kSvbrdfMaxLayers];
+                for (py::ssize_t i = 0; i < n; ++i) {
+                    for (py::ssize_t k = 0; k < L; ++k) {
+                        const py::ssize_t r = i * L + k;
+                        hbrdf::TexelLayer& t = layers[k];
+                        t.material = material.data()[r];
+                        t.weight = weight.data()[r];
+                        t.params.kd = hbrdf::Vec3<float>(kd.data()[3 * r], kd.data()[3 * r + 1], kd.data()[3 * r + 2]);
+                        t.params.eta = hbrdf::Vec3<float>(eta.data()[3 * r], eta.data()[3 * r + 1], eta.data()[3 * r + 2]);
+                        t.params.alpha = hbrdf::Vec2<float>(alpha.data()[2 * r], alpha.data()[2 * r + 1]);
+                        t.latent = latent.data() + r * l;
+                    }
+                    const auto v = md.eval_texel(layers, int(L), row3(wi.data(), i), row3(wo.data(), i));
+                    o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
+                }
+            }
+            return f;
+        }, py::arg("wi"), py::arg("wo"), py::arg("material"), py::arg("weight"), py::arg("kd"), py::arg("eta"),
+           py::arg("alpha"), py::arg("latent"),
+           "f of textured-material texels through the scalar path (HybridModel::eval_texel): per pair i, layers k "
+           "of material[i, k] with weight[i, k], kd, eta (N, L, 3), alpha (N, L, 2), latent (N, L, latent_dim).")
         .def_property_readonly("flops_per_eval", &hbrdf::HybridModel::flops_per_eval,
                                "Network FLOPs of one batched evaluation (multiply-add = 2).")
         .def_property_readonly("pre_exp_max", &hbrdf::HybridModel::pre_exp_max,

@@ -51,6 +51,31 @@ Vec3<float> HybridModel::eval_analytic(int m, const Vec3<float>& wi, const Vec3<
 
 Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>& wo_in) const {
     check_material(m);
+    static const AnalyticBrdf kNoAnalytic{AnalyticParams{}};  // the neural baseline has no f_a
+    return eval_with(m, analytic_.empty() ? kNoAnalytic : analytic_[m], materials_[m].latent.data(), wi_in, wo_in);
+}
+
+Vec3<float> HybridModel::eval_texel(const TexelLayer* layers, int n_layers, const Vec3<float>& wi,
+                                    const Vec3<float>& wo) const {
+    if (kind_ == ModelKind::Neural) throw std::logic_error("textured materials need a hybrid model (f_a per texel)");
+    if (n_layers < 0 || n_layers > spec::kSvbrdfMaxLayers)
+        throw std::invalid_argument("a texel has 0 to " + std::to_string(spec::kSvbrdfMaxLayers) + " layers, got " +
+                                    std::to_string(n_layers));
+    Vec3<float> f(0.f);
+    for (int k = 0; k < n_layers; ++k) {
+        const TexelLayer& layer = layers[k];
+        check_material(layer.material);
+        if (!std::isfinite(layer.weight)) throw std::invalid_argument("texel layer weight is not finite");
+        if (!layer.latent) throw std::invalid_argument("texel layer has no latent code");
+        if (!(layer.weight > 0.f)) continue;  // a pure texel costs one evaluation
+        const Vec3<float> fk = eval_with(layer.material, AnalyticBrdf(layer.params), layer.latent, wi, wo);
+        f = f + fk * layer.weight;  // 0 + fk * 1 is fk: a pure texel is its material's value
+    }
+    return f;
+}
+
+Vec3<float> HybridModel::eval_with(int m, const AnalyticBrdf& analytic, const float* latent,
+                                   const Vec3<float>& wi_in, const Vec3<float>& wo_in) const {
     const Vec3<float> wi = wi_in * inverse_length_or_zero(wi_in);
     const Vec3<float> wo = wo_in * inverse_length_or_zero(wo_in);
     const bool valid = wi.z > 0.f && wo.z > 0.f;  // false for invalid (zeroed or NaN) input
@@ -75,8 +100,8 @@ Vec3<float> HybridModel::eval(int m, const Vec3<float>& wi_in, const Vec3<float>
             x[6] = h.z, x[7] = cos_theta_d(wi, wo, h);
         }
     }
-    std::copy(mat.latent.begin(), mat.latent.end(), x + as.direction_count);
-    const Vec3<float> fa = as.analytic ? analytic_[m].eval(wi, wo) : Vec3<float>(0.f);
+    std::copy(latent, latent + latent_, x + as.direction_count);
+    const Vec3<float> fa = as.analytic ? analytic.eval(wi, wo) : Vec3<float>(0.f);
     if (as.extra == spec::ExtraInputs::Log1pFa)
         for (int c = 0; c < 3; ++c) x[as.direction_count + latent_ + c] = std::log1p(fa[c]);
     run_mlp(m, x, o);

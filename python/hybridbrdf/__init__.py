@@ -24,6 +24,7 @@ from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.prior import load_prior, prior_path
 from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 from hybridbrdf.version import __version__
 
 if _core_version != __version__:  # a stale extension from an older build
@@ -50,6 +51,8 @@ __all__ = [
     "ModelFileError",
     "expand_sources",
     "load_model",
+    "load_svbrdf",
+    "SVBRDF",
     "load_prior",
     "prior_path",
     "open_source",

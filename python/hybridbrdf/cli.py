@@ -26,6 +26,7 @@ from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, form
 from hybridbrdf.fit import checkpoint as ckpt, distributed as dd
 from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.distributed import RankLostError
+from hybridbrdf.fit.paint import paint
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
 from hybridbrdf.fit.settings import ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
@@ -292,6 +293,38 @@ def _cmd_bound(args: argparse.Namespace) -> int:
                       f"(smallest factor {rec['min_factor']:.3f})")
     print(f"wrote {args.out}: {len(names or bounded.materials)} energy-bound table(s) fitted, {changed} material(s) "
           f"dimmed where they reflected more than {energy.TARGET} of the light")
+    return 0
+
+
+def _layer_option(values, flag: str) -> dict:
+    """``K=PATH`` pairs of --kd / --roughness: layer index -> path."""
+    out = {}
+    for v in values or []:
+        k, sep, path = v.partition("=")
+        if not sep or not k.strip().isdigit() or not path:
+            raise ValueError(f"{flag} takes LAYER=FILE with LAYER a number (0 the base), got {v!r}")
+        out[int(k)] = path
+    return out
+
+
+def _cmd_paint(args: argparse.Namespace) -> int:
+    layers = []
+    for v in args.layer or []:
+        name, sep, mask = v.rpartition("=")
+        if not sep or not name or not mask:
+            raise ValueError(f"--layer takes MATERIAL_OR_FILE=MASK, got {v!r}")
+        layers.append((name, mask))
+    size = None
+    if args.size:
+        w, sep, h = args.size.lower().partition("x")
+        if not sep or not w.isdigit() or not h.isdigit():
+            raise ValueError(f"--size takes WxH, got {args.size!r}")
+        size = (int(w), int(h))
+    sv = paint(args.model, args.base, layers, args.out, size=size, format=args.format, addressing=args.addressing,
+               kd=_layer_option(args.kd, "--kd"), roughness=_layer_option(args.roughness, "--roughness"),
+               progress=not args.quiet, log=print)
+    w, h = sv.size
+    print(f"wrote {args.out}: {w}x{h} texels, {len(sv.layers)} layer(s) ({', '.join(sv.layers)}), {args.format} maps")
     return 0
 
 
@@ -583,6 +616,33 @@ def _add_edit_parser(sub) -> None:
     p.set_defaults(func=_cmd_edit)
 
 
+def _add_paint_parser(sub) -> None:
+    """``hbrdf paint``."""
+    p = sub.add_parser("paint", help="paint a textured material: layers of materials under grey masks (docs/SVBRDF.md)",
+                       description="Write a textured material's folder (docs/SVBRDF.md): a base material and up to "
+                                   "three layers painted over it by grey masks (the last on top), optional albedo "
+                                   "and roughness textures per layer. A layer that names a measured file is added "
+                                   "to the model first by a sparse fit on its frozen network. Per texel the "
+                                   "material is the mixture of its layers' BRDFs. OUT is replaced only once complete.")
+    p.add_argument("model", help="model file holding the layers' materials (a hybrid model)")
+    p.add_argument("--base", required=True, metavar="MATERIAL_OR_FILE", help="layer 0: a material of MODEL or a measured file")
+    p.add_argument("--layer", action="append", metavar="MATERIAL_OR_FILE=MASK",
+                   help="a layer over the others (repeatable, at most 3): a material or measured file and its mask "
+                        "(PNG or EXR; grey values, the first channel, are the layer's coverage)")
+    p.add_argument("--kd", action="append", metavar="LAYER=ALBEDO",
+                   help="layer LAYER's kd from an albedo texture (sRGB 8-bit PNG or linear EXR; repeatable)")
+    p.add_argument("--roughness", action="append", metavar="LAYER=ROUGHNESS",
+                   help="layer LAYER's GGX alpha = r^2 from a grey roughness texture r (repeatable)")
+    p.add_argument("--size", metavar="WxH", help="texels (default: the masks' size; masks and textures must have it)")
+    p.add_argument("--format", choices=("png", "exr"), default="png",
+                   help="maps as 8-bit PNG or float32 OpenEXR (default: %(default)s)")
+    p.add_argument("--addressing", choices=tuple(spec.SVBRDF["addressing"]), default="repeat",
+                   help="how uv outside [0, 1] reads the maps (default: %(default)s)")
+    p.add_argument("--out", required=True, help="folder to write (replaced if it is a textured material's folder)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar while measured files are fitted")
+    p.set_defaults(func=_cmd_paint)
+
+
 def _add_bound_parser(sub) -> None:
     """``hbrdf bound``."""
     p = sub.add_parser("bound", help="fit energy-bound tables so that no material reflects more light than it receives",
@@ -698,6 +758,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_edit_parser(sub)
     _add_mix_parser(sub)
     _add_bound_parser(sub)
+    _add_paint_parser(sub)
     _add_view_parser(sub)
     _add_info_parser(sub)
     _add_demo_parser(sub)

@@ -173,3 +173,64 @@ ARCH_FIELDS = [{'key': 'kind', 'type': 'enum', 'values': 'archs'},
 MATERIAL_RANGES = [{'tensor': 'kd', 'components': 3, 'min': 0.0, 'max': 1.0},
  {'tensor': 'eta', 'components': 3, 'min': 1.0, 'max': 10.0},
  {'tensor': 'alpha', 'components': 2, 'min': 0.0001, 'max': 1.0}]
+#: Textured materials: the folder's files, limits, transfers and map quantities (docs/SVBRDF.md).
+SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a folder holding the index file, the '
+         'model file whose network and materials it uses, and texel maps of 3 channels (8-bit PNG or float32 '
+         'OpenEXR). Layer 0 (the base) and up to max_layers - 1 further layers each name a material of the '
+         "model; per texel, f = sum_k w_k f_t(p_k, z_k; material k's output layer and energy table), w_1..3 "
+         "read from the weights map and w_0 = 1 - their sum. A layer's p and z are its material's unless a "
+         'map of the layer gives them. A map channel c decodes a stored value v (the byte / 255 in a PNG, '
+         'the float in an EXR) to offset + scale T(v), T its transfer; the index file states transfer, scale '
+         'and offset of every channel.',
+ 'format_version': 1,
+ 'index_file': 'svbrdf.json',
+ 'model_file': 'model.safetensors',
+ 'max_layers': 4,
+ 'max_side': 8192,
+ 'max_index_bytes': 1048576,
+ 'map_channels': 3,
+ 'addressing': {'repeat': "uv wraps: u and u + 1 are the same texel column (engines' default)",
+                'clamp': 'uv clamped to [0, 1]: the border texels extend outwards'},
+ 'filters': {'bilinear': "the four nearest texel centres' decoded values, weighted bilinearly; texel (i, j) "
+                         "has its centre at ((i + 0.5) / W, (j + 0.5) / H), row j = 0 the image's first "
+                         '(top) row, as glTF 2.0 places uv (0, 0) at the top left',
+             'nearest': 'the decoded values of the texel whose cell holds uv'},
+ 'transfers': {'linear': 'T(v) = v',
+               'srgb': 'T(v) = the sRGB EOTF: v / 12.92 for v <= 0.04045, else ((v + 0.055) / 1.055)^2.4 '
+                       '(8-bit albedo keeps its dark steps small)',
+               'square': "T(v) = v^2: a roughness map holds r = sqrt(alpha), as engines' roughness textures "
+                         'do (Burley 2012)'},
+ 'quantities': {'weights': {'components': 3,
+                            'per_layer': False,
+                            'min': 0.0,
+                            'max': 1.0,
+                            'png': {'transfer': 'linear', 'scale': 1.0, 'offset': 0.0},
+                            'doc': 'w_1, w_2, w_3 of layers 1-3 (a channel with no layer must decode to 0); '
+                                   'w_0 = 1 - their sum; a texel whose weights sum above 1 has them divided '
+                                   'by the sum (w_0 = 0)'},
+                'kd': {'components': 3,
+                       'per_layer': True,
+                       'min': 0.0,
+                       'max': 1.0,
+                       'png': {'transfer': 'srgb', 'scale': 1.0, 'offset': 0.0},
+                       'doc': "the layer's Lambertian albedo kd (RGB)"},
+                'eta': {'components': 3,
+                        'per_layer': True,
+                        'min': 1.0,
+                        'max': 10.0,
+                        'png': {'transfer': 'linear', 'scale': 9.0, 'offset': 1.0},
+                        'doc': "the layer's index of refraction per channel"},
+                'alpha': {'components': 2,
+                          'per_layer': True,
+                          'min': 0.0001,
+                          'max': 1.0,
+                          'png': {'transfer': 'square', 'scale': 1.0, 'offset': 0.0},
+                          'doc': "the layer's GGX roughness (alpha_x, alpha_y) in R and G; B unused"},
+                'latent': {'components': 'latent',
+                           'per_layer': True,
+                           'min': -1000000.0,
+                           'max': 1000000.0,
+                           'png': {'transfer': 'linear', 'scale': None, 'offset': None},
+                           'doc': "the layer's latent code z, 3 components per map: the map with first = 3 k "
+                                  'holds z_3k .. z_3k+2; 8-bit scale and offset are chosen per channel from '
+                                  'the painted values'}}}

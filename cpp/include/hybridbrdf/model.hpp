@@ -78,6 +78,16 @@ struct ModelMaterial {
 /// implementation rounds alike; 1 for an empty table.
 float energy_bound_scale(const std::vector<float>& table, float cos_theta);
 
+/// One layer of a texel of a textured material (spec/model.json, svbrdf; docs/SVBRDF.md): material
+/// `material`'s output layer and energy table with the texel's own analytic parameters and latent
+/// code (`latent`: latent_dim() floats), weighted by `weight` in the texel's mixture.
+struct TexelLayer {
+    int material = 0;
+    AnalyticParams params;
+    const float* latent = nullptr;
+    float weight = 0.f;
+};
+
 class HybridModel {
 public:
     /// Reads and validates a model file; throws ModelFileError naming the file and the problem.
@@ -110,6 +120,12 @@ public:
     /// f(wi, wo) for material m (no cosine): f_t, times k(wi.z) k(wo.z) with an energy bound. Directions are normalised; 0 when
     /// either is below the horizon or invalid.
     Vec3<float> eval(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// f of a texel of a textured material: sum_k weight_k f_t(params_k, latent_k) with material_k's
+    /// output layer and energy table (hybrid kinds). Layers of weight 0 are not evaluated, so a pure
+    /// texel costs one evaluation; a texel whose layers all equal a material's values is that
+    /// material (bit for bit: the same operations in the same order). Throws std::out_of_range for a
+    /// material index outside the model, std::invalid_argument for a null latent or a non-finite weight.
+    Vec3<float> eval_texel(const TexelLayer* layers, int n_layers, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// The analytic part f_a of material m (hybrid kinds; throws for the neural baseline).
     Vec3<float> eval_analytic(int m, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// Batched f_t: wi, wo (n, 3) row-major in, f (n, 3) out. Vectorised: chunks of pairs in
@@ -126,6 +142,9 @@ private:
     void check_material(int m) const;
     // Runs material m's network on `x` (n_in values); writes n_out values to `out`.
     void run_mlp(int m, const float* x, float* out) const;
+    /// f of material m's network, output layer and energy table with f_a `analytic` and latent code `latent`.
+    Vec3<float> eval_with(int m, const AnalyticBrdf& analytic, const float* latent, const Vec3<float>& wi_in,
+                          const Vec3<float>& wo_in) const;
 
     ModelKind kind_ = ModelKind::Hybrid;
     Activation activation_ = Activation::HardGelu;

@@ -200,4 +200,10 @@ inline constexpr MaterialRange kMaterialRanges[] = {
     {"alpha", 2, 0.0001, 1.0},
 };
 
+/// Textured materials (spec/model.json, svbrdf; docs/SVBRDF.md).
+inline constexpr int kSvbrdfFormatVersion = 1;
+inline constexpr int kSvbrdfMaxLayers = 4;
+inline constexpr int kSvbrdfMaxSide = 8192;
+inline constexpr int kSvbrdfMapChannels = 3;
+
 }  // namespace hbrdf::spec

@@ -283,6 +283,33 @@ class HybridBRDF(nn.Module):
         f_t = self.combine(o, f_a)
         return torch.where(valid[None, :, None], f_t, torch.zeros_like(f_t)), f_a
 
+    def evaluate_pairs(self, wi, wo, kd, eta, alpha, z, head=None):
+        """(f_t, f_a), each (N, 3), where pair i has its own values: kd, eta (N, 3), alpha (N, 2),
+        z (N, l) on directions wi, wo (N, 3), and with material output layers one ``head`` =
+        (weight (n_out, width), bias (n_out)) for every pair: the texels of one layer of a
+        textured material (docs/SVBRDF.md). Same function as :meth:`evaluate`, rounded alike
+        up to the order of the first layer's sums."""
+        wi_n, wo_n, valid = _unit_pair(wi, wo)
+        f_a = eval_analytic(wi_n, wo_n, kd, eta, alpha)  # (N, 3)
+        kind = spec.ARCHS[self.arch]["directions"]
+        directions = [reciprocal_inputs(wi_n, wo_n)] if kind == "reciprocal" else [wi_n, wo_n]
+        if kind == "local_half":
+            directions.append(half_angle_cosines(wi_n, wo_n))
+        d = torch.cat(directions, dim=-1)
+        first = self.mlp.hidden[0]
+        n_dir, l = d.shape[-1], self.latent_dim
+        pre = d @ first.weight[:, :n_dir].t() + (z @ first.weight[:, n_dir:n_dir + l].t() + first.bias)
+        if spec.ARCHS[self.arch]["extra"] == "log1p_fa":
+            pre = pre + torch.log1p(f_a) @ first.weight[:, n_dir + l:].t()
+        if self.output_layer == "material":
+            if head is None:
+                raise ValueError("a model with material output layers needs the layer's head")
+            o = self.mlp.features_from(pre) @ head[0].t() + head[1]
+        else:
+            o = self.mlp.forward_from(pre)
+        f_t = self.combine(o, f_a)
+        return torch.where(valid[:, None], f_t, torch.zeros_like(f_t)), f_a
+
     def _first_layer(self, directions: torch.Tensor, z: torch.Tensor, extra: Optional[torch.Tensor]) -> torch.Tensor:
         """The first hidden layer's pre-activation (M, B, width) for the input layout of
         spec/model.json (direction inputs, latent code, extra inputs), computed by parts.

@@ -1,0 +1,388 @@
+"""A textured material (docs/SVBRDF.md; spec/model.json, ``svbrdf``): a model's network with a
+base layer and up to three more, each a material of the model whose analytic parameters p and
+latent code z may vary per texel, mixed per texel by a weights map:
+
+    f(uv, wi, wo) = sum_k w_k(uv) f_t(wi, wo; p_k(uv), z_k(uv), material k's output layer and table)
+
+A convex combination of BRDFs is a BRDF: each layer reciprocal and bounded keeps the texel so,
+and at a pure texel (one weight 1) the cost is one evaluation. Weights are linear in the
+BRDF, so filtering the weights map *is* filtering the BRDFs; p and z maps are filtered as
+values (the difference is measured in docs/SVBRDF.md).
+
+The folder: ``svbrdf.json`` (the index), ``model.safetensors`` and the maps it names.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+import torch
+
+from hybridbrdf import spec
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
+from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.model.networks import energy_bound_scale
+from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
+from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
+
+SV = spec.SVBRDF
+MAX_LAYERS = SV["max_layers"]
+CHANNELS = SV["map_channels"]
+INDEX_KEYS = {"format_version", "model", "size", "addressing", "layers", "maps"}
+MAP_KEYS = {"file", "quantity", "layer", "first", "decode"}
+LAYER_QUANTITIES = ("kd", "eta", "alpha", "latent")
+
+
+class SVBRDFError(InputFileError):
+    """A textured-material folder, index or map that cannot be used (one line naming the file)."""
+
+
+def _components(quantity: str, latent: int) -> int:
+    c = QUANTITIES[quantity]["components"]
+    return latent if c == "latent" else c
+
+
+def _plain_name(index_path: str, name, what: str) -> str:
+    """A file name inside the folder: no separators, not '.' or '..', not hidden."""
+    if not isinstance(name, str) or not name or os.path.basename(name) != name or name in (".", "..") \
+            or name.startswith(".") or "\\" in name or "\0" in name:
+        raise SVBRDFError(index_path, f"{what} must be a plain file name inside the folder, got {name!r}")
+    return name
+
+
+class SVBRDF:
+    """A textured material in memory: ``model`` (a hybrid :class:`HybridModel`), ``layers`` (material
+    names, the base first), ``weights`` ((H, W, 3) decoded w_1..3, or None for one layer),
+    ``maps`` (per layer, quantity -> decoded (H, W, components) float32), ``size`` (W, H),
+    ``addressing`` ('repeat' or 'clamp'). Build one with :func:`load_svbrdf` or
+    :func:`hybridbrdf.fit.paint.paint`."""
+
+    def __init__(self, model: HybridModel, layers: Sequence[str], size, weights: Optional[np.ndarray] = None,
+                 maps: Optional[Sequence[Dict[str, np.ndarray]]] = None, addressing: str = "repeat",
+                 path: Optional[str] = None):
+        if not model.has_analytic:
+            raise ValueError("a textured material needs a hybrid model (f_a per texel); this one is "
+                             f"'{model.kind}'")
+        if not 1 <= len(layers) <= MAX_LAYERS:
+            raise ValueError(f"a textured material has 1 to {MAX_LAYERS} layers, got {len(layers)}")
+        if addressing not in SV["addressing"]:
+            raise ValueError(f"addressing must be one of {', '.join(SV['addressing'])}, got {addressing!r}")
+        self.model, self.layers, self.addressing, self.path = model, list(layers), addressing, path
+        self.indices = [model.index(m) for m in self.layers]
+        self.size = (int(size[0]), int(size[1]))
+        w, h = self.size
+        self.maps = [dict(m) for m in (maps or [{} for _ in self.layers])]
+        if len(self.maps) != len(self.layers):
+            raise ValueError("one dict of maps per layer")
+        if weights is None and len(self.layers) > 1:
+            raise ValueError("a textured material of several layers needs a weights map")
+        self.weights = None if weights is None else np.asarray(weights, dtype=np.float32)
+        for name, arr in [("weights", self.weights)] + [(q, a) for m in self.maps for q, a in m.items()]:
+            if arr is None:
+                continue
+            c = 3 if name == "weights" else _components(name, model.arch["latent"])
+            if arr.shape != (h, w, c):
+                raise ValueError(f"{name} map has shape {arr.shape}, expected {(h, w, c)}")
+
+    # ---- texel lookup ------------------------------------------------------------------
+    def _taps(self, uv: np.ndarray, filter: str):
+        """[(rows, cols, weights)] of the texels ``uv`` reads: one tap (nearest) or four (bilinear)."""
+        w, h = self.size
+        u, v = uv[:, 0], uv[:, 1]
+        repeat = self.addressing == "repeat"
+        if filter == "nearest":
+            if repeat:
+                cols, rows = np.floor(u * w).astype(np.int64) % w, np.floor(v * h).astype(np.int64) % h
+            else:
+                cols = np.clip(np.floor(np.clip(u, 0, 1) * w), 0, w - 1).astype(np.int64)
+                rows = np.clip(np.floor(np.clip(v, 0, 1) * h), 0, h - 1).astype(np.int64)
+            return [(rows, cols, np.ones(len(uv)))]
+        if filter != "bilinear":
+            raise ValueError(f"filter must be one of {', '.join(SV['filters'])}, got {filter!r}")
+        x = (u if repeat else np.clip(u, 0, 1)) * w - 0.5
+        y = (v if repeat else np.clip(v, 0, 1)) * h - 0.5
+        x0, y0 = np.floor(x), np.floor(y)
+        fx, fy = x - x0, y - y0
+        x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+
+        def wrap(i, n):
+            return i % n if repeat else np.clip(i, 0, n - 1)
+
+        taps = []
+        for dy, wy in ((0, 1 - fy), (1, fy)):
+            for dx, wx in ((0, 1 - fx), (1, fx)):
+                taps.append((wrap(y0 + dy, h), wrap(x0 + dx, w), wx * wy))
+        return taps
+
+    def texels(self, uv, filter: str = "bilinear") -> Dict[str, np.ndarray]:
+        """Per pair the texel's layer values: ``weight`` (N, L), ``kd``, ``eta`` (N, L, 3),
+        ``alpha`` (N, L, 2), ``latent`` (N, L, l), float32; decoded values filtered, then the
+        weights normalised (w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when above 1)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.ndim != 2 or uv.shape[1] != 2:
+            raise ValueError(f"uv must have shape (N, 2), got {uv.shape}")
+        if not np.isfinite(uv).all():
+            raise ValueError("uv must be finite")
+        n, L = len(uv), len(self.layers)
+        taps = self._taps(uv, filter)
+
+        def sample(arr):
+            return sum(arr[r, c].astype(np.float64) * t[:, None] for r, c, t in taps)
+
+        out = {}
+        if self.weights is None:
+            weight = np.ones((n, 1))
+        else:
+            rest = sample(self.weights)[:, :L - 1]
+            total = rest.sum(axis=1, keepdims=True)
+            rest = np.where(total > 1, rest / np.maximum(total, 1e-30), rest)
+            weight = np.concatenate([np.clip(1 - rest.sum(axis=1, keepdims=True), 0, 1), rest], axis=1)
+        out["weight"] = weight.astype(np.float32)
+        for q in LAYER_QUANTITIES:
+            c = _components(q, self.model.arch["latent"])
+            vals = np.empty((n, L, c), dtype=np.float32)
+            for k, (i, maps) in enumerate(zip(self.indices, self.maps)):
+                if q in maps:
+                    vals[:, k] = sample(maps[q])
+                else:
+                    own = self.model.tensors["materials.z" if q == "latent" else f"materials.{q}"][i]
+                    vals[:, k] = np.asarray(own, dtype=np.float32)[None, :]
+            out[q] = vals
+        return out
+
+    # ---- evaluation ----------------------------------------------------------------------
+    def eval(self, uv, wi, wo, filter: str = "bilinear", dtype: Optional[torch.dtype] = None) -> np.ndarray:
+        """f(uv, wi, wo) (N, 3) float64, no cosine: uv (N, 2) in [0, 1]^2 (wrapping or clamped by
+        ``addressing``), wi and wo (N, 3). By default libhybridbrdf's scalar path
+        (``HybridModel::eval_texel``, the tracer's and the shaders' twin) for a model read from a
+        file; ``dtype`` (torch.float32 / torch.float64) evaluates the PyTorch model instead."""
+        wi, wo = (np.asarray(a, dtype=np.float64) for a in (wi, wo))
+        if wi.ndim != 2 or wi.shape[1] != 3 or wo.shape != wi.shape or len(wi) != len(np.asarray(uv)):
+            raise ValueError("uv (N, 2), wi and wo (N, 3) must have the same N")
+        t = self.texels(uv, filter)
+        if dtype is None and self.model.path is not None:
+            mat = np.broadcast_to(np.asarray(self.indices, dtype=np.int32), t["weight"].shape)
+            return self.model._cpp_model().eval_texels(
+                wi.astype(np.float32), wo.astype(np.float32), np.ascontiguousarray(mat), t["weight"], t["kd"],
+                t["eta"], t["alpha"], t["latent"]).astype(np.float64)
+        return _eval_torch(self.model, self.indices, t, wi, wo, dtype or torch.float32)
+
+    # ---- persistence ---------------------------------------------------------------------
+    def save(self, folder, format: str = "png") -> None:
+        """Write the folder (index, model, maps) atomically: into a temporary folder beside it, then
+        renamed over it. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
+        the values) or 'exr' (float32, decoded values stored). An existing ``folder`` is replaced
+        only when it is a textured material's folder (it holds svbrdf.json) or empty."""
+        if format not in ("png", "exr"):
+            raise ValueError(f"format must be 'png' or 'exr', got {format!r}")
+        folder = os.path.abspath(os.fspath(folder))
+        if os.path.lexists(folder):
+            if not os.path.isdir(folder):
+                raise InputFileError(folder, "exists and is not a folder")
+            if os.listdir(folder) and not os.path.isfile(os.path.join(folder, SV["index_file"])):
+                raise InputFileError(folder, f"is a folder without {SV['index_file']}; refusing to replace it")
+        parent = os.path.dirname(folder)
+        os.makedirs(parent, exist_ok=True)
+        tmp = f"{folder}.tmp{os.getpid()}"
+        old = f"{folder}.old{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        try:
+            os.makedirs(tmp)
+            self.model.save_checked(os.path.join(tmp, SV["model_file"]))
+            entries = []
+            if self.weights is not None:
+                entries.append(_write_quantity(tmp, "weights", None, self.weights, format, len(self.layers)))
+            for k, maps in enumerate(self.maps):
+                for q in LAYER_QUANTITIES:
+                    if q in maps:
+                        entries += _write_layer_quantity(tmp, q, k, maps[q], format)
+            index = {"format_version": SV["format_version"], "model": SV["model_file"], "size": list(self.size),
+                     "addressing": self.addressing, "layers": [{"material": m} for m in self.layers], "maps": entries}
+            with open(os.path.join(tmp, SV["index_file"]), "w") as fh:
+                json.dump(index, fh, indent=1)
+                fh.write("\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+            load_svbrdf(tmp)  # what was written reads back
+            if os.path.lexists(folder):
+                os.rename(folder, old)
+            os.rename(tmp, folder)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+            shutil.rmtree(old, ignore_errors=True)
+        self.path = folder
+        self.model = load_model(os.path.join(folder, SV["model_file"]))  # evaluated by libhybridbrdf from now on
+
+
+def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray], wi, wo, dtype) -> np.ndarray:
+    """The texels' f with the PyTorch model: per layer, the pairs of positive weight."""
+    mod = model._module(dtype)
+    f = torch.zeros((len(wi), 3), dtype=dtype)
+    wi_t, wo_t = torch.as_tensor(wi, dtype=dtype), torch.as_tensor(wo, dtype=dtype)
+    with torch.no_grad():
+        for k, i in enumerate(indices):
+            rows = np.nonzero(t["weight"][:, k] > 0)[0]
+            if not len(rows):
+                continue
+            mt = model._material_tensors(i, dtype)
+            head = (mt["head_weight"][0], mt["head_bias"][0]) if "head_weight" in mt else None
+            sel = {q: torch.as_tensor(t[q][rows, k], dtype=dtype) for q in LAYER_QUANTITIES}
+            fk, _ = mod.evaluate_pairs(wi_t[rows], wo_t[rows], sel["kd"], sel["eta"], sel["alpha"], sel["latent"], head)
+            if "energy_bound" in mt:
+                wi_n = wi_t[rows] / wi_t[rows].norm(dim=1, keepdim=True).clamp_min(1e-30)
+                wo_n = wo_t[rows] / wo_t[rows].norm(dim=1, keepdim=True).clamp_min(1e-30)
+                table = mt["energy_bound"][0]
+                fk = fk * (energy_bound_scale(table, wi_n[:, 2]) * energy_bound_scale(table, wo_n[:, 2]))[:, None]
+            f[rows] += fk * torch.as_tensor(t["weight"][rows, k], dtype=dtype)[:, None]
+    return f.double().numpy()
+
+
+def _map_name(quantity: str, layer: Optional[int], first: int, format: str) -> str:
+    stem = quantity if layer is None else f"layer{layer}_{quantity}" + (str(first // 3) if quantity == "latent" else "")
+    return f"{stem}.{format}"
+
+
+def _write_quantity(folder, quantity, layer, values, format, n_layers=None, first=0) -> Dict:
+    """Encode (H, W, c <= 3) decoded values into one map file; its index entry."""
+    h, w, c = values.shape
+    decodes = []
+    stored = np.zeros((h, w, CHANNELS), dtype=np.uint8 if format == "png" else np.float32)
+    for ch in range(CHANNELS):
+        if ch >= c or (quantity == "weights" and ch >= n_layers - 1):
+            decodes.append(None if quantity != "weights" else (png_channel("weights") if format == "png" else float_channel()))
+            continue
+        x = values[..., ch].astype(np.float64)
+        d = png_channel(quantity, x.min(), x.max()) if format == "png" else float_channel()
+        decodes.append(d)
+        stored[..., ch] = encode(x, d, bits=8 if format == "png" else 0)
+    name = _map_name(quantity, layer, first, format)
+    write_map(os.path.join(folder, name), stored)
+    return {"file": name, "quantity": quantity, **({} if layer is None else {"layer": layer}), "first": first,
+            "decode": decodes}
+
+
+def _write_layer_quantity(folder, quantity, layer, values, format) -> List[Dict]:
+    return [_write_quantity(folder, quantity, layer, values[..., first:first + CHANNELS], format, first=first)
+            for first in range(0, values.shape[2], CHANNELS)]
+
+
+# ---- reading ------------------------------------------------------------------------------
+def load_svbrdf(folder) -> SVBRDF:
+    """Read and validate a textured material's folder (docs/SVBRDF.md): the index, the model it
+    names, every map (sizes bounded before reading; values finite and in range). Raises
+    :class:`SVBRDFError` (or the model's ModelFileError), one line naming the file and the problem."""
+    folder = os.fspath(folder)
+    if not os.path.isdir(folder):
+        raise SVBRDFError(folder, "no such folder" if not os.path.lexists(folder) else "is not a folder")
+    index_path = os.path.join(folder, SV["index_file"])
+    text = read_input_text(index_path, "textured-material index", SV["max_index_bytes"], SVBRDFError)
+    index = loads_json(text, index_path, "textured-material index", SVBRDFError)
+    if not isinstance(index, dict):
+        raise SVBRDFError(index_path, "the index must be a JSON object")
+    unknown, missing = set(index) - INDEX_KEYS, INDEX_KEYS - set(index)
+    if unknown or missing:
+        raise SVBRDFError(index_path, f"unknown keys {sorted(unknown)}" if unknown else f"missing keys {sorted(missing)}")
+    if index["format_version"] != SV["format_version"] or isinstance(index["format_version"], bool):
+        raise SVBRDFError(index_path, f"format_version {index['format_version']!r} is not supported "
+                                      f"(this library reads {SV['format_version']})")
+    model_path = os.path.join(folder, _plain_name(index_path, index["model"], "model"))
+    model = load_model(model_path)
+    if not model.has_analytic:
+        raise SVBRDFError(model_path, f"a textured material needs a hybrid model; this one is '{model.kind}'")
+    size = index["size"]
+    if not (isinstance(size, list) and len(size) == 2 and all(isinstance(s, int) and not isinstance(s, bool)
+                                                                 and 1 <= s <= SV["max_side"] for s in size)):
+        raise SVBRDFError(index_path, f"size must be [W, H], integers 1 to {SV['max_side']}, got {size!r}")
+    if index["addressing"] not in SV["addressing"]:
+        raise SVBRDFError(index_path, f"addressing must be one of {', '.join(SV['addressing'])}, got {index['addressing']!r}")
+    layers = index["layers"]
+    if not (isinstance(layers, list) and 1 <= len(layers) <= MAX_LAYERS):
+        raise SVBRDFError(index_path, f"layers must be a list of 1 to {MAX_LAYERS} layers")
+    names = []
+    for k, layer in enumerate(layers):
+        if not (isinstance(layer, dict) and set(layer) == {"material"} and isinstance(layer["material"], str)):
+            raise SVBRDFError(index_path, f"layer {k} must be {{\"material\": NAME}}")
+        if layer["material"] not in model.materials:
+            raise SVBRDFError(index_path, f"layer {k}: material '{layer['material']}' is not in {index['model']}")
+        names.append(layer["material"])
+    w, h = size
+    latent = model.arch["latent"]
+    weights, maps, seen = None, [{} for _ in names], set()
+    parts: Dict = {}
+    if not isinstance(index["maps"], list):
+        raise SVBRDFError(index_path, "maps must be a list")
+    for entry in index["maps"]:
+        quantity, layer, first, path, values = _read_entry(folder, index_path, entry, len(names), latent, (w, h))
+        key = (quantity, layer, first)
+        if key in seen:
+            raise SVBRDFError(index_path, f"two maps give {quantity} {first}..{first + 2}"
+                                          + ("" if layer is None else f" of layer {layer}"))
+        seen.add(key)
+        if quantity == "weights":
+            if values[..., len(names) - 1:].any():
+                raise SVBRDFError(path, f"weights of layers beyond the last ({len(names) - 1}) must be 0")
+            weights = values
+        else:
+            parts.setdefault((layer, quantity), {})[first] = values
+    for (layer, quantity), pieces in parts.items():
+        c = _components(quantity, latent)
+        firsts = sorted(pieces)
+        if firsts != list(range(0, c, CHANNELS)):
+            raise SVBRDFError(index_path, f"layer {layer}: {quantity} maps must cover components 0..{c - 1} "
+                                          f"(maps start at {firsts})")
+        maps[layer][quantity] = np.concatenate([pieces[f] for f in firsts], axis=2)[..., :c].astype(np.float32)
+    if len(names) > 1 and weights is None:
+        raise SVBRDFError(index_path, f"{len(names)} layers need a weights map")
+    return SVBRDF(model, names, (w, h), weights, maps, index["addressing"], path=os.path.abspath(folder))
+
+
+def _read_entry(folder, index_path, entry, n_layers, latent, size):
+    """(quantity, layer, first, path, decoded values (H, W, components in this map)) of one map entry."""
+    if not isinstance(entry, dict) or not {"file", "quantity", "first", "decode"} <= set(entry) <= MAP_KEYS:
+        raise SVBRDFError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", \"decode\"}")
+    quantity = entry["quantity"]
+    if quantity not in QUANTITIES:
+        raise SVBRDFError(index_path, f"unknown map quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
+    per_layer = QUANTITIES[quantity]["per_layer"]
+    layer = entry.get("layer")
+    if per_layer != ("layer" in entry):
+        raise SVBRDFError(index_path, f"a {quantity} map {'needs' if per_layer else 'has no'} \"layer\"")
+    if per_layer and not (isinstance(layer, int) and not isinstance(layer, bool) and 0 <= layer < n_layers):
+        raise SVBRDFError(index_path, f"{quantity} map: layer must be 0 to {n_layers - 1}, got {layer!r}")
+    c = 3 if quantity == "weights" else _components(quantity, latent)
+    first = entry["first"]
+    if not (isinstance(first, int) and not isinstance(first, bool) and 0 <= first < c and first % CHANNELS == 0):
+        raise SVBRDFError(index_path, f"{quantity} map: first must be a multiple of {CHANNELS} below {c}, got {first!r}")
+    path = os.path.join(folder, _plain_name(index_path, entry["file"], "a map's file"))
+    bits = map_bits(path)
+    decodes = entry["decode"]
+    used = min(CHANNELS, c - first)
+    if not (isinstance(decodes, list) and len(decodes) == CHANNELS):
+        raise SVBRDFError(index_path, f"{entry['file']}: decode must list {CHANNELS} channels")
+    for ch, d in enumerate(decodes):
+        if ch >= used:
+            if d is not None and quantity != "weights":
+                raise SVBRDFError(index_path, f"{entry['file']}: channel {'RGB'[ch]} holds no {quantity} component; its decode must be null")
+            continue
+        problem = channel_problem(quantity, d, floating=not bits)
+        if problem:
+            raise SVBRDFError(index_path, f"{entry['file']} channel {'RGB'[ch]}: {problem}")
+    check_input_file(path, "texel map", None, SVBRDFError)
+    stored, _ = read_map(path)
+    if (stored.shape[1], stored.shape[0]) != tuple(size):
+        raise SVBRDFError(path, f"map is {stored.shape[1]}x{stored.shape[0]}; the index says {size[0]}x{size[1]}")
+    values = np.stack([decode(stored[..., ch], decodes[ch]) for ch in range(used)], axis=2)
+    q = QUANTITIES[quantity]
+    bad = ~((values >= q["min"]) & (values <= q["max"]))
+    if bad.any():
+        y, x, ch = np.argwhere(bad)[0]
+        raise SVBRDFError(path, f"texel ({x}, {y}) channel {'RGB'[ch]} decodes to {values[y, x, ch]:g}, outside "
+                                f"{quantity}'s range [{q['min']:g}, {q['max']:g}]")
+    if quantity == "weights":
+        values = np.concatenate([values, np.zeros(values.shape[:2] + (3 - used,))], axis=2) if used < 3 else values
+    return quantity, layer, first, path, values.astype(np.float32)
