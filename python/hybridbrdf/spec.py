@@ -224,8 +224,10 @@ SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a fo
                           'per_layer': True,
                           'min': 0.0001,
                           'max': 1.0,
-                          'png': {'transfer': 'square', 'scale': 1.0, 'offset': 0.0},
-                          'doc': "the layer's GGX roughness (alpha_x, alpha_y) in R and G; B unused"},
+                          'png': {'transfer': 'square', 'scale': 0.9999, 'offset': 0.0001},
+                          'doc': "the layer's GGX roughness (alpha_x, alpha_y) in R and G, B unused; 8-bit: "
+                                 'alpha = alpha_min + (1 - alpha_min) r^2, r the stored perceptual '
+                                 'roughness'},
                 'latent': {'components': 'latent',
                            'per_layer': True,
                            'min': -1000000.0,

@@ -26,6 +26,7 @@ import numpy as np
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.adding import add
+from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.inputs import check_input_file
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.sources import expand_sources, open_source
@@ -88,7 +89,7 @@ def composite(masks: Sequence[np.ndarray]) -> np.ndarray:
     return np.stack(weights, axis=2)
 
 
-def _layer_materials(model_path: PathLike, model: HybridModel, names: Sequence[str], progress: bool,
+def _layer_materials(model_path: PathLike, model: HybridModel, names: Sequence[str], settings, progress: bool,
                      log: Callable[[str], None]) -> Tuple[HybridModel, list]:
     """The model with every layer that names a measured file added (sparse fit on the frozen
     network), and the layers' material names."""
@@ -108,7 +109,7 @@ def _layer_materials(model_path: PathLike, model: HybridModel, names: Sequence[s
     new_names = material_names(sources)
     log(f"adding {len(sources)} measured file(s) to the model by a sparse fit on its frozen network: "
         + ", ".join(new_names))
-    merged = add(sources, to=model_path, progress=progress, log=log)
+    merged = add(sources, to=model_path, settings=settings, progress=progress, log=log)
     out = list(names)
     for k, new in zip(where, new_names):
         out[k] = new
@@ -118,7 +119,8 @@ def _layer_materials(model_path: PathLike, model: HybridModel, names: Sequence[s
 def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], out: PathLike,
           size: Optional[Tuple[int, int]] = None, format: str = "png", addressing: str = "repeat",
           kd: Optional[Dict[int, PathLike]] = None, roughness: Optional[Dict[int, PathLike]] = None,
-          progress: bool = False, log: Callable[[str], None] = lambda msg: None) -> SVBRDF:
+          settings: Optional[FitSettings] = None, progress: bool = False,
+          log: Callable[[str], None] = lambda msg: None) -> SVBRDF:
     """Write a textured material's folder ``out`` and return it (:class:`SVBRDF`).
 
     ``base``: a material of ``model`` (or a measured file); ``layers``: up to three
@@ -126,6 +128,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     default the first mask's (masks of another size are refused); ``kd`` / ``roughness``: layer
     index (0 the base) -> albedo texture (sRGB PNG or linear EXR) / roughness texture (grey r,
     alpha = r^2 on both axes), of the same size. ``format``: 'png' (8-bit maps) or 'exr' (float32).
+    ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
     Everything is checked before any fitting; ``out`` is replaced only once complete."""
     if len(layers) > spec.SVBRDF["max_layers"] - 1:
         raise ValueError(f"at most {spec.SVBRDF['max_layers'] - 1} layers over the base, got {len(layers)}")
@@ -161,7 +164,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     names = [base] + [name for name, _ in layers]
     if len(set(names)) != len(names):
         raise ValueError("a material appears in two layers; paint it once with the union of its masks")
-    merged, names = _layer_materials(model, base_model, names, progress, log)
+    merged, names = _layer_materials(model, base_model, names, settings, progress, log)
     weights = composite(masks).astype(np.float32) if masks else None
     if weights is not None and weights.shape[2] < 3:
         weights = np.concatenate([weights, np.zeros((h, w, 3 - weights.shape[2]), np.float32)], axis=2)

@@ -1,0 +1,319 @@
+"""Textured materials (docs/SVBRDF.md): the folder's contract, texel lookup, the layered
+evaluation in libhybridbrdf (HybridModel::eval_texel) against PyTorch in float64, the
+uniform material as the special case of constant maps, filtering, and hbrdf paint."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+import hybridbrdf as hb
+from hybridbrdf import spec
+from hybridbrdf.evaluate.metrics import metric_directions
+from hybridbrdf.fit.paint import composite, paint
+from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
+from hybridbrdf.svbrdf.decode import decode, encode, png_channel, transfer
+from hybridbrdf.svbrdf.maps import write_map
+
+from helpers import run_cli, saved_random_model
+
+
+def _directions(n=3000, seed=3):
+    wi, wo = metric_directions(n, seed)
+    return np.asarray(wi, np.float64), np.asarray(wo, np.float64)
+
+
+def _constant_maps(model, i, h, w):
+    t = model.tensors
+    return {"kd": np.broadcast_to(t["materials.kd"][i], (h, w, 3)).copy(),
+            "eta": np.broadcast_to(t["materials.eta"][i], (h, w, 3)).copy(),
+            "alpha": np.broadcast_to(t["materials.alpha"][i], (h, w, 2)).copy(),
+            "latent": np.broadcast_to(t["materials.z"][i], (h, w, t["materials.z"].shape[1])).copy()}
+
+
+@pytest.fixture(params=[("hybrid", "material", True), ("hybrid-reciprocal", "shared", False)],
+                ids=["heads-bounded", "reciprocal-shared"])
+def model(request, tmp_path):
+    arch, output_layer, bound = request.param
+    path, m = saved_random_model(tmp_path, arch, output_layer=output_layer, energy_bound=bound)
+    return m
+
+
+def test_constant_exr_maps_are_the_uniform_material_bit_for_bit(model, tmp_path):
+    """Maps holding a material's own values (float EXR) evaluate to that material, through the scalar
+    path, bit for bit: same operations, same order (the texel's p and z are the material's floats)."""
+    h, w = 5, 7
+    sv = SVBRDF(model, [model.materials[1]], (w, h), None, [_constant_maps(model, 1, h, w)])
+    sv.save(tmp_path / "sv", format="exr")
+    back = load_svbrdf(tmp_path / "sv")
+    assert set(back.maps[0]) == {"kd", "eta", "alpha", "latent"}
+    wi, wo = _directions()
+    uv = np.random.default_rng(0).uniform(-2, 3, size=(len(wi), 2))  # wrapping too
+    for filt in ("nearest", "bilinear"):
+        f = back.eval(uv, wi, wo, filter=filt)
+        uniform = back.model._cpp_model().eval_scalar(wi.astype(np.float32), wo.astype(np.float32), 1)
+        np.testing.assert_array_equal(f, uniform)
+    assert np.abs(f).max() > 0
+
+
+def test_constant_png_maps_stay_within_their_quantisation(model, tmp_path):
+    """8-bit maps of a material's values: every decoded value within half a step of the value (the
+    decode of the nearest byte), and f within the change that step makes (measured against EXR)."""
+    h, w = 4, 4
+    maps = _constant_maps(model, 0, h, w)
+    SVBRDF(model, [model.materials[0]], (w, h), None, [maps]).save(tmp_path / "png", format="png")
+    back = load_svbrdf(tmp_path / "png")
+    for q, values in maps.items():
+        got = back.maps[0][q]
+        index = json.loads((tmp_path / "png" / "svbrdf.json").read_text())
+        for entry in (e for e in index["maps"] if e["quantity"] == q):
+            for ch, d in enumerate(entry["decode"]):
+                if d is None:
+                    continue
+                c = entry["first"] + ch
+                v = encode(values[..., c], d)  # the exact stored value, before rounding
+                lo = decode(np.floor(v * 255) / 255, d)
+                hi = decode(np.ceil(v * 255) / 255, d)
+                assert np.all((got[..., c] >= np.minimum(lo, hi) - 1e-6) & (got[..., c] <= np.maximum(lo, hi) + 1e-6)), q
+
+
+def test_mixed_texels_are_the_mixture_of_their_layers(model, tmp_path):
+    """A texel of weights w is sum_k w_k f_k: libhybridbrdf's eval_texel against each layer material's
+    own float64 PyTorch evaluation, weighted."""
+    h, w = 3, 4
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[..., 0] = np.linspace(0, 1, w)[None, :]
+    weights[..., 1] = (1 - weights[..., 0]) * np.linspace(0, 1, h)[:, None]
+    sv = SVBRDF(model, model.materials[:3], (w, h), weights)
+    sv.save(tmp_path / "sv", format="exr")
+    back = load_svbrdf(tmp_path / "sv")
+    wi, wo = _directions(600)
+    rows, cols = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    for r, c in zip(rows.ravel(), cols.ravel()):
+        uv = np.tile([(c + 0.5) / w, (r + 0.5) / h], (len(wi), 1))
+        f = back.eval(uv, wi, wo, filter="nearest")
+        wt = back.texels(uv[:1], "nearest")["weight"][0].astype(np.float64)
+        assert abs(wt.sum() - 1) < 1e-6 and np.all(wt >= 0)
+        ref = sum(wt[k] * model.eval(wi, wo, k, dtype=torch.float64) for k in range(3))
+        scale = max(np.abs(ref).max(), 1e-6)
+        assert np.abs(f - ref).max() <= 2e-4 * scale + 1e-7, (r, c)
+        torch_f = back.eval(uv, wi, wo, filter="nearest", dtype=torch.float64)
+        assert np.abs(torch_f - ref).max() <= 1e-9 * scale + 1e-12
+
+
+def test_bilinear_weights_filter_the_brdfs(model, tmp_path):
+    """Without p or z maps, the bilinear texel is the bilinear combination of the four texels'
+    BRDFs (f is linear in the weights): the filter of the BRDFs, not an approximation of it."""
+    rng = np.random.default_rng(1)
+    h, w = 6, 5
+    raw = rng.uniform(0, 1, size=(h, w, 3)).astype(np.float32)
+    raw[..., 1:] *= 0.5
+    weights = raw / np.maximum(raw.sum(axis=2, keepdims=True), 1)
+    weights[..., 2] = 0
+    sv = SVBRDF(model, model.materials[:3], (w, h), weights)
+    wi, wo = _directions(400)
+    uv = rng.uniform(0, 1, size=(len(wi), 2))
+    f = sv.eval(uv, wi, wo, filter="bilinear", dtype=torch.float64)
+    taps = sv._taps(uv, "bilinear")
+    ref = np.zeros_like(f)
+    for r, c, t in taps:
+        centre = np.stack([(c + 0.5) / w, (r + 0.5) / h], axis=1)
+        ref += t[:, None] * sv.eval(centre, wi, wo, filter="nearest", dtype=torch.float64)
+    assert np.abs(f - ref).max() <= 1e-5 * np.abs(ref).max()
+
+
+def test_a_mixture_of_reciprocal_layers_is_reciprocal(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid-reciprocal", output_layer="material")
+    weights = np.full((2, 2, 3), 0.3, np.float32)
+    weights[..., 2] = 0
+    sv = SVBRDF(m, m.materials[:3], (2, 2), weights)
+    sv.save(tmp_path / "sv", format="exr")
+    back = load_svbrdf(tmp_path / "sv")
+    wi, wo = _directions(2000)
+    uv = np.random.default_rng(2).uniform(0, 1, size=(len(wi), 2))
+    np.testing.assert_array_equal(back.eval(uv, wi, wo), back.eval(uv, wo, wi))
+
+
+def test_uv_addressing_and_nearest_texel(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    h, w = 2, 4
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[0, 3, 0] = 1  # top-right texel: layer 1
+    for addressing, uv, expect in (("repeat", [0.9, 0.1], 1), ("repeat", [-0.1, 1.1], 1), ("repeat", [0.1, 0.1], 0),
+                                   ("clamp", [1.7, -3.0], 1), ("clamp", [-0.5, -0.5], 0)):
+        sv = SVBRDF(m, m.materials[:2], (w, h), weights, addressing=addressing)
+        got = sv.texels(np.array([uv]), "nearest")["weight"][0]
+        assert got[expect] == 1.0, (addressing, uv, got)
+    with pytest.raises(ValueError, match="finite"):
+        sv.texels(np.array([[np.nan, 0.5]]))
+
+
+def test_transfers_invert():
+    v = np.linspace(0, 1, 256)
+    for name in spec.SVBRDF["transfers"]:
+        d = {"transfer": name, "scale": 1.0, "offset": 0.0}
+        np.testing.assert_allclose(encode(decode(v, d), d), v, atol=1e-12)
+    # The sRGB EOTF's published anchor points (IEC 61966-2-1).
+    np.testing.assert_allclose(transfer("srgb", np.array([0.04045, 1.0])), [0.04045 / 12.92, 1.0])
+    assert png_channel("latent", -2.0, 6.0) == {"transfer": "linear", "scale": 8.0, "offset": -2.0}
+
+
+# ---- malformed folders ------------------------------------------------------------------
+
+
+@pytest.fixture
+def folder(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    weights = np.zeros((4, 4, 3), np.float32)
+    weights[..., 0] = 0.5
+    maps = [{"kd": np.full((4, 4, 3), 0.25, np.float32)}, {}]
+    SVBRDF(m, m.materials[:2], (4, 4), weights, maps).save(tmp_path / "sv", format="png")
+    return tmp_path / "sv"
+
+
+def _edit_index(folder, change):
+    path = folder / "svbrdf.json"
+    index = json.loads(path.read_text())
+    change(index)
+    path.write_text(json.dumps(index))
+
+
+def _set_decode(index, quantity, **kw):
+    entry = next(e for e in index["maps"] if e["quantity"] == quantity)
+    entry["decode"][0].update(kw)
+
+
+def _write_png(path, arr, mode):
+    Image.fromarray(arr, mode).save(path)
+
+
+CORRUPTIONS = [
+    ("no index", lambda f: (f / "svbrdf.json").unlink(), "no such file"),
+    ("not JSON", lambda f: (f / "svbrdf.json").write_text("{"), "not valid JSON"),
+    ("unknown key", lambda f: _edit_index(f, lambda i: i.update(extra=1)), "unknown keys"),
+    ("future version", lambda f: _edit_index(f, lambda i: i.update(format_version=2)), "format_version 2"),
+    ("model outside", lambda f: _edit_index(f, lambda i: i.update(model="../m.safetensors")), "plain file name"),
+    ("size too big", lambda f: _edit_index(f, lambda i: i.update(size=[4, 9000])), "size must be"),
+    ("size mismatch", lambda f: _edit_index(f, lambda i: i.update(size=[4, 5])), "the index says 4x5"),
+    ("addressing", lambda f: _edit_index(f, lambda i: i.update(addressing="mirror")), "addressing must be"),
+    ("unknown material", lambda f: _edit_index(f, lambda i: i["layers"][1].update(material="nope")), "'nope' is not in"),
+    ("five layers", lambda f: _edit_index(f, lambda i: i.update(layers=i["layers"] * 3)), "1 to 4 layers"),
+    ("decode out of range", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", scale=2.0)), "outside kd's range"),
+    ("unknown transfer", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", transfer="gamma")), "unknown transfer"),
+    ("nan scale", lambda f: (f / "svbrdf.json").write_text((f / "svbrdf.json").read_text().replace('"scale": 1.0', '"scale": NaN', 1)),
+     "finite number"),
+    ("weights of a missing layer", lambda f: write_map(f / "weights.png", np.full((4, 4, 3), 60, np.uint8)),
+     "beyond the last"),
+    ("grey PNG", lambda f: _write_png(f / "weights.png", np.zeros((4, 4), np.uint8), "L"), "mode 'L'"),
+    ("truncated PNG", lambda f: (f / "weights.png").write_bytes((f / "weights.png").read_bytes()[:40]), "cannot read the PNG map"),
+    ("huge PNG header", lambda f: _write_png(f / "weights.png", np.zeros((1, 8193, 3), np.uint8), "RGB"), "1 to 8192"),
+    ("duplicate map", lambda f: _edit_index(f, lambda i: i["maps"].append(dict(i["maps"][0]))), "two maps give"),
+    ("layer out of range", lambda f: _edit_index(f, lambda i: next(e for e in i["maps"] if e["quantity"] == "kd").update(layer=5)),
+     "layer must be 0 to 1"),
+    ("missing map file", lambda f: (f / "weights.png").unlink(), "no such file"),
+    ("map is a folder", lambda f: ((f / "weights.png").unlink(), (f / "weights.png").mkdir()), "is a folder"),
+    ("bad extension", lambda f: _edit_index(f, lambda i: i["maps"][0].update(file="weights.tga")), ".png (8-bit) or .exr"),
+]
+
+
+@pytest.mark.parametrize("name,corrupt,words", CORRUPTIONS, ids=[c[0] for c in CORRUPTIONS])
+def test_malformed_folders_are_refused_in_one_line(folder, name, corrupt, words):
+    corrupt(folder)
+    with pytest.raises(hb.InputFileError) as err:
+        load_svbrdf(folder)
+    msg = str(err.value)
+    assert words in msg and "\n" not in msg, msg
+    assert str(folder) in msg
+
+
+def test_exr_maps_with_nan_or_out_of_range_values_are_refused(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    sv = SVBRDF(m, m.materials[:1], (3, 3), None, [{"eta": np.full((3, 3, 3), 1.5, np.float32)}])
+    sv.save(tmp_path / "sv", format="exr")
+    bad = np.full((3, 3, 3), 1.5, np.float32)
+    bad[1, 2, 1] = 0.5  # eta below 1
+    hb._core.render_write_exr(bad, str(tmp_path / "sv" / "layer0_eta.exr"))
+    with pytest.raises(SVBRDFError, match=r"texel \(2, 1\) channel G decodes to 0.5, outside eta's range"):
+        load_svbrdf(tmp_path / "sv")
+    bad[1, 2, 1] = np.nan
+    hb._core.render_write_exr(bad, str(tmp_path / "sv" / "layer0_eta.exr"))
+    with pytest.raises(hb.InputFileError, match="must be finite"):
+        load_svbrdf(tmp_path / "sv")
+
+
+def test_save_refuses_to_replace_a_folder_that_is_not_a_textured_material(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    other = tmp_path / "photos"
+    other.mkdir()
+    (other / "keep.jpg").write_bytes(b"x")
+    with pytest.raises(hb.InputFileError, match="without svbrdf.json"):
+        SVBRDF(m, m.materials[:1], (2, 2)).save(other)
+    assert (other / "keep.jpg").exists()
+    SVBRDF(m, m.materials[:1], (2, 2)).save(tmp_path / "sv")
+    SVBRDF(m, m.materials[1:2], (3, 3)).save(tmp_path / "sv")  # a textured material's folder is replaced
+    assert load_svbrdf(tmp_path / "sv").layers == [m.materials[1]]
+    assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name or ".old" in p.name]
+
+
+# ---- painting ------------------------------------------------------------------------------
+
+
+def test_composite_is_over_and_sums_to_one():
+    rng = np.random.default_rng(4)
+    masks = [rng.uniform(0, 1, (5, 6)) for _ in range(3)]
+    w = composite(masks)
+    assert np.all(w >= 0) and np.all(w.sum(axis=2) <= 1 + 1e-12)
+    np.testing.assert_allclose(w[..., 2], masks[2])  # the top layer keeps its mask
+    np.testing.assert_allclose(w[..., 1], masks[1] * (1 - masks[2]))
+    np.testing.assert_allclose(w[..., 0], masks[0] * (1 - masks[1]) * (1 - masks[2]))
+
+
+def test_paint_with_masks_and_an_albedo_texture(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    mask = np.tile(np.linspace(0, 255, 8).astype(np.uint8), (6, 1))
+    _write_png(tmp_path / "mask.png", mask, "L")
+    albedo = np.random.default_rng(5).integers(0, 256, (6, 8, 3), dtype=np.uint8)
+    _write_png(tmp_path / "albedo.png", albedo, "RGB")
+    sv = paint(path, m.materials[0], [(m.materials[2], tmp_path / "mask.png")], tmp_path / "sv",
+               kd={1: tmp_path / "albedo.png"})
+    back = load_svbrdf(tmp_path / "sv")
+    assert back.layers == [m.materials[0], m.materials[2]] and back.size == (8, 6)
+    np.testing.assert_allclose(back.weights[..., 0], mask / 255.0, atol=0.5 / 255 + 1e-7)
+    kd = transfer("srgb", albedo / 255.0)
+    step = np.abs(transfer("srgb", np.minimum(albedo + 1, 255) / 255.0) - kd)
+    assert np.all(np.abs(back.maps[1]["kd"] - kd) <= step + 1e-6)  # 8-bit sRGB round trip
+    assert sv.path == str((tmp_path / "sv").resolve())
+
+
+def test_paint_fits_a_measured_layer_on_the_frozen_network(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    _write_png(tmp_path / "mask.png", np.full((4, 4), 128, np.uint8), "L")
+    sv = paint(path, m.materials[1], [("synthetic:gold", tmp_path / "mask.png")], tmp_path / "sv",
+               settings=FitSettings(steps=150))
+    assert sv.layers == [m.materials[1], "gold"] and "gold" in sv.model.materials
+    for key, value in m.tensors.items():
+        if not key.startswith("materials."):
+            np.testing.assert_array_equal(sv.model.tensors[key], value)  # the network kept bit for bit
+
+
+def test_hbrdf_paint_command_line(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid")
+    _write_png(tmp_path / "mask.png", np.full((3, 5), 255, np.uint8), "L")
+    r = run_cli("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
+                "--format", "exr", "--out", str(tmp_path / "sv"))
+    assert r.returncode == 0, r.stderr
+    assert "5x3 texels, 2 layer(s)" in r.stdout
+    assert load_svbrdf(tmp_path / "sv").texels(np.array([[0.5, 0.5]]))["weight"][0].tolist() == [0.0, 1.0]
+    _write_png(tmp_path / "small.png", np.full((2, 2), 255, np.uint8), "L")
+    r = run_cli("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
+                "--layer", f"{m.materials[2]}=" + str(tmp_path / "small.png"), "--out", str(tmp_path / "sv2"))
+    assert r.returncode != 0 and "small.png: mask is 2x2; the textured material is 5x3" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "sv2").exists()
+    r = run_cli("paint", str(path), "--base", "no-such-material", "--size", "4x4", "--out", str(tmp_path / "sv3"))
+    assert r.returncode != 0 and "neither a material of" in r.stderr
