@@ -5,6 +5,8 @@
 // loader's order (python/hybridbrdf/model/file.py), with its words.
 #include "model_validate.hpp"
 
+#include "hybridbrdf/text.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -39,29 +41,6 @@ std::string join_names(const std::vector<std::string>& names) {
     return s;
 }
 
-// Deepest nesting of arrays and objects in JSON `text`, brackets inside strings not counted
-// (python/hybridbrdf/inputs.py json_depth, the same rule): the contract bounds it
-// (spec::kMaxJsonDepth) so that both loaders refuse the same files, and before parsing, as
-// Python's parser recurses once per level. On malformed text it is a bound the parser then
-// rejects for another reason.
-int json_depth(const std::string& text) {
-    int depth = 0, deepest = 0;
-    bool in_string = false, escaped = false;
-    for (char c : text) {
-        if (in_string) {
-            if (escaped) escaped = false;
-            else if (c == '\\') escaped = true;
-            else if (c == '"') in_string = false;
-        } else if (c == '"') {
-            in_string = true;
-        } else if (c == '[' || c == '{') {
-            deepest = std::max(deepest, ++depth);
-        } else if (c == ']' || c == '}') {
-            --depth;
-        }
-    }
-    return deepest;
-}
 
 // arch.<key> checked against its row of the contract's table (spec::kArchFields);
 // returns the value as a double (an Enum: its index). Integers are compared as

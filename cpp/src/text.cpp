@@ -1,6 +1,7 @@
 // hybridbrdf — one printable line of error text (hybridbrdf/text.hpp).
 #include "hybridbrdf/text.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace hbrdf {
@@ -38,6 +39,25 @@ std::string one_line_text(const std::string& text) {
         }
     }
     return out;
+}
+
+int json_depth(const std::string& text) {
+    int depth = 0, deepest = 0;
+    bool in_string = false, escaped = false;
+    for (char c : text) {
+        if (in_string) {
+            if (escaped) escaped = false;
+            else if (c == '\\') escaped = true;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            deepest = std::max(deepest, ++depth);
+        } else if (c == ']' || c == '}') {
+            --depth;
+        }
+    }
+    return deepest;
 }
 
 }  // namespace hbrdf

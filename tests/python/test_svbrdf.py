@@ -13,7 +13,9 @@ import torch
 from PIL import Image
 
 import hybridbrdf as hb
+import hybridbrdf.render.tracer  # noqa: F401  (hb.render.tracer)
 from hybridbrdf import spec
+from hybridbrdf.brdf.torch_brdf import eval_analytic
 from hybridbrdf.evaluate.metrics import metric_directions
 from hybridbrdf.fit.paint import composite, paint
 from hybridbrdf.fit.settings import FitSettings
@@ -207,10 +209,10 @@ CORRUPTIONS = [
     ("decode out of range", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", scale=2.0)), "outside kd's range"),
     ("unknown transfer", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", transfer="gamma")), "unknown transfer"),
     ("nan scale", lambda f: (f / "svbrdf.json").write_text((f / "svbrdf.json").read_text().replace('"scale": 1.0', '"scale": NaN', 1)),
-     "finite number"),
+     "not valid JSON"),
     ("weights of a missing layer", lambda f: write_map(f / "weights.png", np.full((4, 4, 3), 60, np.uint8)),
      "beyond the last"),
-    ("grey PNG", lambda f: _write_png(f / "weights.png", np.zeros((4, 4), np.uint8), "L"), "mode 'L'"),
+    ("grey PNG", lambda f: _write_png(f / "weights.png", np.zeros((4, 4), np.uint8), "L"), "texel maps are 8-bit RGB PNG"),
     ("truncated PNG", lambda f: (f / "weights.png").write_bytes((f / "weights.png").read_bytes()[:40]), "cannot read the PNG map"),
     ("huge PNG header", lambda f: _write_png(f / "weights.png", np.zeros((1, 8193, 3), np.uint8), "RGB"), "1 to 8192"),
     ("duplicate map", lambda f: _edit_index(f, lambda i: i["maps"].append(dict(i["maps"][0]))), "two maps give"),
@@ -223,10 +225,16 @@ CORRUPTIONS = [
 
 
 @pytest.mark.parametrize("name,corrupt,words", CORRUPTIONS, ids=[c[0] for c in CORRUPTIONS])
-def test_malformed_folders_are_refused_in_one_line(folder, name, corrupt, words):
+def test_malformed_folders_are_refused_in_one_line_by_both_loaders(folder, name, corrupt, words):
     corrupt(folder)
     with pytest.raises(hb.InputFileError) as err:
         load_svbrdf(folder)
+    msg = str(err.value)
+    assert words in msg and "\n" not in msg, msg
+    assert str(folder) in msg
+    one = np.zeros((1, 2), np.float32)
+    with pytest.raises(ValueError) as err:  # RenderFileError from libhybridbrdf's loader (render::load_svbrdf), the tracer's
+        hb._core.svbrdf_eval(str(folder), one, np.array([[0, 0, 1]], np.float32), np.array([[0, 0, 1]], np.float32))
     msg = str(err.value)
     assert words in msg and "\n" not in msg, msg
     assert str(folder) in msg
@@ -317,3 +325,133 @@ def test_hbrdf_paint_command_line(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "sv2").exists()
     r = run_cli("paint", str(path), "--base", "no-such-material", "--size", "4x4", "--out", str(tmp_path / "sv3"))
     assert r.returncode != 0 and "neither a material of" in r.stderr
+
+
+# ---- libhybridbrdf's loader, sampler and the tracer --------------------------------------------
+
+
+def _rich_folder(tmp_path, fmt):
+    """Three layers with maps of every quantity somewhere: kd on layer 1, alpha on layer 2, eta and
+    the latent code on layer 0; weights varying over the texture."""
+    _, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    rng = np.random.default_rng(7)
+    h, w = 6, 5
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[..., 0] = rng.uniform(0, 0.6, (h, w))
+    weights[..., 1] = rng.uniform(0, 0.4, (h, w))
+    weights[2, 3] = [0, 0, 0]  # a pure base texel
+    latent = m.tensors["materials.z"]
+    maps = [{"eta": rng.uniform(1.2, 3.0, (h, w, 3)).astype(np.float32),
+             "latent": (latent[0] + rng.normal(0, 0.3, (h, w, latent.shape[1]))).astype(np.float32)},
+            {"kd": rng.uniform(0, 1, (h, w, 3)).astype(np.float32)},
+            {"alpha": np.repeat(rng.uniform(0.05, 0.8, (h, w, 1)), 2, axis=2).astype(np.float32)}]
+    SVBRDF(m, m.materials[:3], (w, h), weights, maps).save(tmp_path / fmt, format=fmt)
+    return load_svbrdf(tmp_path / fmt)
+
+
+@pytest.mark.parametrize("fmt", ["png", "exr"])
+@pytest.mark.parametrize("filt", ["bilinear", "nearest"])
+def test_cpp_loader_and_lookup_agree_with_python(tmp_path, fmt, filt):
+    sv = _rich_folder(tmp_path, fmt)
+    wi, wo = _directions(1500, seed=9)
+    uv = np.random.default_rng(8).uniform(-1, 2, size=(len(wi), 2)).astype(np.float32).astype(np.float64)
+    ref = sv.eval(uv, wi, wo, filter=filt, dtype=torch.float64)
+    got = hb._core.svbrdf_eval(sv.path, uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt)
+    scale = np.abs(ref).max(axis=1, keepdims=True) + 1e-6
+    assert np.abs(got - ref).max() / scale.max() < 1e-4
+    assert np.all(np.abs(got - ref) <= 2e-4 * scale + 1e-6)
+    analytic = hb._core.svbrdf_eval(sv.path, uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt, True)
+    t = sv.texels(uv, filt)
+    w64 = [torch.as_tensor(a, dtype=torch.float64) for a in (wi, wo)]
+    fa = sum(t["weight"][:, k, None].astype(np.float64) * eval_analytic(
+        *w64, *(torch.as_tensor(t[q][:, k], dtype=torch.float64) for q in ("kd", "eta", "alpha"))).numpy()
+        for k in range(3))
+    scale = np.abs(fa).max(axis=1, keepdims=True) + 1e-6
+    assert np.all(np.abs(analytic - fa) <= 2e-4 * scale + 1e-6)
+
+
+def test_texel_sampler_density_is_consistent_and_normalised(tmp_path):
+    """The mixture sampler's pdf is the one pdf() recomputes, and it integrates to 1 over the
+    hemisphere (cosine and MIS strategies), at a mixed texel."""
+    sv = _rich_folder(tmp_path, "exr")
+    rng = np.random.default_rng(10)
+    n = 4000
+    uv = np.tile([[0.3, 0.55]], (n, 1)).astype(np.float32)
+    wo = np.tile([[0.4, -0.2, 0.89]], (n, 1)).astype(np.float32)
+    for strategy in ("cosine", "mis"):
+        wi, pdf, again = hb._core.svbrdf_sample(sv.path, uv, wo, rng.uniform(0, 1, (n, 2)).astype(np.float32), strategy)
+        ok = pdf > 0
+        assert ok.mean() > 0.95
+        np.testing.assert_allclose(pdf[ok], again[ok], rtol=1e-4)
+    # A chi-square test of the draws against the density: 8 x 8 cells in (cos theta, phi), each cell's
+    # probability by a 24 x 24 midpoint quadrature of pdf (d omega = d cos theta d phi).
+    from scipy.stats import chi2
+
+    m, nz, nphi, q = 100_000, 8, 8, 24
+    cz = (np.arange(nz * q) + 0.5) / (nz * q)
+    cphi = (np.arange(nphi * q) + 0.5) / (nphi * q) * 2 * np.pi
+    Z, P = np.meshgrid(cz, cphi, indexing="ij")
+    R = np.sqrt(1 - Z * Z)
+    grid = np.stack([R * np.cos(P), R * np.sin(P), Z], axis=-1).reshape(-1, 3).astype(np.float32)
+    d_omega = (1.0 / (nz * q)) * (2 * np.pi / (nphi * q))
+    for strategy in ("cosine", "mis"):
+        dens = hb._core.svbrdf_pdf(sv.path, np.tile(uv[:1], (len(grid), 1)), grid, np.tile(wo[:1], (len(grid), 1)), strategy)
+        cell = (dens.reshape(nz, q, nphi, q).sum(axis=(1, 3)) * d_omega).ravel()
+        total = cell.sum()
+        assert 0.97 < total < 1.0 + 1e-3, (strategy, total)  # GGX draws below the horizon are lost, never gained
+        wi, pdf, _ = hb._core.svbrdf_sample(sv.path, np.tile(uv[:1], (m, 1)), np.tile(wo[:1], (m, 1)),
+                                            rng.uniform(0, 1, (m, 2)).astype(np.float32), strategy)
+        ok = (pdf > 0) & (wi[:, 2] > 0)  # GGX reflections below the horizon: drawn, then dropped by the tracer
+        iz = np.clip((wi[ok, 2] * nz).astype(int), 0, nz - 1)
+        iphi = np.clip((np.mod(np.arctan2(wi[ok, 1], wi[ok, 0]), 2 * np.pi) / (2 * np.pi) * nphi).astype(int), 0, nphi - 1)
+        observed = np.bincount(iz * nphi + iphi, minlength=nz * nphi)
+        expected = cell * m
+        keep = expected > 5
+        stat = ((observed[keep] - expected[keep]) ** 2 / expected[keep]).sum()
+        assert chi2.sf(stat, keep.sum() - 1) > 1e-4, (strategy, stat, keep.sum())
+
+
+def _sphere_scene(material, **kw):
+    scene = {"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0], "fov_deg": 35, "width": 24, "height": 24},
+             "environment": {"type": "sky", "resolution": [64, 32]},
+             "materials": {"m": material},
+             "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
+             "spp": 1, "max_depth": 1, "threads": 1}
+    scene.update(kw)
+    return scene
+
+
+def test_tracer_textured_material_of_one_layer_is_the_model_material(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    SVBRDF(m, [m.materials[1]], (4, 4)).save(tmp_path / "sv")
+    uniform, _ = hb.render.tracer.render(_sphere_scene({"type": "model", "file": str(path), "material": m.materials[1]}),
+                                         quiet=True)
+    textured, _ = hb.render.tracer.render(_sphere_scene({"type": "textured", "svbrdf": str(tmp_path / "sv")}), quiet=True)
+    assert np.abs(uniform).max() > 0
+    np.testing.assert_allclose(textured, uniform, rtol=2e-4, atol=1e-6)
+
+
+def test_tracer_reads_the_texel_under_each_hit(tmp_path):
+    """A sphere textured half with material 0, half with material 2 (nearest texels): every pixel is
+    the render of one of the two uniform materials, and both halves are seen."""
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    weights = np.zeros((8, 16, 3), np.float32)
+    weights[:, 12:, 0] = 1.0  # u >= 0.75: layer 1 (the camera on +z sees u in (0.5, 1))
+    SVBRDF(m, [m.materials[0], m.materials[2]], (16, 8), weights).save(tmp_path / "sv")
+    a, _ = hb.render.tracer.render(_sphere_scene({"type": "model", "file": str(path), "material": m.materials[0]}), quiet=True)
+    b, _ = hb.render.tracer.render(_sphere_scene({"type": "model", "file": str(path), "material": m.materials[2]}), quiet=True)
+    t, _ = hb.render.tracer.render(_sphere_scene({"type": "textured", "svbrdf": str(tmp_path / "sv"), "filter": "nearest"}),
+                                   quiet=True)
+    near_a = np.all(np.abs(t - a) <= 2e-4 * np.abs(a) + 1e-6, axis=2)
+    near_b = np.all(np.abs(t - b) <= 2e-4 * np.abs(b) + 1e-6, axis=2)
+    differ = ~np.all(np.abs(a - b) <= 1e-3 * np.abs(a) + 1e-6, axis=2)
+    assert np.all(near_a | near_b)
+    assert (near_a & ~near_b & differ).sum() > 20 and (near_b & ~near_a & differ).sum() > 20
+
+
+def test_tracer_refuses_the_tabulated_sampler_for_textured_materials(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, [m.materials[0]], (2, 2)).save(tmp_path / "sv")
+    with pytest.raises(ValueError, match="tabulated sampler tabulates one BRDF"):
+        hb.render.tracer.render(_sphere_scene({"type": "textured", "svbrdf": str(tmp_path / "sv")}, sampler="tabulated"),
+                                quiet=True)

@@ -10,5 +10,6 @@
 #include "hybridbrdf/model.hpp"
 #include "hybridbrdf/params.hpp"
 #include "hybridbrdf/sampling.hpp"
+#include "hybridbrdf/svbrdf.hpp"
 #include "hybridbrdf/version.hpp"
 #include "hybridbrdf/warp.hpp"

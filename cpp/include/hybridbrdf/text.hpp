@@ -1,4 +1,4 @@
-// hybridbrdf — error text that is safe to show: one printable line.
+// hybridbrdf — text that input checks share: one printable line of error text, JSON nesting depth.
 #pragma once
 
 #include <string>
@@ -10,5 +10,12 @@ namespace hbrdf {
 /// key put in it. Every input error of the library passes its message through here; the Python
 /// package applies the same rule (hybridbrdf.errors.one_line_text), so both report alike.
 std::string one_line_text(const std::string& text);
+
+/// Deepest nesting of arrays and objects in JSON `text`, brackets inside strings not counted
+/// (python/hybridbrdf/inputs.py json_depth, the same rule): the contract bounds it
+/// (spec::kMaxJsonDepth) so that both loaders refuse the same files, and before parsing, as
+/// Python's parser recurses once per level. On malformed text it is a bound the parser then
+/// rejects for another reason.
+int json_depth(const std::string& text);
 
 }  // namespace hbrdf

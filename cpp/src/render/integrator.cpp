@@ -139,7 +139,8 @@ private:
                         s.light_ok = !scene_.occluded(Scene::offset_origin(s.hit, ls.wi), ls.wi);
                     }
                 }
-                const BrdfSample bs = mat.sample(s.wo, Vec2<float>(rng.bounce(depth, kDimBsdf0), rng.bounce(depth, kDimBsdf1)));
+                const BrdfSample bs = mat.sample_at(s.wo, Vec2<float>(rng.bounce(depth, kDimBsdf0), rng.bounce(depth, kDimBsdf1)),
+                                                    s.hit.uv);
                 s.wi_bsdf = bs.wi;
                 s.bsdf_pdf = bs.pdf;
                 s.wi_bsdf_world = s.hit.shading.to_world(bs.wi);
@@ -158,7 +159,7 @@ private:
                 const Shading& s = shading_[k];
                 const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
                 if (s.light_ok) {
-                    const float w = power_heuristic(s.light_pdf, mat.pdf(s.wi_light, s.wo));
+                    const float w = power_heuristic(s.light_pdf, mat.pdf_at(s.wi_light, s.wo, s.hit.uv));
                     add(p, p.throughput * s.f_light * s.light_radiance * (s.wi_light.z * w / s.light_pdf));
                 }
                 if (!s.bsdf_ok) continue;
@@ -202,20 +203,22 @@ private:
             const EvalMode mode = b % 2 == 0 ? EvalMode::Full : EvalMode::Analytic;
             wi_.clear();
             wo_.clear();
+            uv_.clear();
             slots_.clear();
-            auto push = [&](const Vec3f& wi, const Vec3f& wo, Vec3f* slot) {
+            auto push = [&](const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, Vec3f* slot) {
                 wi_.insert(wi_.end(), {wi.x, wi.y, wi.z});
                 wo_.insert(wo_.end(), {wo.x, wo.y, wo.z});
+                uv_.insert(uv_.end(), {uv.x, uv.y});
                 slots_.push_back(slot);
             };
             for (std::size_t i = bucket_[b]; i < bucket_[b + 1]; ++i) {
                 Shading& s = shading_[order_[i]];
-                if (s.light_ok) push(s.wi_light, s.wo, &s.f_light);
-                if (s.bsdf_ok) push(s.wi_bsdf, s.wo, &s.f_bsdf);
+                if (s.light_ok) push(s.wi_light, s.wo, s.hit.uv, &s.f_light);
+                if (s.bsdf_ok) push(s.wi_bsdf, s.wo, s.hit.uv, &s.f_bsdf);
             }
             if (slots_.empty()) continue;
             f_.resize(wi_.size());
-            mat.eval(slots_.size(), wi_.data(), wo_.data(), f_.data(), mode);
+            mat.eval_at(slots_.size(), uv_.data(), wi_.data(), wo_.data(), f_.data(), mode);
             counters.brdf_evals += slots_.size();
             if (mat.uses_network(mode)) counters.network_evals += slots_.size();
             for (std::size_t i = 0; i < slots_.size(); ++i) {
@@ -232,7 +235,7 @@ private:
     std::vector<Path> paths_;
     std::vector<Shading> shading_;
     std::vector<char> hit_;
-    std::vector<float> wi_, wo_, f_;
+    std::vector<float> wi_, wo_, uv_, f_;
     std::vector<Vec3f*> slots_;
     std::vector<std::size_t> bucket_, cursor_, order_;  // the counting sort of evaluate()
 };

@@ -75,6 +75,47 @@ void ModelMaterial::eval(std::size_t n, const float* wi, const float* wo, float*
     }
 }
 
+TexturedMaterial::TexturedMaterial(std::string name, std::shared_ptr<const Svbrdf> svbrdf, TexelFilter filter,
+                                   bool analytic_only)
+    : Material(std::move(name)), svbrdf_(std::move(svbrdf)), filter_(filter), analytic_only_(analytic_only) {
+    isotropic_ = true;  // every layer isotropic and no alpha map that could make it otherwise
+    for (const SvbrdfLayer& l : svbrdf_->layers()) {
+        const AnalyticParams& p = svbrdf_->model().materials()[std::size_t(l.material)].params;
+        isotropic_ = isotropic_ && p.isotropic() && svbrdf_->model().materials()[std::size_t(l.material)].isotropic;
+        for (std::size_t i = 0; isotropic_ && i + 1 < l.alpha.size(); i += 2) isotropic_ = l.alpha[i] == l.alpha[i + 1];
+    }
+}
+
+AnalyticParams TexturedMaterial::base_params() const {
+    return svbrdf_->model().materials()[std::size_t(svbrdf_->layers()[0].material)].params;
+}
+
+void TexturedMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const {
+    const std::vector<float> uv(2 * n, 0.0f);
+    eval_at(n, uv.data(), wi, wo, f, mode);
+}
+
+void TexturedMaterial::eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f,
+                               EvalMode mode) const {
+    const bool analytic = analytic_only_ || mode == EvalMode::Analytic;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Vec2<float> t(uv[2 * i], uv[2 * i + 1]);
+        const Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
+        const Vec3f v = analytic ? svbrdf_->eval_analytic(t, filter_, a, b) : svbrdf_->eval(t, filter_, a, b);
+        f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
+    }
+}
+
+BrdfSample TexturedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
+    const std::optional<Strategy> s = sampler_strategy(sampler_kind());
+    return svbrdf_->sample(uv, filter_, s ? *s : Strategy::Cosine, wo, u);
+}
+
+float TexturedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
+    const std::optional<Strategy> s = sampler_strategy(sampler_kind());
+    return svbrdf_->pdf(uv, filter_, s ? *s : Strategy::Cosine, wi, wo);
+}
+
 void CallbackMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode) const {
     eval_(n, wi, wo, f);
     for (std::size_t i = 0; i < 3 * n; ++i) f[i] = (f[i] > 0.0f && is_finite(f[i])) ? f[i] : 0.0f;

@@ -1,6 +1,8 @@
 // hybridbrdf renderer — meshes from files (assimp) and planes.
 #include "hybridbrdf/render/mesh.hpp"
 
+#include <cmath>
+
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
@@ -52,11 +54,12 @@ TriangleMesh load_mesh(const std::string& path, bool smooth_normals) {
         throw FileError(path, "cannot read the mesh: " + problem);
     }
     TriangleMesh mesh;
-    bool all_normals = smooth_normals, all_tangents = true;
+    bool all_normals = smooth_normals, all_tangents = true, all_uvs = true;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* am = scene->mMeshes[m];
         all_normals = all_normals && am->HasNormals();
         all_tangents = all_tangents && am->HasTangentsAndBitangents();
+        all_uvs = all_uvs && am->HasTextureCoords(0);
     }
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* am = scene->mMeshes[m];
@@ -72,6 +75,10 @@ TriangleMesh load_mesh(const std::string& path, bool smooth_normals) {
             if (all_tangents) {
                 const aiVector3D& t = am->mTangents[v];
                 mesh.tangents.push_back(normalized_or(Vec3f(t.x, t.y, t.z), Vec3f(0)));
+            }
+            if (all_uvs) {  // files put v = 0 at the bottom (OpenGL); textures here have it at the top (glTF)
+                const aiVector3D& t = am->mTextureCoords[0][v];
+                mesh.uvs.emplace_back(std::isfinite(t.x) ? t.x : 0.f, std::isfinite(t.y) ? 1.f - t.y : 0.f);
             }
         }
         for (unsigned f = 0; f < am->mNumFaces; ++f) {
@@ -99,6 +106,7 @@ TriangleMesh make_plane(const Vec3f& center, const Vec3f& normal, const Vec3f& t
     mesh.positions = {center - a - b, center + a - b, center + a + b, center - a + b};
     mesh.normals.assign(4, n);
     mesh.tangents.assign(4, frame.t);
+    mesh.uvs = {Vec2<float>(0, 1), Vec2<float>(1, 1), Vec2<float>(1, 0), Vec2<float>(0, 0)};
     mesh.indices = {0, 1, 2, 0, 2, 3};  // counter-clockwise seen from +n
     return mesh;
 }

@@ -129,6 +129,9 @@ void check_mesh(const TriangleMesh& m) {
     if (!m.normals.empty() && m.normals.size() != m.positions.size())
         throw std::invalid_argument("the mesh has " + std::to_string(m.normals.size()) + " normals for " +
                                     std::to_string(m.positions.size()) + " vertices");
+    if (!m.uvs.empty() && m.uvs.size() != m.positions.size())
+        throw std::invalid_argument("the mesh has " + std::to_string(m.uvs.size()) + " uvs for " +
+                                    std::to_string(m.positions.size()) + " vertices");
     if (!m.tangents.empty() && m.tangents.size() != m.positions.size())
         throw std::invalid_argument("the mesh has " + std::to_string(m.tangents.size()) + " tangents for " +
                                     std::to_string(m.positions.size()) + " vertices");
@@ -242,6 +245,8 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         hit->p = s.center + n * s.radius;  // reprojected onto the surface
         ng = ns = n;
         tangent = Vec3f(-n.z, 0.0f, n.x);  // d p / d phi about +y
+        const float phi = std::atan2(n.z, n.x);  // increases along the tangent
+        hit->uv = Vec2<float>(phi * (0.5f * kInvPi<float>) + 0.5f, std::acos(std::clamp(n.y, -1.0f, 1.0f)) * kInvPi<float>);
     } else {
         const TriangleMesh& m = *meshes_[std::size_t(g.index)];
         const std::uint32_t* tri = &m.indices[3 * std::size_t(rh.hit.primID)];
@@ -252,6 +257,7 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         ns = m.normals.empty() ? ng : normalized(m.normals[tri[0]] * w + m.normals[tri[1]] * u + m.normals[tri[2]] * v);
         if (!(dot(ns, ns) > 0.0f)) ns = ng;
         if (!m.tangents.empty()) tangent = m.tangents[tri[0]] * w + m.tangents[tri[1]] * u + m.tangents[tri[2]] * v;
+        hit->uv = m.uvs.empty() ? Vec2<float>(0.0f) : m.uvs[tri[0]] * w + m.uvs[tri[1]] * u + m.uvs[tri[2]] * v;
         if (dot(ns, ng) < 0.0f) ns = -ns;  // files whose winding disagrees with their normals
     }
     if (dot(ng, dir) > 0.0f) {  // hit from behind: surfaces are two-sided

@@ -1,5 +1,6 @@
 // hybridbrdf renderer — the JSON scene format (docs/RENDERING.md).
 #include "hybridbrdf/render/scene_loader.hpp"
+#include "hybridbrdf/render/svbrdf_io.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -204,7 +205,7 @@ std::string material_type(const Reader& r, const json& m, const std::string& w) 
 }
 
 [[noreturn]] void unknown_material_type(const Reader& r, const std::string& w, const std::string& type) {
-    r.fail(w + ".type", "unknown material type '" + type + "'; expected analytic, model or measured");
+    r.fail(w + ".type", "unknown material type '" + type + "'; expected analytic, model, measured or textured");
 }
 
 AnalyticParams read_analytic(const Reader& r, const json& m, const std::string& w) {
@@ -219,6 +220,28 @@ ModelMaterialDecl read_model_decl(const Reader& r, const json& m, const std::str
     d.name = name;
     d.file = r.resolve(r.string(r.require(m, w, "file"), w + ".file"));
     d.material = r.string(r.require(m, w, "material"), w + ".material");
+    const std::string evaluate = m.contains("evaluate") ? r.string(m.at("evaluate"), w + ".evaluate") : "full";
+    if (evaluate != "full" && evaluate != "analytic")
+        r.fail(w + ".evaluate", "expected 'full' or 'analytic', got '" + evaluate + "'");
+    d.analytic_only = evaluate == "analytic";
+    return d;
+}
+
+struct TexturedDecl {
+    std::string folder;  // resolved against the scene's folder
+    TexelFilter filter = TexelFilter::Bilinear;
+    bool analytic_only = false;
+};
+
+// {"type": "textured", "svbrdf": FOLDER, "filter": "bilinear" | "nearest", "evaluate": "full" | "analytic"}
+TexturedDecl read_textured_decl(const Reader& r, const json& m, const std::string& w) {
+    r.check_keys(m, w, {"type", "svbrdf", "filter", "evaluate"});
+    TexturedDecl d;
+    d.folder = r.resolve(r.string(r.require(m, w, "svbrdf"), w + ".svbrdf"));
+    const std::string filter = m.contains("filter") ? r.string(m.at("filter"), w + ".filter") : "bilinear";
+    if (filter != "bilinear" && filter != "nearest")
+        r.fail(w + ".filter", "expected 'bilinear' or 'nearest', got '" + filter + "'");
+    d.filter = filter == "nearest" ? TexelFilter::Nearest : TexelFilter::Bilinear;
     const std::string evaluate = m.contains("evaluate") ? r.string(m.at("evaluate"), w + ".evaluate") : "full";
     if (evaluate != "full" && evaluate != "analytic")
         r.fail(w + ".evaluate", "expected 'full' or 'analytic', got '" + evaluate + "'");
@@ -281,7 +304,13 @@ public:
             read_object(objects[i], "objects[" + std::to_string(i) + "]", scene);
         }
         // Samplers last: a tabulated one evaluates its material millions of times.
-        if (scene.settings.sampler == SamplerKind::Tabulated) check_tabulated_budget(scene);
+        if (scene.settings.sampler == SamplerKind::Tabulated) {
+            for (const auto& mat : scene.materials)
+                if (std::string(mat->type()) == "textured")
+                    r_.fail("materials." + mat->name(), "the tabulated sampler tabulates one BRDF; a textured material "
+                                                        "samples its texel's layers: use sampler cosine, ggx or mis");
+            check_tabulated_budget(scene);
+        }
         for (std::size_t m = 0; m < scene.materials.size(); ++m) {
             throw_if_cancelled(options_.cancel);
             try {
@@ -447,6 +476,20 @@ private:
                 r_.fail(w, e.what());
             }
         }
+        if (type == "textured") {
+            const TexturedDecl d = read_textured_decl(r_, m, w);
+            std::shared_ptr<const Svbrdf>& sv = svbrdfs_[d.folder];
+            if (!sv) {
+                try {
+                    sv = load_svbrdf(d.folder);
+                } catch (const std::exception& e) {
+                    r_.fail(w + ".svbrdf", e.what());
+                }
+            }
+            auto tm = std::make_unique<TexturedMaterial>(name, sv, d.filter, d.analytic_only);
+            proxies_.push_back(tm->base_params());  // records the strategy; sampling reads the texel's layers
+            return tm;
+        }
         if (type == "measured") {
             MeasuredDecl d = read_measured_decl(r_, m, w);
             if (!options_.measured)
@@ -569,6 +612,7 @@ private:
     std::map<std::string, int> named_;
     std::map<std::string, std::shared_ptr<const HybridModel>> models_;
     std::vector<std::optional<AnalyticParams>> proxies_;  // by material index
+    std::map<std::string, std::shared_ptr<const Svbrdf>> svbrdfs_;  // by folder: read once
 };
 
 }  // namespace
@@ -599,6 +643,7 @@ SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_
         if (type == "analytic") read_analytic(r, m, w);
         else if (type == "model") decl.model_materials.push_back(read_model_decl(r, m, w, name));
         else if (type == "measured") read_measured_decl(r, m, w);
+        else if (type == "textured") decl.textured_folders.push_back(read_textured_decl(r, m, w).folder);
         else unknown_material_type(r, w, type);
         if (type != "model") decl.other_materials.push_back({w, name, type});
     };

@@ -78,7 +78,8 @@ def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dic
 
 
 def scene_inputs(data: Dict[str, Any], base_dir: str) -> List[str]:
-    """The files a scene dict names (model files, measured sources, environment maps, meshes),
+    """The files a scene dict names (model files, measured sources, textured materials' files,
+    environment maps, meshes),
     resolved against ``base_dir`` as the library resolves them. Read before the scene is
     validated, so anything that is not a path string is passed over (the library reports it)."""
     found: List[str] = []
@@ -91,6 +92,10 @@ def scene_inputs(data: Dict[str, Any], base_dir: str) -> List[str]:
         if isinstance(m, dict):
             add(m.get("file"))
             add(m.get("source"))
+            folder = m.get("svbrdf")  # a textured material: its folder's files (index, model, maps)
+            if isinstance(folder, str) and folder and os.path.isdir(os.path.join(base_dir, folder)):
+                root = os.path.join(base_dir, folder)
+                found.extend(os.path.join(root, f) for f in sorted(os.listdir(root)))
 
     materials = data.get("materials")
     if isinstance(materials, dict):

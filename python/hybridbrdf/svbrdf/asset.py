@@ -219,6 +219,11 @@ class SVBRDF:
         self.model = load_model(os.path.join(folder, SV["model_file"]))  # evaluated by libhybridbrdf from now on
 
 
+def _no_constant(name: str):
+    """NaN, Infinity and -Infinity are not JSON (RFC 8259); libhybridbrdf's parser refuses them too."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
 def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray], wi, wo, dtype) -> np.ndarray:
     """The texels' f with the PyTorch model: per layer, the pairs of positive weight."""
     mod = model._module(dtype)
@@ -281,7 +286,7 @@ def load_svbrdf(folder) -> SVBRDF:
         raise SVBRDFError(folder, "no such folder" if not os.path.lexists(folder) else "is not a folder")
     index_path = os.path.join(folder, SV["index_file"])
     text = read_input_text(index_path, "textured-material index", SV["max_index_bytes"], SVBRDFError)
-    index = loads_json(text, index_path, "textured-material index", SVBRDFError)
+    index = loads_json(text, index_path, "textured-material index", SVBRDFError, parse_constant=_no_constant)
     if not isinstance(index, dict):
         raise SVBRDFError(index_path, "the index must be a JSON object")
     unknown, missing = set(index) - INDEX_KEYS, INDEX_KEYS - set(index)

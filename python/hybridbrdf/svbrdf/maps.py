@@ -57,7 +57,8 @@ def read_map(path) -> Tuple[np.ndarray, int]:
                         raise InputFileError(path, f"is not a PNG file (Pillow reads it as {img.format})")
                     _check_size(path, *img.size)  # from the header, before any pixel is decoded
                     if img.mode != "RGB":
-                        raise InputFileError(path, f"texel maps are 8-bit RGB PNG; this one is mode '{img.mode}'")
+                        raise InputFileError(path, f"texel maps are 8-bit RGB PNG; this one has "
+                                                   f"{len(img.getbands())} channel(s) (mode '{img.mode}')")
                     values = np.asarray(img.convert("RGB"), dtype=np.float64) / 255.0
         except InputFileError:
             raise

@@ -26,6 +26,7 @@
 #include "hybridbrdf/render/frame.hpp"
 #include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/sampling.hpp"
+#include "hybridbrdf/svbrdf.hpp"
 #include "hybridbrdf/tabulated.hpp"
 
 namespace hbrdf::render {
@@ -80,6 +81,12 @@ public:
     /// local frame of docs/CONVENTIONS.md (+z normal, +x tangent; wi toward the
     /// light, wo toward the viewer), f (n, 3) RGB without the cosine. Thread-safe.
     virtual void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const = 0;
+    /// f at texture coordinates uv (n, 2; SurfaceHit::uv): a textured material reads its maps
+    /// there, the others ignore uv (this default calls eval).
+    virtual void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const {
+        (void)uv;
+        eval(n, wi, wo, f, mode);
+    }
 
     /// True when eval(..., Analytic) differs from Full, i.e. the material has a
     /// network the integrator may skip (hybrid model materials).
@@ -87,7 +94,7 @@ public:
     /// True when eval(..., mode) runs a network (for the render statistics).
     virtual bool uses_network(EvalMode) const { return false; }
     virtual bool isotropic() const { return true; }
-    /// "analytic", "model" or "measured".
+    /// "analytic", "model", "measured" or "textured".
     virtual const char* type() const = 0;
 
     const std::string& name() const { return name_; }
@@ -107,6 +114,16 @@ public:
     BrdfSample sample(const Vec3f& wo, const Vec2<float>& u) const;
     /// Density with which sample() draws wi given wo.
     float pdf(const Vec3f& wi, const Vec3f& wo) const;
+    /// sample() and pdf() at texture coordinates uv: a textured material draws from its texel's
+    /// layers there; the others ignore uv.
+    virtual BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
+        (void)uv;
+        return sample(wo, u);
+    }
+    virtual float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
+        (void)uv;
+        return pdf(wi, wo);
+    }
 
     SamplerKind sampler_kind() const { return sampler_; }
     /// Bytes the sampler keeps for this material (the analytic proxy: its parameters).
@@ -157,6 +174,32 @@ private:
     std::shared_ptr<const HybridModel> model_;
     int index_;
     bool analytic_only_, has_analytic_;
+};
+
+/// A textured material ({"type": "textured", "svbrdf": FOLDER}; docs/SVBRDF.md): per hit, the
+/// texel of its uv, the layers' mixture sum_k w_k f_t (libhybridbrdf's scalar texel path). Its
+/// analytic part is sum_k w_k f_a(p_k); it samples the mixture of its layers' f_a samplers with the
+/// scene's strategy (cosine, ggx or mis; the tabulated sampler tabulates one BRDF and is refused).
+class TexturedMaterial final : public Material {
+public:
+    TexturedMaterial(std::string name, std::shared_ptr<const Svbrdf> svbrdf, TexelFilter filter, bool analytic_only);
+    /// At uv (0, 0) (callers without texture coordinates).
+    void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const override;
+    bool has_analytic_part() const override { return !analytic_only_; }
+    bool uses_network(EvalMode mode) const override { return !(analytic_only_ || mode == EvalMode::Analytic); }
+    bool isotropic() const override { return isotropic_; }
+    const char* type() const override { return "textured"; }
+    const Svbrdf& svbrdf() const { return *svbrdf_; }
+    /// The analytic parameters of the base layer's material: what set_sampler records the strategy with.
+    AnalyticParams base_params() const;
+
+private:
+    std::shared_ptr<const Svbrdf> svbrdf_;
+    TexelFilter filter_;
+    bool analytic_only_, isotropic_;
 };
 
 /// A measured reference behind a batched callback ({"type": "measured"}; the

@@ -16,6 +16,9 @@ struct TriangleMesh {
     std::vector<Vec3f> positions;
     std::vector<Vec3f> normals;   ///< per vertex shading normals; empty = use the geometric normal
     std::vector<Vec3f> tangents;  ///< per vertex tangents (from UVs); empty = arbitrary frame
+    /// per vertex texture coordinates, (0, 0) the texture's top left (glTF 2.0; docs/SVBRDF.md);
+    /// empty = uv (0, 0) everywhere
+    std::vector<Vec2<float>> uvs;
     std::vector<std::uint32_t> indices;  ///< 3 per triangle
 
     std::size_t triangle_count() const { return indices.size() / 3; }
@@ -46,7 +49,8 @@ TriangleMesh load_mesh(const std::string& path, bool smooth_normals = true);
 
 /// A square-cornered rectangle of size (sx, sy) centred at `center`, facing
 /// `normal`, its first side along `tangent` (any direction not parallel to
-/// the normal; the shading frame's +x).
+/// the normal; the shading frame's +x). uv: u along the tangent from 0 to 1, v from 0 at the
+/// side the bitangent (normal x tangent) points to, to 1: the image upright seen from +normal.
 TriangleMesh make_plane(const Vec3f& center, const Vec3f& normal, const Vec3f& tangent, float sx, float sy);
 
 }  // namespace hbrdf::render

@@ -17,3 +17,4 @@
 #include "hybridbrdf/render/scene_loader.hpp"
 #include "hybridbrdf/render/settings.hpp"
 #include "hybridbrdf/render/sky.hpp"
+#include "hybridbrdf/render/svbrdf_io.hpp"

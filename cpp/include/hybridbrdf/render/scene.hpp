@@ -45,6 +45,10 @@ struct SurfaceHit {
     Vec3f p;       ///< position
     Vec3f ng;      ///< geometric normal, facing the incoming ray
     Frame shading; ///< shading frame, its normal on the same side as ng
+    /// texture coordinates (docs/SVBRDF.md): spheres u = phi / 2 pi about +y (along the tangent),
+    /// v = theta / pi from the +y pole; meshes their interpolated vertex uvs (0 without); planes
+    /// 0 to 1 across (make_plane)
+    Vec2<float> uv{0.0f};
     int material = -1;
 };
 

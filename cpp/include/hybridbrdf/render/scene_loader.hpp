@@ -69,6 +69,7 @@ struct SceneDecl {
     RenderSettings settings;
     std::vector<ModelMaterialDecl> model_materials;  ///< in file order
     std::vector<OtherMaterialDecl> other_materials;  ///< in file order
+    std::vector<std::string> textured_folders;       ///< the "svbrdf" folders of textured materials, resolved
 };
 
 /// Reads a scene's settings and materials with the readers and checks of

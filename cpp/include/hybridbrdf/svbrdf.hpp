@@ -1,0 +1,82 @@
+// hybridbrdf — textured (spatially varying) materials in memory: decoded texel maps of a
+// model's layers, texel lookup (bilinear or nearest, repeat or clamp) and evaluation
+// (docs/SVBRDF.md; spec/model.json, svbrdf). An engine that decodes its own textures fills a
+// Svbrdf directly; render::load_svbrdf reads a painted folder (PNG/EXR maps) into one.
+//
+//   f(uv, wi, wo) = sum_k w_k(uv) f_t(wi, wo; p_k(uv), z_k(uv), material k's output layer and table)
+//
+// The weights are linear in f, so bilinear filtering of the weights map is exactly the bilinear
+// filter of the layers' BRDFs; p and z maps are filtered as values (docs/SVBRDF.md measures the
+// difference at edges).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "hybridbrdf/model.hpp"
+#include "hybridbrdf/sampling.hpp"
+
+namespace hbrdf {
+
+enum class TexelFilter { Bilinear, Nearest };
+enum class TexelAddressing { Repeat, Clamp };
+
+/// One layer: a material of the model and its optional maps, each empty (the material's own
+/// value everywhere) or width * height * components floats, row 0 the top row (glTF's uv origin).
+struct SvbrdfLayer {
+    int material = 0;
+    std::vector<float> kd;      ///< 3 components
+    std::vector<float> eta;     ///< 3 components
+    std::vector<float> alpha;   ///< 2 components
+    std::vector<float> latent;  ///< latent_dim() components
+};
+
+/// The layers' values at one uv, ready for HybridModel::eval_texel.
+struct Texel {
+    int n_layers = 0;
+    TexelLayer layers[spec::kSvbrdfMaxLayers];
+    float latent[spec::kSvbrdfMaxLayers * spec::kMaxLatent];
+};
+
+class Svbrdf {
+public:
+    /// Throws std::invalid_argument for a neural model, 0 or more than kSvbrdfMaxLayers layers, a
+    /// material index out of range, a size outside 1..kSvbrdfMaxSide, maps of the wrong length,
+    /// values that are not finite, or a missing weights map (several layers; width * height * 3
+    /// floats: w_1, w_2, w_3 of layers 1-3).
+    Svbrdf(std::shared_ptr<const HybridModel> model, int width, int height, TexelAddressing addressing,
+           std::vector<SvbrdfLayer> layers, std::vector<float> weights);
+
+    const HybridModel& model() const { return *model_; }
+    int width() const { return width_; }
+    int height() const { return height_; }
+    int layer_count() const { return int(layers_.size()); }
+    TexelAddressing addressing() const { return addressing_; }
+    const std::vector<SvbrdfLayer>& layers() const { return layers_; }
+
+    /// The layers' values at uv: maps decoded then filtered (in double, so that a constant map
+    /// gives its value exactly), then the weights normalised (w_0 = 1 - w_1 - w_2 - w_3; divided
+    /// by their sum when it is above 1). A non-finite uv reads uv = (0, 0): a tracer never throws
+    /// per hit.
+    void texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const;
+    /// f(uv, wi, wo) through HybridModel::eval_texel.
+    Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// sum_k w_k f_a(p_k): the analytic part of the texel.
+    Vec3<float> eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
+                              const Vec3<float>& wo) const;
+    /// A direction from the texel's mixture of the layers' f_a samplers (strategy `s`): layer k
+    /// chosen with probability w_k by u.x (rescaled), its sample drawn; pdf = sum_k w_k pdf_k.
+    BrdfSample sample(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wo,
+                      const Vec2<float>& u) const;
+    /// The density sample() draws wi with.
+    float pdf(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo) const;
+
+private:
+    std::shared_ptr<const HybridModel> model_;
+    int width_, height_;
+    TexelAddressing addressing_;
+    std::vector<SvbrdfLayer> layers_;
+    std::vector<float> weights_;
+};
+
+}  // namespace hbrdf

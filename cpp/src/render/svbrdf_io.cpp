@@ -1,0 +1,330 @@
+// hybridbrdf renderer — a textured material's folder into a Svbrdf (svbrdf_io.hpp).
+#include "hybridbrdf/render/svbrdf_io.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <tuple>
+
+#include <nlohmann/json.hpp>
+#include <stb/stb_image.h>
+
+#include "hybridbrdf/render/image.hpp"
+#include "hybridbrdf/spec.hpp"
+#include "hybridbrdf/text.hpp"
+
+namespace hbrdf::render {
+
+namespace {
+
+using json = nlohmann::json;
+
+constexpr const char* kIndexFile = "svbrdf.json";
+constexpr std::uint64_t kMaxIndexBytes = 1 << 20;
+constexpr int kChannels = spec::kSvbrdfMapChannels;
+
+struct Quantity {
+    const char* name;
+    int components;  // -1: the latent dimension
+    bool per_layer;
+    double min, max;
+};
+// spec/model.json, svbrdf.quantities (the order of the spec).
+const Quantity kQuantities[] = {
+    {"weights", 3, false, 0.0, 1.0},
+    {"kd", 3, true, spec::kKdMin, spec::kKdMax},
+    {"eta", 3, true, spec::kEtaMin, spec::kEtaMax},
+    {"alpha", 2, true, spec::kAlphaMin, spec::kAlphaMax},
+    {"latent", -1, true, -1e6, 1e6},
+};
+
+const Quantity* find_quantity(const std::string& name) {
+    for (const Quantity& q : kQuantities)
+        if (name == q.name) return &q;
+    return nullptr;
+}
+
+double transfer(const std::string& name, double v) {
+    if (name == "srgb") return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+    if (name == "square") return v * v;
+    return v;  // linear (checked before)
+}
+
+bool is_int(const json& v) { return v.is_number_integer(); }
+
+std::string read_index(const std::string& path) {
+    check_input_file(path, "textured-material index");
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && std::uint64_t(st.st_size) > kMaxIndexBytes)
+        throw FileError(path, "textured-material index too long: " + std::to_string(st.st_size) + " bytes (a textured-material index is at most " +
+                                  std::to_string(kMaxIndexBytes) + " bytes)");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw FileError(path, "cannot read the textured-material index");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+void plain_name(const std::string& index_path, const json& name, const std::string& what) {
+    if (!name.is_string()) throw FileError(index_path, what + " must be a plain file name inside the folder");
+    const std::string n = name.get<std::string>();
+    if (n.empty() || n == "." || n == ".." || n[0] == '.' || n.find('/') != std::string::npos ||
+        n.find('\\') != std::string::npos || n.find('\0') != std::string::npos)
+        throw FileError(index_path, what + " must be a plain file name inside the folder, got '" + n + "'");
+}
+
+// Stored values (H, W, 3) of a map, as doubles (PNG bytes / 255, EXR floats), size checked.
+std::vector<double> read_map(const std::string& path, int width, int height, bool* eight_bit) {
+    const auto dot = path.find_last_of('.');
+    std::string ext = dot == std::string::npos ? "" : path.substr(dot);
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext != ".png" && ext != ".exr")
+        throw FileError(path, "texel maps are .png (8-bit) or .exr (float32), not '" + (ext.empty() ? std::string("no extension") : ext) + "'");
+    check_input_file(path, "texel map");
+    std::vector<double> out;
+    int w = 0, h = 0;
+    if (ext == ".png") {
+        int comp = 0;
+        if (!stbi_info(path.c_str(), &w, &h, &comp)) {
+            const char* why = stbi_failure_reason();
+            throw FileError(path, std::string("cannot read the PNG map: ") + (why ? why : "unknown"));
+        }
+        if (w < 1 || h < 1 || w > spec::kSvbrdfMaxSide || h > spec::kSvbrdfMaxSide)
+            throw FileError(path, "map is " + std::to_string(w) + "x" + std::to_string(h) + "; each side must be 1 to " +
+                                      std::to_string(spec::kSvbrdfMaxSide) + " texels");
+        if (comp != 3 || stbi_is_16_bit(path.c_str()))
+            throw FileError(path, "texel maps are 8-bit RGB PNG; this one has " + std::to_string(comp) + " channel(s)" +
+                                      (stbi_is_16_bit(path.c_str()) ? " of 16 bits" : ""));
+        int c = 0;
+        unsigned char* data = stbi_load(path.c_str(), &w, &h, &c, 3);
+        if (!data) {
+            const char* why = stbi_failure_reason();
+            throw FileError(path, std::string("cannot read the PNG map: ") + (why ? why : "unknown"));
+        }
+        out.assign(std::size_t(w) * std::size_t(h) * 3, 0.0);
+        for (std::size_t i = 0; i < out.size(); ++i) out[i] = data[i] / 255.0;
+        stbi_image_free(data);
+        *eight_bit = true;
+    } else {
+        const Image img = read_image(path);
+        w = img.width, h = img.height;
+        if (w > spec::kSvbrdfMaxSide || h > spec::kSvbrdfMaxSide)
+            throw FileError(path, "map is " + std::to_string(w) + "x" + std::to_string(h) + "; each side must be 1 to " +
+                                      std::to_string(spec::kSvbrdfMaxSide) + " texels");
+        out.assign(img.rgb.begin(), img.rgb.end());
+        for (std::size_t i = 0; i < out.size(); ++i)
+            if (!std::isfinite(out[i])) {
+                const std::size_t t = i / 3;
+                throw FileError(path, "texel (" + std::to_string(t % std::size_t(w)) + ", " + std::to_string(t / std::size_t(w)) +
+                                          ") channel " + "RGB"[i % 3] + " is not finite (maps must be finite)");
+            }
+        *eight_bit = false;
+    }
+    if (w != width || h != height)
+        throw FileError(path, "map is " + std::to_string(w) + "x" + std::to_string(h) + "; the index says " +
+                                  std::to_string(width) + "x" + std::to_string(height));
+    return out;
+}
+
+std::string fmt(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+}  // namespace
+
+std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
+    std::string folder = folder_in;
+    while (folder.size() > 1 && folder.back() == '/') folder.pop_back();
+    struct stat st {};
+    if (::stat(folder.c_str(), &st) != 0) throw FileError(folder, "no such folder");
+    if (!S_ISDIR(st.st_mode)) throw FileError(folder, "is not a folder");
+    const std::string index_path = folder + "/" + kIndexFile;
+    json index;
+    const std::string text = read_index(index_path);
+    if (json_depth(text) > spec::kMaxJsonDepth)
+        throw FileError(index_path, "textured-material index: JSON nested deeper than " + std::to_string(spec::kMaxJsonDepth) + " levels");
+    try {
+        index = json::parse(text);
+    } catch (const json::parse_error& e) {
+        throw FileError(index_path, std::string("textured-material index is not valid JSON (") + e.what() + ")");
+    }
+    if (!index.is_object()) throw FileError(index_path, "the index must be a JSON object");
+    static const std::set<std::string> keys = {"format_version", "model", "size", "addressing", "layers", "maps"};
+    for (const auto& item : index.items())
+        if (!keys.count(item.key())) throw FileError(index_path, "unknown keys ['" + item.key() + "']");
+    for (const std::string& k : keys)
+        if (!index.contains(k)) throw FileError(index_path, "missing keys ['" + k + "']");
+    if (!is_int(index["format_version"]) || index["format_version"].get<long long>() != spec::kSvbrdfFormatVersion)
+        throw FileError(index_path, "format_version " + index["format_version"].dump() + " is not supported (this library reads " +
+                                        std::to_string(spec::kSvbrdfFormatVersion) + ")");
+    plain_name(index_path, index["model"], "model");
+    const std::string model_path = folder + "/" + index["model"].get<std::string>();
+    std::shared_ptr<const HybridModel> model;
+    try {
+        model = std::make_shared<const HybridModel>(HybridModel::load(model_path));
+    } catch (const ModelFileError& e) {
+        throw FileError(e.path(), e.problem());
+    }
+    if (!model->arch().analytic)
+        throw FileError(model_path, "a textured material needs a hybrid model; this one is the neural baseline");
+    const json& size = index["size"];
+    if (!size.is_array() || size.size() != 2 || !is_int(size[0]) || !is_int(size[1]) || size[0].get<long long>() < 1 ||
+        size[1].get<long long>() < 1 || size[0].get<long long>() > spec::kSvbrdfMaxSide || size[1].get<long long>() > spec::kSvbrdfMaxSide)
+        throw FileError(index_path, "size must be [W, H], integers 1 to " + std::to_string(spec::kSvbrdfMaxSide) + ", got " + size.dump());
+    const int width = size[0].get<int>(), height = size[1].get<int>();
+    const json& addressing = index["addressing"];
+    if (!addressing.is_string() || (addressing != "repeat" && addressing != "clamp"))
+        throw FileError(index_path, "addressing must be one of repeat, clamp, got " + addressing.dump());
+    const json& layers_j = index["layers"];
+    if (!layers_j.is_array() || layers_j.empty() || int(layers_j.size()) > spec::kSvbrdfMaxLayers)
+        throw FileError(index_path, "layers must be a list of 1 to " + std::to_string(spec::kSvbrdfMaxLayers) + " layers");
+    std::vector<SvbrdfLayer> layers(layers_j.size());
+    for (std::size_t k = 0; k < layers_j.size(); ++k) {
+        const json& l = layers_j[k];
+        if (!l.is_object() || l.size() != 1 || !l.contains("material") || !l["material"].is_string())
+            throw FileError(index_path, "layer " + std::to_string(k) + " must be {\"material\": NAME}");
+        const int m = model->find(l["material"].get<std::string>());
+        if (m < 0)
+            throw FileError(index_path, "layer " + std::to_string(k) + ": material '" + l["material"].get<std::string>() +
+                                            "' is not in " + index["model"].get<std::string>());
+        layers[k].material = m;
+    }
+    const int n_layers = int(layers.size()), latent = model->latent_dim();
+    const std::size_t texels = std::size_t(width) * std::size_t(height);
+    std::vector<float> weights;
+    std::set<std::tuple<std::string, int, int>> seen;
+    std::map<std::pair<int, std::string>, std::map<int, std::vector<double>>> parts;  // (layer, quantity) -> first -> values
+    if (!index["maps"].is_array()) throw FileError(index_path, "maps must be a list");
+    for (const json& e : index["maps"]) {
+        static const std::set<std::string> map_keys = {"file", "quantity", "layer", "first", "decode"};
+        bool ok = e.is_object() && e.contains("file") && e.contains("quantity") && e.contains("first") && e.contains("decode");
+        if (ok)
+            for (const auto& item : e.items()) ok = ok && map_keys.count(item.key());
+        if (!ok) throw FileError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", \"decode\"}");
+        const Quantity* q = e["quantity"].is_string() ? find_quantity(e["quantity"].get<std::string>()) : nullptr;
+        if (!q) throw FileError(index_path, "unknown map quantity " + e["quantity"].dump() + " (expected one of weights, kd, eta, alpha, latent)");
+        const std::string qn = q->name;
+        if (q->per_layer != e.contains("layer"))
+            throw FileError(index_path, "a " + qn + " map " + (q->per_layer ? "needs" : "has no") + " \"layer\"");
+        int layer = -1;
+        if (q->per_layer) {
+            if (!is_int(e["layer"]) || e["layer"].get<long long>() < 0 || e["layer"].get<long long>() >= n_layers)
+                throw FileError(index_path, qn + " map: layer must be 0 to " + std::to_string(n_layers - 1) + ", got " + e["layer"].dump());
+            layer = e["layer"].get<int>();
+        }
+        const int c = q->components < 0 ? latent : q->components;
+        if (!is_int(e["first"]) || e["first"].get<long long>() < 0 || e["first"].get<long long>() >= c ||
+            e["first"].get<long long>() % kChannels != 0)
+            throw FileError(index_path, qn + " map: first must be a multiple of " + std::to_string(kChannels) + " below " +
+                                            std::to_string(c) + ", got " + e["first"].dump());
+        const int first = e["first"].get<int>();
+        plain_name(index_path, e["file"], "a map's file");
+        const std::string file = e["file"].get<std::string>();
+        const std::string path = folder + "/" + file;
+        const json& decodes = e["decode"];
+        const int used = std::min(kChannels, c - first);
+        if (!decodes.is_array() || int(decodes.size()) != kChannels)
+            throw FileError(index_path, file + ": decode must list " + std::to_string(kChannels) + " channels");
+        const auto dot = file.find_last_of('.');
+        std::string ext = dot == std::string::npos ? "" : file.substr(dot);
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+        if (ext != ".png" && ext != ".exr")
+            throw FileError(path, "texel maps are .png (8-bit) or .exr (float32), not '" + (ext.empty() ? std::string("no extension") : ext) + "'");
+        const bool png = ext == ".png";
+        for (int ch = 0; ch < kChannels; ++ch) {
+            const json& d = decodes[std::size_t(ch)];
+            const std::string where = file + " channel " + "RGB"[ch] + ": ";
+            if (ch >= used) {
+                if (!d.is_null() && qn != "weights")
+                    throw FileError(index_path, file + ": channel " + "RGB"[ch] + " holds no " + qn + " component; its decode must be null");
+                continue;
+            }
+            if (!d.is_object() || d.size() != 3 || !d.contains("transfer") || !d.contains("scale") || !d.contains("offset"))
+                throw FileError(index_path, where + "a channel's decode must be {\"transfer\", \"scale\", \"offset\"}");
+            if (!d["transfer"].is_string() || (d["transfer"] != "linear" && d["transfer"] != "srgb" && d["transfer"] != "square"))
+                throw FileError(index_path, where + "unknown transfer '" + (d["transfer"].is_string() ? d["transfer"].get<std::string>() : d["transfer"].dump()) +
+                                                "' (expected one of linear, srgb, square)");
+            for (const char* key : {"scale", "offset"})
+                if (!d[key].is_number() || !std::isfinite(d[key].get<double>()))
+                    throw FileError(index_path, where + "decode " + key + " must be a finite number, got " + d[key].dump());
+            if (png) {
+                const std::string tr = d["transfer"].get<std::string>();
+                const double a = d["offset"].get<double>() + d["scale"].get<double>() * transfer(tr, 0.0);
+                const double b = d["offset"].get<double>() + d["scale"].get<double>() * transfer(tr, 1.0);
+                const double lo = std::min(a, b), hi = std::max(a, b);
+                const double slack = 1e-6 * std::max({1.0, std::fabs(q->min), std::fabs(q->max)});
+                if (lo < q->min - slack || hi > q->max + slack)
+                    throw FileError(index_path, where + "decodes to [" + fmt(lo) + ", " + fmt(hi) + "], outside " + qn + "'s range [" +
+                                                    fmt(q->min) + ", " + fmt(q->max) + "]");
+            }
+        }
+        if (!seen.insert({qn, layer, first}).second)
+            throw FileError(index_path, "two maps give " + qn + " " + std::to_string(first) + ".." + std::to_string(first + 2) +
+                                            (layer < 0 ? "" : " of layer " + std::to_string(layer)));
+        bool eight_bit = false;
+        const std::vector<double> stored = read_map(path, width, height, &eight_bit);
+        std::vector<double> values(texels * std::size_t(used));
+        for (int ch = 0; ch < used; ++ch) {
+            const json& d = decodes[std::size_t(ch)];
+            const std::string tr = d["transfer"].get<std::string>();
+            const double scale = d["scale"].get<double>(), offset = d["offset"].get<double>();
+            for (std::size_t t = 0; t < texels; ++t) {
+                const double v = offset + scale * transfer(tr, stored[3 * t + std::size_t(ch)]);
+                if (!(v >= q->min && v <= q->max))
+                    throw FileError(path, "texel (" + std::to_string(t % std::size_t(width)) + ", " + std::to_string(t / std::size_t(width)) +
+                                              ") channel " + "RGB"[ch] + " decodes to " + fmt(float(v)) + ", outside " + qn + "'s range [" +
+                                              fmt(q->min) + ", " + fmt(q->max) + "]");
+                values[t * std::size_t(used) + std::size_t(ch)] = v;
+            }
+        }
+        if (qn == "weights") {
+            for (std::size_t t = 0; t < texels; ++t)
+                for (int ch = n_layers - 1; ch < 3; ++ch)
+                    if (values[t * 3 + std::size_t(ch)] != 0.0)
+                        throw FileError(path, "weights of layers beyond the last (" + std::to_string(n_layers - 1) + ") must be 0");
+            weights.assign(values.begin(), values.end());
+        } else {
+            parts[{layer, qn}][first] = std::move(values);
+        }
+    }
+    for (auto& [key, pieces] : parts) {
+        const auto& [layer, qn] = key;
+        const Quantity* q = find_quantity(qn);
+        const int c = q->components < 0 ? latent : q->components;
+        int expect = 0;
+        for (const auto& piece : pieces) {
+            if (piece.first != expect) break;
+            expect += kChannels;
+        }
+        if (expect < c || int(pieces.size()) * kChannels < c) {
+            std::string starts;
+            for (const auto& piece : pieces) starts += (starts.empty() ? "" : ", ") + std::to_string(piece.first);
+            throw FileError(index_path, "layer " + std::to_string(layer) + ": " + qn + " maps must cover components 0.." +
+                                            std::to_string(c - 1) + " (maps start at [" + starts + "])");
+        }
+        std::vector<float> joined(texels * std::size_t(c));
+        for (const auto& [first, vals] : pieces) {
+            const int used = std::min(kChannels, c - first);
+            for (std::size_t t = 0; t < texels; ++t)
+                for (int ch = 0; ch < used; ++ch)
+                    joined[t * std::size_t(c) + std::size_t(first + ch)] = float(vals[t * std::size_t(used) + std::size_t(ch)]);
+        }
+        SvbrdfLayer& L = layers[std::size_t(layer)];
+        (qn == "kd" ? L.kd : qn == "eta" ? L.eta : qn == "alpha" ? L.alpha : L.latent) = std::move(joined);
+    }
+    if (n_layers > 1 && weights.empty())
+        throw FileError(index_path, std::to_string(n_layers) + " layers need a weights map");
+    return std::make_shared<const Svbrdf>(model, width, height,
+                                          addressing == "repeat" ? TexelAddressing::Repeat : TexelAddressing::Clamp,
+                                          std::move(layers), std::move(weights));
+}
+
+}  // namespace hbrdf::render
