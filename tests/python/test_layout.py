@@ -152,7 +152,7 @@ def test_every_name_is_imported_from_its_home():
 PUBLIC = {"ALPHA_MAX", "ALPHA_MIN", "CONVENTIONS_VERSION", "ETA_MAX", "ETA_MIN", "MIS_MIN_LOBE_PROBABILITY",
           "STRATEGIES", "AnalyticParams", "BRDFFormatError", "BRDFSource", "FitSettings", "HybridModel", "add",
           "InputFileError", "ModelFileError", "expand_sources", "load_model", "load_prior", "prior_path",
-          "open_source", "analytic_eval", "pdf", "sample", "simd_path"}
+          "open_source", "analytic_eval", "pdf", "sample", "simd_path", "load_svbrdf", "SVBRDF"}
 
 
 def test_the_public_namespace():
