@@ -22,6 +22,7 @@ import os
 from typing import Callable, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from PIL import Image
 
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
@@ -50,8 +51,6 @@ def read_grey(path: PathLike, what: str) -> np.ndarray:
         if values.min() < 0 or values.max() > 1:
             raise InputFileError(path, f"{what} values must lie in [0, 1]; found {values.min():g} to {values.max():g}")
         return values
-    from PIL import Image
-
     try:
         with Image.open(path) as img:
             if not (0 < img.size[0] <= MAX_SIDE and 0 < img.size[1] <= MAX_SIDE):

@@ -13,6 +13,7 @@ import warnings
 from typing import Tuple
 
 import numpy as np
+from PIL import Image
 
 from hybridbrdf import _core, spec
 from hybridbrdf.errors import InputFileError
@@ -47,8 +48,6 @@ def read_map(path) -> Tuple[np.ndarray, int]:
     bits = map_bits(path)
     check_input_file(path, "texel map", MAX_MAP_BYTES)
     if bits:
-        from PIL import Image  # Pillow: a matplotlib dependency, declared by the package
-
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("error", Image.DecompressionBombWarning)
@@ -85,8 +84,6 @@ def write_map(path, values: np.ndarray) -> None:
         raise ValueError(f"a map has shape (H, W, {CHANNELS}), got {values.shape}")
     _check_size(path, values.shape[1], values.shape[0])
     if map_bits(path):
-        from PIL import Image
-
         if values.dtype != np.uint8:
             raise ValueError(f"an 8-bit map needs uint8 values, got {values.dtype}")
         buf = io.BytesIO()
