@@ -5,8 +5,8 @@ defaults to a prior that never saw any RGL material in any form
 prior's recipe), scored with the CONVENTIONS metrics against the material's own f_a and against the
 shipped prior's fit of the same material (trained jointly WITH it: the bar of a joint fit).
 
-    python bench/leaveout_sweep.py [--prior FILE] [--count 24] [--loss-eps EPS] [--pairs 100000]
-        [--shared ../shared/data] [--out DIR]
+    python bench/leaveout_sweep.py [--prior FILE] [--count 24] [--materials A,B] [--loss-eps EPS] [--pairs 100000]
+        [--shared ../shared/data] [--out ROWS.jsonl]
 
 The materials are every other one of the 49 NBRDF-RGL reconstructions in sorted order (24 by
 default; --count 49 takes all). Per material: SMAPE and cMAE of the hybrid, of its f_a and of the
@@ -42,15 +42,19 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--prior", default=str(PRIOR88), help="a prior that never saw the materials (default: %(default)s)")
     ap.add_argument("--count", type=int, default=24, help="materials in the sweep (every other NBRDF-RGL one)")
+    ap.add_argument("--materials", help="only these NBRDF-RGL materials, comma-separated (default: the sweep's)")
     ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps (default: the default's)")
     ap.add_argument("--pairs", type=int, default=100_000, help="metric pairs per material (CONVENTIONS: 10^5)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
-    ap.add_argument("--out", help="write one JSON line per material here (a file)")
+    ap.add_argument("--out", help="append one JSON line per material to this file; rows already in it (same "
+                                  "loss eps) are kept and not fitted again")
     args = ap.parse_args()
     folder = pathlib.Path(args.shared) / "nbrdf" / "rgl"
     stems = sorted(p.stem for p in folder.glob("*.json"))
     stride = max(1, len(stems) // args.count) if args.count < len(stems) else 1
     stems = stems[::stride][:args.count]
+    if args.materials:
+        stems = [m.strip() for m in args.materials.split(",") if m.strip()]
     prior = hb.load_model(args.prior)
     seen = set(prior.materials) | {m.rsplit(".", 1)[0] for m in prior.materials}
     leaked = sorted(s for s in stems if s in seen)
@@ -65,15 +69,25 @@ def main() -> int:
     print(f"{'material':28s} {'SMAPE':>7s} {'f_a':>7s} {'joint':>7s} {'cMAE':>8s} {'f_a':>8s} {'joint':>8s} "
           f"{'s':>5s}  guard", flush=True)
     rows = []
+    if args.out and os.path.exists(args.out):  # a sweep resumed: its finished rows are kept
+        with open(args.out) as fh:
+            rows = [r for r in map(json.loads, fh) if r["loss_eps"] == settings.loss_eps and r["material"] in stems]
+        for r in rows:
+            print(f"{r['material'][:28]:28s} {r['smape']:7.4f} {r['smape_a']:7.4f} {r['smape_joint']:7.4f} {r['cmae']:8.5f} "
+                  f"{r['cmae_a']:8.5f} {r['cmae_joint']:8.5f} {r['seconds']:5.0f}  {r['guard']}  (earlier run)")
+    done = {r["material"] for r in rows}
     sink = open(args.out, "a") if args.out else None
     for stem in stems:
+        if stem in done:
+            continue
         src = hb.open_source(str(folder / f"{stem}.h5"))
         t0 = time.perf_counter()
         log = []
         model = add([src], settings=settings, progress=False, prior=args.prior, log=log.append)
         seconds = time.perf_counter() - t0
         row = evaluate(model, [src], n_pairs=args.pairs, names=[model.materials[0]])[0]
-        ref = evaluate(joint, [src], n_pairs=args.pairs, names=[stem])[0]
+        joint_name = stem if stem in joint.materials else f"{stem}.nbrdf"  # the raw file's twin is <stem>.rgl
+        ref = evaluate(joint, [src], n_pairs=args.pairs, names=[joint_name])[0]
         guard = model.material_info[0].get("guard")
         action = guard.get("action") if isinstance(guard, dict) else "-"
         rec = dict(material=stem, smape=row["smape"], cmae=row["cmae"], smape_a=row["smape_analytic"],

@@ -2,7 +2,7 @@
 analytic part (issue 49; docs/FITTING.md, "Never worse than f_a").
 
 The network corrects f_a; a material whose corrected f_t measures worse than f_a alone (SMAPE or
-cMAE beyond :data:`hybridbrdf.evaluate.evaluation.WORSE_MARGIN`, the table's "!") has a correction
+cMAE above f_a's on the metric pairs; the table's "!" marks it beyond a margin) has a correction
 that hurts on that metric, while it usually helps on the other (a correction that halves cMAE can
 raise SMAPE in dark regions). With material output layers (each material its own head) the fit
 can act on that material alone, the shared hidden layers untouched. Candidates:
@@ -16,10 +16,12 @@ can act on that material alone, the shared hidden layers untouched. Candidates:
 - **analytic**: the head that makes f_t equal f_a exactly: weights 0, the correction's bias -200
   (exp(-200) is 0 in float32, 1e-87 in float64) and the gate's +200 (sigmoid(200) is 1 in both).
 
-Each is scored on pairs other than the metrics' (seed :data:`CHOICE_SEED`); of those within half the
-table's margin of f_a on both metrics (analytic always is: the other half covers the difference
-between the two sets of pairs) the one with the lowest cMAE is kept: the correction's gain on the
-metric it helps is kept as far as the other allows. The material's record says what was done (``guard``: the action, the shifts, and
+The guard acts on every material whose hybrid is worse than its f_a on either metric at all (on
+the metric pairs), not only beyond the table's margin. Each candidate is scored on pairs other
+than the metrics' (seed :data:`CHOICE_SEED`); of those at most f_a's on both metrics (analytic always
+is: equal) the one with the lowest cMAE is kept, the correction's gain on the metric it helps kept
+as far as the other allows; if the kept one is worse than f_a on the metric pairs after all, the
+material is set to its f_a. The material's record says what was done (``guard``: the action, the shifts, and
 the metrics before). A shared output layer cannot be changed for one material: the fit leaves
 such a material as it is and says so in the log (the table's "!" stays)."""
 
@@ -31,7 +33,7 @@ from typing import Callable, List, Sequence
 import torch
 
 from hybridbrdf import spec
-from hybridbrdf.evaluate.evaluation import WORSE_MARGIN, evaluate, worse_than_analytic
+from hybridbrdf.evaluate.evaluation import evaluate, worse_than_analytic
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
@@ -50,20 +52,18 @@ CHOICE_SEED = 11
 ANALYTIC_BIAS = 200.0
 
 
-def is_worse(metrics) -> bool:
-    """Whether a material's metrics (its record's ``metrics``) are worse than its f_a's on either."""
-    return any(worse_than_analytic(metrics, k) for k in ("smape", "cmae") if k + "_analytic" in metrics)
+def is_worse(metrics, margin: bool = True) -> bool:
+    """Whether a material's metrics (its record's ``metrics``) are worse than its f_a's on either:
+    beyond the table's margin (``margin``, the table's "!"), or at all (what the guard acts on)."""
+    keys = [k for k in ("smape", "cmae") if k + "_analytic" in metrics]
+    if margin:
+        return any(worse_than_analytic(metrics, k) for k in keys)
+    return any(metrics[k] > metrics[k + "_analytic"] for k in keys)
 
 
-def _within_half_margin(row) -> bool:
-    """Both metrics within half of WORSE_MARGIN of f_a's: a candidate chosen on one set of pairs
-    stays inside the whole margin on another."""
-    for k in ("smape", "cmae"):
-        rel, floor = WORSE_MARGIN[k]
-        a = row[k + "_analytic"]
-        if row[k] > a + 0.5 * (rel * a + floor):
-            return False
-    return True
+def _not_worse(row) -> bool:
+    """Both metrics at most f_a's (on the pairs the row was measured on)."""
+    return all(row[k] <= row[k + "_analytic"] for k in ("smape", "cmae"))
 
 
 def analytic_head(model: HybridModel, i: int, fc: float = -ANALYTIC_BIAS, fg: float = ANALYTIC_BIAS) -> HybridModel:
@@ -120,7 +120,7 @@ def apply(model: HybridModel, sources: Sequence, names: List[str], settings, fit
     materials are refitted and re-measured. ``fit``: :func:`hybridbrdf.fit.fit.fit` (which calls
     this at the end of every fit, so it cannot be imported here)."""
     infos = {m["name"]: m for m in model.material_info}
-    worse = [k for k, n in enumerate(names) if is_worse(infos[n].get("metrics", {}))]
+    worse = [k for k, n in enumerate(names) if is_worse(infos[n].get("metrics", {}), margin=False)]
     if not worse:
         return model
     if model.output_layer != "material" or not model.has_analytic:
@@ -153,9 +153,13 @@ def apply(model: HybridModel, sources: Sequence, names: List[str], settings, fit
         candidates += [({"action": "tempered", "dc": dc, "dg": dg}, _shifted(free, i, dc, dg)) for dc, dg in TEMPER_GRID]
         candidates.append(({"action": "analytic"}, analytic_head(free, i)))
         scored = [(what, m) + score(m, i) for what, m in candidates]
-        feasible = [c for c in scored if _within_half_margin(c[2])]
-        what, free, _, _ = min(feasible, key=lambda c: c[3])
-        after = evaluate(free, [src], n_pairs=settings.eval_pairs, names=[name])[0]
+        feasible = [c for c in scored if _not_worse(c[2])]
+        what, chosen, _, _ = min(feasible, key=lambda c: c[3])
+        after = evaluate(chosen, [src], n_pairs=settings.eval_pairs, names=[name])[0]
+        if not _not_worse(after):  # better on the scoring pairs, not on the metric pairs: f_a itself
+            what, chosen = candidates[-1]
+            after = evaluate(chosen, [src], n_pairs=settings.eval_pairs, names=[name])[0]
+        free = chosen
         after = {k2: v for k2, v in after.items() if k2 not in ("material", "origin")}
         info = free.material_info[i]
         info["metrics"] = after
