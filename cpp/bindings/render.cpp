@@ -343,7 +343,9 @@ void bind_render(py::module_& m) {
             out["settings"] = settings_dict(decl.settings);
             out["model_materials"] = models;
             out["other_materials"] = others;
-            out["textured_folders"] = decl.textured_folders;
+            py::list folders;
+            for (const auto& folder : decl.textured_folders) folders.append(folder);
+            out["textured_folders"] = folders;
             return out;
         },
         py::arg("json_text"), py::arg("base_dir"), py::arg("origin"),
@@ -373,18 +375,22 @@ void bind_render(py::module_& m) {
     m.def(
         "svbrdf_eval",
         [](const std::string& folder, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-           const std::string& filter, bool analytic) {
+           const std::string& filter, bool analytic, bool batched) {
             if (uv.ndim() != 2 || uv.shape(1) != 2 || wi.ndim() != 2 || wi.shape(1) != 3 || wo.ndim() != 2 ||
                 wo.shape(1) != 3 || wi.shape(0) != uv.shape(0) || wo.shape(0) != uv.shape(0))
                 throw std::invalid_argument("uv (N, 2), wi and wo (N, 3) must have the same N");
             if (filter != "bilinear" && filter != "nearest") throw std::invalid_argument("filter must be bilinear or nearest");
             const auto sv = hr::load_svbrdf(folder);
-            const py::ssize_t n = uv.shape(0);
+            py::ssize_t n = uv.shape(0);
             FloatArray f({n, py::ssize_t(3)});
             {
                 py::gil_scoped_release release;
                 const hbrdf::TexelFilter flt = filter == "nearest" ? hbrdf::TexelFilter::Nearest : hbrdf::TexelFilter::Bilinear;
                 float* o = f.mutable_data();
+                if (batched && !analytic) {
+                    sv->eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o);
+                    n = 0;  // done
+                }
                 for (py::ssize_t i = 0; i < n; ++i) {
                     const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> a(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]);
@@ -396,9 +402,10 @@ void bind_render(py::module_& m) {
             return f;
         },
         py::arg("folder"), py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("filter") = "bilinear",
-        py::arg("analytic") = false,
+        py::arg("analytic") = false, py::arg("batched") = false,
         "A textured material's folder read by libhybridbrdf's loader (render::load_svbrdf) and evaluated at (N, 2) uv: "
-        "f, or with analytic its f_a mixture; (N, 3).");
+        "f through the scalar path (Svbrdf::eval) or, with batched, Svbrdf::eval_batch; with analytic its f_a "
+        "mixture; (N, 3).");
     m.def(
         "svbrdf_sample",
         [](const std::string& folder, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,

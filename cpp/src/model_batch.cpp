@@ -226,6 +226,71 @@ struct ModelBatchKernels {
         }
     }
 
+    // f of texel layers (HybridModel::eval_batch_layers): entries [0, n), each with its own material,
+    // p and z; runs of one material chunk by chunk, as run() does, except that f_a comes from each
+    // lane's own parameters and the latent code is a row of the first layer's input (the full W0)
+    // instead of being folded into its bias.
+    template <class Dense>
+    HBRDF_KERNEL_INLINE static void run_layers(const HybridModel& md, std::size_t n, const float* wi_aos,
+                                               const float* wo_aos, const TexelLayer* layers, float* f_aos) {
+        const int width = md.width_, n_in = md.n_in_, latent = md.latent_;
+        const spec::ArchSpec& as = md.arch();
+        std::vector<float> scratch(static_cast<std::size_t>(kChunk) * (n_in + 2 * width + 6 + 9 + 1 + 3));
+        Rows rows;
+        rows.X = scratch.data();            // n_in rows: direction inputs, latent code, extra inputs
+        rows.A = rows.X + n_in * kChunk;
+        rows.B = rows.A + width * kChunk;
+        rows.O = rows.B + width * kChunk;
+        rows.D = rows.O + 6 * kChunk;
+        rows.V = rows.D + 9 * kChunk;
+        rows.F = rows.V + kChunk;
+        const DenseLayer& L0 = md.layers_[0];
+        std::size_t start = 0;
+        while (start < n) {
+            const int m = layers[start].material;
+            int cnt = 1;
+            while (cnt < kChunk && start + std::size_t(cnt) < n && layers[start + std::size_t(cnt)].material == m) ++cnt;
+            directions_to_rows(wi_aos + 3 * start, wo_aos + 3 * start, cnt, rows.D);
+            normalise_rows(rows.D, rows.V);
+            float* fa = rows.D + 6 * kChunk;
+            for (int i = 0; i < kChunk; ++i) {  // each lane its own f_a (padding lanes repeat the first)
+                const TexelLayer& t = layers[start + std::size_t(i < cnt ? i : 0)];
+                const Vec3<float> v = AnalyticBrdf(t.params).eval(
+                    Vec3<float>(rows.D[i], rows.D[kChunk + i], rows.D[2 * kChunk + i]),
+                    Vec3<float>(rows.D[3 * kChunk + i], rows.D[4 * kChunk + i], rows.D[5 * kChunk + i]));
+                fa[i] = v.x, fa[kChunk + i] = v.y, fa[2 * kChunk + i] = v.z;
+            }
+            float* X = rows.X;
+            if (as.directions == spec::DirectionInputs::Reciprocal) {
+                reciprocal_rows(rows.D, X);
+            } else {
+                std::copy(rows.D, rows.D + 6 * kChunk, X);
+                if (as.directions == spec::DirectionInputs::LocalHalf) half_angle_rows(rows.D, X + 6 * kChunk);
+            }
+            for (int k = 0; k < latent; ++k)
+                for (int i = 0; i < kChunk; ++i)
+                    X[(as.direction_count + k) * kChunk + i] = layers[start + std::size_t(i < cnt ? i : 0)].latent[k];
+            if (as.extra == spec::ExtraInputs::Log1pFa)
+                for (int c = 0; c < 3; ++c)
+                    for (int i = 0; i < kChunk; ++i) X[(as.direction_count + latent + c) * kChunk + i] = std::log1p(fa[c * kChunk + i]);
+            float* A = rows.A;
+            float* B = rows.B;
+            Dense::run(L0.weight.data(), L0.bias.data(), n_in, width, X, A, md.activation_, false);
+            for (int l = 1; l <= md.depth_; ++l) {
+                const bool last = l == md.depth_;
+                const DenseLayer& L = last ? md.output_layer(m) : md.layers_[l];
+                Dense::run(L.weight.data(), L.bias.data(), L.n_in, L.n_out, A, last ? rows.O : B, md.activation_, last);
+                if (!last) std::swap(A, B);
+            }
+            combine<Dense>(md, rows);
+            if (md.energy_bound_ == EnergyBound::AlbedoTable) energy_bound_rows(md.materials_[m].energy_bound, rows);
+            float* out = f_aos + 3 * start;
+            for (int i = 0; i < cnt; ++i)
+                for (int c = 0; c < 3; ++c) out[3 * i + c] = rows.F[c * kChunk + i];
+            start += std::size_t(cnt);
+        }
+    }
+
   private:
     // A chunk's scratch rows, kChunk values each.
     struct Rows {
@@ -403,6 +468,21 @@ bool cpu_has_avx512() {
 }
 #endif
 
+void run_layers_baseline(const HybridModel& md, std::size_t n, const float* wi, const float* wo, const TexelLayer* t,
+                         float* f) {
+    ModelBatchKernels::run_layers<DensePortable>(md, n, wi, wo, t, f);
+}
+#if HBRDF_SIMD_X86
+__attribute__((target("avx2,fma"))) void run_layers_avx2(const HybridModel& md, std::size_t n, const float* wi,
+                                                         const float* wo, const TexelLayer* t, float* f) {
+    ModelBatchKernels::run_layers<DenseAvx2>(md, n, wi, wo, t, f);
+}
+__attribute__((target("avx512f,avx2,fma"))) void run_layers_avx512(const HybridModel& md, std::size_t n, const float* wi,
+                                                                   const float* wo, const TexelLayer* t, float* f) {
+    ModelBatchKernels::run_layers<DenseAvx512>(md, n, wi, wo, t, f);
+}
+#endif
+
 std::atomic<int> g_model_simd_limit{2};  // 0 baseline, 1 avx2+fma, 2 avx512 (the best the CPU has)
 }  // namespace
 
@@ -441,6 +521,23 @@ void HybridModel::eval_batch(int m, std::size_t n, const float* wi, const float*
     }
 #endif
     run_baseline(*this, m, n, wi, wo, f);
+}
+
+void HybridModel::eval_batch_layers(std::size_t n, const float* wi, const float* wo, const TexelLayer* layers,
+                                    float* f) const {
+    if (kind_ == ModelKind::Neural) throw std::logic_error("textured materials need a hybrid model (f_a per texel)");
+    for (std::size_t i = 0; i < n; ++i) {
+        check_material(layers[i].material);
+        if (!layers[i].latent) throw std::invalid_argument("texel layer has no latent code");
+    }
+#if HBRDF_SIMD_X86
+    switch (detail::model_kernel_level()) {
+        case 2: return run_layers_avx512(*this, n, wi, wo, layers, f);
+        case 1: return run_layers_avx2(*this, n, wi, wo, layers, f);
+        default: break;
+    }
+#endif
+    run_layers_baseline(*this, n, wi, wo, layers, f);
 }
 
 void HybridModel::prepare_batch() {

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hbrdf {
 
@@ -146,6 +148,50 @@ Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<f
     Texel t;
     texel(uv, filter, &t);
     return model_->eval_texel(t.layers, t.n_layers, wi, wo);
+}
+
+void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
+                        float* f) const {
+    const int L = layer_count(), l = model_->latent_dim();
+    // Every (pair, layer) of positive weight, its texel values, then sorted by the layer's material.
+    std::vector<Texel> texels(n);
+    std::vector<std::uint32_t> entry_pair;
+    std::vector<TexelLayer> entries;
+    std::vector<float> latent;
+    entries.reserve(n), entry_pair.reserve(n), latent.reserve(n * std::size_t(l));
+    for (std::size_t i = 0; i < n; ++i) {
+        texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, &texels[i]);
+        for (int k = 0; k < L; ++k)
+            if (texels[i].layers[k].weight > 0.f) {
+                entries.push_back(texels[i].layers[k]);
+                entry_pair.push_back(std::uint32_t(i));
+            }
+    }
+    const std::size_t m = entries.size();
+    std::vector<std::size_t> order(m);
+    for (std::size_t e = 0; e < m; ++e) order[e] = e;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return entries[a].material < entries[b].material; });
+    std::vector<float> dir_i(3 * m), dir_o(3 * m), out(3 * m);
+    std::vector<TexelLayer> sorted(m);
+    latent.resize(m * std::size_t(l));
+    for (std::size_t r = 0; r < m; ++r) {
+        const std::size_t e = order[r], p = entry_pair[e];
+        std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * r]);
+        std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * r]);
+        sorted[r] = entries[e];
+        std::copy(entries[e].latent, entries[e].latent + l, &latent[r * std::size_t(l)]);
+        sorted[r].latent = &latent[r * std::size_t(l)];
+    }
+    model_->eval_batch_layers(m, dir_i.data(), dir_o.data(), sorted.data(), out.data());
+    std::vector<std::size_t> row_of(m);
+    for (std::size_t r = 0; r < m; ++r) row_of[order[r]] = r;
+    std::fill(f, f + 3 * n, 0.f);
+    for (std::size_t e = 0; e < m; ++e) {  // entries are in (pair, layer) order: the scalar path's sum order
+        const std::size_t p = entry_pair[e], r = row_of[e];
+        const float w = entries[e].weight;
+        for (int c = 0; c < 3; ++c) f[3 * p + std::size_t(c)] = f[3 * p + std::size_t(c)] + out[3 * r + std::size_t(c)] * w;
+    }
 }
 
 Vec3<float> Svbrdf::eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,

@@ -133,6 +133,11 @@ public:
     /// (AVX-512 or AVX2+FMA when the CPU has it: model_simd_path()), the latent code folded
     /// into the first layer's bias.
     void eval_batch(int m, std::size_t n, const float* wi, const float* wo, float* f) const;
+    /// Batched f_t of texel layers (no weights applied): entry i evaluates layers[i] (its material's
+    /// output layer and energy table, its own p and latent code) on wi, wo (n, 3) row-major; f (n, 3).
+    /// Vectorised like eval_batch over runs of entries of one material (sort entries by material for
+    /// speed; the latent code enters the first layer per lane). Throws as eval_texel does.
+    void eval_batch_layers(std::size_t n, const float* wi, const float* wo, const TexelLayer* layers, float* f) const;
     /// Floating-point operations of one batched evaluation's network (multiply-adds count 2),
     /// with the latent folded as eval_batch does; for throughput benchmarks.
     double flops_per_eval() const;

@@ -61,6 +61,10 @@ public:
     void texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const;
     /// f(uv, wi, wo) through HybridModel::eval_texel.
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). The texels' layers of
+    /// positive weight are sorted by material and evaluated by HybridModel::eval_batch_layers (the
+    /// vectorised kernels), then mixed in layer order: the batched twin of eval().
+    void eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f) const;
     /// sum_k w_k f_a(p_k): the analytic part of the texel.
     Vec3<float> eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
                               const Vec3<float>& wo) const;

@@ -98,10 +98,11 @@ void TexturedMaterial::eval(std::size_t n, const float* wi, const float* wo, flo
 void TexturedMaterial::eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f,
                                EvalMode mode) const {
     const bool analytic = analytic_only_ || mode == EvalMode::Analytic;
+    if (!analytic) return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f);
     for (std::size_t i = 0; i < n; ++i) {
         const Vec2<float> t(uv[2 * i], uv[2 * i + 1]);
         const Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
-        const Vec3f v = analytic ? svbrdf_->eval_analytic(t, filter_, a, b) : svbrdf_->eval(t, filter_, a, b);
+        const Vec3f v = svbrdf_->eval_analytic(t, filter_, a, b);
         f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
     }
 }
