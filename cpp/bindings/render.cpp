@@ -372,87 +372,91 @@ void bind_render(py::module_& m) {
         },
         py::arg("image"), py::arg("path"), py::arg("exposure") = 0.0f, py::arg("tonemap") = "clamp",
         "Write an 8-bit sRGB PNG (exposure in stops, then clamp or ACES, then the sRGB OETF), atomically.");
-    m.def(
-        "svbrdf_eval",
-        [](const std::string& folder, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-           const std::string& filter, bool analytic, bool batched) {
-            if (uv.ndim() != 2 || uv.shape(1) != 2 || wi.ndim() != 2 || wi.shape(1) != 3 || wo.ndim() != 2 ||
-                wo.shape(1) != 3 || wi.shape(0) != uv.shape(0) || wo.shape(0) != uv.shape(0))
-                throw std::invalid_argument("uv (N, 2), wi and wo (N, 3) must have the same N");
-            if (filter != "bilinear" && filter != "nearest") throw std::invalid_argument("filter must be bilinear or nearest");
-            const auto sv = hr::load_svbrdf(folder);
-            py::ssize_t n = uv.shape(0);
-            FloatArray f({n, py::ssize_t(3)});
-            {
+    using SvbrdfPtr = std::shared_ptr<hbrdf::Svbrdf>;  // pybind11 holders are not const; the object is never changed
+    const auto filter_of = [](const std::string& filter) {
+        if (filter != "bilinear" && filter != "nearest") throw std::invalid_argument("filter must be bilinear or nearest");
+        return filter == "nearest" ? hbrdf::TexelFilter::Nearest : hbrdf::TexelFilter::Bilinear;
+    };
+    const auto strategy_of = [](const std::string& s) {
+        if (s != "cosine" && s != "ggx" && s != "mis") throw std::invalid_argument("strategy must be cosine, ggx or mis");
+        return s == "cosine" ? hbrdf::Strategy::Cosine : s == "ggx" ? hbrdf::Strategy::Ggx : hbrdf::Strategy::Mis;
+    };
+    const auto rows = [](const FloatArray& a, py::ssize_t n, py::ssize_t c, const char* what) {
+        if (a.ndim() != 2 || a.shape(0) != n || a.shape(1) != c)
+            throw std::invalid_argument(std::string(what) + " must have shape (N, " + std::to_string(c) + ")");
+    };
+    py::class_<hbrdf::Svbrdf, SvbrdfPtr>(m, "Svbrdf",
+                                         "A textured material's folder read by libhybridbrdf's loader (render::load_svbrdf, "
+                                         "the tracer's; docs/SVBRDF.md).")
+        .def(py::init([](const std::string& folder) { return std::const_pointer_cast<hbrdf::Svbrdf>(hr::load_svbrdf(folder)); }),
+             py::arg("folder"))
+        .def_property_readonly("size", [](const hbrdf::Svbrdf& sv) { return py::make_tuple(sv.width(), sv.height()); })
+        .def_property_readonly("layer_count", &hbrdf::Svbrdf::layer_count)
+        .def(
+            "eval",
+            [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
+                const std::string& filter, bool analytic, bool batched) {
+                const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
+                rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
+                const hbrdf::TexelFilter flt = filter_of(filter);
+                FloatArray f({n, py::ssize_t(3)});
                 py::gil_scoped_release release;
-                const hbrdf::TexelFilter flt = filter == "nearest" ? hbrdf::TexelFilter::Nearest : hbrdf::TexelFilter::Bilinear;
                 float* o = f.mutable_data();
                 if (batched && !analytic) {
-                    sv->eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o);
-                    n = 0;  // done
+                    sv.eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o);
+                    return f;
                 }
                 for (py::ssize_t i = 0; i < n; ++i) {
                     const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> a(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]);
                     const hbrdf::Vec3<float> b(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                    const auto v = analytic ? sv->eval_analytic(t, flt, a, b) : sv->eval(t, flt, a, b);
+                    const auto v = analytic ? sv.eval_analytic(t, flt, a, b) : sv.eval(t, flt, a, b);
                     o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
                 }
-            }
-            return f;
-        },
-        py::arg("folder"), py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("filter") = "bilinear",
-        py::arg("analytic") = false, py::arg("batched") = false,
-        "A textured material's folder read by libhybridbrdf's loader (render::load_svbrdf) and evaluated at (N, 2) uv: "
-        "f through the scalar path (Svbrdf::eval) or, with batched, Svbrdf::eval_batch; with analytic its f_a "
-        "mixture; (N, 3).");
-    m.def(
-        "svbrdf_sample",
-        [](const std::string& folder, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,
-           const std::string& strategy) {
-            const auto sv = hr::load_svbrdf(folder);
-            const py::ssize_t n = uv.shape(0);
-            if (uv.ndim() != 2 || uv.shape(1) != 2 || wo.ndim() != 2 || wo.shape(0) != n || wo.shape(1) != 3 ||
-                u.ndim() != 2 || u.shape(0) != n || u.shape(1) != 2)
-                throw std::invalid_argument("uv (N, 2), wo (N, 3) and u (N, 2) must have the same N");
-            const hbrdf::Strategy s = strategy == "cosine" ? hbrdf::Strategy::Cosine
-                                      : strategy == "ggx"  ? hbrdf::Strategy::Ggx
-                                                           : hbrdf::Strategy::Mis;
-            FloatArray wi({n, py::ssize_t(3)}), pdf({n}), pdf_again({n});
-            for (py::ssize_t i = 0; i < n; ++i) {
-                const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
-                const hbrdf::Vec3<float> o(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                const auto b = sv->sample(t, hbrdf::TexelFilter::Bilinear, s, o, hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
-                for (int c = 0; c < 3; ++c) wi.mutable_data()[3 * i + c] = b.wi[c];
-                pdf.mutable_data()[i] = b.pdf;
-                pdf_again.mutable_data()[i] = b.pdf > 0.f ? sv->pdf(t, hbrdf::TexelFilter::Bilinear, s, b.wi, o) : 0.f;
-            }
-            return py::make_tuple(wi, pdf, pdf_again);
-        },
-        py::arg("folder"), py::arg("uv"), py::arg("wo"), py::arg("u"), py::arg("strategy") = "mis",
-        "Textured-material sampling (bilinear texels): (wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).");
-    m.def(
-        "svbrdf_pdf",
-        [](const std::string& folder, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-           const std::string& strategy) {
-            const auto sv = hr::load_svbrdf(folder);
-            const py::ssize_t n = uv.shape(0);
-            if (uv.ndim() != 2 || uv.shape(1) != 2 || wi.ndim() != 2 || wi.shape(0) != n || wi.shape(1) != 3 ||
-                wo.ndim() != 2 || wo.shape(0) != n || wo.shape(1) != 3)
-                throw std::invalid_argument("uv (N, 2), wi and wo (N, 3) must have the same N");
-            const hbrdf::Strategy s = strategy == "cosine" ? hbrdf::Strategy::Cosine
-                                      : strategy == "ggx"  ? hbrdf::Strategy::Ggx
-                                                           : hbrdf::Strategy::Mis;
-            FloatArray pdf({n});
-            for (py::ssize_t i = 0; i < n; ++i)
-                pdf.mutable_data()[i] = sv->pdf(hbrdf::Vec2<float>(uv.data()[2 * i], uv.data()[2 * i + 1]),
-                                                hbrdf::TexelFilter::Bilinear, s,
-                                                hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
-                                                hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
-            return pdf;
-        },
-        py::arg("folder"), py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("strategy") = "mis",
-        "Textured-material sampling density pdf(wi | wo) at (N, 2) uv (bilinear texels), (N,).");
+                return f;
+            },
+            py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("filter") = "bilinear", py::arg("analytic") = false,
+            py::arg("batched") = false,
+            "f at (N, 2) uv through the scalar path (Svbrdf::eval) or, with batched, Svbrdf::eval_batch; with analytic "
+            "the f_a mixture; (N, 3).")
+        .def(
+            "sample",
+            [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,
+                const std::string& strategy) {
+                const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
+                rows(uv, n, 2, "uv"), rows(wo, n, 3, "wo"), rows(u, n, 2, "u");
+                const hbrdf::Strategy s = strategy_of(strategy);
+                FloatArray wi({n, py::ssize_t(3)}), pdf({n}), again({n});
+                for (py::ssize_t i = 0; i < n; ++i) {
+                    const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
+                    const hbrdf::Vec3<float> o(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
+                    const auto b = sv.sample(t, hbrdf::TexelFilter::Bilinear, s, o,
+                                             hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
+                    for (int c = 0; c < 3; ++c) wi.mutable_data()[3 * i + c] = b.wi[c];
+                    pdf.mutable_data()[i] = b.pdf;
+                    again.mutable_data()[i] = b.pdf > 0.f ? sv.pdf(t, hbrdf::TexelFilter::Bilinear, s, b.wi, o) : 0.f;
+                }
+                return py::make_tuple(wi, pdf, again);
+            },
+            py::arg("uv"), py::arg("wo"), py::arg("u"), py::arg("strategy") = "mis",
+            "Samples of the texels' layer mixture (bilinear texels): (wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).")
+        .def(
+            "pdf",
+            [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
+                const std::string& strategy) {
+                const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
+                rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
+                const hbrdf::Strategy s = strategy_of(strategy);
+                FloatArray pdf({n});
+                for (py::ssize_t i = 0; i < n; ++i)
+                    pdf.mutable_data()[i] = sv.pdf(hbrdf::Vec2<float>(uv.data()[2 * i], uv.data()[2 * i + 1]),
+                                                   hbrdf::TexelFilter::Bilinear, s,
+                                                   hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
+                                                   hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
+                return pdf;
+            },
+            py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("strategy") = "mis",
+            "The sampling density pdf(wi | wo) at (N, 2) uv (bilinear texels), (N,).");
     m.def("render_read_image", [](const std::string& path) { return array_from_image(hr::read_image(path)); },
           py::arg("path"), "Read an .exr or .hdr image as (H, W, 3) float32.");
     m.attr("HAVE_RENDERER") = true;

@@ -235,8 +235,9 @@ struct ModelBatchKernels {
                                                const float* wo_aos, const TexelLayer* layers, float* f_aos) {
         const int width = md.width_, n_in = md.n_in_, latent = md.latent_;
         const spec::ArchSpec& as = md.arch();
-        std::vector<float> scratch(static_cast<std::size_t>(kChunk) * (n_in + 2 * width + 6 + 9 + 1 + 3));
+        std::vector<float> scratch(static_cast<std::size_t>(kChunk) * (n_in + 2 * width + 6 + 9 + 1 + 3 + 8));
         Rows rows;
+        float* P = scratch.data() + std::size_t(kChunk) * (n_in + 2 * width + 6 + 9 + 1 + 3);  // kd, eta, alpha rows
         rows.X = scratch.data();            // n_in rows: direction inputs, latent code, extra inputs
         rows.A = rows.X + n_in * kChunk;
         rows.B = rows.A + width * kChunk;
@@ -253,13 +254,12 @@ struct ModelBatchKernels {
             directions_to_rows(wi_aos + 3 * start, wo_aos + 3 * start, cnt, rows.D);
             normalise_rows(rows.D, rows.V);
             float* fa = rows.D + 6 * kChunk;
-            for (int i = 0; i < kChunk; ++i) {  // each lane its own f_a (padding lanes repeat the first)
-                const TexelLayer& t = layers[start + std::size_t(i < cnt ? i : 0)];
-                const Vec3<float> v = AnalyticBrdf(t.params).eval(
-                    Vec3<float>(rows.D[i], rows.D[kChunk + i], rows.D[2 * kChunk + i]),
-                    Vec3<float>(rows.D[3 * kChunk + i], rows.D[4 * kChunk + i], rows.D[5 * kChunk + i]));
-                fa[i] = v.x, fa[kChunk + i] = v.y, fa[2 * kChunk + i] = v.z;
+            for (int i = 0; i < kChunk; ++i) {  // each lane's p in rows (padding lanes repeat the first)
+                const AnalyticParams& p = layers[start + std::size_t(i < cnt ? i : 0)].params;
+                for (int c = 0; c < 3; ++c) P[c * kChunk + i] = p.kd[c], P[(3 + c) * kChunk + i] = p.eta[c];
+                P[6 * kChunk + i] = p.alpha.x, P[7 * kChunk + i] = p.alpha.y;
             }
+            analytic_rows_per_lane(P, rows.D, fa);
             float* X = rows.X;
             if (as.directions == spec::DirectionInputs::Reciprocal) {
                 reciprocal_rows(rows.D, X);
@@ -433,6 +433,23 @@ struct ModelBatchKernels {
         }
     }
 
+    // f_a of the normalised rows with each lane's own parameters (rows of P: kd, eta, alpha_x,
+    // alpha_y), the BRDF built per lane: the texel path's twin of analytic_rows.
+    HBRDF_KERNEL_INLINE static void analytic_rows_per_lane(const float* __restrict P, const float* __restrict d,
+                                                           float* __restrict fa) {
+        for (int i = 0; i < kChunk; ++i) {
+            AnalyticParams p;
+            p.kd = Vec3<float>(P[i], P[kChunk + i], P[2 * kChunk + i]);
+            p.eta = Vec3<float>(P[3 * kChunk + i], P[4 * kChunk + i], P[5 * kChunk + i]);
+            p.alpha = Vec2<float>(P[6 * kChunk + i], P[7 * kChunk + i]);
+            const Vec3<float> v = AnalyticBrdf(p).eval(Vec3<float>(d[i], d[kChunk + i], d[2 * kChunk + i]),
+                                                       Vec3<float>(d[3 * kChunk + i], d[4 * kChunk + i], d[5 * kChunk + i]));
+            fa[i] = v.x;
+            fa[kChunk + i] = v.y;
+            fa[2 * kChunk + i] = v.z;
+        }
+    }
+
     // f_a of the normalised rows: the loop of batch.cpp's SoA kernel (the BRDF copied into
     // registers, restrict-qualified rows), vectorised the same way.
     HBRDF_KERNEL_INLINE static void analytic_rows(const AnalyticBrdf brdf, const float* __restrict d,
@@ -526,8 +543,9 @@ void HybridModel::eval_batch(int m, std::size_t n, const float* wi, const float*
 void HybridModel::eval_batch_layers(std::size_t n, const float* wi, const float* wo, const TexelLayer* layers,
                                     float* f) const {
     if (kind_ == ModelKind::Neural) throw std::logic_error("textured materials need a hybrid model (f_a per texel)");
-    for (std::size_t i = 0; i < n; ++i) {
-        check_material(layers[i].material);
+    int previous = -1;
+    for (std::size_t i = 0; i < n; ++i) {  // a material is checked once per run of it
+        if (layers[i].material != previous) check_material(previous = layers[i].material);
         if (!layers[i].latent) throw std::invalid_argument("texel layer has no latent code");
     }
 #if HBRDF_SIMD_X86

@@ -19,11 +19,9 @@ struct Taps {
     double weight[4];
 };
 
+// i is within one texel of [0, n) (uv was wrapped into [0, 1) or clamped first): no division.
 long wrap_index(long i, long n, bool repeat) {
-    if (repeat) {
-        const long r = i % n;
-        return r < 0 ? r + n : r;
-    }
+    if (repeat) return i < 0 ? i + n : i >= n ? i - n : i;
     return std::clamp(i, 0L, n - 1);
 }
 
@@ -31,7 +29,7 @@ Taps taps_of(const Vec2<float>& uv_in, TexelFilter filter, int width, int height
     const bool repeat = addressing == TexelAddressing::Repeat;
     // Non-finite uv (a degenerate hit) reads (0, 0); huge finite uv wrap in double without overflow.
     double u = std::isfinite(uv_in.x) ? double(uv_in.x) : 0.0, v = std::isfinite(uv_in.y) ? double(uv_in.y) : 0.0;
-    if (repeat) u -= std::floor(u), v -= std::floor(v);  // in [0, 1]: the index arithmetic stays small
+    if (repeat) u -= std::floor(u), v -= std::floor(v);  // in [0, 1): the index arithmetic stays small
     else u = std::clamp(u, 0.0, 1.0), v = std::clamp(v, 0.0, 1.0);
     Taps t;
     if (filter == TexelFilter::Nearest) {
@@ -131,6 +129,8 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const 
         TexelLayer& o = out->layers[k];
         o.material = layer.material;
         o.weight = float(w[k]);
+        o.latent = out->latent + std::size_t(k) * std::size_t(l);
+        if (!(o.weight > 0.f)) continue;  // not evaluated: its values are not read
         float v[3];
         sample_map(layer.kd, 3, t, &mat.params.kd.x, v);
         o.params.kd = Vec3<float>(v[0], v[1], v[2]);
@@ -138,9 +138,7 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const 
         o.params.eta = Vec3<float>(v[0], v[1], v[2]);
         sample_map(layer.alpha, 2, t, &mat.params.alpha.x, v);
         o.params.alpha = Vec2<float>(v[0], v[1]);
-        float* z = out->latent + std::size_t(k) * std::size_t(l);
-        sample_map(layer.latent, l, t, mat.latent.data(), z);
-        o.latent = z;
+        sample_map(layer.latent, l, t, mat.latent.data(), out->latent + std::size_t(k) * std::size_t(l));
     }
 }
 
@@ -152,42 +150,66 @@ Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<f
 
 void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
                         float* f) const {
-    const int L = layer_count(), l = model_->latent_dim();
-    // Every (pair, layer) of positive weight, its texel values, then sorted by the layer's material.
-    std::vector<Texel> texels(n);
-    std::vector<std::uint32_t> entry_pair;
-    std::vector<TexelLayer> entries;
-    std::vector<float> latent;
-    entries.reserve(n), entry_pair.reserve(n), latent.reserve(n * std::size_t(l));
+    const int L = layer_count();
+    const std::size_t l = std::size_t(model_->latent_dim());
+    // Every (pair, layer) of positive weight with its texel values, in (pair, layer) order. The
+    // buffers are the thread's own and kept between calls: a tracer calls this once per bounce
+    // and material, and fresh pages from the kernel cost more than the lookups.
+    thread_local std::vector<std::uint32_t> entry_pair;
+    thread_local std::vector<TexelLayer> entries, sorted;
+    thread_local std::vector<float> latent, dir_i, dir_o, out;
+    thread_local std::vector<std::size_t> start, order, row_of;
+    entry_pair.clear(), entries.clear(), latent.clear();
+    Texel t;
     for (std::size_t i = 0; i < n; ++i) {
-        texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, &texels[i]);
+        texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, &t);
         for (int k = 0; k < L; ++k)
-            if (texels[i].layers[k].weight > 0.f) {
-                entries.push_back(texels[i].layers[k]);
+            if (t.layers[k].weight > 0.f) {
+                entries.push_back(t.layers[k]);
                 entry_pair.push_back(std::uint32_t(i));
+                latent.insert(latent.end(), t.layers[k].latent, t.layers[k].latent + l);
             }
     }
     const std::size_t m = entries.size();
-    std::vector<std::size_t> order(m);
-    for (std::size_t e = 0; e < m; ++e) order[e] = e;
-    std::stable_sort(order.begin(), order.end(),
-                     [&](std::size_t a, std::size_t b) { return entries[a].material < entries[b].material; });
-    std::vector<float> dir_i(3 * m), dir_o(3 * m), out(3 * m);
-    std::vector<TexelLayer> sorted(m);
-    latent.resize(m * std::size_t(l));
-    for (std::size_t r = 0; r < m; ++r) {
-        const std::size_t e = order[r], p = entry_pair[e];
-        std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * r]);
-        std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * r]);
-        sorted[r] = entries[e];
-        std::copy(entries[e].latent, entries[e].latent + l, &latent[r * std::size_t(l)]);
-        sorted[r].latent = &latent[r * std::size_t(l)];
+    for (std::size_t e = 0; e < m; ++e) entries[e].latent = &latent[e * l];
+    // The kernels run over runs of one material: in texture order a renderer's pairs already come
+    // in long runs (a region of one layer, or the same few layers pair after pair); only when the
+    // material changes often are the entries sorted by it (a counting sort).
+    std::size_t switches = 0;
+    for (std::size_t e = 1; e < m; ++e) switches += entries[e].material != entries[e - 1].material;
+    out.resize(3 * m), row_of.resize(m);
+    if (switches * 64 <= m) {
+        const float* di = wi;
+        const float* dw = wo;
+        if (m != n) {  // some pairs have several layers: their directions once per layer
+            dir_i.resize(3 * m), dir_o.resize(3 * m);
+            for (std::size_t e = 0; e < m; ++e) {
+                const std::size_t p = entry_pair[e];
+                std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * e]);
+                std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * e]);
+            }
+            di = dir_i.data(), dw = dir_o.data();
+        }
+        model_->eval_batch_layers(m, di, dw, entries.data(), out.data());
+        for (std::size_t e = 0; e < m; ++e) row_of[e] = e;
+    } else {
+        const std::size_t n_mat = model_->materials().size();
+        start.assign(n_mat + 1, 0), order.resize(m);
+        for (const TexelLayer& e : entries) ++start[std::size_t(e.material) + 1];
+        for (std::size_t k = 0; k < n_mat; ++k) start[k + 1] += start[k];
+        for (std::size_t e = 0; e < m; ++e) order[start[std::size_t(entries[e].material)]++] = e;
+        dir_i.resize(3 * m), dir_o.resize(3 * m), sorted.resize(m);
+        for (std::size_t r = 0; r < m; ++r) {
+            const std::size_t e = order[r], p = entry_pair[e];
+            std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * r]);
+            std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * r]);
+            sorted[r] = entries[e];  // its latent pointer still into `latent`
+            row_of[e] = r;
+        }
+        model_->eval_batch_layers(m, dir_i.data(), dir_o.data(), sorted.data(), out.data());
     }
-    model_->eval_batch_layers(m, dir_i.data(), dir_o.data(), sorted.data(), out.data());
-    std::vector<std::size_t> row_of(m);
-    for (std::size_t r = 0; r < m; ++r) row_of[order[r]] = r;
     std::fill(f, f + 3 * n, 0.f);
-    for (std::size_t e = 0; e < m; ++e) {  // entries are in (pair, layer) order: the scalar path's sum order
+    for (std::size_t e = 0; e < m; ++e) {  // (pair, layer) order: the scalar path's sum order
         const std::size_t p = entry_pair[e], r = row_of[e];
         const float w = entries[e].weight;
         for (int c = 0; c < 3; ++c) f[3 * p + std::size_t(c)] = f[3 * p + std::size_t(c)] + out[3 * r + std::size_t(c)] * w;

@@ -234,7 +234,7 @@ def test_malformed_folders_are_refused_in_one_line_by_both_loaders(folder, name,
     assert str(folder) in msg
     one = np.zeros((1, 2), np.float32)
     with pytest.raises(ValueError) as err:  # RenderFileError from libhybridbrdf's loader (render::load_svbrdf), the tracer's
-        hb._core.svbrdf_eval(str(folder), one, np.array([[0, 0, 1]], np.float32), np.array([[0, 0, 1]], np.float32))
+        hb._core.Svbrdf(str(folder)).eval(one, np.array([[0, 0, 1]], np.float32), np.array([[0, 0, 1]], np.float32))
     msg = str(err.value)
     assert words in msg and "\n" not in msg, msg
     assert str(folder) in msg
@@ -356,11 +356,11 @@ def test_cpp_loader_and_lookup_agree_with_python(tmp_path, fmt, filt):
     wi, wo = _directions(1500, seed=9)
     uv = np.random.default_rng(8).uniform(-1, 2, size=(len(wi), 2)).astype(np.float32).astype(np.float64)
     ref = sv.eval(uv, wi, wo, filter=filt, dtype=torch.float64)
-    got = hb._core.svbrdf_eval(sv.path, uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt)
+    got = hb._core.Svbrdf(sv.path).eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt)
     scale = np.abs(ref).max(axis=1, keepdims=True) + 1e-6
     assert np.abs(got - ref).max() / scale.max() < 1e-4
     assert np.all(np.abs(got - ref) <= 2e-4 * scale + 1e-6)
-    analytic = hb._core.svbrdf_eval(sv.path, uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt, True)
+    analytic = hb._core.Svbrdf(sv.path).eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt, True)
     t = sv.texels(uv, filt)
     w64 = [torch.as_tensor(a, dtype=torch.float64) for a in (wi, wo)]
     fa = sum(t["weight"][:, k, None].astype(np.float64) * eval_analytic(
@@ -371,17 +371,26 @@ def test_cpp_loader_and_lookup_agree_with_python(tmp_path, fmt, filt):
 
 
 @pytest.mark.parametrize("simd", ["baseline", "avx2+fma", "avx512"])
-def test_batched_texels_match_the_scalar_path(tmp_path, simd):
+@pytest.mark.parametrize("kind", ["mixed", "one layer"])
+def test_batched_texels_match_the_scalar_path(tmp_path, simd, kind):
     """Svbrdf::eval_batch (layers sorted by material through HybridModel::eval_batch_layers, the
-    vectorised kernels) against Svbrdf::eval one pair at a time, on every SIMD level the CPU has."""
-    sv = _rich_folder(tmp_path, "exr")
+    vectorised kernels; one layer of one material: no gather) against Svbrdf::eval one pair at a
+    time, on every SIMD level the CPU has."""
+    if kind == "mixed":
+        sv = _rich_folder(tmp_path, "exr")
+    else:
+        _, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+        z = m.tensors["materials.z"][1] + np.random.default_rng(3).normal(0, 0.2, (4, 5, m.tensors["materials.z"].shape[1]))
+        SVBRDF(m, [m.materials[1]], (5, 4), None, [{"latent": z.astype(np.float32)}]).save(tmp_path / "one", format="exr")
+        sv = load_svbrdf(tmp_path / "one")
     wi, wo = _directions(3000, seed=12)
     uv = np.random.default_rng(13).uniform(0, 1, size=(len(wi), 2)).astype(np.float32)
-    args = (sv.path, uv, wi.astype(np.float32), wo.astype(np.float32), "bilinear")
-    scalar = hb._core.svbrdf_eval(*args)
+    lib = hb._core.Svbrdf(sv.path)
+    args = (uv, wi.astype(np.float32), wo.astype(np.float32), "bilinear")
+    scalar = lib.eval(*args)
     hb._core.limit_model_simd(simd)
     try:
-        batched = hb._core.svbrdf_eval(*args, batched=True)
+        batched = lib.eval(*args, batched=True)
     finally:
         hb._core.limit_model_simd("avx512")
     assert np.array_equal(batched == 0, scalar == 0)
@@ -398,7 +407,7 @@ def test_texel_sampler_density_is_consistent_and_normalised(tmp_path):
     uv = np.tile([[0.3, 0.55]], (n, 1)).astype(np.float32)
     wo = np.tile([[0.4, -0.2, 0.89]], (n, 1)).astype(np.float32)
     for strategy in ("cosine", "mis"):
-        wi, pdf, again = hb._core.svbrdf_sample(sv.path, uv, wo, rng.uniform(0, 1, (n, 2)).astype(np.float32), strategy)
+        wi, pdf, again = hb._core.Svbrdf(sv.path).sample(uv, wo, rng.uniform(0, 1, (n, 2)).astype(np.float32), strategy)
         ok = pdf > 0
         assert ok.mean() > 0.95
         np.testing.assert_allclose(pdf[ok], again[ok], rtol=1e-4)
@@ -414,11 +423,11 @@ def test_texel_sampler_density_is_consistent_and_normalised(tmp_path):
     grid = np.stack([R * np.cos(P), R * np.sin(P), Z], axis=-1).reshape(-1, 3).astype(np.float32)
     d_omega = (1.0 / (nz * q)) * (2 * np.pi / (nphi * q))
     for strategy in ("cosine", "mis"):
-        dens = hb._core.svbrdf_pdf(sv.path, np.tile(uv[:1], (len(grid), 1)), grid, np.tile(wo[:1], (len(grid), 1)), strategy)
+        dens = hb._core.Svbrdf(sv.path).pdf(np.tile(uv[:1], (len(grid), 1)), grid, np.tile(wo[:1], (len(grid), 1)), strategy)
         cell = (dens.reshape(nz, q, nphi, q).sum(axis=(1, 3)) * d_omega).ravel()
         total = cell.sum()
         assert 0.97 < total < 1.0 + 1e-3, (strategy, total)  # GGX draws below the horizon are lost, never gained
-        wi, pdf, _ = hb._core.svbrdf_sample(sv.path, np.tile(uv[:1], (m, 1)), np.tile(wo[:1], (m, 1)),
+        wi, pdf, _ = hb._core.Svbrdf(sv.path).sample(np.tile(uv[:1], (m, 1)), np.tile(wo[:1], (m, 1)),
                                             rng.uniform(0, 1, (m, 2)).astype(np.float32), strategy)
         ok = (pdf > 0) & (wi[:, 2] > 0)  # GGX reflections below the horizon: drawn, then dropped by the tracer
         iz = np.clip((wi[ok, 2] * nz).astype(int), 0, nz - 1)

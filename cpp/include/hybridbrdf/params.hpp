@@ -34,7 +34,7 @@ using AnalyticParams = AnalyticParamsT<float>;
 /// Every evaluation function accepts any parameters and clamps them into the
 /// valid box first (NaN goes to the lower bound), so no input can make them
 /// return NaN. Front ends that want an error instead call validate().
-template <typename T> AnalyticParamsT<T> clamped(const AnalyticParamsT<T>& p) {
+template <typename T> HBRDF_INLINE AnalyticParamsT<T> clamped(const AnalyticParamsT<T>& p) {
     AnalyticParamsT<T> q;
     for (int c = 0; c < 3; ++c) {
         q.kd[c] = clamp_nan_lo(p.kd[c], T(kKdMin), T(kKdMax));
