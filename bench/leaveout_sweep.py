@@ -31,7 +31,7 @@ import hybridbrdf as hb
 from hybridbrdf.evaluate.evaluation import evaluate
 from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.guard import is_worse
-from hybridbrdf.fit.settings import ADD_STEPS, FitSettings
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FitSettings
 from hybridbrdf.model.prior import prior_path
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -43,7 +43,7 @@ def main() -> int:
     ap.add_argument("--prior", default=str(PRIOR88), help="a prior that never saw the materials (default: %(default)s)")
     ap.add_argument("--count", type=int, default=24, help="materials in the sweep (every other NBRDF-RGL one)")
     ap.add_argument("--materials", help="only these NBRDF-RGL materials, comma-separated (default: the sweep's)")
-    ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps (default: the default's)")
+    ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps (default: hbrdf add's, ADD_LOSS_EPS)")
     ap.add_argument("--pairs", type=int, default=100_000, help="metric pairs per material (CONVENTIONS: 10^5)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     ap.add_argument("--out", help="append one JSON line per material to this file; rows already in it (same "
@@ -61,7 +61,7 @@ def main() -> int:
     if leaked:
         ap.error(f"{args.prior} holds {', '.join(leaked)}: not a hold-out")
     joint = hb.load_model(prior_path())
-    settings = FitSettings(steps=ADD_STEPS)  # hbrdf add's default
+    settings = FitSettings(steps=ADD_STEPS, loss_eps=ADD_LOSS_EPS)  # hbrdf add's defaults
     if args.loss_eps is not None:
         settings.loss_eps = args.loss_eps
     print(f"prior {args.prior} ({len(prior.materials)} materials); {len(stems)} NBRDF-RGL materials, each added alone; "

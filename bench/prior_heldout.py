@@ -22,7 +22,7 @@ import time
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.fit.settings import ADD_STEPS, FitSettings
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FitSettings
 from hybridbrdf.evaluate.evaluation import evaluate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -52,7 +52,7 @@ def main() -> int:
     ap.add_argument("--finetune-steps", type=int, default=None, help="the fine-tune's steps (default: FINETUNE_STEPS)")
     ap.add_argument("--network-lr", type=float, default=None, help="FitSettings.network_lr of the fine-tune")
     ap.add_argument("--finetune-lr", type=float, default=None, help="FitSettings.lr (default: the recipe's)")
-    ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps of both stages (default: the recipe's)")
+    ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps of both stages (default: hbrdf add's, ADD_LOSS_EPS)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     args = ap.parse_args()
     prior = hb.load_model(args.prior)
@@ -61,7 +61,7 @@ def main() -> int:
     if leaked:
         ap.error(f"{args.prior} holds {', '.join(leaked)}: not a hold-out")
     raw = [hb.open_source(os.path.join(args.shared, "rgl", f"{n}.bsdf")) for n in PAPER]
-    settings = FitSettings(steps=args.steps, sparse_starts=args.starts)
+    settings = FitSettings(steps=args.steps, sparse_starts=args.starts, loss_eps=ADD_LOSS_EPS)  # hbrdf add's defaults
     if args.network_lr is not None:
         settings.network_lr = args.network_lr
     if args.finetune_lr is not None:

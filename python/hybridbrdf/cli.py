@@ -29,7 +29,7 @@ from hybridbrdf.fit.distributed import RankLostError
 from hybridbrdf.fit.paint import paint
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
-from hybridbrdf.fit.settings import ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
 from hybridbrdf.model import energy
 from hybridbrdf.model.editing import parse_assignments
 from hybridbrdf.model.file import load_model
@@ -71,7 +71,8 @@ def add_fit_flags(parser: argparse.ArgumentParser, sections=None, skip=()) -> No
 def settings_from_args(args: argparse.Namespace, sparse: bool = False):
     """FitSettings from parsed flags: a flag left unset keeps its value in the recipe
     (``--recipe``, default hybridbrdf: the fields' defaults). ``sparse``: the settings of a
-    sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit.settings.ADD_STEPS`."""
+    sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit.settings.ADD_STEPS` and
+    (without --recipe) its loss epsilon to :data:`~hybridbrdf.fit.settings.ADD_LOSS_EPS`."""
     values = {}
     for f in _fit_fields():
         v = getattr(args, f.name, None)  # a command may offer a subset of the flags (hbrdf add)
@@ -83,6 +84,8 @@ def settings_from_args(args: argparse.Namespace, sparse: bool = False):
         values["latent"] = 12  # no analytic part: the hybrid's l = 4 plus its 8 analytic parameters
     if sparse:
         values.setdefault("steps", ADD_STEPS)
+        if "recipe" not in values:  # hbrdf add's own loss epsilon, unless a recipe sets one
+            values.setdefault("loss_eps", ADD_LOSS_EPS)
     values.setdefault("device", default_device())
     return FitSettings.from_recipe(values.pop("recipe", "hybridbrdf"), sources=list(args.sources), **values)
 
@@ -548,7 +551,9 @@ def _add_add_parser(sub) -> None:
                                    "new materials and their own network. --keep-network stops after the first part. "
                                    "With --to BASE: the sparse fit only, BASE's network kept bit-exact, and the model "
                                    "holds BASE's materials followed by the new ones. Inputs are checked before any "
-                                   "training; --out is written only when the fit succeeds.", epilog=EPILOG)
+                                   "training; --out is written only when the fit succeeds. Without --recipe or --loss-eps "
+                                   "the loss epsilon is 0.03 (ADD_LOSS_EPS, docs/FITTING.md), not a joint fit's 0.1.",
+                       epilog=EPILOG)
     p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
     p.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "
                                                 "shipped prior, hybridbrdf.model.prior; the model then holds the new "

@@ -22,7 +22,7 @@ import numpy as np
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.fit import fit, frozen_arch_settings
-from hybridbrdf.fit.settings import ADD_STEPS, FINETUNE_STEPS, MAX_DRIFT, STEPS, FitSettings
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FINETUNE_STEPS, MAX_DRIFT, STEPS, FitSettings
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.prior import prior_path
 from hybridbrdf.names import names_problem
@@ -126,7 +126,8 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
 
     ``settings``: the fit's training, loss and sparse settings (:class:`FitSettings`; its
     network fields are taken from ``to``); default: the default recipe with
-    :data:`~hybridbrdf.fit.settings.ADD_STEPS` sparse steps. Raises InputFileError /
+    :data:`~hybridbrdf.fit.settings.ADD_STEPS` sparse steps and loss epsilon
+    :data:`~hybridbrdf.fit.settings.ADD_LOSS_EPS`. Raises InputFileError /
     ModelFileError / ValueError, one line naming the input, before any training for every input
     that can be checked."""
     if out is not None:
@@ -182,9 +183,11 @@ def _check_options(on_prior: bool, refine: bool, keep_network: bool, finetune_st
 
 
 def _sparse_settings(settings: Optional[FitSettings], base: HybridModel, to) -> FitSettings:
-    """A copy of ``settings`` (default: the default recipe with ADD_STEPS steps) for the sparse fit
+    """A copy of ``settings`` (default: the default recipe with ADD_STEPS steps and loss epsilon
+    ADD_LOSS_EPS) for the sparse fit
     on ``base``'s frozen network, its network fields taken from ``base``, checked."""
-    settings = dataclasses.replace(settings) if settings is not None else FitSettings(steps=ADD_STEPS)
+    settings = (dataclasses.replace(settings) if settings is not None
+                else FitSettings(steps=ADD_STEPS, loss_eps=ADD_LOSS_EPS))
     settings.frozen_from, settings.init_from = os.fspath(to), None
     frozen_arch_settings(settings, base)
     settings.check()
