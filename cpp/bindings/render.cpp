@@ -422,41 +422,41 @@ void bind_render(py::module_& m) {
         .def(
             "sample",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,
-                const std::string& strategy) {
+                const std::string& strategy, const std::string& filter) {
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wo, n, 3, "wo"), rows(u, n, 2, "u");
                 const hbrdf::Strategy s = strategy_of(strategy);
+                const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray wi({n, py::ssize_t(3)}), pdf({n}), again({n});
                 for (py::ssize_t i = 0; i < n; ++i) {
                     const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> o(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                    const auto b = sv.sample(t, hbrdf::TexelFilter::Bilinear, s, o,
-                                             hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
+                    const auto b = sv.sample(t, flt, s, o, hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
                     for (int c = 0; c < 3; ++c) wi.mutable_data()[3 * i + c] = b.wi[c];
                     pdf.mutable_data()[i] = b.pdf;
-                    again.mutable_data()[i] = b.pdf > 0.f ? sv.pdf(t, hbrdf::TexelFilter::Bilinear, s, b.wi, o) : 0.f;
+                    again.mutable_data()[i] = b.pdf > 0.f ? sv.pdf(t, flt, s, b.wi, o) : 0.f;
                 }
                 return py::make_tuple(wi, pdf, again);
             },
-            py::arg("uv"), py::arg("wo"), py::arg("u"), py::arg("strategy") = "mis",
-            "Samples of the texels' layer mixture (bilinear texels): (wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).")
+            py::arg("uv"), py::arg("wo"), py::arg("u"), py::arg("strategy") = "mis", py::arg("filter") = "bilinear",
+            "Samples of the texels' layer mixture: (wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).")
         .def(
             "pdf",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-                const std::string& strategy) {
+                const std::string& strategy, const std::string& filter) {
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
                 const hbrdf::Strategy s = strategy_of(strategy);
+                const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray pdf({n});
                 for (py::ssize_t i = 0; i < n; ++i)
-                    pdf.mutable_data()[i] = sv.pdf(hbrdf::Vec2<float>(uv.data()[2 * i], uv.data()[2 * i + 1]),
-                                                   hbrdf::TexelFilter::Bilinear, s,
+                    pdf.mutable_data()[i] = sv.pdf(hbrdf::Vec2<float>(uv.data()[2 * i], uv.data()[2 * i + 1]), flt, s,
                                                    hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
                                                    hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
                 return pdf;
             },
-            py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("strategy") = "mis",
-            "The sampling density pdf(wi | wo) at (N, 2) uv (bilinear texels), (N,).");
+            py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("strategy") = "mis", py::arg("filter") = "bilinear",
+            "The sampling density pdf(wi | wo) at (N, 2) uv, (N,).");
     m.def("render_read_image", [](const std::string& path) { return array_from_image(hr::read_image(path)); },
           py::arg("path"), "Read an .exr or .hdr image as (H, W, 3) float32.");
     m.attr("HAVE_RENDERER") = true;

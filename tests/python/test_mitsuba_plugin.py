@@ -160,3 +160,65 @@ def test_the_readme_example_runs(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     img = np.array(mi.Bitmap(str(tmp_path / "ball.exr")))
     assert img.shape[2] >= 3 and np.isfinite(img).all() and img.max() > 0
+
+
+@pytest.fixture(scope="module")
+def textured_folder(edited_model, tmp_path_factory):
+    """A textured material of two layers of the edited model (the glossy material and its anisotropic
+    edit) with the same weights everywhere (w_1 = 0.4): a mixture that does not depend on uv, so that
+    Mitsuba's and the tracer's uv conventions cannot differ in the render."""
+    from hybridbrdf.svbrdf.asset import SVBRDF
+
+    folder = tmp_path_factory.mktemp("mi") / "sv"
+    weights = np.zeros((4, 4, 3), np.float32)
+    weights[..., 0] = 0.4
+    SVBRDF(edited_model, [GLOSSY, "aniso"], (4, 4), weights).save(folder, format="exr")
+    return str(folder)
+
+
+def test_textured_queries_are_the_librarys_texels(edited_model, tmp_path):
+    """The plugin with 'svbrdf' evaluates libhybridbrdf's Svbrdf at Mitsuba's si.uv (wi and wo
+    swapped, times cos(theta_light)); its pdf is the texel's mixture pdf."""
+    from hybridbrdf.svbrdf.asset import SVBRDF
+
+    rng = np.random.default_rng(6)
+    weights = rng.uniform(0, 0.5, (3, 5, 3)).astype(np.float32)
+    weights[..., 1:] = 0
+    SVBRDF(edited_model, [GLOSSY, "aniso"], (5, 3), weights).save(tmp_path / "sv", format="exr")
+    hbmi.register()
+    b = mi.load_dict({"type": "hbrdf", "svbrdf": str(tmp_path / "sv"), "filter": "nearest"})
+    lib = hb._core.Svbrdf(str(tmp_path / "sv"))
+    ctx = mi.BSDFContext()
+    for _ in range(40):
+        view, light = rng.normal(size=3), rng.normal(size=3)
+        view[2], light[2] = abs(view[2]), abs(light[2])
+        view, light = view / np.linalg.norm(view), light / np.linalg.norm(light)
+        uv = rng.uniform(0, 1, 2)
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*view)
+        si.uv = mi.Point2f(*uv)
+        got = np.array(b.eval(ctx, si, mi.Vector3f(*light)))
+        rows = [np.array([r], np.float32) for r in (uv, light, view)]
+        ref = lib.eval(*rows, "nearest")[0] * light[2]
+        np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-7)
+        p = float(b.pdf(ctx, si, mi.Vector3f(*light)))
+        assert p == pytest.approx(float(lib.pdf(*rows, "mis", "nearest")[0]), rel=1e-5)
+    with pytest.raises(Exception, match="not both"):
+        mi.load_dict({"type": "hbrdf", "svbrdf": str(tmp_path / "sv"), "filename": str(edited_model.path), "material": GLOSSY})
+
+
+def test_a_textured_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, textured_folder):
+    """As test_a_mitsuba_render_agrees_with_hbrdf_render, for the textured material (the mixture
+    sampled by the plugin through libhybridbrdf's texel sampler, evaluated per texel)."""
+    size, spp = 48, 32
+    hbmi.register()
+    bsdf = {"type": "hbrdf", "svbrdf": textured_folder}
+    mits = [np.array(mi.render(mi.load_dict(mitsuba_scene(mi, env_file, bsdf, size, spp)), seed=s)) for s in (1, 2)]
+    scene = hbrdf_scene(env_file, str(edited_model.path), GLOSSY, size, spp, 0)
+    scene["materials"]["m"] = {"type": "textured", "svbrdf": textured_folder}
+    ours = [render(dict(scene, seed=s))[0] for s in (1, 2)]
+    mask = render(dict(scene, spp=1), max_depth=0)[0].sum(-1) == 0
+    z, m_tiles, o_tiles = agreement(mits[0], mits[1], ours[0], ours[1], mask)
+    assert len(z) >= 20
+    assert np.abs(z).max() < 4.5, (np.abs(z).max(), m_tiles[np.abs(z).max(axis=1).argmax()])
+    assert m_tiles.max() > 2 * np.median(m_tiles)

@@ -7,7 +7,9 @@
     bsdf = {"type": "hbrdf", "filename": "model.safetensors", "material": "satin_gold_rgb"}
 
 Properties: ``filename`` (a model file), ``material`` (its name in the file; ``hbrdf info`` lists
-them), ``sampler`` (``"mis"``, the default: the one-sample MIS of the cosine and GGX lobes of the
+them), or instead ``svbrdf`` (a textured material's folder, docs/SVBRDF.md: per query the texel
+under Mitsuba's ``si.uv``, read unchanged as the folder's uv, with ``filter`` ``"bilinear"``, the
+default, or ``"nearest"``; libhybridbrdf's ``Svbrdf``, the tracer's loader and lookup), ``sampler`` (``"mis"``, the default: the one-sample MIS of the cosine and GGX lobes of the
 material's fitted f_a, paper Sec. 5.2; ``"ggx"`` or ``"cosine"``) and ``evaluate`` (``"full"``,
 the default, f_t; ``"analytic"``: f_a alone, as the tracer's deeper bounces may use it).
 
@@ -37,6 +39,7 @@ from hybridbrdf.model.file import load_model
 PLUGIN_NAME = "hbrdf"
 SAMPLERS = ("mis", "ggx", "cosine")
 EVALUATE = ("full", "analytic")
+FILTERS = ("bilinear", "nearest")
 #: Oldest LLVM the llvm variants render with on x86-64 (see register()).
 MIN_LLVM = (16,)
 
@@ -72,6 +75,13 @@ def _lanes(a: np.ndarray):
 def _mask(active, n: int) -> np.ndarray:
     """Mitsuba's ``active`` (a bool, or lanes of which a width-1 one broadcasts) as (n,) bools."""
     return np.broadcast_to(np.asarray(active, dtype=bool).reshape(-1), (n,))
+
+
+def _uv(si_uv, n: int) -> np.ndarray:
+    """Mitsuba's si.uv as (n, 2) float32 (a width-1 value broadcast)."""
+    a = np.asarray(si_uv, dtype=np.float32)
+    a = a.reshape(2, -1).T if a.ndim == 2 else a.reshape(1, 2)
+    return np.ascontiguousarray(np.broadcast_to(a, (n, 2)))
 
 
 def _pair(si_wi, wo):
@@ -127,14 +137,31 @@ def _bsdf_class():
             mi.BSDF.__init__(self, props)
             filename = props.get("filename")
             material = props.get("material")
-            if filename is None or material is None:
-                raise ValueError("the hbrdf BSDF needs 'filename' (a model file) and 'material' (a name in it)")
+            folder = props.get("svbrdf")
             self.sampler = props.get("sampler", "mis")
             self.evaluate = props.get("evaluate", "full")
             if self.sampler not in SAMPLERS:
                 raise ValueError(f"hbrdf sampler {self.sampler!r}: expected one of {', '.join(SAMPLERS)}")
             if self.evaluate not in EVALUATE:
                 raise ValueError(f"hbrdf evaluate {self.evaluate!r}: expected one of {', '.join(EVALUATE)}")
+            self.svbrdf = None
+            if folder is not None:
+                if filename is not None or material is not None:
+                    raise ValueError("the hbrdf BSDF takes 'svbrdf' (a textured material's folder) or 'filename' and "
+                                     "'material', not both")
+                self.filter = props.get("filter", "bilinear")
+                if self.filter not in FILTERS:
+                    raise ValueError(f"hbrdf filter {self.filter!r}: expected one of {', '.join(FILTERS)}")
+                self.svbrdf = _core.Svbrdf(str(folder))
+                self.folder = str(folder)
+                flags = (mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+                         | mi.BSDFFlags.Anisotropic | mi.BSDFFlags.SpatiallyVarying)
+                self.m_components = [flags]
+                self.m_flags = flags
+                return
+            if filename is None or material is None:
+                raise ValueError("the hbrdf BSDF needs 'filename' (a model file) and 'material' (a name in it), or "
+                                 "'svbrdf' (a textured material's folder)")
             self.model = load_model(str(filename))
             self.material = str(material)
             self.index = self.model.index(self.material)
@@ -154,36 +181,45 @@ def _bsdf_class():
             self.m_flags = flags
 
         # -- hybridbrdf calls, (N, 3) arrays in hybridbrdf's convention -----------------------
-        def _f(self, light: np.ndarray, view: np.ndarray) -> np.ndarray:
+        def _f(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray) -> np.ndarray:
+            if self.svbrdf is not None:
+                analytic = self.evaluate == "analytic"
+                return self.svbrdf.eval(uv, light, view, self.filter, analytic, not analytic)
             if self.evaluate == "analytic":
                 return self._core.eval_analytic(light, view, self.index)
             return self._core.eval(light, view, self.index)
 
-        def _pdf(self, light: np.ndarray, view: np.ndarray) -> np.ndarray:
+        def _pdf(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray) -> np.ndarray:
             # The library's GGX pdf is the density of the visible-normal reflection, which also
             # reaches below the horizon; Mitsuba's BSDFs give those directions density 0 (their
             # samples carry no weight and are not counted by mitsuba.chi2), and so does the plugin.
-            p = _core.pdf(light, view, self.params, self.sampler)
+            if self.svbrdf is not None:
+                p = self.svbrdf.pdf(uv, light, view, self.sampler, self.filter)
+            else:
+                p = _core.pdf(light, view, self.params, self.sampler)
             return np.where(light[:, 2] > 0, p, 0.0)
 
         # -- Mitsuba's interface ---------------------------------------------------------
         def eval(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
-            return _lanes(self._value(light, view, _mask(active, len(light))))
+            uv = _uv(si.uv, len(light))
+            return _lanes(self._value(light, view, uv, _mask(active, len(light))))
 
         def pdf(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
-            return _lanes(np.where(_mask(active, len(light)), self._pdf(light, view), 0.0))
+            uv = _uv(si.uv, len(light))
+            return _lanes(np.where(_mask(active, len(light)), self._pdf(light, view, uv), 0.0))
 
         def eval_pdf(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
+            uv = _uv(si.uv, len(light))
             on = _mask(active, len(light))
-            return _lanes(self._value(light, view, on)), _lanes(np.where(on, self._pdf(light, view), 0.0))
+            return _lanes(self._value(light, view, uv, on)), _lanes(np.where(on, self._pdf(light, view, uv), 0.0))
 
-        def _value(self, light: np.ndarray, view: np.ndarray, on: np.ndarray) -> np.ndarray:
+        def _value(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray, on: np.ndarray) -> np.ndarray:
             """f cos(theta_light), 0 where inactive (and where a value is not finite: never, by the
             library's contract, but a renderer must not receive one)."""
-            value = self._f(light, view) * np.maximum(light[:, 2:3], 0.0)
+            value = self._f(light, view, uv) * np.maximum(light[:, 2:3], 0.0)
             return np.where((on & np.isfinite(value).all(axis=1))[:, None], value, 0.0)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
@@ -192,8 +228,12 @@ def _bsdf_class():
             n = max(len(view), len(u))
             view = np.ascontiguousarray(np.broadcast_to(view, (n, 3)))
             u = np.ascontiguousarray(np.broadcast_to(u, (n, 2)))
-            light, p, _ = _core.sample(view, u, self.params, self.sampler)
-            f = self._f(light, view)
+            uv = _uv(si.uv, n)
+            if self.svbrdf is not None:
+                light, p, _ = self.svbrdf.sample(uv, view, u, self.sampler, self.filter)
+            else:
+                light, p, _ = _core.sample(view, u, self.params, self.sampler)
+            f = self._f(light, view, uv)
             ok = _mask(active, n) & (p > 0) & (light[:, 2] > 0)
             weight = np.where(ok[:, None], f * np.maximum(light[:, 2:3], 0.0) / np.where(ok, p, 1.0)[:, None], 0.0)
             weight[~np.isfinite(weight).all(axis=1)] = 0.0
@@ -209,6 +249,8 @@ def _bsdf_class():
             pass
 
         def to_string(self):
+            if self.svbrdf is not None:
+                return f"HybridBSDF[svbrdf={self.folder!r}, filter={self.filter!r}, sampler={self.sampler!r}, evaluate={self.evaluate!r}]"
             return (f"HybridBSDF[filename={self.model.path!r}, material={self.material!r}, "
                     f"sampler={self.sampler!r}, evaluate={self.evaluate!r}]")
 
@@ -216,4 +258,4 @@ def _bsdf_class():
     return HybridBSDF
 
 
-__all__ = ["PLUGIN_NAME", "SAMPLERS", "EVALUATE", "register"]
+__all__ = ["PLUGIN_NAME", "SAMPLERS", "EVALUATE", "FILTERS", "register"]
