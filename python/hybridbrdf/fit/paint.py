@@ -170,5 +170,4 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     maps = [{label: v for (k2, label), v in textures.items() if k2 == k} for k in range(n_layers)]
     sv = SVBRDF(merged, names, (w, h), weights, maps, addressing)
     sv.save(out, format=format)
-    log(f"wrote {out}: {w}x{h}, layers {', '.join(names)}, {format} maps")
     return sv
