@@ -22,6 +22,7 @@ combination of BRDFs is a BRDF). Printed:
 
     python bench/svbrdf_mixture.py [--model results/rgl54_fast.safetensors] [--pairs 100000]
         [--texels 1200] [--out DIR] [--shared ../shared/data]
+    python bench/svbrdf_mixture.py --write-masks DIR [--mask-size 1024]   # the masks as PNG, for hbrdf paint
 """
 
 from __future__ import annotations
@@ -94,7 +95,18 @@ def main() -> int:
     ap.add_argument("--texels", type=int, default=1200)
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     ap.add_argument("--out", help="keep the painted folders here (DIR/float, DIR/png)")
+    ap.add_argument("--write-masks", metavar="DIR", help="only write the two masks as 8-bit PNG (DIR/mask1.png, "
+                                                         "DIR/mask2.png) at --mask-size, for hbrdf paint, and stop")
+    ap.add_argument("--mask-size", type=int, default=SIZE)
     args = ap.parse_args()
+    if args.write_masks:
+        from PIL import Image
+
+        os.makedirs(args.write_masks, exist_ok=True)
+        for k, m in enumerate(masks(args.mask_size), start=1):
+            Image.fromarray(np.rint(m * 255).astype(np.uint8), "L").save(os.path.join(args.write_masks, f"mask{k}.png"))
+        print(f"wrote {args.write_masks}/mask1.png, mask2.png ({args.mask_size}x{args.mask_size})")
+        return 0
     t0 = time.perf_counter()
     model = hb.load_model(args.model)
     names = [n for n, _ in LAYERS]
