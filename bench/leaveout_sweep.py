@@ -5,7 +5,8 @@ defaults to a prior that never saw any RGL material in any form
 prior's recipe), scored with the CONVENTIONS metrics against the material's own f_a and against the
 shipped prior's fit of the same material (trained jointly WITH it: the bar of a joint fit).
 
-    python bench/leaveout_sweep.py [--prior FILE] [--count 24] [--materials A,B] [--loss-eps EPS] [--pairs 100000]
+    python bench/leaveout_sweep.py [--prior FILE] [--count 24] [--materials A,B] [--loss-eps EPS] [--steps N]
+        [--finetune-steps N] [--pairs 100000]
         [--shared ../shared/data] [--out ROWS.jsonl]
 
 The materials are every other one of the 49 NBRDF-RGL reconstructions in sorted order (24 by
@@ -31,7 +32,7 @@ import hybridbrdf as hb
 from hybridbrdf.evaluate.evaluation import evaluate
 from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.guard import is_worse
-from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FitSettings
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FINETUNE_STEPS, FitSettings
 from hybridbrdf.model.prior import prior_path
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -44,6 +45,8 @@ def main() -> int:
     ap.add_argument("--count", type=int, default=24, help="materials in the sweep (every other NBRDF-RGL one)")
     ap.add_argument("--materials", help="only these NBRDF-RGL materials, comma-separated (default: the sweep's)")
     ap.add_argument("--loss-eps", type=float, default=None, help="FitSettings.loss_eps (default: hbrdf add's, ADD_LOSS_EPS)")
+    ap.add_argument("--steps", type=int, default=None, help="sparse steps (default: hbrdf add's, ADD_STEPS)")
+    ap.add_argument("--finetune-steps", type=int, default=None, help="fine-tune steps (default: hbrdf add's)")
     ap.add_argument("--pairs", type=int, default=100_000, help="metric pairs per material (CONVENTIONS: 10^5)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
     ap.add_argument("--out", help="append one JSON line per material to this file; rows already in it (same "
@@ -61,17 +64,19 @@ def main() -> int:
     if leaked:
         ap.error(f"{args.prior} holds {', '.join(leaked)}: not a hold-out")
     joint = hb.load_model(prior_path())
-    settings = FitSettings(steps=ADD_STEPS, loss_eps=ADD_LOSS_EPS)  # hbrdf add's defaults
+    settings = FitSettings(steps=args.steps or ADD_STEPS, loss_eps=ADD_LOSS_EPS)  # hbrdf add's defaults
     if args.loss_eps is not None:
         settings.loss_eps = args.loss_eps
     print(f"prior {args.prior} ({len(prior.materials)} materials); {len(stems)} NBRDF-RGL materials, each added alone; "
-          f"loss eps {settings.loss_eps}; {args.pairs} metric pairs; torch threads {torch.get_num_threads()}", flush=True)
+          f"loss eps {settings.loss_eps}; {settings.steps} sparse + {args.finetune_steps or FINETUNE_STEPS} fine-tune steps; {args.pairs} metric pairs; torch threads {torch.get_num_threads()}", flush=True)
     print(f"{'material':28s} {'SMAPE':>7s} {'f_a':>7s} {'joint':>7s} {'cMAE':>8s} {'f_a':>8s} {'joint':>8s} "
           f"{'s':>5s}  guard", flush=True)
     rows = []
     if args.out and os.path.exists(args.out):  # a sweep resumed: its finished rows are kept
         with open(args.out) as fh:
-            rows = [r for r in map(json.loads, fh) if r["loss_eps"] == settings.loss_eps and r["material"] in stems]
+            rows = [r for r in map(json.loads, fh) if r["loss_eps"] == settings.loss_eps and r["material"] in stems
+                    and r.get("steps", ADD_STEPS) == settings.steps
+                    and r.get("finetune_steps", FINETUNE_STEPS) == (args.finetune_steps or FINETUNE_STEPS)]
         for r in rows:
             print(f"{r['material'][:28]:28s} {r['smape']:7.4f} {r['smape_a']:7.4f} {r['smape_joint']:7.4f} {r['cmae']:8.5f} "
                   f"{r['cmae_a']:8.5f} {r['cmae_joint']:8.5f} {r['seconds']:5.0f}  {r['guard']}  (earlier run)")
@@ -83,7 +88,8 @@ def main() -> int:
         src = hb.open_source(str(folder / f"{stem}.h5"))
         t0 = time.perf_counter()
         log = []
-        model = add([src], settings=settings, progress=False, prior=args.prior, log=log.append)
+        model = add([src], settings=settings, progress=False, prior=args.prior, log=log.append,
+                    finetune_steps=args.finetune_steps)
         seconds = time.perf_counter() - t0
         row = evaluate(model, [src], n_pairs=args.pairs, names=[model.materials[0]])[0]
         joint_name = stem if stem in joint.materials else f"{stem}.nbrdf"  # the raw file's twin is <stem>.rgl
@@ -92,7 +98,8 @@ def main() -> int:
         action = guard.get("action") if isinstance(guard, dict) else "-"
         rec = dict(material=stem, smape=row["smape"], cmae=row["cmae"], smape_a=row["smape_analytic"],
                    cmae_a=row["cmae_analytic"], smape_joint=ref["smape"], cmae_joint=ref["cmae"],
-                   seconds=seconds, guard=action, loss_eps=settings.loss_eps)
+                   seconds=seconds, guard=action, loss_eps=settings.loss_eps, steps=settings.steps,
+                   finetune_steps=model.training.get("steps"))
         rows.append(rec)
         if sink:
             sink.write(json.dumps(rec) + "\n")
