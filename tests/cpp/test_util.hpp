@@ -1,4 +1,4 @@
-// Shared helpers for the C++ tests: parameter corners and hard directions.
+// Shared helpers for the C++ tests: parameter corners, hard directions, hand-built model files.
 #pragma once
 
 #include <cmath>
@@ -105,5 +105,59 @@ template <typename T> inline bool finite_nonneg(const Vec3<T>& v) {
         if (!(std::isfinite(v[c]) && v[c] >= T(0))) return false;
     return true;
 }
+
+// ---- hand-built model files (test_model.cpp, test_svbrdf.cpp) ----
+
+struct NamedTensor {
+    std::string name;
+    std::vector<int> shape;
+    std::vector<float> data;
+};
+
+// Writes a safetensors file with the given tensors and hybridbrdf metadata.
+inline std::string write_model(const std::string& file, const std::string& metadata_json,
+                        const std::vector<NamedTensor>& tensors) {
+    std::string header = "{\"__metadata__\":{\"hybridbrdf\":" + metadata_json + "}";
+    std::size_t offset = 0;
+    for (const auto& t : tensors) {
+        header += ",\"" + t.name + "\":{\"dtype\":\"F32\",\"shape\":[";
+        for (std::size_t i = 0; i < t.shape.size(); ++i) header += (i ? "," : "") + std::to_string(t.shape[i]);
+        header += "],\"data_offsets\":[" + std::to_string(offset) + "," + std::to_string(offset + 4 * t.data.size()) + "]}";
+        offset += 4 * t.data.size();
+    }
+    header += "}";
+    const std::string path = std::string("hbrdf_test_") + file;
+    std::ofstream out(path, std::ios::binary);
+    const unsigned long long n = header.size();
+    for (int i = 0; i < 8; ++i) out.put(static_cast<char>((n >> (8 * i)) & 0xff));
+    out << header;
+    for (const auto& t : tensors) out.write(reinterpret_cast<const char*>(t.data.data()), 4 * t.data.size());
+    return path;
+}
+
+// JSON string literal of the metadata document (escaped for embedding as a string value).
+inline std::string meta(const std::string& kind, int width, int latent, int n_in, int n_out, bool isotropic = true) {
+    std::string doc = "{\"format_version\":1,\"conventions_version\":" + std::to_string(kConventionsVersion) +
+                      ",\"library_version\":\"test\",\"arch\":{\"kind\":\"" + kind + "\",\"width\":" +
+                      std::to_string(width) + ",\"depth\":1,\"activation\":\"relu\",\"latent\":" +
+                      std::to_string(latent) + ",\"n_in\":" + std::to_string(n_in) + ",\"n_out\":" +
+                      std::to_string(n_out) + "},\"materials\":[{\"name\":\"m\",\"origin\":\"test\",\"isotropic\":" +
+                      (isotropic ? "true" : "false") + "}],\"training\":{}}";
+    std::string escaped = "\"";
+    for (char c : doc) escaped += (c == '"' ? std::string("\\\"") : std::string(1, c));
+    return escaped + "\"";
+}
+
+inline std::vector<NamedTensor> zero_hybrid(int latent) {
+    return {{"mlp.hidden.0.weight", {1, 6 + latent}, std::vector<float>(6 + latent, 0.f)},
+            {"mlp.hidden.0.bias", {1}, {0.f}},
+            {"mlp.out.weight", {6, 1}, std::vector<float>(6, 0.f)},
+            {"mlp.out.bias", {6}, std::vector<float>(6, 0.f)},
+            {"materials.kd", {1, 3}, {0.2f, 0.4f, 0.6f}},
+            {"materials.eta", {1, 3}, {1.5f, 1.5f, 1.5f}},
+            {"materials.alpha", {1, 2}, {0.3f, 0.3f}},
+            {"materials.z", {1, latent}, std::vector<float>(latent, 0.f)}};
+}
+
 
 }  // namespace hbrdf::test
