@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """What texturing costs in the generated GLSL under lavapipe (issue 48; docs/SVBRDF.md): a texel's
 hbrdf_eval_layers (its four layer materials selected per pair, layer 0's kd decoded from 8-bit
-sRGB by hbrdf_decode_srgb, glsl/layers.comp.j2) against hbrdf_eval of the base material
-(glsl/eval.comp.j2), in one process, best of 7 dispatches per kernel after a warm-up
+sRGB by hbrdf_decode_srgb, glsl/layers.comp.j2) against hbrdf_eval of the base material's constant
+(glsl/eval.comp.j2) and against the same kernel on pure texels without the decode (the base
+material chosen at run time), in one process, best of 7 dispatches per kernel after a warm-up
 (hbrdf_vk_runner --repeat 7), on lavapipe's host SIMD path.
 
 The texels are bench/svbrdf_mixture.py's 512x512 material (three layers of
@@ -93,10 +94,17 @@ def main() -> int:
     src.write_text(render_shader("layers.comp.glsl", include="model.glsl", materials=consts, n=n))
     layers_spv = work / "layers.spv"
     compile_spirv(src, layers_spv, "glsl", include_dir=work)
+    src.write_text(render_shader("layers.comp.glsl", include="model.glsl", materials=consts, n=n, decode_kd=False))
+    runtime_spv = work / "runtime.spv"
+    compile_spirv(src, runtime_spv, "glsl", include_dir=work)
     pairs = np.concatenate([wi, wo], axis=1)
     base_rate = rate(uniform_spv, pairs, 3, work)
     print(f"lavapipe (host SIMD), {n} pairs, best of 7 dispatches; model {args.model}")
-    print(f"uniform material ({names[0]}), hbrdf_eval: {base_rate / 1e6:.2f} M evaluations/s")
+    print(f"uniform material ({names[0]}), hbrdf_eval of its constant: {base_rate / 1e6:.2f} M evaluations/s")
+    pure_rows, _ = rows_for(sets["pure texels"])
+    r = rate(runtime_spv, pure_rows, 4, work)
+    print(f"  the same material chosen at run time (the layers kernel, pure texels, no decode): {r / 1e6:.2f} M/s = "
+          f"{base_rate / r:.2f}x")
     for label, texels in sets.items():
         rows, wt = rows_for(texels)
         r = rate(layers_spv, rows, 4, work)
