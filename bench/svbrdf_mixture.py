@@ -41,6 +41,7 @@ import hybridbrdf as hb
 from hybridbrdf import spec
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 from hybridbrdf.fit.paint import composite
+from hybridbrdf.model.networks import energy_bound_scale
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 from hybridbrdf.svbrdf.decode import decode, encode, png_channel
 
@@ -201,8 +202,6 @@ def main() -> int:
 
 def bits_study(model, args, wi, wo, cos_i, materials: int = 54):
     """Each quantity of every material quantised alone, by the spec's 8-bit decode at several depths."""
-    from hybridbrdf.evaluate.evaluation import evaluate  # noqa: F401  (the metric definitions are shared)
-
     mod = model._module(torch.float32)
     t = model.tensors
     z_lo, z_hi = t["materials.z"].min(axis=0), t["materials.z"].max(axis=0)
@@ -229,7 +228,6 @@ def bits_study(model, args, wi, wo, cos_i, materials: int = 54):
                 f, _ = mod.evaluate_pairs(wi_t, wo_t, *(torch.as_tensor(r[k], dtype=torch.float32).expand(n, -1)
                                                         for k in ("kd", "eta", "alpha", "z")), head)
             if "energy_bound" in mt:
-                from hybridbrdf.model.networks import energy_bound_scale
                 tab = mt["energy_bound"][0]
                 f = f * (energy_bound_scale(tab, wi_t[:, 2] / wi_t.norm(dim=1)) *
                          energy_bound_scale(tab, wo_t[:, 2] / wo_t.norm(dim=1)))[:, None]

@@ -19,9 +19,9 @@ from hybridbrdf.codegen.main import generate
 from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.svbrdf.decode import transfer
 
-from helpers import compile_spirv, hard_pairs, run_on_lavapipe, saved_random_model, skip_without_vulkan
-from shader_kernels import KERNEL_FILE, render_shader
-from slang_wgsl_tools import compile_slang, run_wgsl, skip_without_slang, skip_without_wgpu
+from helpers import hard_pairs, saved_random_model, skip_without_vulkan
+from shader_kernels import render_shader
+from slang_wgsl_tools import run_kernel, skip_without_slang, skip_without_wgpu
 
 STORED_KD = np.array([[0.0, 0.5, 1.0], [0.2, 0.2, 0.2], [1.0, 0.04, 0.6], [0.73, 0.91, 0.05]])
 
@@ -98,18 +98,8 @@ def test_generated_texel_functions_match_the_library(tmp_path, case, target):
     materials = [material_constant(n) for n in model.materials]
     extra = {"model_code": code} if target == "wgsl" else {}
     kernel = render_shader(f"layers.comp.{target}", include=f"model.{target}", materials=materials, n=len(rows), **extra)
-    if target == "wgsl":
-        got = run_wgsl(kernel, rows, out_floats=4)
-    else:
-        (tmp_path / f"model.{target}").write_text(code)
-        src = tmp_path / KERNEL_FILE[target]
-        src.write_text(kernel)
-        spv = tmp_path / "k.spv"
-        if target == "slang":
-            compile_slang(src, spv, include_dir=tmp_path)
-        else:
-            compile_spirv(src, spv, target, include_dir=tmp_path)
-        got = run_on_lavapipe(spv, rows, out_floats=4)
+    (tmp_path / f"model.{target}").write_text(code)
+    got = run_kernel(tmp_path, target, kernel, rows, out_floats=4)
     check(got, f_ref, pdf_ref)
 
 

@@ -133,7 +133,6 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
         raise ValueError(f"at most {spec.SVBRDF['max_layers'] - 1} layers over the base, got {len(layers)}")
     base_model = load_model(model)
     masks = [read_grey(mask, "mask") for _, mask in layers]
-    shapes = {m.shape for m in masks}
     if size is None:
         if not masks:
             raise ValueError("give --size WxH when no layer has a mask")
@@ -144,7 +143,6 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     for (_, mask_path), m in zip(layers, masks):
         if m.shape != (h, w):
             raise InputFileError(mask_path, f"mask is {m.shape[1]}x{m.shape[0]}; the textured material is {w}x{h}")
-    del shapes
     n_layers = 1 + len(layers)
     textures = {}
     for label, table, reader in (("kd", kd or {}, read_albedo), ("alpha", roughness or {}, None)):

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from hybridbrdf import spec
+from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
 from hybridbrdf.model.file import HybridModel, load_model
@@ -238,9 +239,8 @@ def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray]
             head = (mt["head_weight"][0], mt["head_bias"][0]) if "head_weight" in mt else None
             sel = {q: torch.as_tensor(t[q][rows, k], dtype=dtype) for q in LAYER_QUANTITIES}
             fk, _ = mod.evaluate_pairs(wi_t[rows], wo_t[rows], sel["kd"], sel["eta"], sel["alpha"], sel["latent"], head)
-            if "energy_bound" in mt:
-                wi_n = wi_t[rows] / wi_t[rows].norm(dim=1, keepdim=True).clamp_min(1e-30)
-                wo_n = wo_t[rows] / wo_t[rows].norm(dim=1, keepdim=True).clamp_min(1e-30)
+            if "energy_bound" in mt:  # as HybridModel._eval scales a material's f_t
+                wi_n, wo_n = (_normalize(w[rows])[0] for w in (wi_t, wo_t))
                 table = mt["energy_bound"][0]
                 fk = fk * (energy_bound_scale(table, wi_n[:, 2]) * energy_bound_scale(table, wo_n[:, 2]))[:, None]
             f[rows] += fk * torch.as_tensor(t["weight"][rows, k], dtype=dtype)[:, None]
