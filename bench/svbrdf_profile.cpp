@@ -1,11 +1,13 @@
 // Where a textured material's batched evaluation spends its time (docs/SVBRDF.md, "What texturing
 // costs"): Svbrdf::eval_batch on a 512x512 two-layer material (weights 0: every texel the base
-// layer) against HybridModel::eval_batch of the base material, random uv, 131,072 pairs x 30.
+// layer; or 0.5: every texel two layers) against
+// HybridModel::eval_batch of the base material, random uv, 131,072 pairs x 30.
 //
 //   cmake --build build --target hybridbrdf
 //   g++ -O2 -g -std=c++17 -Icpp/include bench/svbrdf_profile.cpp build/libhybridbrdf.a -o /tmp/svbrdf_profile
 //   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 0   # uniform, M evaluations/s
-//   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 1   # textured
+//   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 1   # textured, pure texels
+//   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 2   # textured, every texel two layers
 //   perf record -o /tmp/p.data /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 1 && perf report -i /tmp/p.data
 #include <chrono>
 #include <cstdio>
@@ -16,7 +18,10 @@ int main(int argc, char** argv) {
     auto model = std::make_shared<const HybridModel>(HybridModel::load(argv[1]));
     std::vector<SvbrdfLayer> layers(2); layers[0].material = 3; layers[1].material = 4;
     const int W = 512;
+    int mode = atoi(argv[2]);
     std::vector<float> weights(W * W * 3, 0.f);
+    if (mode == 2)  // every texel mixed: half layer 0, half layer 1
+        for (int i = 0; i < W * W; ++i) weights[3 * i] = 0.5f;
     Svbrdf sv(model, W, W, TexelAddressing::Repeat, layers, weights);
     const std::size_t n = 1 << 17;
     std::mt19937 rng(1); std::uniform_real_distribution<float> U(0, 1);
@@ -26,12 +31,11 @@ int main(int argc, char** argv) {
         float a = U(rng), b = U(rng);
         wi[3*i] = 0.3f*a; wi[3*i+1] = 0.2f*b; wi[3*i+2] = 0.9f; wo[3*i] = -0.2f*b; wo[3*i+1] = 0.4f*a; wo[3*i+2] = 0.8f;
     }
-    int mode = atoi(argv[2]);
     auto t0 = std::chrono::steady_clock::now();
     for (int r = 0; r < 30; ++r) {
         if (mode == 0) model->eval_batch(3, n, wi.data(), wo.data(), f.data());
         else sv.eval_batch(n, uv.data(), wi.data(), wo.data(), TexelFilter::Bilinear, f.data());
     }
     double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%s %.2f M/s\n", mode ? "textured" : "uniform", 30.0 * n / dt / 1e6);
+    std::printf("%s %.2f M/s\n", mode == 2 ? "textured, mixed" : mode ? "textured" : "uniform", 30.0 * n / dt / 1e6);
 }

@@ -36,7 +36,7 @@
 namespace hbrdf {
 
 namespace {
-constexpr int kChunk = 64;
+constexpr int kChunk = int(HybridModel::kBatchChunk);
 
 using detail::activate;
 

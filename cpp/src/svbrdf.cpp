@@ -11,46 +11,75 @@
 
 namespace hbrdf {
 
-namespace {
-
-struct Taps {
+struct Svbrdf::Taps {
     int n = 0;
     std::size_t index[4];  // texel index row * width + col
     double weight[4];
+    std::size_t quad = 0;  // bilinear: the 2x2 block's index in Svbrdf::pure_quad_
+    long x0 = 0, y0 = 0;   // bilinear: the block's corner, and the position in it
+    double fx = 0.0, fy = 0.0;
 };
 
+namespace {
+
+using Taps = Svbrdf::Taps;
+
 // i is within one texel of [0, n) (uv was wrapped into [0, 1) or clamped first): no division.
-long wrap_index(long i, long n, bool repeat) {
+HBRDF_INLINE long wrap_index(long i, long n, bool repeat) {
     if (repeat) return i < 0 ? i + n : i >= n ? i - n : i;
     return std::clamp(i, 0L, n - 1);
 }
 
-Taps taps_of(const Vec2<float>& uv_in, TexelFilter filter, int width, int height, TexelAddressing addressing) {
+// floor() without the libm call a portable build makes of std::floor (no SSE4.1 roundsd): four
+// per lookup were a third of a pure texel's cost. Doubles of magnitude 2^52 and above are integers.
+HBRDF_INLINE double floor_fast(double x) {
+    if (!(std::fabs(x) < 4503599627370496.0)) return x;
+    const double t = double(static_cast<long long>(x));  // toward zero
+    return t > x ? t - 1.0 : t;
+}
+
+// Where uv falls: the nearest texel, or the 2x2 block of bilinear taps (corner and position, not
+// yet the four texels: spread_taps). Cheap enough to ask "one layer alone?" of every pair first.
+HBRDF_INLINE Taps locate_taps(const Vec2<float>& uv_in, TexelFilter filter, int width, int height, TexelAddressing addressing) {
     const bool repeat = addressing == TexelAddressing::Repeat;
     // Non-finite uv (a degenerate hit) reads (0, 0); huge finite uv wrap in double without overflow.
     double u = std::isfinite(uv_in.x) ? double(uv_in.x) : 0.0, v = std::isfinite(uv_in.y) ? double(uv_in.y) : 0.0;
-    if (repeat) u -= std::floor(u), v -= std::floor(v);  // in [0, 1): the index arithmetic stays small
+    if (repeat) u -= floor_fast(u), v -= floor_fast(v);  // in [0, 1): the index arithmetic stays small
     else u = std::clamp(u, 0.0, 1.0), v = std::clamp(v, 0.0, 1.0);
     Taps t;
     if (filter == TexelFilter::Nearest) {
-        const long col = wrap_index(long(std::floor(u * width)), width, repeat);
-        const long row = wrap_index(long(std::floor(v * height)), height, repeat);
+        const long col = wrap_index(long(floor_fast(u * width)), width, repeat);
+        const long row = wrap_index(long(floor_fast(v * height)), height, repeat);
         t.n = 1;
         t.index[0] = std::size_t(row) * std::size_t(width) + std::size_t(col);
         t.weight[0] = 1.0;
         return t;
     }
     const double x = u * width - 0.5, y = v * height - 0.5;
-    const double x0 = std::floor(x), y0 = std::floor(y);
-    const double fx = x - x0, fy = y - y0;
+    const double x0 = floor_fast(x), y0 = floor_fast(y);  // in [-1, width) x [-1, height)
     t.n = 4;
+    t.x0 = long(x0), t.y0 = long(y0);
+    t.fx = x - x0, t.fy = y - y0;
+    t.quad = std::size_t(t.y0 + 1) * std::size_t(width + 1) + std::size_t(t.x0 + 1);
+    return t;
+}
+
+// The four texels of a located bilinear lookup and their weights.
+void spread_taps(Taps& t, int width, int height, TexelAddressing addressing) {
+    if (t.n == 1) return;
+    const bool repeat = addressing == TexelAddressing::Repeat;
     int k = 0;
     for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx, ++k) {
-            const long row = wrap_index(long(y0) + dy, height, repeat), col = wrap_index(long(x0) + dx, width, repeat);
+            const long row = wrap_index(t.y0 + dy, height, repeat), col = wrap_index(t.x0 + dx, width, repeat);
             t.index[k] = std::size_t(row) * std::size_t(width) + std::size_t(col);
-            t.weight[k] = (dx ? fx : 1.0 - fx) * (dy ? fy : 1.0 - fy);
+            t.weight[k] = (dx ? t.fx : 1.0 - t.fx) * (dy ? t.fy : 1.0 - t.fy);
         }
+}
+
+Taps taps_of(const Vec2<float>& uv, TexelFilter filter, int width, int height, TexelAddressing addressing) {
+    Taps t = locate_taps(uv, filter, width, height, addressing);
+    spread_taps(t, width, height, addressing);
     return t;
 }
 
@@ -104,41 +133,100 @@ Svbrdf::Svbrdf(std::shared_ptr<const HybridModel> model, int width, int height, 
         throw std::invalid_argument("a textured material of several layers needs a weights map of width * height * 3 values");
     for (float v : weights_)
         if (!(v >= 0.f && v <= 1.f)) throw std::invalid_argument("weights must lie in [0, 1]");
+    for (std::size_t k = 0; k < layers_.size(); ++k) {
+        const SvbrdfLayer& l = layers_[k];
+        plain_[k] = l.kd.empty() && l.eta.empty() && l.alpha.empty() && l.latent.empty();
+    }
+    // Exactly the normalisation of texel_at(): w_0 = 1 - sum (clamped), the others divided by the
+    // sum above 1. A texel is pure in layer k when w_k is 1 and the others 0 after it.
+    const int L = int(layers_.size());
+    if (L > 1) {
+        pure_layer_.resize(texels);
+        for (std::size_t i = 0; i < texels; ++i) {
+            double w[spec::kSvbrdfMaxLayers] = {0.0, 0.0, 0.0, 0.0}, total = 0.0;
+            for (int c = 0; c < L - 1; ++c) total += w[c + 1] = double(weights_[i * 3 + std::size_t(c)]);
+            if (total > 1.0)
+                for (int c = 1; c < L; ++c) w[c] /= total;
+            w[0] = std::clamp(1.0 - std::min(total, 1.0), 0.0, 1.0);
+            int pure = -1, positive = 0;
+            for (int k = 0; k < L; ++k)
+                if (w[k] > 0.0) ++positive, pure = w[k] == 1.0 ? k : -1;
+            pure_layer_[i] = static_cast<signed char>(positive == 1 ? pure : -1);
+        }
+        // The bilinear footprint's 2x2 blocks, corner (x0, y0) in [-1, width) x [-1, height) (the
+        // taps' wrapping or clamping applied): one byte read per lookup says "one layer alone".
+        const bool repeat = addressing_ == TexelAddressing::Repeat;
+        pure_quad_.resize(std::size_t(width_ + 1) * std::size_t(height_ + 1));
+        for (long y0 = -1; y0 < height_; ++y0)
+            for (long x0 = -1; x0 < width_; ++x0) {
+                int k = -2;
+                for (int dy = 0; dy < 2; ++dy)
+                    for (int dx = 0; dx < 2; ++dx) {
+                        const long row = wrap_index(y0 + dy, height_, repeat), col = wrap_index(x0 + dx, width_, repeat);
+                        const int p = pure_layer_[std::size_t(row) * std::size_t(width_) + std::size_t(col)];
+                        k = k == -2 || k == p ? p : -1;
+                    }
+                pure_quad_[std::size_t(y0 + 1) * std::size_t(width_ + 1) + std::size_t(x0 + 1)] = static_cast<signed char>(k);
+            }
+    }
+}
+
+HBRDF_INLINE int Svbrdf::pure_layer_at(const Taps& t) const {
+    if (pure_layer_.empty()) return 0;  // one layer: every texel is it
+    return t.n == 1 ? pure_layer_[t.index[0]] : pure_quad_[t.quad];
 }
 
 void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const {
-    const Taps t = taps_of(uv, filter, width_, height_, addressing_);
+    texel_at(taps_of(uv, filter, width_, height_, addressing_), out);
+}
+
+void Svbrdf::weights_at(const Taps& t, double* w) const {
+    const int L = int(layers_.size());
+    std::fill(w, w + spec::kSvbrdfMaxLayers, 0.0);
+    // Taps all pure in one layer: that layer's weight is 1 exactly (interpolating 1s in double can
+    // round to 1 - 1e-16 and leave a layer of weight 1e-16 to evaluate).
+    if (const int pure = pure_layer_at(t); pure >= 0) {
+        w[pure] = 1.0;
+        return;
+    }
+    double total = 0.0;
+    for (int c = 0; c < L - 1; ++c) {
+        double acc = 0.0;
+        for (int k = 0; k < t.n; ++k) acc += double(weights_[t.index[k] * 3 + std::size_t(c)]) * t.weight[k];
+        w[c + 1] = acc;
+        total += acc;
+    }
+    if (total > 1.0)
+        for (int c = 1; c < L; ++c) w[c] /= total;
+    w[0] = std::clamp(1.0 - std::min(total, 1.0), 0.0, 1.0);
+}
+
+void Svbrdf::layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const {
+    const SvbrdfLayer& layer = layers_[std::size_t(k)];
+    const ModelMaterial& mat = model_->materials()[std::size_t(layer.material)];
+    o->material = layer.material;
+    o->latent = latent;
+    float v[3];
+    sample_map(layer.kd, 3, t, &mat.params.kd.x, v);
+    o->params.kd = Vec3<float>(v[0], v[1], v[2]);
+    sample_map(layer.eta, 3, t, &mat.params.eta.x, v);
+    o->params.eta = Vec3<float>(v[0], v[1], v[2]);
+    sample_map(layer.alpha, 2, t, &mat.params.alpha.x, v);
+    o->params.alpha = Vec2<float>(v[0], v[1]);
+    sample_map(layer.latent, model_->latent_dim(), t, mat.latent.data(), latent);
+}
+
+void Svbrdf::texel_at(const Taps& t, Texel* out) const {
     const int L = int(layers_.size()), l = model_->latent_dim();
     out->n_layers = L;
-    double w[spec::kSvbrdfMaxLayers] = {1.0, 0.0, 0.0, 0.0};
-    if (L > 1) {
-        double total = 0.0;
-        for (int c = 0; c < L - 1; ++c) {
-            double acc = 0.0;
-            for (int k = 0; k < t.n; ++k) acc += double(weights_[t.index[k] * 3 + std::size_t(c)]) * t.weight[k];
-            w[c + 1] = acc;
-            total += acc;
-        }
-        if (total > 1.0)
-            for (int c = 1; c < L; ++c) w[c] /= total;
-        w[0] = std::clamp(1.0 - std::min(total, 1.0), 0.0, 1.0);
-    }
+    double w[spec::kSvbrdfMaxLayers];
+    weights_at(t, w);
     for (int k = 0; k < L; ++k) {
-        const SvbrdfLayer& layer = layers_[std::size_t(k)];
-        const ModelMaterial& mat = model_->materials()[std::size_t(layer.material)];
         TexelLayer& o = out->layers[k];
-        o.material = layer.material;
+        float* latent = out->latent + std::size_t(k) * std::size_t(l);
         o.weight = float(w[k]);
-        o.latent = out->latent + std::size_t(k) * std::size_t(l);
-        if (!(o.weight > 0.f)) continue;  // not evaluated: its values are not read
-        float v[3];
-        sample_map(layer.kd, 3, t, &mat.params.kd.x, v);
-        o.params.kd = Vec3<float>(v[0], v[1], v[2]);
-        sample_map(layer.eta, 3, t, &mat.params.eta.x, v);
-        o.params.eta = Vec3<float>(v[0], v[1], v[2]);
-        sample_map(layer.alpha, 2, t, &mat.params.alpha.x, v);
-        o.params.alpha = Vec2<float>(v[0], v[1]);
-        sample_map(layer.latent, l, t, mat.latent.data(), out->latent + std::size_t(k) * std::size_t(l));
+        if (o.weight > 0.f) layer_at(t, k, &o, latent);  // a layer of weight 0 is not evaluated: not read
+        else o.material = layers_[std::size_t(k)].material, o.latent = latent;
     }
 }
 
@@ -152,67 +240,93 @@ void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const f
                         float* f) const {
     const int L = layer_count();
     const std::size_t l = std::size_t(model_->latent_dim());
-    // Every (pair, layer) of positive weight with its texel values, in (pair, layer) order. The
-    // buffers are the thread's own and kept between calls: a tracer calls this once per bounce
-    // and material, and fresh pages from the kernel cost more than the lookups.
-    thread_local std::vector<std::uint32_t> entry_pair;
-    thread_local std::vector<TexelLayer> entries, sorted;
-    thread_local std::vector<float> latent, dir_i, dir_o, out;
-    thread_local std::vector<std::size_t> start, order, row_of;
-    entry_pair.clear(), entries.clear(), latent.clear();
-    Texel t;
+    // Per layer, the pairs where it has positive weight, and for a layer with maps its texel values
+    // there. The buffers are the thread's own and kept between calls: a tracer calls this once per
+    // bounce and material, and fresh pages from the kernel cost more than the lookups.
+    struct LayerPairs {
+        std::vector<std::uint32_t> pair;
+        std::vector<float> weight;
+        std::vector<TexelLayer> values;  // layers with maps only
+        std::vector<float> latent;
+    };
+    thread_local LayerPairs lists[spec::kSvbrdfMaxLayers];
+    thread_local std::vector<float> dir_i, dir_o, out;
+    // Consecutive pairs pure in one plain layer (a renderer's tile in texture order, a region of
+    // one layer) are evaluated where they lie, by the layer material's kernel writing f: no copies.
+    // Whole kernel chunks of a run go there; the rest of the run (a partial chunk would idle lanes)
+    // joins the layer's list like any other pair.
+    constexpr std::size_t kChunk = HybridModel::kBatchChunk;
+    thread_local std::vector<std::size_t> runs;  // (first pair, count, layer) triples
+    runs.clear();
+    for (LayerPairs& p : lists) p.pair.clear(), p.weight.clear(), p.values.clear(), p.latent.clear();
+    std::size_t run_start = 0;
+    int run_layer = -1;
+    auto close_run = [&](std::size_t end) {
+        if (run_layer < 0) return;
+        const std::size_t in_place = (end - run_start) / kChunk * kChunk;
+        if (in_place) runs.insert(runs.end(), {run_start, in_place, std::size_t(run_layer)});
+        for (std::size_t i = run_start + in_place; i < end; ++i) {
+            lists[run_layer].pair.push_back(std::uint32_t(i));
+            lists[run_layer].weight.push_back(1.f);
+        }
+        run_layer = -1;
+    };
+    double w[spec::kSvbrdfMaxLayers];
     for (std::size_t i = 0; i < n; ++i) {
-        texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, &t);
-        for (int k = 0; k < L; ++k)
-            if (t.layers[k].weight > 0.f) {
-                entries.push_back(t.layers[k]);
-                entry_pair.push_back(std::uint32_t(i));
-                latent.insert(latent.end(), t.layers[k].latent, t.layers[k].latent + l);
-            }
+        Taps taps = locate_taps(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, width_, height_, addressing_);
+        if (const int k = pure_layer_at(taps); k >= 0 && plain_[k]) {  // one layer alone, its material's values
+            if (k != run_layer) close_run(i), run_start = i, run_layer = k;
+            continue;
+        }
+        close_run(i);
+        spread_taps(taps, width_, height_, addressing_);
+        weights_at(taps, w);
+        for (int k = 0; k < L; ++k) {
+            const float wk = float(w[k]);
+            if (!(wk > 0.f)) continue;
+            LayerPairs& lp = lists[k];
+            lp.pair.push_back(std::uint32_t(i));
+            lp.weight.push_back(wk);
+            if (plain_[k]) continue;
+            lp.values.emplace_back();
+            lp.latent.resize(lp.latent.size() + l);
+            layer_at(taps, k, &lp.values.back(), lp.latent.data() + lp.latent.size() - l);  // pointer set again below
+        }
     }
-    const std::size_t m = entries.size();
-    for (std::size_t e = 0; e < m; ++e) entries[e].latent = &latent[e * l];
-    // The kernels run over runs of one material: in texture order a renderer's pairs already come
-    // in long runs (a region of one layer, or the same few layers pair after pair); only when the
-    // material changes often are the entries sorted by it (a counting sort).
-    std::size_t switches = 0;
-    for (std::size_t e = 1; e < m; ++e) switches += entries[e].material != entries[e - 1].material;
-    out.resize(3 * m), row_of.resize(m);
-    if (switches * 64 <= m) {
+    close_run(n);
+    for (std::size_t r = 0; r < runs.size(); r += 3)
+        model_->eval_batch(layers_[runs[r + 2]].material, runs[r + 1], wi + 3 * runs[r], wo + 3 * runs[r], f + 3 * runs[r]);
+    for (const LayerPairs& lp : lists)
+        for (std::uint32_t p : lp.pair) std::fill(f + 3 * std::size_t(p), f + 3 * std::size_t(p) + 3, 0.f);
+    // Layer by layer, in layer order (the scalar path's sum order): a layer without maps is its
+    // material at every pair, the uniform kernel with the latent code folded into the first layer's
+    // bias; a layer with maps runs the kernels with per-lane p and latent code. One material per
+    // call either way: no sorting.
+    for (int k = 0; k < L; ++k) {
+        LayerPairs& lp = lists[k];
+        const std::size_t m = lp.pair.size();
+        if (m == 0) continue;
         const float* di = wi;
         const float* dw = wo;
-        if (m != n) {  // some pairs have several layers: their directions once per layer
+        if (m != n) {
             dir_i.resize(3 * m), dir_o.resize(3 * m);
-            for (std::size_t e = 0; e < m; ++e) {
-                const std::size_t p = entry_pair[e];
-                std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * e]);
-                std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * e]);
+            for (std::size_t r = 0; r < m; ++r) {
+                std::copy(wi + 3 * lp.pair[r], wi + 3 * lp.pair[r] + 3, &dir_i[3 * r]);
+                std::copy(wo + 3 * lp.pair[r], wo + 3 * lp.pair[r] + 3, &dir_o[3 * r]);
             }
             di = dir_i.data(), dw = dir_o.data();
         }
-        model_->eval_batch_layers(m, di, dw, entries.data(), out.data());
-        for (std::size_t e = 0; e < m; ++e) row_of[e] = e;
-    } else {
-        const std::size_t n_mat = model_->materials().size();
-        start.assign(n_mat + 1, 0), order.resize(m);
-        for (const TexelLayer& e : entries) ++start[std::size_t(e.material) + 1];
-        for (std::size_t k = 0; k < n_mat; ++k) start[k + 1] += start[k];
-        for (std::size_t e = 0; e < m; ++e) order[start[std::size_t(entries[e].material)]++] = e;
-        dir_i.resize(3 * m), dir_o.resize(3 * m), sorted.resize(m);
-        for (std::size_t r = 0; r < m; ++r) {
-            const std::size_t e = order[r], p = entry_pair[e];
-            std::copy(wi + 3 * p, wi + 3 * p + 3, &dir_i[3 * r]);
-            std::copy(wo + 3 * p, wo + 3 * p + 3, &dir_o[3 * r]);
-            sorted[r] = entries[e];  // its latent pointer still into `latent`
-            row_of[e] = r;
+        out.resize(3 * m);
+        if (plain_[k]) {
+            model_->eval_batch(layers_[std::size_t(k)].material, m, di, dw, out.data());
+        } else {
+            for (std::size_t r = 0; r < m; ++r) lp.values[r].latent = &lp.latent[r * l];
+            model_->eval_batch_layers(m, di, dw, lp.values.data(), out.data());
         }
-        model_->eval_batch_layers(m, dir_i.data(), dir_o.data(), sorted.data(), out.data());
-    }
-    std::fill(f, f + 3 * n, 0.f);
-    for (std::size_t e = 0; e < m; ++e) {  // (pair, layer) order: the scalar path's sum order
-        const std::size_t p = entry_pair[e], r = row_of[e];
-        const float w = entries[e].weight;
-        for (int c = 0; c < 3; ++c) f[3 * p + std::size_t(c)] = f[3 * p + std::size_t(c)] + out[3 * r + std::size_t(c)] * w;
+        for (std::size_t r = 0; r < m; ++r) {
+            float* fp = f + 3 * std::size_t(lp.pair[r]);
+            for (int c = 0; c < 3; ++c) fp[c] = fp[c] + out[3 * r + std::size_t(c)] * lp.weight[r];
+        }
     }
 }
 

@@ -370,23 +370,50 @@ def test_cpp_loader_and_lookup_agree_with_python(tmp_path, fmt, filt):
     assert np.all(np.abs(analytic - fa) <= 2e-4 * scale + 1e-6)
 
 
+def _regions_folder(tmp_path, addressing):
+    """Four layers in regions: pure blocks of each (layer 3, the base's material with a kd map: its
+    pure texels take the per-lane path), soft edges between them, every texel of column 0 mixed."""
+    _, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    rng = np.random.default_rng(21)
+    h, w = 16, 24
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[:8, 8:16, 0] = 1     # layer 1 pure
+    weights[8:, :12, 1] = 1      # layer 2 pure
+    weights[8:, 12:, 2] = 1      # layer 3 pure (mapped)
+    weights[7:9, :, :] = 0.3     # a soft band across
+    weights[:, 0, :] = [0.2, 0.1, 0.3]
+    maps = [{}, {}, {}, {"kd": rng.uniform(0, 1, (h, w, 3)).astype(np.float32)}]
+    layers = [m.materials[0], m.materials[1], m.materials[2], m.materials[0]]  # layers 0 and 3 share a material
+    SVBRDF(m, layers, (w, h), weights, maps, addressing=addressing).save(tmp_path / addressing, format="exr")
+    return load_svbrdf(tmp_path / addressing)
+
+
 @pytest.mark.parametrize("simd", ["baseline", "avx2+fma", "avx512"])
-@pytest.mark.parametrize("kind", ["mixed", "one layer"])
+@pytest.mark.parametrize("kind", ["mixed", "one layer", "regions repeat", "regions clamp", "regions nearest"])
 def test_batched_texels_match_the_scalar_path(tmp_path, simd, kind):
-    """Svbrdf::eval_batch (layers sorted by material through HybridModel::eval_batch_layers, the
+    """Svbrdf::eval_batch (runs of pure texels through the uniform kernel, other pairs layer by
+    layer: plain layers through HybridModel::eval_batch, mapped ones through eval_batch_layers, the
     vectorised kernels; one layer of one material: no gather) against Svbrdf::eval one pair at a
-    time, on every SIMD level the CPU has."""
+    time, on every SIMD level the CPU has. The regions' uv come in texture order (runs of one pure
+    layer long and short) with random pairs between, and beyond [0, 1] (repeat and clamp)."""
+    filt = "nearest" if kind == "regions nearest" else "bilinear"
     if kind == "mixed":
         sv = _rich_folder(tmp_path, "exr")
+    elif kind.startswith("regions"):
+        sv = _regions_folder(tmp_path, "clamp" if kind == "regions clamp" else "repeat")
     else:
         _, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
         z = m.tensors["materials.z"][1] + np.random.default_rng(3).normal(0, 0.2, (4, 5, m.tensors["materials.z"].shape[1]))
         SVBRDF(m, [m.materials[1]], (5, 4), None, [{"latent": z.astype(np.float32)}]).save(tmp_path / "one", format="exr")
         sv = load_svbrdf(tmp_path / "one")
     wi, wo = _directions(3000, seed=12)
-    uv = np.random.default_rng(13).uniform(0, 1, size=(len(wi), 2)).astype(np.float32)
+    rng = np.random.default_rng(13)
+    uv = rng.uniform(0, 1, size=(len(wi), 2)).astype(np.float32)
+    if kind.startswith("regions"):
+        uv[: len(uv) // 2] = np.sort(rng.uniform(-0.2, 1.2, len(uv) // 2))[:, None] * [1.0, 0.37]  # texture order
+        uv[len(uv) // 2: len(uv) // 2 + 200] = rng.uniform(0.4, 0.6, (200, 2))
     lib = hb._core.Svbrdf(sv.path)
-    args = (uv, wi.astype(np.float32), wo.astype(np.float32), "bilinear")
+    args = (uv, wi.astype(np.float32), wo.astype(np.float32), filt)
     scalar = lib.eval(*args)
     hb._core.limit_model_simd(simd)
     try:

@@ -90,6 +90,9 @@ struct TexelLayer {
 
 class HybridModel {
 public:
+    /// Pairs per structure-of-arrays chunk of the batched kernels: a call of a multiple of it
+    /// leaves no lane idle (a partial last chunk costs a whole one).
+    static constexpr std::size_t kBatchChunk = 64;
     /// Reads and validates a model file; throws ModelFileError naming the file and the problem.
     static HybridModel load(const std::string& path);
 

@@ -54,6 +54,8 @@ public:
     TexelAddressing addressing() const { return addressing_; }
     const std::vector<SvbrdfLayer>& layers() const { return layers_; }
 
+    struct Taps;  ///< the texels (and their filter weights) under one uv; svbrdf.cpp
+
     /// The layers' values at uv: maps decoded then filtered (in double, so that a constant map
     /// gives its value exactly), then the weights normalised (w_0 = 1 - w_1 - w_2 - w_3; divided
     /// by their sum when it is above 1). A non-finite uv reads uv = (0, 0): a tracer never throws
@@ -61,9 +63,12 @@ public:
     void texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const;
     /// f(uv, wi, wo) through HybridModel::eval_texel.
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
-    /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). The texels' layers of
-    /// positive weight are sorted by material and evaluated by HybridModel::eval_batch_layers (the
-    /// vectorised kernels), then mixed in layer order: the batched twin of eval().
+    /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). Pairs on pure texels of
+    /// a layer without maps (all filter taps of weight 1 in that layer) are its material: they go to
+    /// HybridModel::eval_batch, the uniform material's kernel, in one call per layer. The other
+    /// texels' layers of positive weight are sorted by material and evaluated by
+    /// HybridModel::eval_batch_layers (per-lane p and latent code), then mixed in layer order: the
+    /// batched twin of eval().
     void eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f) const;
     /// sum_k w_k f_a(p_k): the analytic part of the texel.
     Vec3<float> eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
@@ -81,6 +86,19 @@ private:
     TexelAddressing addressing_;
     std::vector<SvbrdfLayer> layers_;
     std::vector<float> weights_;
+    // Per texel, the layer whose normalised weight is exactly 1 there, or -1 (mixed): a texel whose
+    // filter taps are all pure in one layer is that layer alone, with no weights to interpolate.
+    std::vector<signed char> pure_layer_;
+    std::vector<signed char> pure_quad_;  // the same for each 2x2 block of bilinear taps (svbrdf.cpp)
+    // Whether layer k has no maps: its pure texels are its material, evaluated by the uniform kernel.
+    bool plain_[spec::kSvbrdfMaxLayers] = {};
+
+    int pure_layer_at(const Taps& t) const;
+    // The normalised weights of all layers under the taps (kSvbrdfMaxLayers doubles).
+    void weights_at(const Taps& t, double* w) const;
+    // Layer k's material and filtered values (p; latent_dim() floats into `latent`) under the taps.
+    void layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const;
+    void texel_at(const Taps& t, Texel* out) const;
 };
 
 }  // namespace hbrdf
