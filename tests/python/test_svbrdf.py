@@ -5,6 +5,7 @@ uniform material as the special case of constant maps, filtering, and hbrdf pain
 from __future__ import annotations
 
 import json
+import os
 import shutil
 
 import numpy as np
@@ -502,6 +503,97 @@ def test_tracer_reads_the_texel_under_each_hit(tmp_path):
     differ = ~np.all(np.abs(a - b) <= 1e-3 * np.abs(a) + 1e-6, axis=2)
     assert np.all(near_a | near_b)
     assert (near_a & ~near_b & differ).sum() > 20 and (near_b & ~near_a & differ).sum() > 20
+
+
+def _two_lobe_sources(source):
+    """Measured callables the tests know exactly: 'matte' a grey Lambertian, 'shiny' a tinted lobe
+    around the mirror direction (keyed on the file name; the tracer resolves paths first)."""
+    name = os.path.basename(source)
+
+    def matte(wi, wo):
+        return np.full((len(wi), 3), 0.6 / np.pi, np.float32)
+
+    def shiny(wi, wo):
+        mirror = wo * np.array([-1, -1, 1], np.float32)
+        lobe = np.exp(20 * (np.sum(wi * mirror, axis=1) - 1))[:, None]
+        return (lobe * np.array([2.0, 1.2, 0.4]) + 0.02).astype(np.float32)
+
+    return {"matte": matte, "shiny": shiny}[name]
+
+
+@pytest.mark.parametrize("layout", ["constant", "halves"])
+def test_tracer_measured_mixture_is_the_weighted_sum_of_its_measurements(tmp_path, layout):
+    """{"type": "measured", "layers": [...], "weights": FOLDER} against its measurements. Direct
+    lighting with cosine sampling, one seed: a pixel is linear in the BRDF along fixed paths. Under a
+    constant weight t the mixture is (1 - t) A + t B to rounding, A and B rendered as mixtures of one
+    measurement with itself (the same layer choice per sample, hence the same paths); under a weights
+    map of two pure halves (a pure texel samples as its layer alone) every pixel is the measurement
+    rendered alone, A or B, and both are seen."""
+    _, m = saved_random_model(tmp_path, "hybrid")
+    weights = np.zeros((8, 16, 3), np.float32)
+    if layout == "constant":
+        weights[..., 0] = 0.3
+    else:
+        weights[:, 12:, 0] = 1.0  # u >= 0.75: layer 1
+    SVBRDF(m, [m.materials[0], m.materials[2]], (16, 8), weights).save(tmp_path / "sv", format="exr")  # t exactly
+    for name in ("matte", "shiny"):
+        (tmp_path / name).write_text("")
+
+    def render(material):
+        scene = _sphere_scene(material, sampler="cosine", spp=2)
+        scene["materials"]["m"] = material
+        with open(tmp_path / "scene.json", "w") as fh:
+            json.dump(scene, fh)
+        return hb.render.tracer.render(str(tmp_path / "scene.json"), quiet=True, measured_factory=_two_lobe_sources)[0]
+
+    if layout == "constant":
+        a = render({"type": "measured", "layers": ["matte", "matte"], "weights": "sv", "filter": "nearest"})
+        b = render({"type": "measured", "layers": ["shiny", "shiny"], "weights": "sv", "filter": "nearest"})
+    else:
+        a = render({"type": "measured", "source": "matte"})
+        b = render({"type": "measured", "source": "shiny"})
+    mix = render({"type": "measured", "layers": ["matte", "shiny"], "weights": "sv", "filter": "nearest"})
+    assert np.abs(a - b).max() > 0.05
+    if layout == "constant":
+        np.testing.assert_allclose(mix, 0.7 * a + 0.3 * b, rtol=1e-5, atol=1e-6)
+    else:
+        near_a = np.all(np.abs(mix - a) <= 1e-5 * np.abs(a) + 1e-6, axis=2)
+        near_b = np.all(np.abs(mix - b) <= 1e-5 * np.abs(b) + 1e-6, axis=2)
+        assert np.all(near_a | near_b)
+        assert (near_a & ~near_b).sum() > 20 and (near_b & ~near_a).sum() > 20
+
+
+@pytest.mark.parametrize("material, message", [
+    ({"type": "measured", "layers": ["matte"], "weights": "sv"}, "1 sources for the 2 layers of"),
+    ({"type": "measured", "layers": ["matte", "shiny"], "source": "matte"}, "not both or neither"),
+    ({"type": "measured", "layers": ["matte", "shiny"]}, "missing key 'weights'|weights"),
+    ({"type": "measured", "layers": ["matte", "shiny"], "weights": "sv",
+      "sampling_params": {"kd": 0.5}}, "takes no sampling_params"),
+    ({"type": "measured", "source": "matte", "weights": "sv"}, "only a mixture"),
+    ({"type": "measured", "layers": [], "weights": "sv"}, "array of 1 to 4 sources"),
+    ({"type": "measured", "layers": ["matte", "shiny"], "weights": "nowhere"}, "weights: .*nowhere"),
+])
+def test_tracer_measured_mixture_refusals(tmp_path, material, message):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, [m.materials[0], m.materials[2]], (4, 2), np.full((2, 4, 3), 0.2, np.float32)).save(tmp_path / "sv")
+    for name in ("matte", "shiny"):
+        (tmp_path / name).write_text("")
+    with open(tmp_path / "scene.json", "w") as fh:
+        json.dump(_sphere_scene(material), fh)
+    with pytest.raises(ValueError, match=message) as info:
+        hb.render.tracer.render(str(tmp_path / "scene.json"), quiet=True, measured_factory=_two_lobe_sources)
+    assert "\n" not in str(info.value) and "scene.json" in str(info.value)
+
+
+def test_tracer_refuses_the_tabulated_sampler_for_a_measured_mixture(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, [m.materials[0], m.materials[2]], (4, 2), np.full((2, 4, 3), 0.2, np.float32)).save(tmp_path / "sv")
+    for name in ("matte", "shiny"):
+        (tmp_path / name).write_text("")
+    with open(tmp_path / "scene.json", "w") as fh:
+        json.dump(_sphere_scene({"type": "measured", "layers": ["matte", "shiny"], "weights": "sv"}, sampler="tabulated"), fh)
+    with pytest.raises(ValueError, match="tabulated sampler tabulates one BRDF"):
+        hb.render.tracer.render(str(tmp_path / "scene.json"), quiet=True, measured_factory=_two_lobe_sources)
 
 
 def test_tracer_refuses_the_tabulated_sampler_for_textured_materials(tmp_path):

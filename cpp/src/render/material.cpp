@@ -122,4 +122,64 @@ void CallbackMaterial::eval(std::size_t n, const float* wi, const float* wo, flo
     for (std::size_t i = 0; i < 3 * n; ++i) f[i] = (f[i] > 0.0f && is_finite(f[i])) ? f[i] : 0.0f;
 }
 
+MeasuredMixtureMaterial::MeasuredMixtureMaterial(std::string name, std::vector<BatchEval> layers,
+                                                 std::shared_ptr<const Svbrdf> weights, TexelFilter filter, bool isotropic)
+    : Material(std::move(name)), layers_(std::move(layers)), weights_(std::move(weights)), filter_(filter),
+      isotropic_(isotropic) {
+    if (!weights_ || int(layers_.size()) != weights_->layer_count())
+        throw std::invalid_argument("a measured mixture needs one source per layer of its weights folder (" +
+                                    std::to_string(weights_ ? weights_->layer_count() : 0) + "), got " +
+                                    std::to_string(layers_.size()));
+}
+
+AnalyticParams MeasuredMixtureMaterial::base_params() const {
+    return weights_->model().materials()[std::size_t(weights_->layers()[0].material)].params;
+}
+
+void MeasuredMixtureMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const {
+    const std::vector<float> uv(2 * n, 0.0f);
+    eval_at(n, uv.data(), wi, wo, f, mode);
+}
+
+void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f,
+                                      EvalMode) const {
+    const int L = weights_->layer_count();
+    std::vector<float> w(n * std::size_t(L));
+    Texel t;
+    for (std::size_t i = 0; i < n; ++i) {
+        weights_->texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter_, &t);
+        for (int k = 0; k < L; ++k) w[i * std::size_t(L) + std::size_t(k)] = t.layers[k].weight;
+    }
+    std::fill(f, f + 3 * n, 0.0f);
+    std::vector<std::size_t> pairs;
+    std::vector<float> di, dw, g;
+    for (int k = 0; k < L; ++k) {  // one callback per layer: the readers are batched
+        pairs.clear();
+        for (std::size_t i = 0; i < n; ++i)
+            if (w[i * std::size_t(L) + std::size_t(k)] > 0.0f) pairs.push_back(i);
+        if (pairs.empty()) continue;
+        di.resize(3 * pairs.size()), dw.resize(3 * pairs.size()), g.resize(3 * pairs.size());
+        for (std::size_t r = 0; r < pairs.size(); ++r) {
+            std::copy(wi + 3 * pairs[r], wi + 3 * pairs[r] + 3, &di[3 * r]);
+            std::copy(wo + 3 * pairs[r], wo + 3 * pairs[r] + 3, &dw[3 * r]);
+        }
+        layers_[std::size_t(k)](pairs.size(), di.data(), dw.data(), g.data());
+        for (std::size_t r = 0; r < pairs.size(); ++r)
+            for (int c = 0; c < 3; ++c) {
+                const float v = g[3 * r + std::size_t(c)];
+                f[3 * pairs[r] + std::size_t(c)] += (v > 0.0f && is_finite(v) ? v : 0.0f) * w[pairs[r] * std::size_t(L) + std::size_t(k)];
+            }
+    }
+}
+
+BrdfSample MeasuredMixtureMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
+    const std::optional<Strategy> s = sampler_strategy(sampler_kind());
+    return weights_->sample(uv, filter_, s ? *s : Strategy::Cosine, wo, u);
+}
+
+float MeasuredMixtureMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
+    const std::optional<Strategy> s = sampler_strategy(sampler_kind());
+    return weights_->pdf(uv, filter_, s ? *s : Strategy::Cosine, wi, wo);
+}
+
 }  // namespace hbrdf::render

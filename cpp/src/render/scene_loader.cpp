@@ -253,18 +253,50 @@ struct MeasuredDecl {
     std::string source;                  // resolved against the scene's folder
     std::optional<AnalyticParams> proxy;  // "sampling_params"
     bool isotropic = true;
+    // A mixture: "layers" (sources, resolved) under the weights map of the painted folder "weights".
+    std::vector<std::string> layers;
+    std::string weights;
+    TexelFilter filter = TexelFilter::Bilinear;
+    // What messages call it: the source, or the layers joined by " + ".
+    std::string label() const {
+        if (layers.empty()) return source;
+        std::string s;
+        for (const std::string& l : layers) s += (s.empty() ? "" : " + ") + l;
+        return s;
+    }
 };
 
+// {"type": "measured", "source": SOURCE, "sampling_params": {...}, "isotropic": bool}, or the exact
+// mixture {"type": "measured", "layers": [SOURCE, ...], "weights": FOLDER, "filter": ..., "isotropic": bool}.
 MeasuredDecl read_measured_decl(const Reader& r, const json& m, const std::string& w) {
-    r.check_keys(m, w, {"type", "source", "sampling_params", "isotropic"});
+    r.check_keys(m, w, {"type", "source", "sampling_params", "isotropic", "layers", "weights", "filter"});
     MeasuredDecl d;
-    d.source = r.resolve(r.string(r.require(m, w, "source"), w + ".source"));
-    if (m.contains("sampling_params")) {
-        const json& sp = m.at("sampling_params");
-        r.check_keys(sp, w + ".sampling_params", {"kd", "eta", "alpha"});
-        d.proxy = read_params(r, sp, w + ".sampling_params");
-    }
     d.isotropic = r.boolean(m, w, "isotropic", true);
+    if (m.contains("layers") == m.contains("source"))
+        r.fail(w, "a measured material has a 'source', or 'layers' and 'weights' (a mixture), not both or neither");
+    if (m.contains("source")) {
+        for (const char* key : {"weights", "filter"})
+            if (m.contains(key)) r.fail(w + "." + key, "only a mixture ('layers') has it");
+        d.source = r.resolve(r.string(m.at("source"), w + ".source"));
+        if (m.contains("sampling_params")) {
+            const json& sp = m.at("sampling_params");
+            r.check_keys(sp, w + ".sampling_params", {"kd", "eta", "alpha"});
+            d.proxy = read_params(r, sp, w + ".sampling_params");
+        }
+        return d;
+    }
+    if (m.contains("sampling_params"))
+        r.fail(w + ".sampling_params", "a mixture samples its weights folder's layers; it takes no sampling_params");
+    const json& layers = m.at("layers");
+    if (!layers.is_array() || layers.empty() || layers.size() > std::size_t(spec::kSvbrdfMaxLayers))
+        r.fail(w + ".layers", "expected an array of 1 to " + std::to_string(spec::kSvbrdfMaxLayers) + " sources");
+    for (std::size_t i = 0; i < layers.size(); ++i)
+        d.layers.push_back(r.resolve(r.string(layers[i], w + ".layers[" + std::to_string(i) + "]")));
+    d.weights = r.resolve(r.string(r.require(m, w, "weights"), w + ".weights"));
+    const std::string filter = m.contains("filter") ? r.string(m.at("filter"), w + ".filter") : "bilinear";
+    if (filter != "bilinear" && filter != "nearest")
+        r.fail(w + ".filter", "expected 'bilinear' or 'nearest', got '" + filter + "'");
+    d.filter = filter == "nearest" ? TexelFilter::Nearest : TexelFilter::Bilinear;
     return d;
 }
 
@@ -306,7 +338,7 @@ public:
         // Samplers last: a tabulated one evaluates its material millions of times.
         if (scene.settings.sampler == SamplerKind::Tabulated) {
             for (const auto& mat : scene.materials)
-                if (std::string(mat->type()) == "textured")
+                if (mat->spatially_varying())
                     r_.fail("materials." + mat->name(), "the tabulated sampler tabulates one BRDF; a textured material "
                                                         "samples its texel's layers: use sampler cosine, ggx or mis");
             check_tabulated_budget(scene);
@@ -478,36 +510,54 @@ private:
         }
         if (type == "textured") {
             const TexturedDecl d = read_textured_decl(r_, m, w);
-            std::shared_ptr<const Svbrdf>& sv = svbrdfs_[d.folder];
-            if (!sv) {
-                try {
-                    sv = load_svbrdf(d.folder);
-                } catch (const std::exception& e) {
-                    r_.fail(w + ".svbrdf", e.what());
-                }
-            }
-            auto tm = std::make_unique<TexturedMaterial>(name, sv, d.filter, d.analytic_only);
+            auto tm = std::make_unique<TexturedMaterial>(name, svbrdf(d.folder, w + ".svbrdf"), d.filter, d.analytic_only);
             proxies_.push_back(tm->base_params());  // records the strategy; sampling reads the texel's layers
             return tm;
         }
         if (type == "measured") {
             MeasuredDecl d = read_measured_decl(r_, m, w);
             if (!options_.measured)
-                r_.fail(w, "measured materials ('" + d.source +
+                r_.fail(w, "measured materials ('" + d.label() +
                                "') are evaluated by Python readers: render this scene with hybridbrdf.render.tracer "
                                "or 'hbrdf render'");
-            BatchEval eval;
-            try {
-                eval = options_.measured(d.source);
-            } catch (const Cancelled&) {
-                throw;
-            } catch (const std::exception& e) {
-                r_.fail(w + ".source", e.what());
+            auto open = [&](const std::string& source, const std::string& where) {
+                try {
+                    return naming_errors(options_.measured(source), w);
+                } catch (const Cancelled&) {
+                    throw;
+                } catch (const std::exception& e) {
+                    r_.fail(where, e.what());
+                }
+            };
+            if (d.layers.empty()) {
+                proxies_.push_back(d.proxy);
+                return std::make_unique<CallbackMaterial>(name, open(d.source, w + ".source"), d.isotropic);
             }
-            proxies_.push_back(d.proxy);
-            return std::make_unique<CallbackMaterial>(name, naming_errors(std::move(eval), w), d.isotropic);
+            const std::shared_ptr<const Svbrdf> sv = svbrdf(d.weights, w + ".weights");
+            if (int(d.layers.size()) != sv->layer_count())
+                r_.fail(w + ".layers", std::to_string(d.layers.size()) + " sources for the " +
+                                           std::to_string(sv->layer_count()) + " layers of '" + d.weights + "'");
+            std::vector<BatchEval> evals;
+            for (std::size_t i = 0; i < d.layers.size(); ++i)
+                evals.push_back(open(d.layers[i], w + ".layers[" + std::to_string(i) + "]"));
+            auto mm = std::make_unique<MeasuredMixtureMaterial>(name, std::move(evals), sv, d.filter, d.isotropic);
+            proxies_.push_back(mm->base_params());  // records the strategy; sampling reads the texel's layers
+            return mm;
         }
         unknown_material_type(r_, w, type);
+    }
+
+    // A painted folder, read once per scene however many materials name it.
+    std::shared_ptr<const Svbrdf> svbrdf(const std::string& folder, const std::string& where) {
+        std::shared_ptr<const Svbrdf>& sv = svbrdfs_[folder];
+        if (!sv) {
+            try {
+                sv = load_svbrdf(folder);
+            } catch (const std::exception& e) {
+                r_.fail(where, e.what());
+            }
+        }
+        return sv;
     }
 
     // A measured callback whose failures (while rendering, or while a

@@ -94,6 +94,8 @@ public:
     /// True when eval(..., mode) runs a network (for the render statistics).
     virtual bool uses_network(EvalMode) const { return false; }
     virtual bool isotropic() const { return true; }
+    /// True when the material varies over the surface (reads uv): no single BRDF to tabulate.
+    virtual bool spatially_varying() const { return false; }
     /// "analytic", "model", "measured" or "textured".
     virtual const char* type() const = 0;
 
@@ -191,6 +193,7 @@ public:
     bool has_analytic_part() const override { return !analytic_only_; }
     bool uses_network(EvalMode mode) const override { return !(analytic_only_ || mode == EvalMode::Analytic); }
     bool isotropic() const override { return isotropic_; }
+    bool spatially_varying() const override { return true; }
     const char* type() const override { return "textured"; }
     const Svbrdf& svbrdf() const { return *svbrdf_; }
     /// The analytic parameters of the base layer's material: what set_sampler records the strategy with.
@@ -215,6 +218,38 @@ public:
 
 private:
     BatchEval eval_;
+    bool isotropic_;
+};
+
+/// The exact mixture of measured references under a painted folder's weights map ({"type":
+/// "measured", "layers": [SOURCE, ...], "weights": FOLDER}): f(uv) = sum_k w_k(uv) g_k(wi, wo), g_k
+/// a batched callback per layer, w_k the folder's weights with its lookup and filter. A convex
+/// combination of measurements is a measured BRDF: the ground truth of the textured material
+/// `hbrdf paint` fitted from the same files (docs/SVBRDF.md). It samples as the folder's textured
+/// material does (the mixture of its fitted layers' f_a samplers, the scene's strategy): for one seed
+/// both renders trace the same paths and differ by the BRDF values alone.
+class MeasuredMixtureMaterial final : public Material {
+public:
+    /// `layers`: one callback per layer of `weights` (std::invalid_argument otherwise).
+    MeasuredMixtureMaterial(std::string name, std::vector<BatchEval> layers, std::shared_ptr<const Svbrdf> weights,
+                            TexelFilter filter, bool isotropic);
+    /// At uv (0, 0) (callers without texture coordinates).
+    void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    /// Each layer's callback once for the pairs where its weight is positive; negative and
+    /// non-finite values become 0 (as CallbackMaterial's), then the weighted sum in layer order.
+    void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const override;
+    bool isotropic() const override { return isotropic_; }
+    bool spatially_varying() const override { return true; }
+    const char* type() const override { return "measured"; }
+    /// The folder's base layer material's f_a: what set_sampler records the strategy with.
+    AnalyticParams base_params() const;
+
+private:
+    std::vector<BatchEval> layers_;
+    std::shared_ptr<const Svbrdf> weights_;
+    TexelFilter filter_;
     bool isotropic_;
 };
 
