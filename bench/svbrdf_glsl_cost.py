@@ -7,9 +7,10 @@ material chosen at run time), in one process, best of 7 dispatches per kernel af
 (hbrdf_vk_runner --repeat 7), on lavapipe's host SIMD path.
 
 The texels are bench/svbrdf_mixture.py's 512x512 material (three layers of
-`results/rgl54_fast.safetensors`): per pair the weights of a texel, looked up in Python (the kernel
-reads them from its input buffer: 17 floats per pair against eval's 6; the weights map is not read
-as a texture here). Pairs on pure texels, on the whole texture (texture order) and on mixed texels.
+`results/rgl54_fast.safetensors`): per pair the weights of a texel, looked up in Python (the layers kernel
+reads them from its input buffer: 17 floats per pair against eval's 6); then glsl/textured.comp.j2,
+which reads uv per pair and looks the weights map and an sRGB kd map of layer 0 up itself
+(bilinear). Pairs on pure texels, on the whole texture (texture order) and on mixed texels.
 
     python bench/svbrdf_glsl_cost.py [--model results/rgl54_fast.safetensors] [--pairs 262144]
 """
@@ -102,7 +103,7 @@ def main() -> int:
     print(f"lavapipe (host SIMD), {n} pairs, best of 7 dispatches; model {args.model}")
     print(f"uniform material ({names[0]}), hbrdf_eval of its constant: {base_rate / 1e6:.2f} M evaluations/s")
     pure_rows, _ = rows_for(sets["pure texels"])
-    r = rate(runtime_spv, pure_rows, 4, work)
+    runtime_rate = r = rate(runtime_spv, pure_rows, 4, work)
     print(f"  the same material chosen at run time (the layers kernel, pure texels, no decode): {r / 1e6:.2f} M/s = "
           f"{base_rate / r:.2f}x")
     for label, texels in sets.items():
@@ -110,6 +111,24 @@ def main() -> int:
         r = rate(layers_spv, rows, 4, work)
         print(f"  hbrdf_eval_layers + kd decode, {label:13s} {r / 1e6:6.2f} M/s = {base_rate / r:.2f}x the uniform "
               f"material ({float(((wt > 0).sum(axis=1)).mean()):.2f} layers per pair)")
+    # The kernel that reads the maps itself (glsl/textured.comp.j2): per pair uv, a bilinear lookup
+    # of the weights map and of layer 0's sRGB kd map (an albedo texture: the material's kd x 0.8-1.0).
+    kd_map = np.clip(stored_kd * rng.uniform(0.8, 1.0, (SIZE, SIZE, 1)), 0, 1).astype(np.float32)
+    maps = np.concatenate([weights.ravel(), kd_map.ravel()]).astype(np.float32)
+    maps = np.concatenate([maps, np.zeros(-len(maps) % 8, np.float32)]).reshape(-1, 8)
+    layer_consts = [material_constant(n) for n in names] + [material_constant(names[0])]
+    for kd0 in (False, True):
+        src.write_text(render_shader("textured.comp.glsl", include="model.glsl", materials=layer_consts, n=n,
+                                     width=SIZE, height=SIZE, kd0=kd0))
+        textured_spv = work / "textured.spv"
+        compile_spirv(src, textured_spv, "glsl", include_dir=work)
+        for label, texels in sets.items():
+            t = np.sort(rng.choice(texels, n))
+            uv = np.stack([(t % SIZE + 0.5) / SIZE, (t // SIZE + 0.5) / SIZE], axis=1).astype(np.float32)
+            r = rate(textured_spv, np.concatenate([np.concatenate([uv, wi, wo], axis=1), maps]), 4, work)
+            print(f"  textured kernel reading the maps ({'weights + kd' if kd0 else 'weights     '}), {label:13s} "
+                  f"{r / 1e6:6.2f} M/s = {base_rate / r:.2f}x the uniform constant, {r / runtime_rate:.2f}x the "
+                  f"throughput of the uniform chosen at run time")
     return 0
 
 

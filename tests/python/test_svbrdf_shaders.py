@@ -17,7 +17,9 @@ from hybridbrdf import _core
 from hybridbrdf.codegen.literals import material_constant
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.evaluate.directions import cosine_directions
+from hybridbrdf.svbrdf.asset import SVBRDF
 from hybridbrdf.svbrdf.decode import transfer
+from hybridbrdf.svbrdf.maps import read_map
 
 from helpers import hard_pairs, saved_random_model, skip_without_vulkan
 from shader_kernels import render_shader
@@ -144,3 +146,45 @@ def test_generated_cpp_texel_functions_match_the_library(tmp_path, case):
     # The header is the library's scalar path: f bit for bit where the library's texel is the header's.
     pure = (rows[:, 6:10] == 1).any(axis=1)
     assert np.abs(got[pure, :3] - f_ref[pure]).max() <= 1e-6 * np.abs(f_ref[pure]).max()
+
+
+def test_textured_kernel_reads_the_maps_like_the_library(tmp_path):
+    """glsl/textured.comp.j2: a GLSL kernel that looks texels up in the maps itself (weights and an
+    sRGB kd map of layer 0, bilinear, repeat) and evaluates hbrdf_eval_layers, under lavapipe,
+    against libhybridbrdf's Svbrdf::eval and Svbrdf::pdf on the saved folder: uv anywhere (beyond
+    [0, 1] too, texel centres and cell edges), pure regions, soft edges, the hard pairs."""
+    skip_without_vulkan()
+    path, model = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    rng = np.random.default_rng(31)
+    h, w = 10, 12
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[:5, 6:, 0] = 1.0                                     # layer 1 pure
+    weights[6:, :, 1] = np.linspace(0, 1, w, dtype=np.float32)   # layer 2 ramping in
+    weights[5] = 0.25                                            # a band of four-way mixtures... of three layers
+    kd = rng.uniform(0, 1, (h, w, 3)).astype(np.float32)
+    SVBRDF(model, model.materials[:3], (w, h), weights, [{"kd": kd}, {}, {}]).save(tmp_path / "sv", format="png")
+    stored_w, _ = read_map(tmp_path / "sv" / "weights.png")
+    stored_kd, _ = read_map(tmp_path / "sv" / "layer0_kd.png")
+    hwi, hwo = hard_pairs()
+    n = 6000
+    wi = np.concatenate([cosine_directions(rng, n), hwi]).astype(np.float32)
+    wo = np.concatenate([cosine_directions(rng, n), hwo]).astype(np.float32)
+    m = len(wi)
+    uv = rng.uniform(-1.5, 2.5, (m, 2))
+    uv[:500] = (rng.integers(0, [w, h], (500, 2)) + 0.5) / [w, h]   # texel centres
+    uv[500:1000] = rng.integers(0, [w, h], (500, 2)) / [w, h]       # cell corners
+    uv = uv.astype(np.float32)
+    rows = np.concatenate([uv, wi, wo], axis=1)
+    maps = np.concatenate([stored_w.ravel(), stored_kd.ravel()]).astype(np.float32)
+    maps = np.concatenate([maps, np.zeros(-len(maps) % 8, np.float32)]).reshape(-1, 8)
+    code = generate(model, "glsl")
+    (tmp_path / "model.glsl").write_text(code)
+    consts = [material_constant(name) for name in model.materials[:3]]
+    kernel = render_shader("textured.comp.glsl", include="model.glsl", materials=consts + consts[:1], n=m, width=w,
+                           height=h, kd0=True)
+    got = run_kernel(tmp_path, "glsl", kernel, np.concatenate([rows, maps]), out_floats=4)[:m]
+    lib = _core.Svbrdf(str(tmp_path / "sv"))
+    f_ref = lib.eval(uv, wi, wo, "bilinear")
+    pdf_ref = lib.pdf(uv, wi, wo, "mis", "bilinear").astype(np.float64)
+    assert (weights.reshape(-1, 3).max(axis=1) == 1).any() and (f_ref > 0).mean() > 0.5  # the control
+    check(got, f_ref, pdf_ref)
