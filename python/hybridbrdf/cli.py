@@ -340,10 +340,13 @@ def _cmd_edit(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
+    if args.svbrdf is None and args.model is None:
+        raise ValueError("give MODEL, or --svbrdf DIR")
     info = write_page(args.model, args.out, args.sources, env=args.env,
-                      source_options={"size": args.source_size, "spp": args.source_spp})
-    print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {info['materials']} materials): open it in a browser "
-          f"with WebGPU or WebGL2; it needs no network")
+                      source_options={"size": args.source_size, "spp": args.source_spp}, svbrdf=args.svbrdf)
+    what = f"{info['materials']} materials" if args.svbrdf is None else "a textured material"
+    print(f"wrote {args.out} ({info['bytes'] / 2**20:.2f} MiB, {what}): open it in a browser "
+          f"with {'WebGPU or ' if args.svbrdf is None else ''}WebGL2; it needs no network")
     return 0
 
 
@@ -691,8 +694,11 @@ def _add_view_parser(sub) -> None:
                                    "material picker, the analytic part alone, "
                                    "kd / eta / alpha sliders that preview hbrdf edit (with its command line), "
                                    "exposure, and light from an environment map (default the path tracer's sky) or "
-                                   "the sun alone (docs/VIEWER.md).")
-    p.add_argument("model", help="model file")
+                                   "the sun alone (docs/VIEWER.md). With --svbrdf DIR it shows a textured material "
+                                   "instead (WebGL2).")
+    p.add_argument("model", nargs="?", metavar="MODEL",
+                   help="model file (optional with --svbrdf, which shows the folder's own model; given, it must be "
+                        "that model)")
     p.add_argument("sources", nargs="*", metavar="SOURCE",
                    help="BRDF sources the materials were fitted to: each is shown beside the material the fit "
                         "named after it, as the path tracer's render of the measurement and BRDF slices of the "
@@ -703,6 +709,10 @@ def _add_view_parser(sub) -> None:
                         "irradiance pi) or an equirectangular .exr / .hdr map (the tracer's mapping; maps wider "
                         "than 1024 texels are area-averaged down)")
 
+    p.add_argument("--svbrdf", metavar="DIR",
+                   help="show the textured material of DIR (written by hbrdf paint; docs/SVBRDF.md) on the sphere, "
+                        "its layers mixed per texel by its maps at the path tracer's sphere uv (bilinear), with the "
+                        "maps as small images beside it; WebGL2 only (docs/VIEWER.md, 'A textured material')")
     p.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
                    help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
     p.add_argument("--source-spp", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SPP, metavar="N",

@@ -18,10 +18,6 @@ ES_PREFIX = "#version 300 es\nprecision highp float;\nprecision highp int;\n"
 #:   by the power heuristic (Veach 1997), at a jittered point of the pixel (the tracer's box filter).
 _MAIN = """
 // ---- hbrdf view: one unit sphere at the origin (docs/VIEWER.md) ----
-uniform vec3 u_kd;
-uniform vec3 u_eta;
-uniform vec2 u_alpha;
-uniform vec4 u_pack[{n_vec}];
 uniform bool u_analytic;
 uniform int u_light;
 uniform vec3 u_sun;
@@ -42,17 +38,7 @@ const float HBRDF_VIEW_PI = 3.14159265358979;
 // The largest float below 1: u = 1 would index one texel past the map.
 const float HBRDF_VIEW_ONE_MINUS_EPS = 0.99999994;
 
-float hbrdf_view_packed(int i) {{ return u_pack[i / 4][i % 4]; }}
-HbrdfMaterial hbrdf_view_material() {{
-    HbrdfMaterial m;
-    m.kd = u_kd;
-    m.eta = u_eta;
-    m.alpha_x = u_alpha.x;
-    m.alpha_y = u_alpha.y;
-    for (int i = 0; i < {z_len}; ++i) m.z[i] = hbrdf_view_packed(i);
-{head_lines}    return m;
-}}
-// Random numbers: a Kronecker (Weyl) sequence in 6 dimensions, its steps the powers of 1 / g with
+{material}// Random numbers: a Kronecker (Weyl) sequence in 6 dimensions, its steps the powers of 1 / g with
 // g^7 = g + 1 (Roberts 2018), in 32-bit fixed point so that sample 10^5 is as exact as sample 1,
 // shifted per pixel by a hash (Cranley-Patterson rotation): low discrepancy within a pixel,
 // independent between pixels.
@@ -122,7 +108,7 @@ vec3 hbrdf_view_env_sample(vec2 u, out vec4 texel, out float pdf) {{
 // Returns how many there are. The BRDF is evaluated in one place (hbrdf_view_radiance's loop):
 // every call site of hbrdf_eval is a copy of the network in the compiled shader, and a software
 // WebGL compiles each (SwiftShader: seconds per copy at 32x2).
-int hbrdf_view_directions(vec3 wo, vec3 tg, vec3 bt, vec3 n, HbrdfMaterial m, vec4 u, out vec3 wi0, out vec3 weight0,
+int hbrdf_view_directions(vec3 wo, vec3 tg, vec3 bt, vec3 n, HbrdfViewShading m, vec4 u, out vec3 wi0, out vec3 weight0,
                           out vec3 wi1, out vec3 weight1) {{
     if (u_light == 0) {{
         wi0 = vec3(dot(u_sun, tg), dot(u_sun, bt), dot(u_sun, n));
@@ -134,9 +120,9 @@ int hbrdf_view_directions(vec3 wo, vec3 tg, vec3 bt, vec3 n, HbrdfMaterial m, ve
     float p_light;
     vec3 d = hbrdf_view_env_sample(u.xy, texel, p_light);
     wi0 = vec3(dot(d, tg), dot(d, bt), dot(d, n));
-    float p_brdf = hbrdf_pdf(wi0, wo, m);
+    float p_brdf = hbrdf_view_pdf(wi0, wo, m);
     weight0 = p_light > 0.0 ? texel.rgb * (p_light / (p_light * p_light + p_brdf * p_brdf)) : vec3(0.0);
-    wi1 = hbrdf_sample(wo, u.zw, m, p_brdf);
+    wi1 = hbrdf_view_sample(wo, u.zw, m, p_brdf);
     d = wi1.x * tg + wi1.y * bt + wi1.z * n;
     texel = hbrdf_view_env_texel(hbrdf_view_env_uv(d));
     p_light = hbrdf_view_env_pdf(d, texel);
@@ -161,17 +147,10 @@ vec3 hbrdf_view_radiance(vec2 p, vec4 u) {{
     vec3 bt = cross(n, tg);
     vec3 wo = vec3(dot(-d, tg), dot(-d, bt), dot(-d, n));
     if (wo.z <= 0.0) return vec3(0.0);
-    HbrdfMaterial m = hbrdf_view_material();
+    HbrdfViewShading m = hbrdf_view_shading(n);
     vec3 wi0, weight0, wi1, weight1;
     int count = hbrdf_view_directions(wo, tg, bt, n, m, u, wi0, weight0, wi1, weight1);
-    vec3 sum = vec3(0.0);
-    for (int k = 0; k < count; ++k) {{
-        vec3 wi = k == 0 ? wi0 : wi1, weight = k == 0 ? weight0 : weight1;
-        if (wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) {{
-            sum += max(u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m), vec3(0.0)) * wi.z * weight;
-        }}
-    }}
-    return sum;
+    return hbrdf_view_reflected(wo, m, count, wi0, weight0, wi1, weight1);
 }}
 // One sample per pixel per draw: a loop over samples around the loop over directions makes
 // SwiftShader's compile of the 32x2 network take 15 s instead of 1 (measured); the page draws again
@@ -185,6 +164,152 @@ void main() {{
     // The sun alone is one sample at the pixel's centre; the map's are spread over the pixel.
     vec2 p = u_light == 1 ? floor(film) + jitter : film;
     frag_color = texelFetch(u_accum, px, 0) + vec4(hbrdf_view_radiance(p, u), 1.0);
+}}
+"""
+
+#: The material of a page of one material: uniforms, so that the picker and the sliders never
+#: recompile. ``hbrdf_view_pdf``, ``hbrdf_view_sample`` and ``hbrdf_view_reflected`` are the
+#: generated functions of that one material.
+_UNIFORM_MATERIAL = """uniform vec3 u_kd;
+uniform vec3 u_eta;
+uniform vec2 u_alpha;
+uniform vec4 u_pack[{n_vec}];
+float hbrdf_view_packed(int i) {{ return u_pack[i / 4][i % 4]; }}
+HbrdfMaterial hbrdf_view_material() {{
+    HbrdfMaterial m;
+    m.kd = u_kd;
+    m.eta = u_eta;
+    m.alpha_x = u_alpha.x;
+    m.alpha_y = u_alpha.y;
+    for (int i = 0; i < {z_len}; ++i) m.z[i] = hbrdf_view_packed(i);
+{head_lines}    return m;
+}}
+#define HbrdfViewShading HbrdfMaterial
+HbrdfMaterial hbrdf_view_shading(vec3 n) {{ return hbrdf_view_material(); }}
+float hbrdf_view_pdf(vec3 wi, vec3 wo, HbrdfMaterial m) {{ return hbrdf_pdf(wi, wo, m); }}
+vec3 hbrdf_view_sample(vec3 wo, vec2 u, HbrdfMaterial m, out float pdf) {{ return hbrdf_sample(wo, u, m, pdf); }}
+// One call site of the network (a loop over the sample's directions).
+vec3 hbrdf_view_reflected(vec3 wo, HbrdfMaterial m, int count, vec3 wi0, vec3 weight0, vec3 wi1, vec3 weight1) {{
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < count; ++k) {{
+        vec3 wi = k == 0 ? wi0 : wi1, weight = k == 0 ? weight0 : weight1;
+        if (wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) {{
+            sum += max(u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m), vec3(0.0)) * wi.z * weight;
+        }}
+    }}
+    return sum;
+}}
+"""
+
+#: The material of a page of a textured material (``hbrdf view --svbrdf``, docs/VIEWER.md "A textured
+#: material"): up to 4 layers, each a material of the model (uniform arrays, packed as above) whose
+#: kd, eta, alpha and latent code a map may replace, mixed by the weights map. The maps are the
+#: decoded values (what hybridbrdf.load_svbrdf returns), float32, one RGBA32F layer of u_maps per
+#: map file, so the shader applies no decode; filtered as the runtimes filter them (decode, then
+#: filter): bilinear over the four nearest texel centres, repeat or clamp, at the tracer's sphere uv
+#: (u = phi / 2 pi + 1/2 with phi = atan2(n.z, n.x), v = theta / pi from +y). The texel's f is
+#: hbrdf_eval_layers' sum, 0 + f_0 w_0 + f_1 w_1 + ..., in that order over the layers of positive
+#: weight, written as a loop so that the network has one call site (hbrdf_eval_layers has four, and
+#: SwiftShader compiles each copy for seconds); its sampling and density are the generated
+#: hbrdf_sample_layers and hbrdf_pdf_layers (the tracer's mixture of the layers' samplers).
+_TEXTURED_MATERIAL = """uniform vec3 u_layer_kd[4];
+uniform vec3 u_layer_eta[4];
+uniform vec2 u_layer_alpha[4];
+uniform vec4 u_layer_pack[{n_layer_vec}];
+uniform int u_layers;                    // 1 to 4
+uniform highp sampler2DArray u_maps;     // RGBA32F, W x H, one layer per map file: decoded values
+uniform ivec2 u_map_size;
+uniform bool u_map_repeat;               // addressing: repeat, else clamp
+uniform int u_plane_weights;             // the weights map's layer of u_maps (w_1, w_2, w_3), -1: none
+uniform ivec4 u_plane_kd, u_plane_eta, u_plane_alpha, u_plane_latent;  // per material layer; -1: its material's
+struct HbrdfViewShading {{
+    HbrdfMaterial m0, m1, m2, m3;
+    vec4 w;
+}};
+float hbrdf_view_packed(int k, int i) {{ return u_layer_pack[k * {n_vec} + i / 4][i % 4]; }}
+int hbrdf_view_wrap(int i, int n) {{
+    return u_map_repeat ? (i < 0 ? i + n : (i >= n ? i - n : i)) : clamp(i, 0, n - 1);
+}}
+// Bilinear filter of one map at uv, as a + (b - a) t: a constant map gives its value exactly, as
+// the runtimes' double-precision taps do.
+vec4 hbrdf_view_map(int plane, vec2 uv) {{
+    vec2 t = u_map_repeat ? fract(uv) : clamp(uv, 0.0, 1.0);
+    vec2 x = t * vec2(u_map_size) - 0.5;
+    vec2 x0 = floor(x);
+    vec2 f = x - x0;
+    int i0 = hbrdf_view_wrap(int(x0.x), u_map_size.x), i1 = hbrdf_view_wrap(int(x0.x) + 1, u_map_size.x);
+    int j0 = hbrdf_view_wrap(int(x0.y), u_map_size.y), j1 = hbrdf_view_wrap(int(x0.y) + 1, u_map_size.y);
+    vec4 a = texelFetch(u_maps, ivec3(i0, j0, plane), 0), b = texelFetch(u_maps, ivec3(i1, j0, plane), 0);
+    vec4 c = texelFetch(u_maps, ivec3(i0, j1, plane), 0), d = texelFetch(u_maps, ivec3(i1, j1, plane), 0);
+    vec4 top = a + (b - a) * f.x, bottom = c + (d - c) * f.x;
+    return top + (bottom - top) * f.y;
+}}
+HbrdfMaterial hbrdf_view_layer(int k, vec2 uv) {{
+    int kk = min(k, u_layers - 1);  // a layer beyond the last has weight 0: any valid material
+    HbrdfMaterial m;
+    m.kd = u_plane_kd[kk] >= 0 ? hbrdf_view_map(u_plane_kd[kk], uv).rgb : u_layer_kd[kk];
+    m.eta = u_plane_eta[kk] >= 0 ? hbrdf_view_map(u_plane_eta[kk], uv).rgb : u_layer_eta[kk];
+    vec2 alpha = u_plane_alpha[kk] >= 0 ? hbrdf_view_map(u_plane_alpha[kk], uv).rg : u_layer_alpha[kk];
+    m.alpha_x = alpha.x;
+    m.alpha_y = alpha.y;
+    for (int p = 0; p < ({z_len} + 2) / 3; ++p) {{  // one lookup per latent map (3 components)
+        vec4 v = u_plane_latent[kk] >= 0 ? hbrdf_view_map(u_plane_latent[kk] + p, uv) : vec4(0.0);
+        for (int c = 0; c < 3; ++c) {{
+            int i = 3 * p + c;
+            if (i < {z_len}) m.z[i] = u_plane_latent[kk] >= 0 ? v[c] : hbrdf_view_packed(kk, i);
+        }}
+    }}
+{layer_head_lines}    return m;
+}}
+// The texel's weights as libhybridbrdf's Svbrdf::texel normalises them: w_1..3 filtered, divided by
+// their sum where it exceeds 1, w_0 = 1 - their sum clamped to [0, 1].
+vec4 hbrdf_view_weights(vec2 uv) {{
+    if (u_plane_weights < 0) return vec4(1.0, 0.0, 0.0, 0.0);
+    vec3 r = hbrdf_view_map(u_plane_weights, uv).rgb;
+    r = vec3(r.x, u_layers > 2 ? r.y : 0.0, u_layers > 3 ? r.z : 0.0);
+    float total = r.x + r.y + r.z;
+    if (total > 1.0) r /= total;
+    return vec4(clamp(1.0 - (r.x + r.y + r.z), 0.0, 1.0), r);
+}}
+HbrdfViewShading hbrdf_view_shading(vec3 n) {{
+    const float INV_PI = 0.318309886183791;
+    vec2 uv = vec2(atan(n.z, n.x) * (0.5 * INV_PI) + 0.5, acos(clamp(n.y, -1.0, 1.0)) * INV_PI);
+    HbrdfViewShading s;
+    s.m0 = hbrdf_view_layer(0, uv);
+    s.m1 = hbrdf_view_layer(1, uv);
+    s.m2 = hbrdf_view_layer(2, uv);
+    s.m3 = hbrdf_view_layer(3, uv);
+    s.w = hbrdf_view_weights(uv);
+    return s;
+}}
+float hbrdf_view_pdf(vec3 wi, vec3 wo, HbrdfViewShading s) {{
+    return hbrdf_pdf_layers(wi, wo, s.m0, s.m1, s.m2, s.m3, s.w.x, s.w.y, s.w.z, s.w.w);
+}}
+vec3 hbrdf_view_sample(vec3 wo, vec2 u, HbrdfViewShading s, out float pdf) {{
+    return hbrdf_sample_layers(wo, u, s.m0, s.m1, s.m2, s.m3, s.w.x, s.w.y, s.w.z, s.w.w, pdf);
+}}
+// One call site of the network: a loop over (direction, layer); each direction's texel f is summed
+// over the layers first (hbrdf_eval_layers' order), then clipped at 0 and weighted as the uniform page does.
+vec3 hbrdf_view_reflected(vec3 wo, HbrdfViewShading s, int count, vec3 wi0, vec3 weight0, vec3 wi1, vec3 weight1) {{
+    vec3 sum = vec3(0.0), f = vec3(0.0);
+    for (int j = 0; j < 2 * 4; ++j) {{
+        int k = j % 4;
+        if (j / 4 >= count) break;
+        vec3 wi = j < 4 ? wi0 : wi1, weight = j < 4 ? weight0 : weight1;
+        float w = s.w[k];
+        if (w > 0.0 && wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) {{
+            HbrdfMaterial m = s.m0;
+            if (k == 1) m = s.m1;
+            if (k == 2) m = s.m2;
+            if (k == 3) m = s.m3;
+            f += (u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m)) * w;
+        }}
+        if (k == 3) {{
+            if (wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) sum += max(f, vec3(0.0)) * wi.z * weight;
+            f = vec3(0.0);
+        }}
+    }}
+    return sum;
 }}
 """
 
@@ -207,19 +332,36 @@ void main() {
 """
 
 
-def fragment_shader(glsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0, energy: int = 0) -> str:
+def _head_lines(z_len: int, head_w: int, n_out: int, energy: int, packed: str) -> str:
+    """GLSL lines filling a material's head and energy table from its packed floats (``packed``:
+    the accessor with ``{}`` for the index)."""
+    lines = ""
+    if head_w:
+        lines = (f"    for (int i = 0; i < {head_w}; ++i) m.head_w[i] = {packed.format(f'{z_len} + i')};\n"
+                 f"    for (int i = 0; i < {n_out}; ++i) m.head_b[i] = {packed.format(f'{z_len + head_w} + i')};\n")
+    if energy:
+        at = z_len + (head_w + n_out if head_w else 0)
+        lines += f"    for (int i = 0; i < {energy}; ++i) m.energy[i] = {packed.format(f'{at} + i')};\n"
+    return lines
+
+
+def fragment_shader(glsl: str, z_len: int, n_pack: int, head_w: int = 0, n_out: int = 0, energy: int = 0,
+                    textured: bool = False) -> str:
     """The page's fragment shader (GLSL ES 3.00): :data:`ES_PREFIX`, ``glsl`` (``hbrdf-codegen --target
     glsl`` output, unchanged) and the page's ``main``. ``head_w``/``n_out``: the material output
     layer's sizes (0 for a shared one); ``energy``: the energy-bound table's length (0 for none); the
-    packed uniforms hold z, then head_w, then head_b, then the table."""
-    head_lines = ""
-    if head_w:
-        head_lines = (f"    for (int i = 0; i < {head_w}; ++i) m.head_w[i] = hbrdf_view_packed({z_len} + i);\n"
-                      f"    for (int i = 0; i < {n_out}; ++i) m.head_b[i] = hbrdf_view_packed({z_len + head_w} + i);\n")
-    if energy:
-        at = z_len + (head_w + n_out if head_w else 0)
-        head_lines += f"    for (int i = 0; i < {energy}; ++i) m.energy[i] = hbrdf_view_packed({at} + i);\n"
-    return ES_PREFIX + glsl + _MAIN.format(n_vec=(n_pack + 3) // 4, z_len=z_len, head_lines=head_lines)
+    packed uniforms hold z, then head_w, then head_b, then the table. ``textured``: the shading
+    point's material is a textured material's texel (:data:`_TEXTURED_MATERIAL`, ``hbrdf view
+    --svbrdf``), else the one material of the uniforms."""
+    n_vec = (n_pack + 3) // 4
+    if textured:
+        material = _TEXTURED_MATERIAL.format(
+            n_vec=n_vec, n_layer_vec=4 * n_vec, z_len=z_len,
+            layer_head_lines=_head_lines(z_len, head_w, n_out, energy, "hbrdf_view_packed(kk, {})"))
+    else:
+        material = _UNIFORM_MATERIAL.format(n_vec=n_vec, z_len=z_len,
+                                            head_lines=_head_lines(z_len, head_w, n_out, energy, "hbrdf_view_packed({})"))
+    return ES_PREFIX + glsl + _MAIN.format(material=material)
 
 
 __all__ = ["DISPLAY_SHADER", "ES_PREFIX", "fragment_shader"]

@@ -24,6 +24,7 @@ the document only as text (``textContent``, ``new Option``), never as markup.
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 from typing import Any, Dict, List, Optional, Sequence
 
@@ -35,7 +36,8 @@ from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.sources import expand_sources
 from hybridbrdf.util import atomic_write_bytes, check_writable
-from hybridbrdf.viewer import lighting as viewer_lighting, measured, wgsl as viewer_wgsl
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.viewer import lighting as viewer_lighting, measured, textured as viewer_textured, wgsl as viewer_wgsl
 from hybridbrdf.viewer.glsl import DISPLAY_SHADER, fragment_shader
 from hybridbrdf.viewer.scene import CAMERA, DEFAULT_SUN, SUN_IRRADIANCE, tracer_scene
 
@@ -100,10 +102,12 @@ def script_json(value: Any) -> str:
 
 
 def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
-              environment: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:
+              environment: Optional[Dict[str, Any]] = None, svbrdf: Optional[SVBRDF] = None) -> Dict[str, Any]:
     """What the page's script reads: the shaders, the materials, the camera and lights, the model's
     labels. ``environment``: the scene environment object to light with (default
-    :data:`viewer_lighting.DEFAULT_ENVIRONMENT`, the tracer's sky)."""
+    :data:`viewer_lighting.DEFAULT_ENVIRONMENT`, the tracer's sky). ``svbrdf``: a textured material
+    of ``model`` (its folder's model) that the page shows instead of one material at a time
+    (``hbrdf view --svbrdf``; WebGL2 only)."""
     check_size(model, model_path)
     a = model.arch
     heads = model.output_layer == "material"
@@ -128,23 +132,26 @@ def page_data(model: HybridModel, model_path: str, sources: Sequence[str] = (),
         "sources": [str(s) for s in sources],
         "camera": CAMERA, "sun_irradiance": SUN_IRRADIANCE, "sun": DEFAULT_SUN, "environment": env,
         "fragment": fragment_shader(glsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
-                                    a["n_out"], energy),
+                                    a["n_out"], energy, textured=svbrdf is not None),
+        "textured": None if svbrdf is None else viewer_textured.page_textured(svbrdf, svbrdf.path, n_pack),
         "display": DISPLAY_SHADER,
         # the WebGPU backend (docs/VIEWER.md, "WebGPU"): hbrdf-codegen --target wgsl and the page's WGSL
         "wgsl": viewer_wgsl.compute_shader(wgsl, max(a["latent"], 1), n_pack, a["n_out"] * a["width"] if heads else 0,
                                            a["n_out"], energy),
         "wgsl_display": viewer_wgsl.DISPLAY_SHADER,
         # the page fills in the material, the light, analytic or full, and the size
-        "scene": tracer_scene(model_path, model.materials[0], spp=64, environment=env["spec"]),
+        "scene": tracer_scene(model_path, model.materials[0], spp=64, environment=env["spec"],
+                              svbrdf=None if svbrdf is None else svbrdf.path),
         "sun_environment": tracer_scene(model_path, model.materials[0], light="sun")["environment"],
     }
 
 
 def render_page(model: HybridModel, model_path: str, sources: Sequence[str] = (),
-                environment: Optional[Dict[str, Any]] = None, source_options: Optional[Dict[str, Any]] = None) -> str:
-    """The HTML page (a str); ``environment`` as :func:`page_data`; ``source_options``: ``size`` and
-    ``spp`` of the measured renders (:func:`hybridbrdf.viewer.measured.panels`)."""
-    data = page_data(model, model_path, sources, environment)
+                environment: Optional[Dict[str, Any]] = None, source_options: Optional[Dict[str, Any]] = None,
+                svbrdf: Optional[SVBRDF] = None) -> str:
+    """The HTML page (a str); ``environment`` and ``svbrdf`` as :func:`page_data`; ``source_options``:
+    ``size`` and ``spp`` of the measured renders (:func:`hybridbrdf.viewer.measured.panels`)."""
+    data = page_data(model, model_path, sources, environment, svbrdf)
     data["sources_panel"] = measured.panels(model, model_path, sources, data["scene"], **(source_options or {}))
     folder = pathlib.Path(__file__).resolve().parent
     html = (folder / "viewer.html").read_text(encoding="utf-8")
@@ -156,17 +163,43 @@ def render_page(model: HybridModel, model_path: str, sources: Sequence[str] = ()
     return html.replace("/*HBRDF_DATA*/", script_json(data)).replace("/*HBRDF_SCRIPT*/", js)
 
 
-def write_page(model_path: str, out: str, sources: Sequence[str] = (), env: Optional[str] = None,
-               source_options: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:
+def write_page(model_path: Optional[str], out: str, sources: Sequence[str] = (), env: Optional[str] = None,
+               source_options: Optional[Dict[str, Any]] = None, svbrdf: Optional[str] = None) -> Dict[str, Any]:
     """Load ``model_path`` (ModelFileError as ``hbrdf info`` prints it), write the page to ``out``
-    atomically; ``env``: ``None``/``"sky"`` or an .exr/.hdr map (``hbrdf view --env``). Returns
-    {"bytes", "materials"}."""
-
+    atomically; ``env``: ``None``/``"sky"`` or an .exr/.hdr map (``hbrdf view --env``). ``svbrdf``: a
+    textured material's folder (``hbrdf view --svbrdf``; its loader's one-line errors): the page shows
+    it with the folder's model, which ``model_path`` may be omitted for or must name (the same
+    bytes). Returns {"bytes", "materials"}."""
+    if svbrdf is None and model_path is None:
+        raise ViewError("give MODEL, or --svbrdf DIR")
+    if svbrdf is not None and sources:
+        raise ViewError(f"{svbrdf}: SOURCE arguments are not shown beside a textured material (--svbrdf); "
+                        "view its model without --svbrdf for them")
     # The files the SOURCE arguments stand for (a folder or a glob names several), not the arguments.
-    inputs = [model_path, *expand_sources(sources), *([env] if env not in (None, "sky") else [])]
+    inputs = [*([model_path] if model_path else []), *expand_sources(sources),
+              *([env] if env not in (None, "sky") else [])]
+    sv = None
+    if svbrdf is not None:
+        sv = load_svbrdf(svbrdf)
+        inputs += [os.path.join(sv.path, spec.SVBRDF["index_file"]), sv.model.path]
+        if model_path is not None:
+            check_same_model(model_path, sv.model.path, svbrdf)
     refuse_output_over_input(out, inputs, "--out")
     check_writable(out, "page")
-    model = load_model(model_path)
-    page = render_page(model, model_path, sources, viewer_lighting.environment_spec(env), source_options).encode("utf-8")
+    model = sv.model if sv is not None else load_model(model_path)
+    shown_path = sv.model.path if sv is not None else model_path
+    page = render_page(model, shown_path, sources, viewer_lighting.environment_spec(env), source_options,
+                       svbrdf=sv).encode("utf-8")
     atomic_write_bytes(out, page)
     return {"bytes": len(page), "materials": len(model.materials)}
+
+
+def check_same_model(model_path: str, folder_model: str, folder: str) -> None:
+    """Raise :class:`ViewError` unless ``model_path`` holds the bytes of the textured material's own
+    model (``hbrdf view MODEL --svbrdf DIR``: the page renders DIR's model; MODEL only confirms it)."""
+    load_model(model_path)  # a model the loaders refuse: their line first
+    with open(model_path, "rb") as a, open(folder_model, "rb") as b:
+        same = os.path.samefile(model_path, folder_model) or a.read() == b.read()
+    if not same:
+        raise ViewError(f"{model_path}: is not the model of the textured material {folder} (its "
+                        f"{spec.SVBRDF['model_file']}); give that one, or --svbrdf alone")

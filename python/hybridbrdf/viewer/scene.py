@@ -27,14 +27,15 @@ DEFAULT_SUN = {"elevation": 35.0, "azimuth": 150.0}
 def tracer_scene(model_file: str, material: str, *, width: int = 256, height: int = 256, analytic: bool = False,
                  light: str = "environment", environment: Optional[Dict[str, Any]] = None, rotation: float = 0.0,
                  elevation: float = DEFAULT_SUN["elevation"], azimuth: float = DEFAULT_SUN["azimuth"],
-                 spp: int = 16, resolution=(2048, 1024)) -> Dict[str, Any]:
+                 spp: int = 16, resolution=(2048, 1024), svbrdf: Optional[str] = None) -> Dict[str, Any]:
     """A scene (docs/RENDERING.md) that the path tracer renders as the page shows ``material``: the
     page's camera, the unit sphere, direct light only (``max_depth`` 1), and the page's light:
     ``light="environment"``: ``environment`` (a scene environment object, default the page's sky,
     :data:`viewer_lighting.DEFAULT_ENVIRONMENT`) turned by ``rotation`` degrees about +y;
     ``light="sun"``: the sun alone at (``elevation``, ``azimuth``) with irradiance
     :data:`SUN_IRRADIANCE`, a disc of :data:`SUN_SIZE_DEG` in an otherwise black sky of
-    ``resolution``. ``analytic``: the material's f_a (``"evaluate": "analytic"``)."""
+    ``resolution``. ``analytic``: the material's f_a (``"evaluate": "analytic"``). ``svbrdf``: a
+    textured material's folder shown instead of ``material`` (``{"type": "textured"}``, bilinear)."""
     if light == "environment":
         env = dict(environment or viewer_lighting.DEFAULT_ENVIRONMENT, rotation_deg=rotation)
     elif light == "sun":
@@ -47,7 +48,9 @@ def tracer_scene(model_file: str, material: str, *, width: int = 256, height: in
         "camera": dict(CAMERA, width=width, height=height),
         "environment": env,
         "materials": {"m": {"type": "model", "file": os.path.abspath(model_file), "material": material,
-                            "evaluate": "analytic" if analytic else "full"}},
+                            "evaluate": "analytic" if analytic else "full"} if svbrdf is None else
+                      {"type": "textured", "svbrdf": os.path.abspath(svbrdf), "filter": "bilinear",
+                       "evaluate": "analytic" if analytic else "full"}},
         "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
         "spp": spp, "max_depth": 1, "sampler": "mis", "seed": 0,
     }

@@ -18,8 +18,13 @@
   const params = new URLSearchParams(location.hash.replace(/^#/, ""));
   const $ = function (id) { return document.getElementById(id); };
 
-  $("heading").textContent = "hbrdf view: " + data.model_path + " (" + data.arch + ", " +
-    data.materials.length + " materials)";
+  // A textured material (hbrdf view --svbrdf; docs/VIEWER.md "A textured material"): its layers are
+  // materials of the model, fixed; the picker and the sliders are off.
+  const textured = data.textured;
+  $("heading").textContent = textured
+    ? "hbrdf view: " + textured.folder + " (textured material, " + textured.layers.length + " layers: " +
+      textured.layers.join(", ") + "; " + data.arch + ")"
+    : "hbrdf view: " + data.model_path + " (" + data.arch + ", " + data.materials.length + " materials)";
 
   const size = Math.max(16, Math.min(2048, parseInt(params.get("size") || "320", 10) || 320));
   const canvas = $("view");
@@ -104,6 +109,21 @@
     }
     return v;
   }
+  // The maps beside the sphere, as small images (their captions are text).
+  if (textured) {
+    const box = $("maps");
+    textured.thumbnails.forEach(function (t) {
+      const fig = document.createElement("figure"), img = document.createElement("img"),
+        cap = document.createElement("figcaption");
+      img.src = t.src;
+      img.alt = t.label;
+      cap.textContent = t.label + " (" + t.how + ")";
+      fig.appendChild(img);
+      fig.appendChild(cap);
+      box.appendChild(fig);
+    });
+    box.hidden = textured.thumbnails.length === 0;
+  }
   function loadMaterial(i) {
     const m = mats[i];
     state.index = i;
@@ -115,11 +135,15 @@
   }
   function fromHash() {
     loadMaterial(0);
+    if (params.has("material") && textured) throw new Error("URL parameter material: this page shows a textured material");
     if (params.has("material")) {
       const name = params.get("material");
       const i = mats.findIndex(function (m) { return m.name === name; });
       if (i < 0) throw new Error("no material " + JSON.stringify(name) + " in the model");
       loadMaterial(i);
+    }
+    if (textured && ["kd", "eta", "alpha"].some(function (k) { return params.has(k); })) {
+      throw new Error("URL parameters kd, eta and alpha: a textured material's come from its maps and layers");
     }
     const kd = numbers("kd", [1, 3], 0, 1);
     if (kd) { state.kd = kd.length === 1 ? [kd[0], kd[0], kd[0]] : kd; state.edited.kd = true; }
@@ -153,10 +177,11 @@
       const v = c < 0 ? state[key][0] : state[key][c];
       $(id).value = String(v);
       $(id + "_v").textContent = v.toPrecision(3);
-      $(id).disabled = !data.has_analytic;
+      $(id).disabled = !data.has_analytic || !!textured;
     });
     $("analytic").checked = state.analytic;
     $("analytic").disabled = !data.has_analytic;
+    select.disabled = !!textured;
     $("exposure").value = String(state.exposure);
     $("exposure_v").textContent = state.exposure.toFixed(1);
     $("light").value = state.light;
@@ -174,12 +199,17 @@
     $("scene").textContent = sceneJson(m);
     $("render_cmd").textContent = "hbrdf render scene.json -o out.exr --png out.png --exposure " + state.exposure +
       (edited() ? " (after the hbrdf edit above: the scene names its new material)" : "");
-    $("info").textContent = "origin: " + m.origin + (data.has_analytic ? "\nfitted kd " + fitted(m.kd) + ", eta " + fitted(m.eta) +
+    $("info").textContent = textured ? texturedInfo() : "origin: " + m.origin + (data.has_analytic ? "\nfitted kd " + fitted(m.kd) + ", eta " + fitted(m.eta) +
       ", alpha " + fitted(m.alpha) : "") +
       (data.sources.length ? "\nsources given to hbrdf view: " + data.sources.join(", ") : "") +
       (data.training_sources.length ? "\ntrained on: " + data.training_sources.join(", ") : "") +
       (data.environment.exact ? "" : "\nthe map is area-averaged from " + data.environment.source_size.join(" x ") +
        " to " + data.environment.width + " x " + data.environment.height + " texels here; the tracer's scene uses it whole");
+  }
+  function texturedInfo() {
+    return "textured material " + textured.folder + ": " + textured.size.join(" x ") + " texels, " +
+      textured.addressing + ", bilinear; layers " + textured.layers.map(function (n, k) { return k + " " + n; }).join(", ") +
+      "\nuv on the sphere as the path tracer's (u = phi / 2 pi about +y, v = theta / pi from the +y pole)";
   }
   function fmt(v) { return v.map(String).join(","); }  // slider values as typed: hbrdf edit rounds them to float32
   function fitted(v) { return v.map(function (x) { return x.toPrecision(4); }).join(","); }
@@ -201,12 +231,13 @@
       s.environment.rotation_deg = state.rotation;
     }
     s.spp = state.light === "sun" ? 64 : Math.max(64, targetSamples);
-    s.materials.m.material = edited() ? editName(m) : m.name;
+    if (!textured) s.materials.m.material = edited() ? editName(m) : m.name;
     s.materials.m.evaluate = state.analytic && data.has_analytic ? "analytic" : "full";
     return JSON.stringify(s, null, 1);
   }
   function editCommand(m) {
     if (!data.has_analytic) return "(the neural baseline has no analytic parameters to edit)";
+    if (textured) return "(a textured material: hbrdf paint writes its folder; the sliders are off)";
     const sets = [];
     if (state.edited.kd) sets.push("kd=" + fmt(state.kd));
     if (state.edited.eta) sets.push("eta=" + fmt(state.eta));
@@ -230,7 +261,24 @@
              analytic: state.analytic && data.has_analytic, light: state.light === "sun" ? 0 : 1,
              sun: [Math.cos(el) * Math.sin(az), Math.sin(el), -Math.cos(el) * Math.cos(az)],
              irradiance: data.sun_irradiance, rotation: [Math.cos(rot), Math.sin(rot)], envSize: [EW, EH],
-             camPos: cam.position, camFwd: fwd, camRight: right, camUp: up, tan: [tanHalf, tanHalf], size: [size, size] };
+             camPos: cam.position, camFwd: fwd, camRight: right, camUp: up, tan: [tanHalf, tanHalf], size: [size, size],
+             layers: textured ? layerUniforms() : null };
+  }
+  // A textured material's layers: each its material's parameters and packed floats (4 layers; the
+  // unused ones repeat the last, with weight 0).
+  function layerUniforms() {
+    const kd = new Float32Array(12), eta = new Float32Array(12), alpha = new Float32Array(8);
+    const pack = new Float32Array(16 * NVEC);
+    for (let k = 0; k < 4; ++k) {
+      const m = mats[textured.layer_index[Math.min(k, textured.layers.length - 1)]];
+      kd.set(m.kd, 3 * k);
+      eta.set(m.eta, 3 * k);
+      alpha.set(m.alpha, 2 * k);
+      pack.set(m.pack, 4 * NVEC * k);
+    }
+    const p = textured.plane;
+    return { n: textured.layers.length, kd: kd, eta: eta, alpha: alpha, pack: pack, weights: p.weights,
+             planes: [p.kd, p.eta, p.alpha, p.latent] };
   }
 
   // ---- the WebGL2 backend: sums in float textures, a draw per sample, the display pass ----
@@ -272,6 +320,9 @@
     const accumulate = link(fragment, ["u_kd", "u_eta", "u_alpha", "u_pack", "u_analytic", "u_light", "u_sun",
       "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
       "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
+    const texturedNames = ["u_layer_kd", "u_layer_eta", "u_layer_alpha", "u_layer_pack", "u_layers", "u_maps",
+      "u_map_size", "u_map_repeat", "u_plane_weights", "u_plane_kd", "u_plane_eta", "u_plane_alpha", "u_plane_latent"];
+    if (textured) texturedNames.forEach(function (n) { accumulate.u[n] = gl.getUniformLocation(accumulate.program, n); });
     const display = link(data.display, ["u_accum", "u_gain"]);
     const u = accumulate.u;
 
@@ -289,6 +340,22 @@
     floatTexture(1, gl.RGBA32F, gl.RGBA, EW, EH, envTables.texels);
     floatTexture(2, gl.R32F, gl.RED, EH + 1, 1, envTables.marginal);
     floatTexture(3, gl.R32F, gl.RED, EW + 1, EH, envTables.conditional);
+    // A textured material's maps: decoded float32 RGB, one layer of a 2D array texture per map file
+    // (texelFetch in the shader: its bilinear filter is the runtimes', on decoded values).
+    if (textured) {
+      const bytes = atob(textured.planes), raw = new Uint8Array(Math.max(bytes.length, 12));
+      for (let i = 0; i < bytes.length; ++i) raw[i] = bytes.charCodeAt(i);
+      const empty = textured.n_planes === 0;  // no maps: one texel, never read
+      const t = gl.createTexture();
+      gl.activeTexture(gl.TEXTURE5);
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, t);
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+      gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGB32F, empty ? 1 : textured.size[0], empty ? 1 : textured.size[1],
+                    empty ? 1 : textured.n_planes, 0, gl.RGB, gl.FLOAT, new Float32Array(raw.buffer));
+      if (gl.getError() !== gl.NO_ERROR) throw new Error("the textured material's maps do not fit this browser's WebGL2 textures");
+    }
 
     // Two sum textures, read one and write the other (a float target cannot be blended into without
     // EXT_float_blend).
@@ -326,6 +393,22 @@
       gl.uniform3fv(u.u_cam_up, v.camUp);
       gl.uniform2f(u.u_tan, v.tan[0], v.tan[1]);
       gl.uniform2f(u.u_size, v.size[0], v.size[1]);
+      if (v.layers) {
+        const L = v.layers;
+        gl.uniform3fv(u.u_layer_kd, L.kd);
+        gl.uniform3fv(u.u_layer_eta, L.eta);
+        gl.uniform2fv(u.u_layer_alpha, L.alpha);
+        gl.uniform4fv(u.u_layer_pack, L.pack);
+        gl.uniform1i(u.u_layers, L.n);
+        gl.uniform1i(u.u_maps, 5);
+        gl.uniform2i(u.u_map_size, textured.size[0], textured.size[1]);
+        gl.uniform1i(u.u_map_repeat, textured.addressing === "repeat" ? 1 : 0);
+        gl.uniform1i(u.u_plane_weights, L.weights);
+        gl.uniform4iv(u.u_plane_kd, L.planes[0]);
+        gl.uniform4iv(u.u_plane_eta, L.planes[1]);
+        gl.uniform4iv(u.u_plane_alpha, L.planes[2]);
+        gl.uniform4iv(u.u_plane_latent, L.planes[3]);
+      }
     }
     return {
       name: "WebGL2",
@@ -486,7 +569,9 @@
     }
   }
   const NO_WEBGPU = "backend=webgpu: this browser gives no WebGPU device";
-  if (backendWanted === "webgl2" || (backendWanted === null && !navigator.gpu)) {
+  if (textured && backendWanted === "webgpu") {
+    fail("backend=webgpu: the WebGPU backend does not draw textured materials (hbrdf view --svbrdf) yet; use backend=webgl2");
+  } else if (backendWanted === "webgl2" || (backendWanted === null && (!navigator.gpu || textured))) {
     startWebGL2();  // synchronously at load, as before WebGPU
   } else {
     // WebGPU is asynchronous: the title stays "hbrdf view" until the first picture (and the readback)

@@ -1,0 +1,248 @@
+"""``hbrdf view --svbrdf DIR`` (docs/VIEWER.md, "A textured material"): the page's textured sphere in
+headless chromium (WebGL2 on SwiftShader, as test_view.py; skipped without chromium unless
+HBRDF_REQUIRE_BROWSER=1).
+
+References, none of them the page's code:
+- under the sun alone the page shows f(uv, wi, wo) cos(theta_i) E exactly at each pixel's centre, so
+  its pixels are compared with libhybridbrdf's ``eval_texels`` (``SVBRDF.eval``: the runtimes' texel
+  lookup and mixture in double and float) at directions and uv computed here in float64 from the
+  camera, the unit sphere and the tracer's sphere uv (docs/RENDERING.md), tone-mapped by
+  ``viewer.scene.srgb8``. Bound: float32 against float64 geometry and rounding to 8 bits, mean
+  absolute difference 0.05 of an 8-bit step, no pixel more than 2 off; the same comparison with v
+  flipped (a wrong uv convention) is off by more than 1 (asserted, so the test can fail);
+- a textured material of one layer whose maps are constant is its material with those values: the page
+  of the model's material with the same kd, eta and alpha set through the URL (what the sliders set)
+  under the environment map, which exercises the mixture's sampling and density too: the same
+  random numbers and float32 operations, so the same bytes (bound: mean 0.05, max 1);
+- a material of two regions (the weights map's left and right halves) shows each region as the page
+  of that region's material does, pixel for pixel where the pixel's whole footprint reads pure texels.
+"""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
+from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8
+from helpers import run_cli, saved_random_model
+from test_view import open_page, read_state
+
+SIZE = 48
+
+
+@pytest.fixture(params=[("shared", False), ("material", True)], ids=["shared", "heads-bounded"])
+def model(request, tmp_path):
+    output_layer, bound = request.param
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer=output_layer, energy_bound=bound)
+    return m
+
+
+def _view(tmp_path, folder, *extra):
+    out = tmp_path / "page.html"
+    r = run_cli("view", "--svbrdf", str(folder), "--out", str(out), *extra)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def _pixels(page, hash_):
+    """The page's converged picture (SIZE x SIZE, top row first) after a clean load."""
+    title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_)
+    assert title == "hbrdf view: ok", (title, status)
+    assert [c for c in console if "GPU stall due to ReadPixels" not in c] == [], console  # as test_view.page_state
+    return read_state(dom)[0].astype(np.int32)
+
+
+def sphere_pixels(size, sun_el=90.0, sun_az=0.0, dx=0.0, dy=0.0):
+    """Per pixel centre (top row first; moved by (dx, dy) pixels), in float64: uv (the tracer's sphere
+    uv), wi toward the sun and wo toward the camera in the tracer's sphere frame, and whether the
+    pixel's ray hits the sphere."""
+    pos, look, up = (np.array(CAMERA[k], dtype=np.float64) for k in ("position", "look_at", "up"))
+    fwd = (look - pos) / np.linalg.norm(look - pos)
+    right = np.cross(fwd, up)
+    right /= np.linalg.norm(right)
+    up2 = np.cross(right, fwd)
+    tan = np.tan(np.radians(CAMERA["fov_deg"]) / 2)
+    y, x = np.mgrid[0:size, 0:size] + 0.5
+    x, y = x + dx, y + dy
+    sx, sy = (2 * x / size - 1) * tan, (1 - 2 * y / size) * tan
+    d = fwd + right * sx[..., None] + up2 * sy[..., None]
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    b = d @ pos
+    disc = b * b - (pos @ pos - 1)
+    hit = disc > 0
+    t = -b - np.sqrt(np.maximum(disc, 0))
+    n = pos + t[..., None] * d
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    tg = np.stack([-n[..., 2], np.zeros_like(n[..., 0]), n[..., 0]], axis=-1)
+    tg /= np.maximum(np.linalg.norm(tg, axis=-1, keepdims=True), 1e-12)
+    bt = np.cross(n, tg)
+    el, az = np.radians(sun_el), np.radians(sun_az)
+    sun = np.array([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)])
+    frame = np.stack([tg, bt, n], axis=-2)  # rows: the local axes
+    wo = np.einsum("...ij,...j->...i", frame, -d)
+    wi = np.einsum("...ij,j->...i", frame, sun)
+    uv = np.stack([np.arctan2(n[..., 2], n[..., 0]) / (2 * np.pi) + 0.5, np.arccos(np.clip(n[..., 1], -1, 1)) / np.pi],
+                  axis=-1)
+    return uv, wi, wo, hit
+
+
+def sun_reference(sv, size, sun_el, sun_az, flip_v=False):
+    """(the page's picture under the sun as libhybridbrdf evaluates the textured material, the pixels
+    compared: inside the sphere, away from its rim and from the sun's terminator)."""
+    uv, wi, wo, hit = sphere_pixels(size, sun_el, sun_az)
+    if flip_v:
+        uv = uv * [1, -1] + [0, 1]
+    f = sv.eval(uv.reshape(-1, 2), wi.reshape(-1, 3), wo.reshape(-1, 3)).reshape(size, size, 3)
+    radiance = np.where(((wi[..., 2] > 0) & hit)[..., None], f * np.maximum(wi[..., 2:], 0) * SUN_IRRADIANCE, 0)
+    shown = hit & (wo[..., 2] > 0.2) & (np.abs(wi[..., 2]) > 0.02)
+    return srgb8(radiance).astype(np.int32), shown
+
+
+def _four_layer_material(model, folder):
+    """Four layers (the model's three materials and the first again), smooth random weights and a map
+    of each quantity on some layer, as 8-bit PNG (the page uploads the loader's decoded values)."""
+    rng = np.random.default_rng(7)
+    h, w = 6, 9
+    weights = rng.uniform(0, 0.6, (h, w, 3)).astype(np.float32)
+    weights[:2, :3] = 0  # pure base texels
+    maps = [{"kd": rng.uniform(0.05, 0.9, (h, w, 3)).astype(np.float32)},
+            {"alpha": rng.uniform(0.05, 0.6, (h, w, 2)).astype(np.float32)},
+            {"eta": rng.uniform(1.2, 3.0, (h, w, 3)).astype(np.float32)},
+            {"latent": rng.uniform(-1.5, 1.5, (h, w, 4)).astype(np.float32)}]
+    layers = [model.materials[0], model.materials[1], model.materials[2], model.materials[0]]
+    SVBRDF(model, layers, (w, h), weights, maps).save(folder, format="png")
+    return load_svbrdf(folder)
+
+
+def test_page_is_libhybridbrdf_under_the_sun(model, tmp_path):
+    sv = _four_layer_material(model, tmp_path / "sv")
+    page = _view(tmp_path, tmp_path / "sv")
+    el, az = 40.0, 130.0
+    got = _pixels(page, f"light=sun&sun_el={el}&sun_az={az}")
+    want, shown = sun_reference(sv, SIZE, el, az)
+    assert shown.sum() > 0.4 * SIZE * SIZE * np.pi / 4 * 0.25  # a good part of the sphere is compared
+    diff = np.abs(got - want)[shown]
+    assert want[shown].mean() > 20, "the reference is not dark"
+    print(f"page against libhybridbrdf: mean {diff.mean():.4f}, max {diff.max()} over {shown.sum()} pixels")
+    assert diff.mean() <= 0.05 and diff.max() <= 2, (diff.mean(), diff.max())
+    flipped, _ = sun_reference(sv, SIZE, el, az, flip_v=True)
+    assert np.abs(got - flipped)[shown].mean() > 1, "the comparison cannot tell v down from v up"
+
+
+def test_constant_maps_are_the_uniform_material(model, tmp_path):
+    h, w = 3, 4
+    kd, eta, alpha = [0.62, 0.31, 0.12], [1.7, 2.2, 1.4], [0.09, 0.35]
+    z = np.asarray(model.tensors["materials.z"][1], dtype=np.float32)
+    maps = {"kd": np.broadcast_to(np.float32(kd), (h, w, 3)).copy(),
+            "eta": np.broadcast_to(np.float32(eta), (h, w, 3)).copy(),
+            "alpha": np.broadcast_to(np.float32(alpha), (h, w, 2)).copy(),
+            "latent": np.broadcast_to(z, (h, w, len(z))).copy()}
+    SVBRDF(model, [model.materials[1]], (w, h), None, [maps]).save(tmp_path / "sv", format="exr")
+    textured = _view(tmp_path, tmp_path / "sv")
+    uniform = tmp_path / "uniform.html"
+    assert run_cli("view", str(load_svbrdf(tmp_path / "sv").model.path), "--out", str(uniform)).returncode == 0
+    common = "spp=16&rotation=30"
+    got = _pixels(textured, common)
+    f32 = lambda v: ",".join(repr(float(np.float32(x))) for x in v)  # noqa: E731
+    want = _pixels(uniform, f"{common}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}")
+    other = _pixels(uniform, f"{common}&material={model.materials[1]}")
+    diff = np.abs(got - want)
+    assert diff.mean() <= 0.05 and diff.max() <= 1, (diff.mean(), diff.max())
+    assert np.abs(got - other).mean() > 2, "the maps' values change the picture"
+
+
+def test_two_regions_show_each_material(model, tmp_path):
+    h, w = 4, 8
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[:, 6:, 0] = 1  # u >= 3/4 (the camera sees u from 1/2 to 1, centre 3/4): layer 1
+    SVBRDF(model, [model.materials[0], model.materials[2]], (w, h), weights, addressing="clamp").save(tmp_path / "sv")
+    sv = load_svbrdf(tmp_path / "sv")
+    textured = _view(tmp_path, tmp_path / "sv")
+    uniform = tmp_path / "uniform.html"
+    assert run_cli("view", str(sv.model.path), "--out", str(uniform)).returncode == 0
+    common = "spp=8&rotation=-40"
+    got = _pixels(textured, common)
+    # A pixel reads pure texels of one layer when the corners of its footprint do (the page jitters
+    # its samples over the pixel); the layer from libhybridbrdf's texel lookup, not the page's.
+    corners = []
+    for dy in (-0.5, 0.5):
+        for dx in (-0.5, 0.5):
+            uv, _, wo, hit = sphere_pixels(SIZE, dx=dx, dy=dy)
+            weight = sv.texels(uv.reshape(-1, 2))["weight"].reshape(SIZE, SIZE, 2)
+            corners.append((weight, hit & (wo[..., 2] > 0.1)))
+    for layer, material in enumerate([model.materials[0], model.materials[2]]):
+        pure = np.logical_and.reduce([ok & (wt[..., layer] == 1) for wt, ok in corners])
+        assert pure.sum() > 100, pure.sum()
+        want = _pixels(uniform, f"{common}&material={material}")
+        diff = np.abs(got - want)[pure]
+        assert diff.mean() <= 0.05 and diff.max() <= 1, (layer, diff.mean(), diff.max())
+        assert np.abs(got - want)[~pure & corners[0][1]].mean() > 1, "the other region differs"
+
+
+def test_maps_shown_beside_the_sphere_and_webgpu_refused(tmp_path):
+    path, m = saved_random_model(tmp_path, "hybrid")
+    _four_layer_material(m, tmp_path / "sv")
+    page = _view(tmp_path, tmp_path / "sv")
+    title, status, dom, console = open_page(page, "readback=1&size=16&light=sun")
+    assert title == "hbrdf view: ok" and console == [], (title, status, console)
+    # the weights and one image per map file (kd, alpha, eta, two latent maps): data URIs with captions
+    assert dom.count('<img src="data:image/png;base64,') == 6
+    assert "layer 3 (" in dom and "latent z_0..z_2" in dom and "weights" in dom
+    title, status, _, _ = open_page(page, "", backend="webgpu")
+    assert status == ("backend=webgpu: the WebGPU backend does not draw textured materials (hbrdf view --svbrdf) "
+                      "yet; use backend=webgl2"), status
+    assert title == "hbrdf view: error: " + status
+
+
+def _corrupt_index(folder):
+    (folder / "svbrdf.json").write_text('{"format_version": 1,')
+
+
+def _other_size(folder):
+    index = json.loads((folder / "svbrdf.json").read_text())
+    index["size"] = [5, 5]
+    (folder / "svbrdf.json").write_text(json.dumps(index))
+
+
+def _no_folder(folder):
+    shutil.rmtree(folder)
+
+
+def _no_index(folder):
+    (folder / "svbrdf.json").unlink()
+
+
+@pytest.mark.parametrize("damage", [_no_folder, _no_index, _corrupt_index, _other_size])
+def test_bad_folders_refused_with_the_loaders_line(tmp_path, damage):
+    """The loader's one line (hybridbrdf.load_svbrdf's SVBRDFError, naming the file), nothing written."""
+    path, m = saved_random_model(tmp_path, "hybrid")
+    folder = tmp_path / "sv"
+    SVBRDF(m, m.materials[:2], (4, 3), np.zeros((3, 4, 3), np.float32)).save(folder)
+    damage(folder)
+    with pytest.raises(SVBRDFError) as exc:
+        load_svbrdf(folder)
+    out = tmp_path / "page.html"
+    r = run_cli("view", "--svbrdf", str(folder), "--out", str(out))
+    assert r.returncode == 1 and r.stderr == f"hbrdf view: error: {exc.value}\n", r.stderr
+    assert str(folder) in r.stderr and not out.exists()
+
+
+def test_model_must_be_the_folders(tmp_path):
+    """MODEL with --svbrdf names the folder's own model (same bytes) or is refused in one line; SOURCE
+    arguments are refused; a page is written for the folder's model."""
+    path, m = saved_random_model(tmp_path, "hybrid")
+    folder = tmp_path / "sv"
+    SVBRDF(m, m.materials[:1], (2, 2)).save(folder)
+    out = tmp_path / "page.html"
+    (tmp_path / "other").mkdir()
+    other, _ = saved_random_model(tmp_path / "other", "hybrid", width=8)
+    r = run_cli("view", str(other), "--svbrdf", str(folder), "--out", str(out))
+    assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"hbrdf view: error: {other}: is not the model of the textured material"), r.stderr
+    r = run_cli("view", str(path), "synthetic:plastic", "--svbrdf", str(folder), "--out", str(out))
+    assert r.returncode == 1 and "SOURCE arguments are not shown beside a textured material" in r.stderr, r.stderr
+    assert not out.exists()
+    r = run_cli("view", str(path), "--svbrdf", str(folder), "--out", str(out))  # the same bytes: accepted
+    assert r.returncode == 0 and out.exists(), r.stderr
