@@ -361,8 +361,8 @@ void bind_render(py::module_& m) {
         },
         py::arg("json_text"), py::arg("base_dir"), py::arg("origin"),
         "The radiance image (H, W, 3) float32 of a scene's \"environment\" object given as JSON text, as the "
-        "tracer lights with it: read, baked (sky) and scaled by the scene loader, negative and non-finite texels "
-        "zeroed, before its rotation_deg (which turns lookups, not the image). Errors as load_scene_json's.");
+        "tracer lights with it: read, baked (sky) and scaled by the scene loader (a map holding a negative or "
+        "non-finite texel is refused), before its rotation_deg (which turns lookups, not the image). Errors as load_scene_json's.");
     m.def("render_write_exr", [](const FloatArray& a, const std::string& path) { hr::write_exr(image_from_array(a), path); },
           py::arg("image"), py::arg("path"), "Write (H, W, 3) linear float32 OpenEXR, atomically.");
     m.def(
@@ -385,6 +385,13 @@ void bind_render(py::module_& m) {
         if (a.ndim() != 2 || a.shape(0) != n || a.shape(1) != c)
             throw std::invalid_argument(std::string(what) + " must have shape (N, " + std::to_string(c) + ")");
     };
+    // An optional (N, 3) float32 array argument (None: absent).
+    const auto optional_rows = [](const py::object& a) -> std::optional<FloatArray> {
+        if (a.is_none()) return std::nullopt;
+        FloatArray arr = FloatArray::ensure(a);
+        if (!arr) throw std::invalid_argument("weights must be an (N, 3) float array or None");
+        return arr;
+    };
     py::class_<hbrdf::Svbrdf, SvbrdfPtr>(m, "Svbrdf",
                                          "A textured material's folder read by libhybridbrdf's loader (render::load_svbrdf, "
                                          "the tracer's; docs/SVBRDF.md).")
@@ -395,68 +402,92 @@ void bind_render(py::module_& m) {
         .def(
             "eval",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-                const std::string& filter, bool analytic, bool batched) {
+                const std::string& filter, bool analytic, bool batched, const py::object& weights_in) {
+                const std::optional<FloatArray> weights = optional_rows(weights_in);
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
+                if (weights) rows(*weights, n, 3, "weights");
                 const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray f({n, py::ssize_t(3)});
                 py::gil_scoped_release release;
                 float* o = f.mutable_data();
-                if (batched && !analytic) {
+                if (batched && !analytic && !weights) {
                     sv.eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o);
                     return f;
                 }
+                hbrdf::Texel tx;
                 for (py::ssize_t i = 0; i < n; ++i) {
                     const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> a(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]);
                     const hbrdf::Vec3<float> b(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                    const auto v = analytic ? sv.eval_analytic(t, flt, a, b) : sv.eval(t, flt, a, b);
+                    hbrdf::Vec3<float> v;
+                    if (weights) {
+                        sv.texel(t, flt, weights->data() + 3 * i, &tx);
+                        v = analytic ? hbrdf::Svbrdf::eval_analytic(tx, a, b) : sv.model().eval_texel(tx.layers, tx.n_layers, a, b);
+                    } else {
+                        v = analytic ? sv.eval_analytic(t, flt, a, b) : sv.eval(t, flt, a, b);
+                    }
                     o[3 * i] = v.x, o[3 * i + 1] = v.y, o[3 * i + 2] = v.z;
                 }
                 return f;
             },
             py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("filter") = "bilinear", py::arg("analytic") = false,
-            py::arg("batched") = false,
+            py::arg("batched") = false, py::arg("weights") = py::none(),
             "f at (N, 2) uv through the scalar path (Svbrdf::eval) or, with batched, Svbrdf::eval_batch; with analytic "
-            "the f_a mixture; (N, 3).")
+            "the f_a mixture; with weights (N, 3), w_1..w_3 per pair instead of the weights map's (the scalar path); "
+            "(N, 3).")
         .def(
             "sample",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,
-                const std::string& strategy, const std::string& filter) {
+                const std::string& strategy, const std::string& filter, const py::object& weights_in) {
+                const std::optional<FloatArray> weights = optional_rows(weights_in);
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wo, n, 3, "wo"), rows(u, n, 2, "u");
+                if (weights) rows(*weights, n, 3, "weights");
                 const hbrdf::Strategy s = strategy_of(strategy);
                 const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray wi({n, py::ssize_t(3)}), pdf({n}), again({n});
+                hbrdf::Texel tx;
                 for (py::ssize_t i = 0; i < n; ++i) {
                     const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> o(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                    const auto b = sv.sample(t, flt, s, o, hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
+                    if (weights) sv.texel(t, flt, weights->data() + 3 * i, &tx);
+                    else sv.texel(t, flt, &tx);
+                    const auto b = hbrdf::Svbrdf::sample(tx, s, o, hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
                     for (int c = 0; c < 3; ++c) wi.mutable_data()[3 * i + c] = b.wi[c];
                     pdf.mutable_data()[i] = b.pdf;
-                    again.mutable_data()[i] = b.pdf > 0.f ? sv.pdf(t, flt, s, b.wi, o) : 0.f;
+                    again.mutable_data()[i] = b.pdf > 0.f ? hbrdf::Svbrdf::pdf(tx, s, b.wi, o) : 0.f;
                 }
                 return py::make_tuple(wi, pdf, again);
             },
             py::arg("uv"), py::arg("wo"), py::arg("u"), py::arg("strategy") = "mis", py::arg("filter") = "bilinear",
-            "Samples of the texels' layer mixture: (wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).")
+            py::arg("weights") = py::none(),
+            "Samples of the texels' layer mixture (weights (N, 3): w_1..w_3 per pair instead of the map's): "
+            "(wi (N, 3), pdf (N,), pdf(wi, wo) recomputed (N,)).")
         .def(
             "pdf",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-                const std::string& strategy, const std::string& filter) {
+                const std::string& strategy, const std::string& filter, const py::object& weights_in) {
+                const std::optional<FloatArray> weights = optional_rows(weights_in);
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
+                if (weights) rows(*weights, n, 3, "weights");
                 const hbrdf::Strategy s = strategy_of(strategy);
                 const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray pdf({n});
-                for (py::ssize_t i = 0; i < n; ++i)
-                    pdf.mutable_data()[i] = sv.pdf(hbrdf::Vec2<float>(uv.data()[2 * i], uv.data()[2 * i + 1]), flt, s,
-                                                   hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
-                                                   hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
+                hbrdf::Texel tx;
+                for (py::ssize_t i = 0; i < n; ++i) {
+                    const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
+                    if (weights) sv.texel(t, flt, weights->data() + 3 * i, &tx);
+                    else sv.texel(t, flt, &tx);
+                    pdf.mutable_data()[i] = hbrdf::Svbrdf::pdf(tx, s, hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
+                                                               hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
+                }
                 return pdf;
             },
             py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("strategy") = "mis", py::arg("filter") = "bilinear",
-            "The sampling density pdf(wi | wo) at (N, 2) uv, (N,).");
+            py::arg("weights") = py::none(),
+            "The sampling density pdf(wi | wo) at (N, 2) uv (weights (N, 3): w_1..w_3 per pair instead of the map's), (N,).");
     m.def("render_read_image", [](const std::string& path) { return array_from_image(hr::read_image(path)); },
           py::arg("path"), "Read an .exr or .hdr image as (H, W, 3) float32.");
     m.attr("HAVE_RENDERER") = true;

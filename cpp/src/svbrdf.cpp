@@ -180,6 +180,27 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const 
     texel_at(taps_of(uv, filter, width_, height_, addressing_), out);
 }
 
+void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, const float* weights, Texel* out) const {
+    const Taps taps = taps_of(uv, filter, width_, height_, addressing_);
+    const int L = int(layers_.size()), l = model_->latent_dim();
+    double w[spec::kSvbrdfMaxLayers] = {1.0, 0.0, 0.0, 0.0}, total = 0.0;
+    for (int c = 0; c + 1 < L; ++c) {
+        const float v = weights[c];
+        total += w[c + 1] = v > 0.f && std::isfinite(v) ? double(v) : 0.0;
+    }
+    if (total > 1.0)
+        for (int c = 1; c < L; ++c) w[c] /= total;
+    w[0] = std::clamp(1.0 - std::min(total, 1.0), 0.0, 1.0);
+    out->n_layers = L;
+    for (int k = 0; k < L; ++k) {
+        TexelLayer& o = out->layers[k];
+        float* latent = out->latent + std::size_t(k) * std::size_t(l);
+        o.weight = float(w[k]);
+        if (o.weight > 0.f) layer_at(taps, k, &o, latent);
+        else o.material = layers_[std::size_t(k)].material, o.latent = latent;
+    }
+}
+
 void Svbrdf::weights_at(const Taps& t, double* w) const {
     const int L = int(layers_.size());
     std::fill(w, w + spec::kSvbrdfMaxLayers, 0.0);
@@ -330,20 +351,21 @@ void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const f
     }
 }
 
-Vec3<float> Svbrdf::eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
-                                  const Vec3<float>& wo) const {
-    Texel t;
-    texel(uv, filter, &t);
+Vec3<float> Svbrdf::eval_analytic(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo) {
     Vec3<float> f(0.f);
     for (int k = 0; k < t.n_layers; ++k)
         if (t.layers[k].weight > 0.f) f = f + AnalyticBrdf(t.layers[k].params).eval(wi, wo) * t.layers[k].weight;
     return f;
 }
 
-BrdfSample Svbrdf::sample(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wo,
-                          const Vec2<float>& u_in) const {
+Vec3<float> Svbrdf::eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
+                                  const Vec3<float>& wo) const {
     Texel t;
     texel(uv, filter, &t);
+    return eval_analytic(t, wi, wo);
+}
+
+BrdfSample Svbrdf::sample(const Texel& t, Strategy s, const Vec3<float>& wo, const Vec2<float>& u_in) {
     Vec2<float> u = clamp_unit_square(u_in);
     int chosen = 0;
     float start = 0.f, chosen_start = 0.f;
@@ -359,22 +381,30 @@ BrdfSample Svbrdf::sample(const Vec2<float>& uv, TexelFilter filter, Strategy s,
     u.x = clamp_nan_lo(wc > 0.f ? (u.x - chosen_start) / wc : u.x, 0.f, kOneMinusEps<float>);
     BrdfSample b = hbrdf::sample(s, AnalyticBrdf(t.layers[chosen].params), wo, u);
     if (!(b.pdf > 0.f)) return b;
-    float pdf = 0.f;
-    for (int k = 0; k < t.n_layers; ++k)
-        if (t.layers[k].weight > 0.f) pdf += t.layers[k].weight * hbrdf::pdf(s, AnalyticBrdf(t.layers[k].params), b.wi, wo);
-    b.pdf = pdf;
+    b.pdf = pdf(t, s, b.wi, wo);
     b.weight = Vec3<float>(0.f);  // the integrator evaluates the texel itself
     return b;
+}
+
+BrdfSample Svbrdf::sample(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wo,
+                          const Vec2<float>& u) const {
+    Texel t;
+    texel(uv, filter, &t);
+    return sample(t, s, wo, u);
+}
+
+float Svbrdf::pdf(const Texel& t, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo) {
+    float pdf = 0.f;
+    for (int k = 0; k < t.n_layers; ++k)
+        if (t.layers[k].weight > 0.f) pdf += t.layers[k].weight * hbrdf::pdf(s, AnalyticBrdf(t.layers[k].params), wi, wo);
+    return pdf;
 }
 
 float Svbrdf::pdf(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wi,
                   const Vec3<float>& wo) const {
     Texel t;
     texel(uv, filter, &t);
-    float pdf = 0.f;
-    for (int k = 0; k < t.n_layers; ++k)
-        if (t.layers[k].weight > 0.f) pdf += t.layers[k].weight * hbrdf::pdf(s, AnalyticBrdf(t.layers[k].params), wi, wo);
-    return pdf;
+    return pdf(t, s, wi, wo);
 }
 
 }  // namespace hbrdf

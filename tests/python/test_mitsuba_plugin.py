@@ -207,6 +207,52 @@ def test_textured_queries_are_the_librarys_texels(edited_model, tmp_path):
         mi.load_dict({"type": "hbrdf", "svbrdf": str(tmp_path / "sv"), "filename": str(edited_model.path), "material": GLOSSY})
 
 
+@pytest.mark.parametrize("filt", ["nearest", "bilinear"])
+def test_weights_as_a_mitsuba_texture(edited_model, tmp_path, filt):
+    """'weights' as Mitsuba textures: the folder's own weights map read back by Mitsuba's bitmap
+    texture (its lookup, filter and wrapping) gives the texels of the folder's map read by
+    libhybridbrdf (the uv conventions agree), and a constant 'rgb' texture the texels of a constant
+    map; eval, pdf and sample against libhybridbrdf's Svbrdf."""
+    from hybridbrdf.svbrdf.asset import SVBRDF
+
+    rng = np.random.default_rng(9)
+    weights = rng.uniform(0, 0.5, (4, 6, 3)).astype(np.float32)
+    weights[..., 1:] = 0
+    SVBRDF(edited_model, [GLOSSY, "aniso"], (6, 4), weights).save(tmp_path / "sv", format="exr")
+    SVBRDF(edited_model, [GLOSSY, "aniso"], (6, 4), np.full((4, 6, 3), [0.3, 0, 0], np.float32)).save(
+        tmp_path / "flat", format="exr")
+    hbmi.register()
+    bitmap = {"type": "bitmap", "filename": str(tmp_path / "sv" / "weights.exr"), "raw": True,
+              "filter_type": filt, "wrap_mode": "repeat"}
+    cases = [(mi.load_dict({"type": "hbrdf", "svbrdf": str(tmp_path / "sv"), "filter": filt, "weights": bitmap}),
+              hb._core.Svbrdf(str(tmp_path / "sv"))),
+             (mi.load_dict({"type": "hbrdf", "svbrdf": str(tmp_path / "sv"), "filter": filt,
+                            "weights": {"type": "rgb", "value": [0.3, 0, 0]}}), hb._core.Svbrdf(str(tmp_path / "flat")))]
+    ctx = mi.BSDFContext()
+    for b, lib in cases:
+        for _ in range(40):
+            view, light = rng.normal(size=3), rng.normal(size=3)
+            view[2], light[2] = abs(view[2]), abs(light[2])
+            view, light = view / np.linalg.norm(view), light / np.linalg.norm(light)
+            uv = rng.uniform(-0.5, 1.5, 2)
+            si = mi.SurfaceInteraction3f()
+            si.wi = mi.Vector3f(*view)
+            si.uv = mi.Point2f(*uv)
+            rows = [np.array([r], np.float32) for r in (uv, light, view)]
+            ref = lib.eval(*rows, filt)[0] * light[2]
+            np.testing.assert_allclose(np.array(b.eval(ctx, si, mi.Vector3f(*light))), ref, rtol=2e-5, atol=1e-7)
+            assert float(b.pdf(ctx, si, mi.Vector3f(*light))) == pytest.approx(float(lib.pdf(*rows, "mis", filt)[0]),
+                                                                             rel=2e-5)
+            u = rng.uniform(0, 1, 2)
+            bs, _ = b.sample(ctx, si, 0.5, mi.Point2f(*u))
+            wi_ref, pdf_ref, _ = lib.sample(rows[0], rows[2], np.array([u], np.float32), "mis", filt)
+            np.testing.assert_allclose(np.array(bs.wo), wi_ref[0], atol=2e-5)
+    assert "weights=" in str(cases[0][0])
+    with pytest.raises(Exception, match="only a textured material"):
+        mi.load_dict({"type": "hbrdf", "filename": str(edited_model.path), "material": GLOSSY,
+                      "weights": {"type": "rgb", "value": [0.3, 0, 0]}})
+
+
 def test_a_textured_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, textured_folder):
     """As test_a_mitsuba_render_agrees_with_hbrdf_render, for the textured material (the mixture
     sampled by the plugin through libhybridbrdf's texel sampler, evaluated per texel)."""

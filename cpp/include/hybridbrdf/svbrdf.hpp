@@ -61,6 +61,10 @@ public:
     /// by their sum when it is above 1). A non-finite uv reads uv = (0, 0): a tracer never throws
     /// per hit.
     void texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const;
+    /// The same with the weights w_1, w_2, w_3 given (three floats) instead of read from the
+    /// weights map, for a renderer that evaluates them itself (the Mitsuba plugin's `weights`
+    /// texture): negative and non-finite values count as 0, then the map's normalisation.
+    void texel(const Vec2<float>& uv, TexelFilter filter, const float* weights, Texel* out) const;
     /// f(uv, wi, wo) through HybridModel::eval_texel.
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). Pairs on pure texels of
@@ -79,6 +83,11 @@ public:
                       const Vec2<float>& u) const;
     /// The density sample() draws wi with.
     float pdf(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo) const;
+
+    /// eval_analytic, sample and pdf of a texel already looked up (texel()).
+    static Vec3<float> eval_analytic(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo);
+    static BrdfSample sample(const Texel& t, Strategy s, const Vec3<float>& wo, const Vec2<float>& u);
+    static float pdf(const Texel& t, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo);
 
 private:
     std::shared_ptr<const HybridModel> model_;

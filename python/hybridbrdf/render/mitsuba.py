@@ -9,7 +9,12 @@
 Properties: ``filename`` (a model file), ``material`` (its name in the file; ``hbrdf info`` lists
 them), or instead ``svbrdf`` (a textured material's folder, docs/SVBRDF.md: per query the texel
 under Mitsuba's ``si.uv``, read unchanged as the folder's uv, with ``filter`` ``"bilinear"``, the
-default, or ``"nearest"``; libhybridbrdf's ``Svbrdf``, the tracer's loader and lookup), ``sampler`` (``"mis"``, the default: the one-sample MIS of the cosine and GGX lobes of the
+default, or ``"nearest"``; libhybridbrdf's ``Svbrdf``, the tracer's loader and lookup; with it,
+``weights``: any Mitsuba texture whose R, G, B are the layers' weights w_1, w_2, w_3 at each query,
+Mitsuba's own lookup replacing the folder's weights map: a bitmap with Mitsuba's filtering and
+wrapping, a checkerboard, a mesh attribute; negative and non-finite values count as 0, a sum above
+1 is divided out, the base layer takes the rest; the layers' p and z maps stay the folder's),
+``sampler`` (``"mis"``, the default: the one-sample MIS of the cosine and GGX lobes of the
 material's fitted f_a, paper Sec. 5.2; ``"ggx"`` or ``"cosine"``) and ``evaluate`` (``"full"``,
 the default, f_t; ``"analytic"``: f_a alone, as the tracer's deeper bounces may use it).
 
@@ -154,11 +159,16 @@ def _bsdf_class():
                     raise ValueError(f"hbrdf filter {self.filter!r}: expected one of {', '.join(FILTERS)}")
                 self.svbrdf = _core.Svbrdf(str(folder))
                 self.folder = str(folder)
+                # Unbounded: weights are data, not a reflectance to clamp or upsample (an 'rgb' value
+                # becomes a constant texture; a bitmap should say "raw": true).
+                self.weights = props.get_unbounded_texture("weights") if "weights" in props else None
                 flags = (mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
                          | mi.BSDFFlags.Anisotropic | mi.BSDFFlags.SpatiallyVarying)
                 self.m_components = [flags]
                 self.m_flags = flags
                 return
+            if "weights" in props:
+                raise ValueError("hbrdf weights: only a textured material ('svbrdf') has layer weights")
             if filename is None or material is None:
                 raise ValueError("the hbrdf BSDF needs 'filename' (a model file) and 'material' (a name in it), or "
                                  "'svbrdf' (a textured material's folder)")
@@ -181,20 +191,28 @@ def _bsdf_class():
             self.m_flags = flags
 
         # -- hybridbrdf calls, (N, 3) arrays in hybridbrdf's convention -----------------------
-        def _f(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        def _texture_weights(self, si, active, n: int):
+            """The `weights` texture at si as (n, 3) float32, or None (the folder's map)."""
+            if self.svbrdf is None or self.weights is None:
+                return None
+            a = np.asarray(self.weights.eval(si, active), dtype=np.float32)
+            a = a.reshape(3, -1).T if a.ndim == 2 else a.reshape(1, 3)
+            return np.ascontiguousarray(np.broadcast_to(a, (n, 3)))
+
+        def _f(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray, w=None) -> np.ndarray:
             if self.svbrdf is not None:
                 analytic = self.evaluate == "analytic"
-                return self.svbrdf.eval(uv, light, view, self.filter, analytic, not analytic)
+                return self.svbrdf.eval(uv, light, view, self.filter, analytic, not analytic, w)
             if self.evaluate == "analytic":
                 return self._core.eval_analytic(light, view, self.index)
             return self._core.eval(light, view, self.index)
 
-        def _pdf(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        def _pdf(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray, w=None) -> np.ndarray:
             # The library's GGX pdf is the density of the visible-normal reflection, which also
             # reaches below the horizon; Mitsuba's BSDFs give those directions density 0 (their
             # samples carry no weight and are not counted by mitsuba.chi2), and so does the plugin.
             if self.svbrdf is not None:
-                p = self.svbrdf.pdf(uv, light, view, self.sampler, self.filter)
+                p = self.svbrdf.pdf(uv, light, view, self.sampler, self.filter, w)
             else:
                 p = _core.pdf(light, view, self.params, self.sampler)
             return np.where(light[:, 2] > 0, p, 0.0)
@@ -203,23 +221,26 @@ def _bsdf_class():
         def eval(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
             uv = _uv(si.uv, len(light))
-            return _lanes(self._value(light, view, uv, _mask(active, len(light))))
+            w = self._texture_weights(si, active, len(light))
+            return _lanes(self._value(light, view, uv, _mask(active, len(light)), w))
 
         def pdf(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
             uv = _uv(si.uv, len(light))
-            return _lanes(np.where(_mask(active, len(light)), self._pdf(light, view, uv), 0.0))
+            w = self._texture_weights(si, active, len(light))
+            return _lanes(np.where(_mask(active, len(light)), self._pdf(light, view, uv, w), 0.0))
 
         def eval_pdf(self, ctx, si, wo, active=True):
             light, view = _pair(si.wi, wo)
             uv = _uv(si.uv, len(light))
             on = _mask(active, len(light))
-            return _lanes(self._value(light, view, uv, on)), _lanes(np.where(on, self._pdf(light, view, uv), 0.0))
+            w = self._texture_weights(si, active, len(light))
+            return _lanes(self._value(light, view, uv, on, w)), _lanes(np.where(on, self._pdf(light, view, uv, w), 0.0))
 
-        def _value(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray, on: np.ndarray) -> np.ndarray:
+        def _value(self, light: np.ndarray, view: np.ndarray, uv: np.ndarray, on: np.ndarray, w=None) -> np.ndarray:
             """f cos(theta_light), 0 where inactive (and where a value is not finite: never, by the
             library's contract, but a renderer must not receive one)."""
-            value = self._f(light, view, uv) * np.maximum(light[:, 2:3], 0.0)
+            value = self._f(light, view, uv, w) * np.maximum(light[:, 2:3], 0.0)
             return np.where((on & np.isfinite(value).all(axis=1))[:, None], value, 0.0)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
@@ -229,11 +250,12 @@ def _bsdf_class():
             view = np.ascontiguousarray(np.broadcast_to(view, (n, 3)))
             u = np.ascontiguousarray(np.broadcast_to(u, (n, 2)))
             uv = _uv(si.uv, n)
+            w = self._texture_weights(si, active, n)
             if self.svbrdf is not None:
-                light, p, _ = self.svbrdf.sample(uv, view, u, self.sampler, self.filter)
+                light, p, _ = self.svbrdf.sample(uv, view, u, self.sampler, self.filter, w)
             else:
                 light, p, _ = _core.sample(view, u, self.params, self.sampler)
-            f = self._f(light, view, uv)
+            f = self._f(light, view, uv, w)
             ok = _mask(active, n) & (p > 0) & (light[:, 2] > 0)
             weight = np.where(ok[:, None], f * np.maximum(light[:, 2:3], 0.0) / np.where(ok, p, 1.0)[:, None], 0.0)
             weight[~np.isfinite(weight).all(axis=1)] = 0.0
@@ -246,11 +268,14 @@ def _bsdf_class():
             return bs, _lanes(weight)
 
         def traverse(self, callback):
-            pass
+            if self.svbrdf is not None and self.weights is not None:
+                callback.put_object("weights", self.weights, +mi.ParamFlags.NonDifferentiable)
 
         def to_string(self):
             if self.svbrdf is not None:
-                return f"HybridBSDF[svbrdf={self.folder!r}, filter={self.filter!r}, sampler={self.sampler!r}, evaluate={self.evaluate!r}]"
+                weights = "" if self.weights is None else f", weights={self.weights}"
+                return (f"HybridBSDF[svbrdf={self.folder!r}, filter={self.filter!r}{weights}, sampler={self.sampler!r}, "
+                        f"evaluate={self.evaluate!r}]")
             return (f"HybridBSDF[filename={self.model.path!r}, material={self.material!r}, "
                     f"sampler={self.sampler!r}, evaluate={self.evaluate!r}]")
 
