@@ -38,7 +38,7 @@ from hybridbrdf.render.preview import ROWS, render_preview
 from hybridbrdf.render.tracer import RenderMaterialError, render
 from hybridbrdf.render.tracer import settings as render_settings
 from hybridbrdf.sources import expand_sources, open_source
-from hybridbrdf.util import check_writable
+from hybridbrdf.util import check_writable, file_lock
 from hybridbrdf.version import __version__
 from hybridbrdf.viewer import measured as viewer_sources
 from hybridbrdf.viewer.page import write_page
@@ -119,7 +119,8 @@ def fit_synopsis() -> str:
 
 def _check_fit_outputs(args: argparse.Namespace) -> None:
     """--out and --checkpoint: writable, and not the same file (the model would replace the
-    checkpoint a later --resume needs). Raises InputFileError naming the path."""
+    checkpoint a later --resume needs); an existing checkpoint only with --resume or --force.
+    Raises InputFileError naming the path."""
 
     check_writable(args.out, "model")
     if getattr(args, "preview_path", None):
@@ -128,8 +129,11 @@ def _check_fit_outputs(args: argparse.Namespace) -> None:
         if os.path.realpath(args.checkpoint) == os.path.realpath(args.out):
             raise InputFileError(args.out, "--out and --checkpoint name the same file")
         check_writable(args.checkpoint, "checkpoint")
+        ckpt.check_not_another_fits(args.checkpoint, args.resume, args.force)  # fit() checks again, under the lock
     elif args.resume:
         raise ValueError("--resume needs --checkpoint FILE")
+    elif args.force:
+        raise ValueError("--force replaces an existing --checkpoint FILE; give one")
 
 
 def _check_out_is_no_source(out: str, sources) -> None:
@@ -176,7 +180,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
                 f"{settings.batch}-pair batch per rank")
         model = fit(sources, settings, frozen=frozen, init=init, checkpoint=args.checkpoint,
                     checkpoint_every=args.checkpoint_every, resume=args.resume, progress=not args.quiet, log=log,
-                    compile_step=args.compile, ranks=ranks)
+                    compile_step=args.compile, ranks=ranks, force=args.force)
     except KeyboardInterrupt:
         if not ranks.main:
             dd.leave(ranks)
@@ -258,10 +262,9 @@ def _cmd_add(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_new_material(model, name: str, out: str) -> int:
-    """Write an edited or blended model (validated, atomically) and describe its new material:
+def _describe_new_material(model, name: str, out: str) -> int:
+    """Describe the new material of an edited or blended model just written to ``out``:
     parameters and maximum directional albedo, with a warning when it exceeds 1."""
-    model = model.save_checked(out)
     line = f"wrote {out} ({len(model.materials)} materials): {name}"
     if model.has_analytic:
         p = model.analytic_params(name)
@@ -280,11 +283,12 @@ def _write_new_material(model, name: str, out: str) -> int:
 
 def _cmd_bound(args: argparse.Namespace) -> int:
     check_writable(args.out, "model")
-    model = load_model(args.model)
-    names = [n.strip() for n in args.materials.split(",")] if args.materials else None
-    for n in names or []:
-        model.index(n)  # KeyError naming the material and the model's
-    bounded = energy.with_bound(model, names, samples=args.samples).save_checked(args.out)
+    with file_lock(args.out):  # --out MODEL: MODEL is read under the lock (docs/CONVENTIONS.md, "Writing files")
+        model = load_model(args.model)
+        names = [n.strip() for n in args.materials.split(",")] if args.materials else None
+        for n in names or []:
+            model.index(n)  # KeyError naming the material and the model's
+        bounded = energy.with_bound(model, names, samples=args.samples).save_checked(args.out)
     changed = 0
     for m in bounded.material_info:
         rec = m.get("energy_bound")
@@ -334,9 +338,13 @@ def _cmd_paint(args: argparse.Namespace) -> int:
 def _cmd_edit(args: argparse.Namespace) -> int:
     values = parse_assignments(args.set)
     check_writable(args.out, "model")
-    model = load_model(args.model)
-    edited = model.edit(args.material, args.as_name, conserve_energy=args.conserve_energy, **values)
-    return _write_new_material(edited, args.as_name, args.out)
+    # --out MODEL updates MODEL in place: it is read under the lock, so a concurrent update
+    # either finished before (and is kept) or waits for this one (docs/CONVENTIONS.md, "Writing files").
+    with file_lock(args.out):
+        model = load_model(args.model)
+        edited = model.edit(args.material, args.as_name, conserve_energy=args.conserve_energy, **values)
+        written = edited.save_checked(args.out)
+    return _describe_new_material(written, args.as_name, args.out)
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
@@ -352,9 +360,11 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 def _cmd_mix(args: argparse.Namespace) -> int:
     check_writable(args.out, "model")
-    model = load_model(args.model)
-    blend = model.mix(args.a, args.b, args.t, args.as_name, conserve_energy=args.conserve_energy)
-    return _write_new_material(blend, args.as_name, args.out)
+    with file_lock(args.out):  # as _cmd_edit: an update in place reads MODEL under the lock
+        model = load_model(args.model)
+        blend = model.mix(args.a, args.b, args.t, args.as_name, conserve_energy=args.conserve_energy)
+        written = blend.save_checked(args.out)
+    return _describe_new_material(written, args.as_name, args.out)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -536,6 +546,9 @@ def _add_fit_parser(sub) -> None:
     p.add_argument("--checkpoint", help="checkpoint file written during training (for --resume)")
     p.add_argument("--checkpoint-every", type=positive_int, default=1000, help="steps between checkpoints (default: %(default)s)")
     p.add_argument("--resume", action="store_true", help="continue from --checkpoint if it exists")
+    p.add_argument("--force", action="store_true",
+                   help="start afresh over an existing --checkpoint (without it, or --resume, an existing "
+                        "checkpoint is refused: it may be another fit's)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
     p.add_argument("--preview", metavar="PNG",
                    help="picture of the fitted materials to write: spheres under the example scene's sky, the exact "

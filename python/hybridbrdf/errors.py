@@ -1,4 +1,4 @@
-"""Error types for bad input files. Every one names the file and the problem
+"""Error types for bad input files and failed writes. Every one names the file and the problem
 in one line (``"<path>: <problem>"``) so the CLI can print it as is."""
 
 from __future__ import annotations
@@ -36,3 +36,17 @@ class InputFileError(ValueError):
 
 class ModelFileError(InputFileError):
     """A model file that is missing, truncated, malformed or inconsistent."""
+
+
+class OutputFileError(OSError):
+    """An output that could not be written (a full disk, a read-only folder, another process
+    updating it): ``str(err) == f"{err.path}: {err.problem}"``, one line. An OSError (``errno``
+    kept, ``filename`` the output) so that code catching OSError around a write still does."""
+
+    def __init__(self, path, problem: str, errno_: int = 0):
+        self.path = os.fspath(path) if path is not None else "<unknown>"
+        self.problem = one_line_text(str(problem))
+        super().__init__(errno_, self.problem, self.path)
+
+    def __str__(self) -> str:
+        return f"{one_line_text(self.path)}: {self.problem}"

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import pathlib
 import re
 import secrets
 import signal
+import stat
+import sys
 import threading
+import time
 
-from hybridbrdf.errors import InputFileError
+from hybridbrdf.errors import InputFileError, OutputFileError
 
 
 def package_data_dir(name: str, marker: str) -> pathlib.Path:
@@ -31,6 +35,14 @@ def package_data_dir(name: str, marker: str) -> pathlib.Path:
 # into an exception for the length of the write, then delivered again). SIGKILL and a power cut
 # cannot be cleaned up by the dying process, so the temporary carries its writer's pid and the
 # next write to the same destination removes those whose writer is no longer alive.
+# The temporary gets the replaced file's permissions (a chmod 600 model stays 600); a new file
+# gets what open() gives (0666 less the umask). Every step (create, write, fsync, close, rename)
+# is checked, and an OSError names the destination: "out/m.safetensors: No space left on device".
+#
+# Updates in place (read a file, change it, write it back) hold the destination's lock
+# (:func:`file_lock`: fcntl.flock on ".<name>.hbrdf-lock" beside it) from before the read to
+# after the rename, so two of them at once are serialised (the second reads the first's
+# result) and no update is lost; every atomic write takes the same lock for its rename.
 
 #: The longest part of the destination's name a temporary repeats (NAME_MAX is 255 bytes).
 _TEMP_STEM_CHARS = 100
@@ -110,6 +122,7 @@ def _sigterm_cleans_up():
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if received:
+        _release_all_locks()  # as the kernel would, but removing the lock files too
         signal.raise_signal(signal.SIGTERM)  # the default action: the process ends here
         raise KeyboardInterrupt("SIGTERM")  # reached only where the signal is blocked
 
@@ -139,31 +152,192 @@ def _fsync_folder(folder: str) -> None:
             os.close(fd)
 
 
-def atomic_write_bytes(path, data: bytes) -> None:
+def _named(path: str, exc: OSError) -> OutputFileError:
+    """``exc`` as an :class:`OutputFileError` naming ``path`` (the file the user asked for, not
+    the temporary); another file it names (a folder on the way) is named too."""
+    if isinstance(exc, OutputFileError):
+        return exc
+    problem = exc.strerror or str(exc) or type(exc).__name__
+    other = exc.filename if isinstance(exc.filename, str) else None
+    ours = (os.path.basename(other).startswith(_temp_prefix(path)) or other.endswith(".hbrdf-lock")
+            or os.path.abspath(other) == os.path.abspath(path)) if other else True
+    return OutputFileError(path, problem if ours else f"{problem} ({other})", exc.errno or 0)
+
+
+def _write_all(fd: int, data) -> None:
+    """Write all of ``data`` to ``fd``: os.write may write less than asked (a signal, a nearly
+    full disk); the rest is written on, and an error (ENOSPC, EIO, EDQUOT) raises."""
+    view = memoryview(data).cast("B")
+    while view:
+        written = os.write(fd, view)
+        if written <= 0:  # a regular file never does this; refuse rather than spin
+            raise OSError(0, "the file system accepted no bytes")
+        view = view[written:]
+
+
+def _kept_mode(path: str):
+    """The permission bits of the file ``path`` replaces, or None when there is none (the new
+    file then gets the umask default)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return stat.S_IMODE(st.st_mode) if stat.S_ISREG(st.st_mode) else None
+
+
+def atomic_write_bytes(path, data: bytes, verify=None, wait: float = None) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder
     and a rename, so that a reader never sees a half-written file and a
     failure leaves any previous file intact. An exception, Ctrl-C or SIGTERM
     during the write removes the temporary; temporaries left by writers that
-    were killed outright (SIGKILL) are removed by the next write to ``path``."""
+    were killed outright (SIGKILL) are removed by the next write to ``path``.
+
+    ``verify(tmp)``: called with the temporary's path once it is complete on disk and before
+    the rename (e.g. read it back with the loaders' own checks); an exception from it leaves
+    ``path`` as it was. The replaced file's permission bits are kept. The rename is made under
+    :func:`file_lock` (``wait``: how long to wait for it, default :data:`LOCK_WAIT_SECONDS`).
+    Every OSError is raised as :class:`~hybridbrdf.errors.OutputFileError` naming ``path``
+    ("out/m.safetensors: No space left on device")."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise _named(path, exc) from None
     remove_stale_temporaries(path)
     with _sigterm_cleans_up():
         tmp = _temporary_name(path, folder)  # known to the cleanup before the file exists
         try:
             fd = _create_temporary(tmp)
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
+            try:
+                mode = _kept_mode(path)
+                if mode is not None:  # before any byte is written: a 0600 file's bytes never sit in a 0644 one
+                    os.fchmod(fd, mode)
+                _write_all(fd, data)
+                os.fsync(fd)  # a full disk can show only here (delayed allocation) ...
+            finally:
+                os.close(fd)  # ... or here (NFS reports write errors on close); both raise
+            if verify is not None:
+                verify(tmp)
+            with file_lock(path, wait):
+                os.replace(tmp, path)
             tmp = None
+        except OSError as exc:
+            raise _named(path, exc) from None
         finally:
             if tmp is not None:
                 with contextlib.suppress(FileNotFoundError):
                     os.unlink(tmp)
     _fsync_folder(folder)
+
+
+# ---- locks for updates in place ----------------------------------------------------------
+
+#: How long an update waits for another process's lock on the same file before refusing.
+LOCK_WAIT_SECONDS = 60.0
+
+_held_locks = {}  # lock file path -> [descriptor, depth]: this process's locks (re-entrant)
+_held_guard = threading.Lock()
+
+
+def _lock_name(path: str) -> str:
+    """The lock file of ``path``: ".<name>.hbrdf-lock" in its folder."""
+    folder = os.path.dirname(os.path.abspath(path))
+    return os.path.join(folder, f".{os.path.basename(path)[:_TEMP_STEM_CHARS]}.hbrdf-lock")
+
+
+def _lock_holder(lock: str) -> str:
+    """The pid a lock file records (its holder writes it), for messages."""
+    try:
+        with open(lock, "rb") as fh:
+            pid = fh.read(32).strip()
+    except OSError:
+        pid = b""
+    return f"pid {pid.decode()}" if pid.isdigit() else "another process"
+
+
+def _acquire(path: str, lock: str, wait: float) -> int:
+    """flock ``lock`` exclusively and return its descriptor, waiting up to ``wait`` seconds.
+
+    The lock file is removed by its holder on release; a waiter that then gets the lock of the
+    removed file sees that the name no longer leads to it and tries again, so exactly one
+    process holds the lock of the file the name leads to."""
+    start = time.monotonic()
+    deadline = start + wait
+    told = False
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+        except OSError as exc:
+            raise _named(path, exc) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            if time.monotonic() >= deadline:
+                raise OutputFileError(path, f"is being written by {_lock_holder(lock)} (it holds {lock}); "
+                                            "try again when that process ends") from None
+            if not told and time.monotonic() >= start + 1.0:  # say why a command seems to hang
+                told = True
+                print(f"waiting for {path}: {_lock_holder(lock)} is writing it", file=sys.stderr)
+            time.sleep(0.05)
+            continue
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            with contextlib.suppress(OSError):  # the pid is for messages only (a full disk may refuse it)
+                os.ftruncate(fd, 0)
+                os.write(fd, b"%d\n" % os.getpid())
+            return fd
+        os.close(fd)  # the holder released and removed it before our flock: take the new one
+
+
+def _release_all_locks() -> None:
+    """Release (and remove) every lock this process holds: it is about to end by SIGTERM."""
+    with _held_guard:
+        held = list(_held_locks.items())
+        _held_locks.clear()
+    for lock, entry in held:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(entry[0])
+        entry[0] = None  # the blocks that took it release nothing more
+
+
+@contextlib.contextmanager
+def file_lock(path, wait: float = None):
+    """Hold the advisory lock of the file ``path`` for the block (``fcntl.flock`` on
+    ".<name>.hbrdf-lock" beside it, removed on release; the kernel drops it when the process
+    dies, even by SIGKILL). A read-modify-write of ``path`` inside the block cannot lose another
+    process's update: every hbrdf update in place and every :func:`atomic_write_bytes` rename
+    takes it. Waits up to ``wait`` seconds (default :data:`LOCK_WAIT_SECONDS`) for another
+    process's lock (one line on stderr while it waits), then raises
+    :class:`~hybridbrdf.errors.OutputFileError` naming ``path`` and the holder's pid.
+    Re-entrant within a process."""
+    path = os.fspath(path)
+    lock = _lock_name(path)
+    with _held_guard:
+        held = _held_locks.get(lock)
+        if held is not None:
+            held[1] += 1
+    if held is None:
+        fd = _acquire(path, lock, LOCK_WAIT_SECONDS if wait is None else wait)
+        with _held_guard:
+            held = _held_locks[lock] = [fd, 1]
+    try:
+        yield
+    finally:
+        with _held_guard:
+            held[1] -= 1
+            last = held[1] == 0 and held[0] is not None
+            if last:
+                _held_locks.pop(lock, None)
+        if last:
+            with contextlib.suppress(OSError):
+                os.unlink(lock)  # while still holding it: see _acquire
+            os.close(held[0])
 
 
 def check_writable(path, what: str = "output") -> None:

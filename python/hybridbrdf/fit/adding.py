@@ -13,6 +13,7 @@ that cannot be read, and names that are already in the base or break the contrac
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 from typing import Callable, List, Optional, Sequence, Union
@@ -30,7 +31,7 @@ from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.base import BRDFSource
 from hybridbrdf.sources.model import ModelMaterialSource
 from hybridbrdf.sources.names import material_names
-from hybridbrdf.util import check_writable
+from hybridbrdf.util import check_writable, file_lock
 
 SourceLike = Union[str, os.PathLike, BRDFSource]
 
@@ -132,6 +133,16 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     that can be checked."""
     if out is not None:
         check_writable(out, "model")
+    # ``out`` may be ``to``: the base is read under out's lock and the merged model written
+    # before it is released, so a concurrent update of the same file is never lost (it waits for
+    # this one, or refuses after LOCK_WAIT_SECONDS; docs/CONVENTIONS.md, "Writing files").
+    with file_lock(out) if out is not None else contextlib.nullcontext():
+        return _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine,
+                           max_drift)
+
+
+def _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine, max_drift):
+    """The body of :func:`add`, run under the lock of ``out``."""
     on_prior = to is None
     to = _resolve_base(to, prior)
     finetune, finetune_steps = _check_options(on_prior, refine, keep_network, finetune_steps, max_drift)

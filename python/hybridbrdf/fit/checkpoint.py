@@ -74,6 +74,14 @@ def encode(state: Dict[str, Any]) -> bytes:
     return MAGIC + b"%d sha256=%s\n" % (VERSION, hashlib.sha256(payload).hexdigest().encode()) + payload
 
 
+def check_not_another_fits(path, resume: bool, force: bool) -> None:
+    """Refuse to start a fresh fit (not ``resume``) over an existing checkpoint file ``path``
+    unless ``force``: its first checkpoint would replace another fit's, which could then never
+    be resumed. Raises :class:`CheckpointError` naming the file."""
+    if not resume and not force and os.path.lexists(path):
+        raise CheckpointError(path, "exists (another fit's checkpoint?): --resume continues it, --force replaces it")
+
+
 def save(path, state: Dict[str, Any]) -> None:
     """Write ``state`` to the checkpoint file ``path`` atomically."""
     atomic_write_bytes(path, encode(state))

@@ -19,6 +19,7 @@ only (p, z) of the given materials, each started from the frozen model's best-fi
 
 from __future__ import annotations
 
+import contextlib
 import os
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -32,7 +33,7 @@ from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
 from hybridbrdf.sources.base import BRDFSource
-from hybridbrdf.util import check_writable
+from hybridbrdf.util import check_writable, file_lock
 
 from hybridbrdf.evaluate.evaluation import evaluate
 from hybridbrdf.fit.loop import FitState, run_steps
@@ -64,7 +65,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
         progress: bool = True, log: Callable[[str], None] = print,
         stop_after: Optional[int] = None, compile_step: bool = False,
         ranks: Optional[dd.Ranks] = None,
-        observe: Optional[Callable[[int, torch.nn.Module], None]] = None) -> Optional[HybridModel]:
+        observe: Optional[Callable[[int, torch.nn.Module], None]] = None, force: bool = False) -> Optional[HybridModel]:
     """Fit ``sources`` jointly; returns the fitted :class:`HybridModel` (with per-material metrics).
 
     ``checkpoint``: file written every ``checkpoint_every`` steps (atomically);
@@ -81,6 +82,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     Before any source is evaluated, ``checkpoint`` must be writable and, when resumed, pass
     every check of :mod:`hybridbrdf.fit.checkpoint` (checksum, structure, settings, step, finite
     values, shapes); otherwise :class:`~hybridbrdf.errors.InputFileError` naming the file.
+    An existing ``checkpoint`` is another fit's until shown otherwise: without ``resume`` it is
+    refused unless ``force`` (replace it). The fit holds the checkpoint's lock
+    (:func:`hybridbrdf.util.file_lock`) from its first check to its end: a second fit on the same
+    checkpoint is refused at once (:class:`~hybridbrdf.errors.OutputFileError` naming the file
+    and the pid that holds it).
 
     ``init``: a warm start from a fitted model (FitSettings.init_from names its file): its
     network is loaded and trained further (at ``lr * network_lr``), each source starts from
@@ -104,7 +110,17 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     dd.check_batch_split(settings.batch, ranks)
     if not ranks.main:
         progress, log = False, (lambda msg: None)
-    names, starts, saved = _check_fit(sources, settings, frozen, init, checkpoint, resume, stop_after, ranks, log)
+    if checkpoint and ranks.main:
+        check_writable(checkpoint, "checkpoint")
+    with file_lock(checkpoint, wait=0) if checkpoint and ranks.main else contextlib.nullcontext():
+        return _fit_holding_checkpoint(sources, settings, frozen, init, checkpoint, checkpoint_every, resume, force,
+                                       progress, log, stop_after, compile_step, ranks, observe)
+
+
+def _fit_holding_checkpoint(sources, settings, frozen, init, checkpoint, checkpoint_every, resume, force, progress,
+                            log, stop_after, compile_step, ranks, observe) -> Optional[HybridModel]:
+    """The body of :func:`fit`, run holding the lock of ``checkpoint`` (rank 0)."""
+    names, starts, saved = _check_fit(sources, settings, frozen, init, checkpoint, resume, force, stop_after, ranks, log)
     iso = [bool(s.isotropic) for s in sources]
     module, own_rows = _build_module(settings, len(names), iso, starts, frozen if frozen is not None else init,
                                      init, names)
@@ -142,10 +158,11 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
 
 
 def _check_fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[HybridModel],
-               init: Optional[HybridModel], checkpoint: Optional[str], resume: bool, stop_after: Optional[int],
+               init: Optional[HybridModel], checkpoint: Optional[str], resume: bool, force: bool,
+               stop_after: Optional[int],
                ranks: dd.Ranks, log: Callable[[str], None]) -> Tuple[List[str], int, Optional[dict]]:
     """Whatever can fail before the expensive work, in this order: the arguments, the settings,
-    the material names, the checkpoint (writable; when resumed, every check of
+    the material names, the checkpoint (not another fit's unless ``resume`` or ``force``; when resumed, every check of
     :mod:`hybridbrdf.fit.checkpoint`). Seeds torch and takes the network settings of the model the
     fit starts from. Returns (names, starts per material, the checkpoint to resume or None)."""
     if stop_after is not None and not checkpoint:
@@ -166,7 +183,7 @@ def _check_fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Opt
     if starts > 1 and checkpoint:
         raise ValueError("--sparse-starts above 1 fits without --checkpoint (a sparse fit is minutes long)")
     if checkpoint and ranks.main:
-        check_writable(checkpoint, "checkpoint")
+        ckpt.check_not_another_fits(checkpoint, resume, force)
     saved = None
     if resume and checkpoint and os.path.exists(checkpoint):
         # Before any expensive work: a checkpoint that cannot be resumed must not cost the pool.

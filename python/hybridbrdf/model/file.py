@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from typing import Any, Dict, List, Optional
 
 import numpy as np
@@ -208,29 +207,35 @@ class HybridModel:
                 "library_version": __version__, "arch": self.arch, "materials": self.material_info,
                 "training": self.training}
 
-    def save(self, path) -> None:
-        """Write the model file atomically (temporary file + rename)."""
+    def _file_bytes(self) -> bytes:
         meta = {METADATA_KEY: json.dumps(self.header(), sort_keys=True)}
-        atomic_write_bytes(path, encode(self.tensors, meta))
+        return encode(self.tensors, meta)
+
+    def save(self, path) -> None:
+        """Write the model file atomically (temporary file beside it + rename; the replaced
+        file's permissions kept; :func:`hybridbrdf.util.atomic_write_bytes`)."""
+        atomic_write_bytes(path, self._file_bytes())
         self.path = os.fspath(path)
         self._cpp = None
 
     def save_checked(self, path) -> "HybridModel":
-        """Write the model file only once the loaders' own rules accept it: the file is first
-        written to a temporary folder and read back by :func:`load_model` (so a model no reader
-        would load never replaces ``path``), then written atomically. Returns the model as read
-        back, with ``path`` set."""
-        with tempfile.TemporaryDirectory() as tmp:
-            probe = os.path.join(tmp, "model.safetensors")
-            self.save(probe)
-            checked = load_model(probe)
-            with open(probe, "rb") as fh:
-                data = fh.read()
-        atomic_write_bytes(path, data)
-        # save() pointed this model at the probe, which is gone: point it at the file written.
-        self.path, self._cpp = os.fspath(path), None
-        checked.path = os.fspath(path)
-        return checked
+        """Write the model file only once the loaders' own rules accept it: the temporary
+        beside ``path`` is read back by :func:`load_model` before it is renamed over ``path``
+        (so a model no reader would load never replaces ``path``, and an interruption leaves
+        no copy anywhere else). Returns the model as read back, with ``path`` set."""
+        path = os.fspath(path)
+        checked = []
+
+        def verify(tmp: str) -> None:
+            try:
+                checked.append(load_model(tmp))
+            except ModelFileError as exc:  # name the file asked for, not its temporary
+                raise ModelFileError(path, exc.problem) from None
+
+        atomic_write_bytes(path, self._file_bytes(), verify=verify)
+        self.path, self._cpp = path, None
+        checked[0].path = path
+        return checked[0]
 
     @classmethod
     def from_module(cls, module, names: List[str], origins: List[str], training: Dict[str, Any],
