@@ -34,7 +34,6 @@ import sys
 import time
 
 import numpy as np
-from PIL import Image
 
 import hybridbrdf as hb
 from hybridbrdf.fit.paint import paint
@@ -44,29 +43,14 @@ from hybridbrdf.viewer.measured import measured_material
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
-from svbrdf_mixture import LAYERS, masks  # noqa: E402
-
-
-def scene_with(material: dict, args) -> dict:
-    return {
-        "camera": {"position": [0, 1.2, 4.6], "look_at": [0, -0.1, 0], "fov_deg": 34,
-                   "width": args.width, "height": args.height},
-        "environment": {"type": "sky", "sun_elevation_deg": 35, "sun_azimuth_deg": 60},
-        "materials": {"object": material, "floor": {"type": "analytic", "kd": 0.35, "eta": 1.5, "alpha": 0.5}},
-        "objects": [
-            {"type": "sphere", "center": [-0.9, 0, 0], "radius": 1, "material": "object"},
-            {"type": "plane", "center": [1.35, -0.2, 0.2], "normal": [-0.25, 0.35, 1], "tangent": [1, 0, 0.25],
-             "size": 1.6, "material": "object"},
-            {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 20, "material": "floor"},
-        ],
-        "spp": args.spp, "max_depth": 4, "sampler": "mis", "seed": 0, "threads": 0,
-    }
+from svbrdf_mixture import LAYERS  # noqa: E402
+from textured_scene import example_scene, write_masks  # noqa: E402
 
 
 def render_material(material: dict, name: str, args) -> np.ndarray:
     path = os.path.join(args.out, f"{name}.json")
     with open(path, "w") as fh:
-        json.dump(scene_with(material, args), fh, indent=1)
+        json.dump(example_scene(material, args.width, args.height, args.spp), fh, indent=1)
     t0 = time.perf_counter()
     image, _ = render(path, out=os.path.join(args.out, f"{name}.exr"), quiet=True)
     print(f"  rendered {name:24s} {time.perf_counter() - t0:6.1f} s", flush=True)
@@ -85,12 +69,7 @@ def main() -> int:
                     help="side by side: the textured material, the exact mixture, 4x their absolute difference")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    mask_paths = []
-    for k, m in enumerate(masks(), start=1):
-        m = np.roll(m, m.shape[1] // 4, axis=1)  # as bench/textured_scene.py: the disc faces the camera
-        p = os.path.join(args.out, f"mask{k}.png")
-        Image.fromarray(np.rint(m * 255).astype(np.uint8), "L").save(p)
-        mask_paths.append(p)
+    mask_paths = write_masks(args.out)
     names = [n for n, _ in LAYERS]
     files = [os.path.abspath(os.path.join(args.shared, p)) for _, p in LAYERS]
     painted = os.path.join(args.out, "painted")

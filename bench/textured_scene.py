@@ -32,6 +32,37 @@ sys.path.insert(0, str(ROOT / "bench"))
 from svbrdf_mixture import LAYERS, masks  # noqa: E402
 
 
+def write_masks(out: str) -> list:
+    """bench/svbrdf_mixture.py's masks as OUT/mask1.png, mask2.png (8-bit grey), rolled by a quarter
+    turn so that the disc is at u = 0.63, on the sphere's side the camera sees; their paths."""
+    paths = []
+    for k, m in enumerate(masks(), start=1):
+        m = np.roll(m, m.shape[1] // 4, axis=1)
+        p = os.path.join(out, f"mask{k}.png")
+        Image.fromarray(np.rint(m * 255).astype(np.uint8), "L").save(p)
+        paths.append(p)
+    return paths
+
+
+def example_scene(material: dict, width: int, height: int, spp: int) -> dict:
+    """The example scene with `material` on a sphere and a tile, over an analytic floor, under the sky."""
+    return {
+        "camera": {"position": [0, 1.2, 4.6], "look_at": [0, -0.1, 0], "fov_deg": 34, "width": width, "height": height},
+        "environment": {"type": "sky", "sun_elevation_deg": 35, "sun_azimuth_deg": 60},
+        "materials": {
+            "textured": material,
+            "floor": {"type": "analytic", "kd": 0.35, "eta": 1.5, "alpha": 0.5},
+        },
+        "objects": [
+            {"type": "sphere", "center": [-0.9, 0, 0], "radius": 1, "material": "textured"},
+            {"type": "plane", "center": [1.35, -0.2, 0.2], "normal": [-0.25, 0.35, 1], "tangent": [1, 0, 0.25],
+             "size": 1.6, "material": "textured"},
+            {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 20, "material": "floor"},
+        ],
+        "spp": spp, "max_depth": 4, "sampler": "mis", "seed": 0, "threads": 0,
+    }
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_fast.safetensors"))
@@ -42,32 +73,12 @@ def main() -> int:
     ap.add_argument("--height", type=int, default=200)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    paths = []
-    for k, m in enumerate(masks(), start=1):
-        m = np.roll(m, m.shape[1] // 4, axis=1)  # the disc to u = 0.63: on the sphere's side the camera sees
-        p = os.path.join(args.out, f"mask{k}.png")
-        Image.fromarray(np.rint(m * 255).astype(np.uint8), "L").save(p)
-        paths.append(p)
+    paths = write_masks(args.out)
     t0 = time.perf_counter()
     names = [n for n, _ in LAYERS]
     paint(args.model, names[0], list(zip(names[1:], paths)), os.path.join(args.out, "painted"))
     painted = time.perf_counter() - t0
-    scene = {
-        "camera": {"position": [0, 1.2, 4.6], "look_at": [0, -0.1, 0], "fov_deg": 34,
-                   "width": args.width, "height": args.height},
-        "environment": {"type": "sky", "sun_elevation_deg": 35, "sun_azimuth_deg": 60},
-        "materials": {
-            "textured": {"type": "textured", "svbrdf": "painted"},
-            "floor": {"type": "analytic", "kd": 0.35, "eta": 1.5, "alpha": 0.5},
-        },
-        "objects": [
-            {"type": "sphere", "center": [-0.9, 0, 0], "radius": 1, "material": "textured"},
-            {"type": "plane", "center": [1.35, -0.2, 0.2], "normal": [-0.25, 0.35, 1], "tangent": [1, 0, 0.25],
-             "size": 1.6, "material": "textured"},
-            {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": 20, "material": "floor"},
-        ],
-        "spp": args.spp, "max_depth": 4, "sampler": "mis", "seed": 0, "threads": 0,
-    }
+    scene = example_scene({"type": "textured", "svbrdf": "painted"}, args.width, args.height, args.spp)
     scene_path = os.path.join(args.out, "textured.json")
     with open(scene_path, "w") as fh:
         json.dump(scene, fh, indent=1)
