@@ -114,6 +114,29 @@ def json_depth(text: str) -> int:
     return int(np.cumsum(steps).max())
 
 
+def value_depth(value, limit: int = MAX_JSON_DEPTH) -> int:
+    """The deepest nesting of dicts and lists (and tuples, which JSON writes as arrays) in a Python
+    ``value``, counted as :func:`json_depth` counts brackets (``{"a": [1]}`` is 2), so that a scene
+    passed as a dict meets the same bound as its file. Iterative (``copy.deepcopy`` and
+    ``json.dumps`` recurse once per level: 10,000 levels raise RecursionError), and it stops at
+    ``limit + 1``, so a dict that contains itself ends too."""
+    deepest = 0
+    stack = [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict):
+            children = item.values()
+        elif isinstance(item, (list, tuple)):
+            children = item
+        else:
+            continue
+        deepest = max(deepest, depth)
+        if deepest > limit:
+            return deepest
+        stack.extend((child, depth + 1) for child in children)
+    return deepest
+
+
 def loads_json(text, path, what: str, error: Type[InputFileError] = InputFileError,
                max_depth: int = MAX_JSON_DEPTH, **kwargs):
     """``json.loads(text, **kwargs)`` once ``text`` is known to nest at most ``max_depth`` levels.

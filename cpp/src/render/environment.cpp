@@ -27,10 +27,25 @@ EnvironmentLight::EnvironmentLight(Image radiance, float scale, float rotation_d
     if (!too_big.empty()) throw std::invalid_argument("the environment map is " + too_big);
     if (!(scale >= 0.0f) || !is_finite(scale))
         throw std::invalid_argument("scale: must be a finite number >= 0, got " + format_number(scale));
+    // Every texel must be a radiance: finite and >= 0. Zeroing the others (as this did) rendered a
+    // map with one +Inf texel (a clipped sun) without its sun, and an all-NaN or all-negative map
+    // black, with exit 0; a value cannot be repaired without knowing what it should have been, so
+    // the map is refused, naming the first such texel (the loader adds the file's name).
     float brightest = 0.0f;
-    for (float& v : image_.rgb) {
-        v = (v > 0.0f && is_finite(v)) ? v : 0.0f;  // no negative light; measured maps can hold noise
-        brightest = std::max(brightest, v);
+    const std::size_t texels = std::size_t(image_.width) * std::size_t(image_.height);
+    for (std::size_t i = 0; i < texels; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float v = image_.rgb[3 * i + std::size_t(c)];
+            if (!is_finite(v) || v < 0.0f) {
+                const char* channel = c == 0 ? "R" : c == 1 ? "G" : "B";
+                throw std::invalid_argument(
+                    "texel (" + std::to_string(i % std::size_t(image_.width)) + ", " +
+                    std::to_string(i / std::size_t(image_.width)) + ") " + channel + " = " + format_number(v) +
+                    (is_finite(v) ? " is negative" : " is not finite") +
+                    "; an environment map's texels must be finite radiances >= 0 (docs/RENDERING.md, \"Environments\")");
+            }
+            brightest = std::max(brightest, v);
+        }
     }
     // A scale that overflows float would make texels infinite (and the image black, where non-finite samples are dropped).
     if (!is_finite(brightest * scale))

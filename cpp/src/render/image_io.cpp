@@ -35,11 +35,99 @@ std::string lower_extension(const std::string& path) {
 
 std::string temp_name(const std::string& path) { return path + ".tmp" + std::to_string(::getpid()); }
 
-// Writes through `write_to(tmp)` into a StagedFile, which removes tmp on failure.
-template <typename F> StagedFile stage(const std::string& path, F&& write_to) {
+// Writes `bytes` to the staged temporary of `file`, checking every write, the fsync and the close:
+// a full disk must be an error naming the file, never a truncated file renamed into place (stdio's
+// fclose() reports the last buffered bytes' ENOSPC, and tinyexr and stb_image_write never looked).
+// A stale temporary of this name (a killed run with our pid) is removed first and the new one is
+// created exclusively, without following a symlink planted at its name. The temporary takes the
+// mode of the file it will replace (a 0640 output stays 0640); a new file gets 0666 minus the umask,
+// as fopen() gave it. On failure the caller's StagedFile removes the temporary.
+void write_staged(const StagedFile& file, const std::vector<unsigned char>& bytes) {
+    const std::string& path = file.path();
+    const std::string& tmp = file.temp_path();
+    auto fail = [&](const char* step, int err) {
+        throw FileError(path, std::string("cannot ") + step + " the file: " + std::strerror(err));
+    };
+    if (::unlink(tmp.c_str()) != 0 && errno != ENOENT) fail("replace a stale temporary of", errno);
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    if (fd < 0) fail("create", errno);
+    auto fail_open = [&](const char* step) {
+        const int err = errno;
+        ::close(fd);
+        fail(step, err);
+    };
+    struct stat old {};
+    if (::stat(path.c_str(), &old) == 0 && S_ISREG(old.st_mode) && ::fchmod(fd, old.st_mode & 07777) != 0)
+        fail_open("keep the permissions of");
+    const unsigned char* p = bytes.data();
+    std::size_t left = bytes.size();
+    while (left > 0) {
+        const ssize_t n = ::write(fd, p, left);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            fail_open("write");
+        }
+        if (n == 0) {  // no progress and no errno: treat as a full device
+            errno = ENOSPC;
+            fail_open("write");
+        }
+        p += n;
+        left -= std::size_t(n);
+    }
+    if (::fsync(fd) != 0) fail_open("flush (fsync)");
+    if (::close(fd) != 0) fail("close", errno);
+}
+
+// Stages `bytes` (an encoded image) as the next version of `path`.
+StagedFile stage_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
     StagedFile file(path);
-    write_to(file.temp_path());
+    write_staged(file, bytes);
     return file;
+}
+
+// Float RGB as tinyexr's SaveEXR lays it out (B, G, R float32 channels; ZIP from 16 x 16 up),
+// encoded in memory so that the bytes are written, and checked, by write_staged.
+std::vector<unsigned char> encode_exr(const Image& image, const std::string& path) {
+    const std::size_t n = std::size_t(image.width) * std::size_t(image.height);
+    std::vector<float> planes[3];
+    for (int c = 0; c < 3; ++c) {
+        planes[c].resize(n);
+        for (std::size_t i = 0; i < n; ++i) planes[c][i] = image.rgb[3 * i + std::size_t(c)];
+    }
+    float* channels[3] = {planes[2].data(), planes[1].data(), planes[0].data()};  // B, G, R: viewers expect it
+    EXRImage exr;
+    InitEXRImage(&exr);
+    exr.num_channels = 3;
+    exr.images = reinterpret_cast<unsigned char**>(channels);
+    exr.width = image.width;
+    exr.height = image.height;
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.compression_type =
+        (image.width < 16 && image.height < 16) ? TINYEXR_COMPRESSIONTYPE_NONE : TINYEXR_COMPRESSIONTYPE_ZIP;
+    EXRChannelInfo info[3] = {};
+    const char* names[3] = {"B", "G", "R"};
+    int pixel_types[3], requested[3];
+    for (int c = 0; c < 3; ++c) {
+        std::strncpy(info[c].name, names[c], sizeof info[c].name - 1);
+        pixel_types[c] = requested[c] = TINYEXR_PIXELTYPE_FLOAT;  // float32 in and out: what a reference needs
+    }
+    header.num_channels = 3;
+    header.channels = info;
+    header.pixel_types = pixel_types;
+    header.requested_pixel_types = requested;
+    unsigned char* memory = nullptr;
+    const char* err = nullptr;
+    const std::size_t size = SaveEXRImageToMemory(&exr, &header, &memory, &err);
+    if (size == 0 || !memory) {
+        std::string problem = err ? err : "cannot encode the OpenEXR file";
+        if (err) FreeEXRErrorMessage(err);
+        std::free(memory);
+        throw FileError(path, problem);
+    }
+    std::vector<unsigned char> bytes(memory, memory + size);
+    std::free(memory);
+    return bytes;
 }
 
 // The pixel count an image file's header declares, or {0, 0} when the header
@@ -279,6 +367,15 @@ void StagedFile::commit() {
     if (std::rename(temp_.c_str(), path_.c_str()) != 0)
         throw FileError(path_, std::string("cannot rename the temporary file into place: ") + std::strerror(errno));
     pending_ = false;
+    // The rename itself reaches the disk with its folder's fsync; a file system that cannot fsync a
+    // folder (EINVAL) has nothing more to flush, and the file's bytes were fsynced already.
+    const auto slash = path_.find_last_of('/');
+    const std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path_.substr(0, slash);
+    const int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dir >= 0) {
+        ::fsync(dir);
+        ::close(dir);
+    }
 }
 
 void check_output_path(const std::string& path) {
@@ -298,16 +395,7 @@ void check_output_path(const std::string& path) {
 
 StagedFile stage_exr(const Image& image, const std::string& path) {
     check_image(image, path);
-    return stage(path, [&](const std::string& tmp) {
-        // tinyexr's SaveEXR takes interleaved float RGB and writes float32
-        // channels (save_as_fp16 = 0), which is what a reference needs.
-        const char* err = nullptr;
-        if (SaveEXR(image.rgb.data(), image.width, image.height, 3, 0, tmp.c_str(), &err) != TINYEXR_SUCCESS) {
-            std::string problem = err ? err : "cannot write the OpenEXR file";
-            if (err) FreeEXRErrorMessage(err);
-            throw FileError(path, problem);
-        }
-    });
+    return stage_bytes(path, encode_exr(image, path));
 }
 
 void write_exr(const Image& image, const std::string& path) { stage_exr(image, path).commit(); }
@@ -327,10 +415,14 @@ StagedFile stage_png(const Image& image, const std::string& path, const PngOptio
     std::vector<unsigned char> bytes(image.rgb.size());
     for (std::size_t i = 0; i < bytes.size(); ++i)
         bytes[i] = (unsigned char)(std::lround(display_value(image.rgb[i], options) * 255.0f));
-    return stage(path, [&](const std::string& tmp) {
-        if (!stbi_write_png(tmp.c_str(), image.width, image.height, 3, bytes.data(), image.width * 3))
-            throw FileError(path, "cannot write the PNG file (directory missing or not writable?)");
-    });
+    std::vector<unsigned char> png;
+    const auto append = [](void* context, void* data, int size) {
+        auto* out = static_cast<std::vector<unsigned char>*>(context);
+        out->insert(out->end(), static_cast<unsigned char*>(data), static_cast<unsigned char*>(data) + size);
+    };
+    if (!stbi_write_png_to_func(append, &png, image.width, image.height, 3, bytes.data(), image.width * 3))
+        throw FileError(path, "cannot encode the PNG file");
+    return stage_bytes(path, png);
 }
 
 void write_png(const Image& image, const std::string& path, const PngOptions& options) {

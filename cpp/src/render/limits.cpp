@@ -37,4 +37,17 @@ std::string check_image_size(std::int64_t width, std::int64_t height, std::uint6
            " pixels, e.g. " + std::to_string(example_w) + " x " + std::to_string(example_w / 2) + ")";
 }
 
+std::string check_extent(const std::string& what, double extent, double camera_distance) {
+    const std::string why = "; float32 places points that far out too coarsely (docs/RENDERING.md, \"Limits\")";
+    if (!(extent <= kMaxCoordinate))
+        return what + " has a coordinate of magnitude " + format_number(extent) + ", above the limit " +
+               format_number(kMaxCoordinate) + " for any coordinate" + why;
+    const double bound = kMaxExtentOverCameraDistance * camera_distance;
+    if (!(extent <= bound))
+        return what + " has a coordinate of magnitude " + format_number(extent) + ", above the limit " +
+               format_number(bound) + " = " + format_number(kMaxExtentOverCameraDistance) +
+               " x the camera's distance to its look_at point (" + format_number(camera_distance) + ")" + why;
+    return "";
+}
+
 }  // namespace hbrdf::render

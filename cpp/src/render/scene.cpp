@@ -1,6 +1,8 @@
 // hybridbrdf renderer — Embree 3 geometry: triangle meshes and analytic spheres.
 #include "hybridbrdf/render/scene.hpp"
 
+#include "hybridbrdf/render/limits.hpp"
+
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -108,19 +110,37 @@ RTCRay make_ray(const Vec3f& o, const Vec3f& d, float t_max) {
     return ray;
 }
 
-Vec3f normalized(const Vec3f& v) { return v * inverse_length_or_zero(v); }
+// v / |v|, also where |v|^2 overflows float (the cross product of a triangle's edges longer than
+// ~4e9: the geometric normal became 0 and a plane of size 3e10 rendered black) or underflows.
+Vec3f normalized(const Vec3f& v) {
+    const float inv = inverse_length_or_zero(v);
+    if (inv > 0.0f) return v * inv;
+    const float m = std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    if (!(m > 0.0f) || !is_finite(m)) return Vec3f(0.0f);
+    const Vec3f u = v / m;  // largest component +-1: its squared length is in [1, 3]
+    return u * inverse_length_or_zero(u);
+}
 
 bool finite3(const Vec3f& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
 
-// What Embree and intersect() rely on: finite vertices, whole triangles,
+std::string point_name(const std::string& what, const Vec3f& p) {
+    return what + " (" + format_number(p.x) + ", " + format_number(p.y) + ", " + format_number(p.z) + ")";
+}
+
+// What Embree and intersect() rely on: finite vertices within the float32 limits of the camera's
+// scale (limits.hpp, check_extent), whole triangles,
 // indices in range (an out-of-range index would read past the vertex buffer),
 // per-vertex normals and tangents for every vertex when present.
-void check_mesh(const TriangleMesh& m) {
+void check_mesh(const TriangleMesh& m, double camera_distance) {
     if (m.indices.empty() || m.indices.size() % 3 != 0)
         throw std::invalid_argument("the mesh has " + std::to_string(m.indices.size()) + " indices, expected 3 per triangle");
-    for (std::size_t i = 0; i < m.positions.size(); ++i)
-        if (!finite3(m.positions[i]))
-            throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
+    for (std::size_t i = 0; i < m.positions.size(); ++i) {
+        const Vec3f& p = m.positions[i];
+        if (!finite3(p)) throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
+        const double extent = std::max({std::fabs(double(p.x)), std::fabs(double(p.y)), std::fabs(double(p.z))});
+        const std::string problem = check_extent(point_name("vertex " + std::to_string(i), p), extent, camera_distance);
+        if (!problem.empty()) throw std::invalid_argument(problem);
+    }
     for (std::size_t i = 0; i < m.indices.size(); ++i)
         if (m.indices[i] >= m.positions.size())
             throw std::invalid_argument("triangle " + std::to_string(i / 3) + " refers to vertex " +
@@ -179,7 +199,7 @@ int Scene::add_material(std::unique_ptr<Material> material) {
 
 void Scene::add_mesh(TriangleMesh mesh, int material) {
     if (committed_) throw std::logic_error("Scene::add_mesh after commit()");
-    check_mesh(mesh);
+    check_mesh(mesh, camera.distance());
     meshes_.push_back(std::make_unique<TriangleMesh>(std::move(mesh)));
     const TriangleMesh& m = *meshes_.back();
     RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -206,6 +226,12 @@ void Scene::add_sphere(const Sphere& sphere, int material) {
     // Its bounds (center +- radius) must be finite floats for Embree.
     if (!finite3(sphere.center - Vec3f(sphere.radius)) || !finite3(sphere.center + Vec3f(sphere.radius)))
         throw std::invalid_argument("the sphere's bounds (center +- radius) overflow float");
+    const double extent = double(sphere.radius) + std::max({std::fabs(double(sphere.center.x)), std::fabs(double(sphere.center.y)),
+                                                            std::fabs(double(sphere.center.z))});
+    const std::string problem = check_extent("the sphere (center " + point_name("", sphere.center).substr(1) +
+                                                 ", radius " + format_number(sphere.radius) + ")",
+                                             extent, camera.distance());
+    if (!problem.empty()) throw std::invalid_argument(problem);
     spheres_.push_back(std::make_unique<Sphere>(sphere));
     RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geom, 1);

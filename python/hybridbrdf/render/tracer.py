@@ -21,7 +21,8 @@ import numpy as np
 
 from hybridbrdf import _core
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.inputs import MAX_JSON_DEPTH, json_depth, read_input_text, refuse_output_over_input, same_file
+from hybridbrdf.inputs import (MAX_JSON_DEPTH, json_depth, read_input_text, refuse_output_over_input, same_file,
+                               value_depth)
 from hybridbrdf.sources import open_source
 
 #: Largest scene file read (bytes). Scenes hold settings, materials and objects; meshes and
@@ -61,6 +62,9 @@ def open_measured(source: str):
 def load_scene_dict(scene: Union[str, os.PathLike, Dict[str, Any]]) -> Tuple[Dict[str, Any], str, str]:
     """(scene dict, base folder for relative paths, name used in errors)."""
     if isinstance(scene, dict):
+        # The files' bound, before the copy: deepcopy and json.dumps recurse once per level.
+        if value_depth(scene) > MAX_JSON_DEPTH:
+            raise InputFileError("<scene dict>", f"scene dict: nested deeper than {MAX_JSON_DEPTH} levels")
         return copy.deepcopy(scene), os.getcwd(), "<scene dict>"
     path = os.fspath(scene)
     # A regular file of at most MAX_SCENE_BYTES, read with that bound (a FIFO, /dev/zero ... are

@@ -1,7 +1,9 @@
 // hybridbrdf renderer — the pinhole camera.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <string>
 #include <stdexcept>
 
 #include "hybridbrdf/render/frame.hpp"
@@ -26,8 +28,25 @@ public:
         const std::string too_big = check_image_size(width, height, kMaxFilmPixels, kFilmBytesPerPixel, "of film");
         if (!too_big.empty()) throw std::invalid_argument("width x height = " + too_big);
         if (!(fov_deg > 0.0f && fov_deg < 180.0f)) throw std::invalid_argument("camera fov_deg must be in (0, 180)");
+        // Before any float arithmetic on them: the scene's scale comes from here (limits.hpp).
+        for (const Vec3f* p : {&position, &look_at}) {
+            const double extent = std::max({std::fabs(double(p->x)), std::fabs(double(p->y)), std::fabs(double(p->z))});
+            if (!(extent <= kMaxCoordinate))
+                throw std::invalid_argument(std::string(p == &position ? "position" : "look_at") + " has a coordinate of magnitude " +
+                                            format_number(extent) + ", above the limit " +
+                                            format_number(kMaxCoordinate) + " for any coordinate (docs/RENDERING.md, \"Limits\")");
+        }
         const Vec3f f = look_at - position;
         if (!(dot(f, f) > 0.0f)) throw std::invalid_argument("camera look_at equals position");
+        distance_ = std::sqrt(double(f.x) * f.x + double(f.y) * f.y + double(f.z) * f.z);
+        const double offset = std::max({std::fabs(double(position.x)), std::fabs(double(position.y)), std::fabs(double(position.z))});
+        if (!(offset <= kMaxCameraOffsetOverDistance * distance_))
+            throw std::invalid_argument(
+                "position has a coordinate of magnitude " + format_number(offset) + ", above the limit " +
+                format_number(kMaxCameraOffsetOverDistance * distance_) + " = " +
+                format_number(kMaxCameraOffsetOverDistance) + " x its distance to look_at (" + format_number(distance_) +
+                "): rays that far out start too far from their surfaces; move the scene's origin near the "
+                "camera, or look_at onto the subject (docs/RENDERING.md, \"Limits\")");
         forward_ = glm::normalize(f);
         const Vec3f r = glm::cross(forward_, up);
         if (!(dot(r, r) > 1e-12f)) throw std::invalid_argument("camera up is parallel to the viewing direction");
@@ -38,6 +57,9 @@ public:
     }
 
     int width() const { return width_; }
+    /// |look_at - position|: the scale of what the camera frames, which bounds the scene's
+    /// coordinates (limits.hpp, check_extent). 1 for a default-constructed camera.
+    double distance() const { return distance_; }
     int height() const { return height_; }
 
     /// The ray through image point (px, py) in pixel units (px in [0, width),
@@ -51,6 +73,7 @@ public:
 private:
     Vec3f position_{0, 0, 0}, forward_{0, 0, -1}, right_{1, 0, 0}, up_{0, 1, 0};
     float tan_half_ = 1, aspect_ = 1;
+    double distance_ = 1;
     int width_ = 1, height_ = 1;
 };
 

@@ -27,7 +27,8 @@ struct LightSample {
 class EnvironmentLight {
 public:
     EnvironmentLight() = default;
-    /// `radiance` is multiplied by `scale`; throws std::invalid_argument for an empty image.
+    /// `radiance` is multiplied by `scale`; throws std::invalid_argument for an empty image and
+    /// for a texel that is not finite or is negative ("texel (x, y) R = inf is not finite; ...").
     EnvironmentLight(Image radiance, float scale = 1.0f, float rotation_deg = 0.0f);
 
     /// L(d) for a world direction d (unit).

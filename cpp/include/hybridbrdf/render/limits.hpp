@@ -44,6 +44,33 @@ inline constexpr float kMaxEnvironmentRadiance = 1e20f;
 /// sizes TabulatedSampler::table_bytes() computes, before any table is built.
 inline constexpr std::uint64_t kMaxTabulatedSamplerBytes = std::uint64_t(1) << 30;
 
+/// Geometry is traced in float32 (Embree) while a scene's numbers may be any float, so a scene
+/// is refused when float32 cannot place its points to the precision its camera frames them at
+/// (a plane of size 3e10 rendered black, one of 1e20 and a sphere of radius 1e20 vanished, with
+/// exit 0). With d the camera's distance to its look_at point (the scale of what it frames):
+///  - every coordinate of a sphere's bounds (|center| + radius), a plane's corners and a mesh's
+///    vertices (after its transform) is at most kMaxExtentOverCameraDistance x d: a coordinate
+///    of magnitude M is stored to M 2^-24, and a triangle's hit point sums three such terms, so
+///    at 5e4 d a hit point is off by up to 3 x 5e4 x 6e-8 ~ 1% of d (measured: a plane of size
+///    1e5 in front of a camera at distance 4.2 renders as one of size 1e3; one of size 1e7 is
+///    7.5% off, 1e8 48%);
+///  - the camera's position is at most kMaxCameraOffsetOverDistance x d from the origin: the
+///    tracer starts each bounce 2e-5 |p| off its surface (Scene::offset_origin), so at 500 d from
+///    the origin that offset reaches 1% of d (measured: a scene translated by 240 d renders 0.56%
+///    off, by 2400 d 4%);
+///  - and no coordinate (camera included) exceeds kMaxCoordinate, whatever d: Embree's robust
+///    triangle test forms products of three coordinate differences in float, which overflow
+///    beyond ~3e12, and it drops primitives beyond +-1.8e18 (its FLT_LARGE) silently.
+inline constexpr double kMaxExtentOverCameraDistance = 5e4;
+inline constexpr double kMaxCameraOffsetOverDistance = 500.0;
+inline constexpr double kMaxCoordinate = 1e12;
+
+/// "" when a point whose largest coordinate magnitude is `extent` fits the limits above for a
+/// camera at `camera_distance` from its look_at point, else the problem: "<what> has a coordinate
+/// of magnitude 1e+20, above the limit 212132 = 50000 x the camera's distance to its look_at point
+/// (4.24264); ...". `what` names the point ("vertex 3 (1e+20, 0, 0)").
+std::string check_extent(const std::string& what, double extent, double camera_distance);
+
 /// Most worker threads a render may start (also the settings table's bound).
 inline constexpr int kMaxThreads = 1024;
 

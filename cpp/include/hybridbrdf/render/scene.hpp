@@ -63,6 +63,9 @@ public:
 
     /// Adds a material; returns its index.
     int add_material(std::unique_ptr<Material> material);
+    /// add_mesh and add_sphere throw std::invalid_argument for geometry Embree cannot trace
+    /// correctly: non-finite vertices, indices out of range, and coordinates beyond the float32
+    /// limits of limits.hpp (check_extent) at the scale of `camera`: set the camera first.
     void add_mesh(TriangleMesh mesh, int material);
     void add_sphere(const Sphere& sphere, int material);
     /// Builds the BVH; call once after the last add_*. Throws std::runtime_error on Embree errors.
