@@ -9,8 +9,7 @@ table. Needs nothing outside the package.
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from typing import Dict
 
 import numpy as np
@@ -19,6 +18,7 @@ import torch
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
 from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
+from hybridbrdf.util import atomic_write_bytes
 
 #: Built-in analytic materials (no measured data needed).
 DEMO_MATERIALS: Dict[str, AnalyticParams] = {
@@ -48,16 +48,11 @@ def directional_albedo(params: AnalyticParams, theta_o_deg: float, n: int, strat
 
 
 def _write_png_atomically(fig, path: str) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=folder)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    """The figure as a PNG at ``path``, by :func:`hybridbrdf.util.atomic_write_bytes` (the
+    replaced file's mode kept, errors naming ``path``; docs/CONVENTIONS.md, "Writing files")."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def run_demo(out: str, samples: int = 200_000) -> None:

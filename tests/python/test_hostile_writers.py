@@ -294,3 +294,54 @@ def test_a_replaced_file_keeps_its_permissions_and_a_new_one_gets_the_umask(base
         assert stat.S_IMODE(os.stat(code).st_mode) == 0o640
     finally:
         os.umask(old)
+
+
+# `hbrdf edit ... --out BASE` that stops while its energy bound is fitted (the unbounded model is
+# then a scratch file libhybridbrdf reads) until it is killed; "bounding" is created when it is there.
+STOPS_IN_ENERGY_BOUND = """
+import sys, time
+import hybridbrdf.model.energy as energy
+marker, argv = sys.argv[1], sys.argv[2:]
+def contributions(*args, **kwargs):
+    open(marker, "w").close()
+    time.sleep(120)
+energy._contributions = contributions
+from hybridbrdf.cli import main
+sys.exit(main(argv))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_scratch_files_in_tmpdir_are_removed_on_sigterm_and_after_sigkill(base, tmp_path, sig, monkeypatch, capsys):
+    scratch = tmp_path / "tmpdir"
+    scratch.mkdir()
+    marker = tmp_path / "bounding"
+    proc = subprocess.Popen([sys.executable, "-c", STOPS_IN_ENERGY_BOUND, str(marker),
+                             *updates(base, "killed")["edit"]], env={**os.environ, "TMPDIR": str(scratch)},
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not marker.exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.02)
+    assert marker.exists(), proc.communicate()[1]
+    assert os.listdir(scratch)  # the unbounded model, written for libhybridbrdf
+    proc.send_signal(sig)
+    proc.wait(timeout=60)
+    assert proc.returncode == -sig
+    if sig == signal.SIGKILL:  # nothing could clean up: the next command does
+        monkeypatch.setattr("tempfile.tempdir", str(scratch))
+        assert cli_main(updates(base, "next")["edit"]) == 0
+    assert os.listdir(scratch) == []
+
+
+def test_the_demo_plot_keeps_the_mode_of_the_file_it_replaces(tmp_path, capsys):
+    out = tmp_path / "slices.png"
+    old = os.umask(0o022)
+    try:
+        assert cli_main(["demo", "--out", str(out), "--samples", "2000"]) == 0
+        assert stat.S_IMODE(os.stat(out).st_mode) == 0o644  # a new file: 0666 less the umask
+        os.chmod(out, 0o640)
+        assert cli_main(["demo", "--out", str(out), "--samples", "2000"]) == 0
+        assert stat.S_IMODE(os.stat(out).st_mode) == 0o640
+    finally:
+        os.umask(old)
+    assert os.listdir(tmp_path) == ["slices.png"]

@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from typing import Any, Dict, Optional, Sequence
 
 import numpy as np
 
 from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
+from hybridbrdf.util import scratch_folder
 
 #: Largest directional albedo the bound leaves (spec.ENERGY_TARGET: 1 less a margin for the estimate).
 TARGET = spec.ENERGY_TARGET
@@ -170,7 +170,7 @@ def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, 
     f_t = unbounded(model)
     idx = [model.index(m) for m in (range(len(model.materials)) if materials is None else materials)]
     out = {"table": np.ones((len(idx), NODES), np.float32), "max_albedo_unbounded": [], "max_albedo": []}
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch_folder() as tmp:  # removed on SIGTERM too; after SIGKILL by the next one
         if f_t.path is None:  # libhybridbrdf evaluates a file: write one
             f_t = f_t.save_checked(os.path.join(tmp, "unbounded.safetensors"))
         for r, i in enumerate(idx):
