@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -270,4 +271,64 @@ TEST_CASE("limits: a Radiance HDR file is refused when its pixel data end early"
     write_file(path, flat.substr(0, flat.size() - 20));
     CHECK_THROWS_WITH_AS(read_image(path), "hbrdf_hostile_truncated.hdr: truncated: scanline 3 of 4", FileError);
     std::remove(path.c_str());
+}
+
+TEST_CASE("validation: environment texels that are not finite or negative are refused, naming the texel") {
+    const float inf = std::numeric_limits<float>::infinity();
+    const std::string rule = "; an environment map's texels must be finite radiances >= 0 (docs/RENDERING.md, \"Environments\")";
+    Image img(4, 2);
+    std::fill(img.rgb.begin(), img.rgb.end(), 1.0f);
+    img.at(3, 1)[1] = inf;  // a clipped sun: it used to be zeroed, and the sun was gone
+    auto light = [](const Image& image) { return EnvironmentLight(image); };
+    CHECK_THROWS_WITH_AS(light(img), ("texel (3, 1) G = inf is not finite" + rule).c_str(), std::invalid_argument);
+    img.at(3, 1)[1] = 1.0f;
+    img.at(0, 1)[2] = -0.5f;
+    CHECK_THROWS_WITH_AS(light(img), ("texel (0, 1) B = -0.5 is negative" + rule).c_str(), std::invalid_argument);
+    img.at(0, 1)[2] = 0.0f;  // black is a radiance
+    CHECK_NOTHROW(light(img));
+}
+
+TEST_CASE("limits: geometry and cameras beyond what float32 places at the camera's scale are refused") {
+    const std::string why = "; float32 places points that far out too coarsely (docs/RENDERING.md, \"Limits\")";
+    auto sphere = [](const char* center, const char* radius) {
+        return "{" + kCam + R"(, "objects": [{"type": "sphere", "center": )" + center + R"(, "radius": )" + radius +
+               R"(, "material": {"type": "analytic"}}]})";
+    };
+    // kCam is 3 from its look_at point: 5e4 x 3 = 150000.
+    CHECK(load_error(sphere("[0, 0, 0]", "1.5e5")) == "no error");
+    CHECK(load_error(sphere("[0, 0, 0]", "1e6")) ==
+          "bad.json: objects[0]: the sphere (center (0, 0, 0), radius 1e+06) has a coordinate of magnitude 1e+06, above "
+          "the limit 150000 = 50000 x the camera's distance to its look_at point (3)" + why);
+    CHECK(load_error(R"({"camera": {"position": [0, 0, 1e13], "look_at": [0, 0, 0]}, )" + kSphere + "}") ==
+          "bad.json: camera: position has a coordinate of magnitude 1e+13, above the limit 1e+12 for any coordinate "
+          "(docs/RENDERING.md, \"Limits\")");
+    CHECK(load_error(R"({"camera": {"position": [0, 0, 1600], "look_at": [0, 0, 1597]}, )" + kSphere + "}") ==
+          "bad.json: camera: position has a coordinate of magnitude 1600, above the limit 1500 = 500 x its distance to "
+          "look_at (3): rays that far out start too far from their surfaces; move the scene's origin near the camera, "
+          "or look_at onto the subject (docs/RENDERING.md, \"Limits\")");
+    Scene scene;  // a default camera frames at distance 1
+    TriangleMesh m;
+    m.positions = {Vec3f(0, 0, 0), Vec3f(6e4f, 0, 0), Vec3f(0, 1, 0)};
+    m.indices = {0, 1, 2};
+    CHECK_THROWS_WITH_AS(scene.add_mesh(m, 0),
+                         ("vertex 1 (60000, 0, 0) has a coordinate of magnitude 60000, above the limit 50000 = 50000 x "
+                          "the camera's distance to its look_at point (1)" + why).c_str(),
+                         std::invalid_argument);
+}
+
+TEST_CASE("outputs: a stale temporary (even a symlink) is replaced, not followed; a replaced output keeps its mode") {
+    const std::string path = "hbrdf_hostile_mode.exr", victim = "hbrdf_hostile_victim";
+    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    write_file(victim, "untouched");
+    REQUIRE(::symlink(victim.c_str(), tmp.c_str()) == 0);
+    write_file(path, "previous");
+    REQUIRE(::chmod(path.c_str(), 0640) == 0);
+    write_exr(Image(2, 2), path);
+    CHECK(read_file(victim) == "untouched");
+    CHECK(read_image(path).width == 2);
+    struct stat st {};
+    REQUIRE(::stat(path.c_str(), &st) == 0);
+    CHECK((st.st_mode & 07777) == 0640);
+    CHECK(!exists(tmp));
+    for (const std::string& f : {path, victim}) std::remove(f.c_str());
 }
