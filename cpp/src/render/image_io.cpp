@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <utility>
 
 #include <stb/stb_image.h>
@@ -42,7 +43,7 @@ std::string temp_name(const std::string& path) { return path + ".tmp" + std::to_
 // created exclusively, without following a symlink planted at its name. The temporary takes the
 // mode of the file it will replace (a 0640 output stays 0640); a new file gets 0666 minus the umask,
 // as fopen() gave it. On failure the caller's StagedFile removes the temporary.
-void write_staged(const StagedFile& file, const std::vector<unsigned char>& bytes) {
+void write_staged(const StagedFile& file, const unsigned char* bytes, std::size_t size) {
     const std::string& path = file.path();
     const std::string& tmp = file.temp_path();
     auto fail = [&](const char* step, int err) {
@@ -59,8 +60,8 @@ void write_staged(const StagedFile& file, const std::vector<unsigned char>& byte
     struct stat old {};
     if (::stat(path.c_str(), &old) == 0 && S_ISREG(old.st_mode) && ::fchmod(fd, old.st_mode & 07777) != 0)
         fail_open("keep the permissions of");
-    const unsigned char* p = bytes.data();
-    std::size_t left = bytes.size();
+    const unsigned char* p = bytes;
+    std::size_t left = size;
     while (left > 0) {
         const ssize_t n = ::write(fd, p, left);
         if (n < 0) {
@@ -79,15 +80,17 @@ void write_staged(const StagedFile& file, const std::vector<unsigned char>& byte
 }
 
 // Stages `bytes` (an encoded image) as the next version of `path`.
-StagedFile stage_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
+StagedFile stage_bytes(const std::string& path, const unsigned char* bytes, std::size_t size) {
     StagedFile file(path);
-    write_staged(file, bytes);
+    write_staged(file, bytes, size);
     return file;
 }
 
 // Float RGB as tinyexr's SaveEXR lays it out (B, G, R float32 channels; ZIP from 16 x 16 up),
-// encoded in memory so that the bytes are written, and checked, by write_staged.
-std::vector<unsigned char> encode_exr(const Image& image, const std::string& path) {
+// encoded in memory so that the bytes are written, and checked, by write_staged. The buffer is
+// tinyexr's own (malloc'ed), not copied: at the film limit it is ~1.6 GB.
+std::unique_ptr<unsigned char, decltype(&std::free)> encode_exr(const Image& image, const std::string& path,
+                                                                std::size_t* size) {
     const std::size_t n = std::size_t(image.width) * std::size_t(image.height);
     std::vector<float> planes[3];
     for (int c = 0; c < 3; ++c) {
@@ -118,16 +121,14 @@ std::vector<unsigned char> encode_exr(const Image& image, const std::string& pat
     header.requested_pixel_types = requested;
     unsigned char* memory = nullptr;
     const char* err = nullptr;
-    const std::size_t size = SaveEXRImageToMemory(&exr, &header, &memory, &err);
-    if (size == 0 || !memory) {
+    *size = SaveEXRImageToMemory(&exr, &header, &memory, &err);
+    if (*size == 0 || !memory) {
         std::string problem = err ? err : "cannot encode the OpenEXR file";
         if (err) FreeEXRErrorMessage(err);
         std::free(memory);
         throw FileError(path, problem);
     }
-    std::vector<unsigned char> bytes(memory, memory + size);
-    std::free(memory);
-    return bytes;
+    return {memory, &std::free};
 }
 
 // The pixel count an image file's header declares, or {0, 0} when the header
@@ -395,7 +396,9 @@ void check_output_path(const std::string& path) {
 
 StagedFile stage_exr(const Image& image, const std::string& path) {
     check_image(image, path);
-    return stage_bytes(path, encode_exr(image, path));
+    std::size_t size = 0;
+    const auto bytes = encode_exr(image, path, &size);
+    return stage_bytes(path, bytes.get(), size);
 }
 
 void write_exr(const Image& image, const std::string& path) { stage_exr(image, path).commit(); }
@@ -422,7 +425,7 @@ StagedFile stage_png(const Image& image, const std::string& path, const PngOptio
     };
     if (!stbi_write_png_to_func(append, &png, image.width, image.height, 3, bytes.data(), image.width * 3))
         throw FileError(path, "cannot encode the PNG file");
-    return stage_bytes(path, png);
+    return stage_bytes(path, png.data(), png.size());
 }
 
 void write_png(const Image& image, const std::string& path, const PngOptions& options) {
