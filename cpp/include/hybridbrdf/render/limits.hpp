@@ -51,12 +51,11 @@ inline constexpr std::uint64_t kMaxTabulatedSamplerBytes = std::uint64_t(1) << 3
 ///  - every coordinate of a sphere's bounds (|center| + radius), a plane's corners and a mesh's
 ///    vertices (after its transform) is at most kMaxExtentOverCameraDistance x d: a coordinate
 ///    of magnitude M is stored to M 2^-24, and a triangle's hit point sums three such terms, so
-///    at 5e4 d a hit point is off by up to 3 x 5e4 x 6e-8 ~ 1% of d (measured: a plane of size
-///    1e5 in front of a camera at distance 4.2 renders as one of size 1e3; one of size 1e7 is
-///    7.5% off, 1e8 48%);
+///    at 5e4 d a hit point is off by up to 3 x 5e4 x 6e-8 ~ 1% of d (bench/render_float_limits.py:
+///    a plane of half-size 4.7e4 d renders 0.46% off one of 120 d; 1e7 / 4.2 d was 7.5% off);
 ///  - the camera's position is at most kMaxCameraOffsetOverDistance x d from the origin: the
 ///    tracer starts each bounce 2e-5 |p| off its surface (Scene::offset_origin), so at 500 d from
-///    the origin that offset reaches 1% of d (measured: a scene translated by 240 d renders 0.56%
+///    the origin that offset reaches 1% of d (measured: a scene translated by 471 d renders 1.3%
 ///    off, by 2400 d 4%);
 ///  - and no coordinate (camera included) exceeds kMaxCoordinate, whatever d: Embree's robust
 ///    triangle test forms products of three coordinate differences in float, which overflow
