@@ -85,6 +85,13 @@ RATIOS: List[Ratio] = [
           "the register-blocked layers keep the instruction stream mostly 8-wide FMAs (5.28; struct-return "
           "regression 4.03, whose f_a rows stop vectorising; baseline 1.22); a slowdown of every model "
           "kernel alike lowers it"),
+    Ratio("textured, pure texels: uniform / textured batched instructions", _fewer("svbrdf_pure", "model_batch"), 0.7,
+          "pure texels of a plain layer run the uniform kernel in place, the lookup one byte per pair (0.83); "
+          "the sorted per-lane path that preceded it (b06c4a7) 0.445"),
+    Ratio("textured, two layers at every pair: 2 x uniform / textured batched instructions",
+          lambda r: 2 * r["instructions"]["model_batch"] / r["instructions"]["svbrdf_mixed"], 0.55,
+          "each layer through its material's uniform kernel on its gathered pairs (0.70); the sorted per-lane "
+          "path it replaced (b06c4a7) 0.442"),
 ]
 
 

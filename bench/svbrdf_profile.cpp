@@ -8,6 +8,7 @@
 //   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 0   # uniform, M evaluations/s
 //   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 1   # textured, pure texels
 //   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 2   # textured, every texel two layers
+//   /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 3   # textured, base layer with kd and z maps
 //   perf record -o /tmp/p.data /tmp/svbrdf_profile python/hybridbrdf/data/prior.safetensors 1 && perf report -i /tmp/p.data
 #include <chrono>
 #include <cstdio>
@@ -22,6 +23,13 @@ int main(int argc, char** argv) {
     std::vector<float> weights(W * W * 3, 0.f);
     if (mode == 2)  // every texel mixed: half layer 0, half layer 1
         for (int i = 0; i < W * W; ++i) weights[3 * i] = 0.5f;
+    if (mode == 3) {  // every texel the base layer, with kd and latent maps (the per-lane kernels)
+        const ModelMaterial& m = model->materials()[3];
+        layers[0].kd.resize(std::size_t(W) * W * 3);
+        layers[0].latent.resize(std::size_t(W) * W * std::size_t(model->latent_dim()));
+        for (std::size_t i = 0; i < layers[0].kd.size(); ++i) layers[0].kd[i] = (&m.params.kd.x)[i % 3] * (0.8f + 0.2f * float(i % 7) / 7.f);
+        for (std::size_t i = 0; i < layers[0].latent.size(); ++i) layers[0].latent[i] = m.latent[i % m.latent.size()] + 0.01f * float(i % 5);
+    }
     Svbrdf sv(model, W, W, TexelAddressing::Repeat, layers, weights);
     const std::size_t n = 1 << 17;
     std::mt19937 rng(1); std::uniform_real_distribution<float> U(0, 1);
@@ -37,5 +45,5 @@ int main(int argc, char** argv) {
         else sv.eval_batch(n, uv.data(), wi.data(), wo.data(), TexelFilter::Bilinear, f.data());
     }
     double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%s %.2f M/s\n", mode == 2 ? "textured, mixed" : mode ? "textured" : "uniform", 30.0 * n / dt / 1e6);
+    std::printf("%s %.2f M/s\n", mode == 3 ? "textured, kd and latent maps" : mode == 2 ? "textured, mixed" : mode ? "textured" : "uniform", 30.0 * n / dt / 1e6);
 }

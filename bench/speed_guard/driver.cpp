@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -120,6 +121,21 @@ int main(int argc, char** argv) {
         }
     };
     const auto header = [&](std::size_t k) { header_eval(k, wi.data(), wo.data(), o); };
+    // Textured materials (docs/SVBRDF.md): two layers over a 64x64 weights map, uv sweeping the
+    // texture in order as a renderer's tile does; all texels pure base (the uniform kernel's
+    // path), or every texel half and half (both layers at every pair).
+    const auto shared = std::make_shared<const hbrdf::HybridModel>(model);
+    const int other = (mat + 1) % int(model.materials().size());
+    std::vector<hbrdf::SvbrdfLayer> layers(2);
+    layers[0].material = mat, layers[1].material = other;
+    const hbrdf::Svbrdf pure(shared, 64, 64, hbrdf::TexelAddressing::Repeat, layers, std::vector<float>(64 * 64 * 3, 0.f));
+    std::vector<float> halves(64 * 64 * 3, 0.f);
+    for (std::size_t i = 0; i < halves.size(); i += 3) halves[i] = 0.5f;
+    const hbrdf::Svbrdf mixed(shared, 64, 64, hbrdf::TexelAddressing::Repeat, layers, halves);
+    std::vector<float> uv(2 * capacity);
+    for (std::size_t i = 0; i < capacity; ++i) uv[2 * i] = float((double(i) + 0.5) / double(capacity)), uv[2 * i + 1] = 0.37f;
+    const auto svbrdf_pure = [&](std::size_t k) { pure.eval_batch(k, uv.data(), wi.data(), wo.data(), hbrdf::TexelFilter::Bilinear, o); };
+    const auto svbrdf_mixed = [&](std::size_t k) { mixed.eval_batch(k, uv.data(), wi.data(), wo.data(), hbrdf::TexelFilter::Bilinear, o); };
 
     const auto simd = [] { use_simd(false, "avx512"); };
     const auto baseline = [] { use_simd(true, "avx512"); };
@@ -136,6 +152,8 @@ int main(int argc, char** argv) {
         {"model_batch_baseline", n, baseline, model_batch},
         {"model_scalar", n_scalar, simd, model_scalar},
         {"header", n_scalar, simd, header},
+        {"svbrdf_pure", n, simd, svbrdf_pure},
+        {"svbrdf_mixed", n, simd, svbrdf_mixed},
     };
     if (counting) {
         count_kernels(kernels, n);
