@@ -20,6 +20,7 @@ import sys
 import threading
 
 from hybridbrdf import spec
+from hybridbrdf.acquire.command import add_acquire_parser
 from hybridbrdf.demo import run_demo
 from hybridbrdf.errors import InputFileError, one_line_text
 from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, format_table
@@ -791,6 +792,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_info_parser(sub)
     _add_demo_parser(sub)
     _add_render_parser(sub)
+    add_acquire_parser(sub)
     return parser
 
 

@@ -1,0 +1,159 @@
+"""``hbrdf acquire``: the acquisition commands (docs/ACQUISITION.md). ``hbrdf acquire simulate``
+photographs a flat sample, an exact mixture of measured BRDFs under masks, with a rig (a rig file, a
+phone's flash at N positions or a K x V light stage) and writes the capture folder.
+
+Its flags and their run live here, beside the code they drive; hybridbrdf.cli registers the
+command with :func:`add_acquire_parser`."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+
+from tqdm import tqdm
+
+from hybridbrdf.acquire.capture import check_output_folder, write_capture
+from hybridbrdf.acquire.mixture import Mixture
+from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.rig import MAX_ITEMS, MAX_SIDE, load_rig
+from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
+from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.fit.paint import read_grey
+from hybridbrdf.sources import open_source
+
+
+def _number(lo: float, hi: float = math.inf, open_lo: bool = False):
+    """An argparse type: a finite float in [lo, hi] ((lo, hi] with ``open_lo``)."""
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not math.isfinite(v) or v < lo or v > hi or (open_lo and v == lo):
+            raise argparse.ArgumentTypeError(f"expected a number in {'(' if open_lo else '['}{lo:g}, {hi:g}], got {text!r}")
+        return v
+    return parse
+
+
+def _count(lo: int, hi: int):
+    """An argparse type: a whole number in [lo, hi]."""
+    def parse(text: str) -> int:
+        if not text.strip().isdigit() or not lo <= int(text) <= hi:
+            raise argparse.ArgumentTypeError(f"expected a whole number {lo} to {hi}, got {text!r}")
+        return int(text)
+    return parse
+
+
+def _pair(kind, lo, hi, what: str):
+    """An argparse type: AxB, two values of ``kind`` in [lo, hi] (``what`` names them)."""
+    def parse(text: str):
+        a, sep, b = text.lower().partition("x")
+        try:
+            if not sep:
+                raise ValueError
+            out = (kind(a), kind(b))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not all(math.isfinite(v) and lo <= v <= hi and v > 0 for v in out):
+            raise argparse.ArgumentTypeError(f"expected {what}, each in (0, {hi:g}], got {text!r}")
+        return out
+    return parse
+
+
+def _inside(path: str, folder: str) -> bool:
+    path, folder = os.path.realpath(path), os.path.realpath(folder)
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    """``hbrdf acquire simulate``: everything checked (rig, masks, sources, the output folder) before
+    the first photograph; the folder written once complete."""
+    layers = []
+    for v in args.layer or []:
+        name, sep, mask = v.rpartition("=")
+        if not sep or not name or not mask:
+            raise ValueError(f"--layer takes SOURCE=MASK, got {v!r}")
+        layers.append((name, mask))
+    if args.read_noise and not args.photons:
+        raise ValueError("--read-noise needs --photons (the noise model's scale)")
+    if len(layers) > 3:
+        raise ValueError(f"at most 3 --layer over the base, got {len(layers)}")
+    inputs = [p for p in [args.rig, args.base] + [x for pair in layers for x in pair] if p and os.path.exists(p)]
+    for p in inputs:
+        if _inside(p, args.out):
+            raise InputFileError(args.out, f"--out holds the input {p}; writing it would destroy that input")
+    check_output_folder(os.path.abspath(args.out))
+    if args.rig:
+        rig = load_rig(args.rig)
+    elif args.flash:
+        rig = flash_rig(args.flash, distance=args.distance or 0.3, extent=args.extent, size=args.size)
+    else:
+        rig = light_stage_rig(args.stage[0], args.stage[1], light_distance=args.distance or 1.0,
+                              camera_distance=args.distance or 1.0, extent=args.extent, size=args.size)
+    masks = [read_grey(mask, "mask") for _, mask in layers]
+    for (_, path), m in zip(layers, masks):
+        if m.shape != masks[0].shape:
+            raise InputFileError(path, f"mask is {m.shape[1]}x{m.shape[0]}; the first mask is "
+                                       f"{masks[0].shape[1]}x{masks[0].shape[0]}")
+    mixture = Mixture.painted(open_source(args.base), [open_source(name) for name, _ in layers], masks)
+    noise = NoiseModel(args.photons, args.read_noise)
+    with tqdm(total=len(rig.shots), desc="photographs", unit="photo", disable=args.quiet) as bar:
+        capture = simulate(rig, mixture, noise, args.light_jitter, args.seed, on_photo=lambda k: bar.update(1))
+    folder = write_capture(capture, args.out)
+    w, h = rig.image_size
+    noise_words = (f"Poisson-Gaussian noise, {args.photons:g} photons at radiance 1, read noise {args.read_noise:g} e-"
+                   if args.photons else "no noise")
+    print(f"wrote {folder}: {len(rig.shots)} photographs {w}x{h} ({len(rig.cameras)} camera(s), "
+          f"{len(rig.lights)} light(s)), {len(mixture.sources)} layer(s) "
+          f"({', '.join(s.name for s in mixture.sources)}), {noise_words}, light jitter {args.light_jitter:g}")
+    return 0
+
+
+def add_acquire_parser(sub) -> None:
+    """``hbrdf acquire`` and its subcommands (``simulate``)."""
+    p = sub.add_parser("acquire", help="SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
+                       description="SVBRDF acquisition from photographs (docs/ACQUISITION.md).")
+    commands = p.add_subparsers(dest="acquire_command", required=True, metavar="{simulate}")
+    s = commands.add_parser(
+        "simulate", help="photograph a flat sample, an exact mixture of measured BRDFs under masks",
+        description="Photograph a flat sample whose SVBRDF is an exact mixture of measured BRDFs under grey masks "
+                    "(composited as hbrdf paint does: the last --layer on top) with a rig, and write the capture "
+                    "folder: one linear HDR OpenEXR per shot, rig.json, capture.json (the truth: noise, seed, the "
+                    "lights' true positions, the layers) and weights.exr. Per pixel (one ray through its centre): "
+                    "radiance = g(uv, wi, wo) cos(theta_i) I / d^2; pixels off the sample read 0 before noise. "
+                    "OUT is replaced only when it is a capture folder (or empty), once complete.")
+    rig = s.add_mutually_exclusive_group(required=True)
+    rig.add_argument("--rig", metavar="RIG.json", help="a rig file (docs/ACQUISITION.md, the rig format)")
+    rig.add_argument("--flash", type=_count(1, MAX_ITEMS), metavar="N",
+                     help="a phone-style capture: N photographs, each lit by a flash 1 cm beside the lens, over a "
+                          "50-degree cap at --distance (default 0.3)")
+    rig.add_argument("--stage", type=_pair(int, 1, MAX_ITEMS, "KxV, K lights and V cameras"), metavar="KxV",
+                     help="a light stage: K lights (a 75-degree cap) and V cameras (a 60-degree cap) at --distance "
+                          "(default 1.0), every camera under every light: K*V photographs")
+    s.add_argument("--size", type=_pair(int, 1, MAX_SIDE, "WxH pixels"), default=(256, 256), metavar="WxH",
+                   help="photographs' size for --flash and --stage (default 256x256)")
+    s.add_argument("--extent", type=_pair(float, 0, 1e6, "WxH, the sample's size"), default=(0.1, 0.1), metavar="WxH",
+                   help="the sample's width and height in the rig's length unit, for --flash and --stage "
+                        "(default 0.1x0.1)")
+    s.add_argument("--distance", type=_number(0, 1e6, open_lo=True), metavar="D",
+                   help="distance of the cameras and lights from the sample's centre, for --flash (default 0.3) "
+                        "and --stage (default 1.0)")
+    s.add_argument("--base", required=True, metavar="SOURCE",
+                   help="layer 0: a measured file (.binary, .bsdf, .bin, .h5) or synthetic:NAME")
+    s.add_argument("--layer", action="append", metavar="SOURCE=MASK",
+                   help="a layer over the others (repeatable, at most 3): a measured file or synthetic:NAME and its "
+                        "grey mask (PNG or EXR, the first channel; every mask the same size, the weights map's)")
+    s.add_argument("--photons", type=_number(0, 1e12, open_lo=True), metavar="P",
+                   help="Poisson-Gaussian noise: photoelectrons per channel at radiance 1 (a white Lambertian lit "
+                        "head-on by a generated rig's light reads 1); default: no noise")
+    s.add_argument("--read-noise", type=_number(0, 1e9), default=0.0, metavar="E",
+                   help="the sensor's Gaussian read noise in electrons, with --photons (default 0)")
+    s.add_argument("--light-jitter", type=_number(0, 1e6), default=0.0, metavar="S",
+                   help="calibration error: each light rendered at its stated position plus a Gaussian offset of "
+                        "standard deviation S per axis (rig units); rig.json keeps the stated positions (default 0)")
+    s.add_argument("--seed", type=_count(0, 2 ** 63 - 1), default=0, help="seed of the noise and the jitter (default 0)")
+    s.add_argument("--out", required=True, metavar="DIR", help="the capture folder to write")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=run_simulate)
