@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 import pytest
+from PIL import Image
 
 import hybridbrdf as hb
 from hybridbrdf.acquire import capture as capture_module
@@ -18,6 +19,7 @@ from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.rig import RigError, load_rig, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.cli import main
 from hybridbrdf.render.tracer import write_exr
 from hybridbrdf.sources.synthetic import LambertGGXDielectric
 
@@ -277,3 +279,37 @@ def test_photographs_of_the_wrong_size_missing_or_not_finite(tmp_path):
     os.unlink(folder / "photo_002.exr")
     with pytest.raises(CaptureError, match=r"photo_00[12].exr: "):
         load_capture(folder)
+
+
+def test_the_command_writes_a_capture_and_refuses_in_one_line(tmp_path, capsys):
+    mask = tmp_path / "mask.png"
+    Image.fromarray(np.tile(np.arange(0, 256, 16, dtype=np.uint8), (16, 1)), "L").save(mask)
+    out = tmp_path / "cap"
+
+    def command(**flags):
+        flags = {"stage": "2x3", "size": "20x16", "base": "synthetic:plastic", "layer": f"synthetic:gold={mask}",
+                 "photons": "300", "read-noise": "1.5", "seed": "4", "out": str(out), **flags}
+        return ["acquire", "simulate", "--quiet"] + [a for k, v in flags.items() for a in (f"--{k}", v)]
+
+    assert main(command()) == 0
+    rig, photos, index = load_capture(out)
+    assert (len(rig.lights), len(rig.cameras), len(photos), rig.image_size) == (2, 3, 6, (20, 16))
+    assert index["simulated"]["noise"]["photons"] == 300.0 and index["simulated"]["seed"] == 4
+    assert main(command()) == 0  # a capture is replaced
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "keep.txt").write_text("x")
+    for flags, words in (({"out": str(tmp_path / "other")}, "other: is a folder without capture.json"),
+                         ({"out": str(tmp_path)}, f"--out holds the input {mask}"),
+                         ({"photons": "0"}, "argument --photons: expected a number in (0"),
+                         ({"photons": "nan"}, "argument --photons: expected a number in (0"),
+                         ({"stage": "2x0"}, "argument --stage: expected KxV"),
+                         ({"layer": "synthetic:gold"}, "--layer takes SOURCE=MASK"),
+                         ({"base": "synthetic:nothing"}, "synthetic:nothing: unknown synthetic material")):
+        capsys.readouterr()
+        try:
+            code = main(command(**flags))
+        except SystemExit as exc:
+            code = exc.code
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code != 0 and words in err[-1] and "Traceback" not in "\n".join(err), err
+    assert os.listdir(tmp_path / "other") == ["keep.txt"]
