@@ -123,6 +123,9 @@
       box.appendChild(fig);
     });
     box.hidden = textured.thumbnails.length === 0;
+    // The picker and the sliders are one material's: not shown for a textured one (the edit line says why).
+    ["material", "kd_r", "kd_g", "kd_b", "eta", "alpha_x", "alpha_y"].forEach(function (id) { $(id).parentNode.hidden = true; });
+    $("reset").parentNode.hidden = true;
   }
   function loadMaterial(i) {
     const m = mats[i];
