@@ -16,6 +16,7 @@ from hybridbrdf.acquire.capture import CaptureError, load_capture, write_capture
 from hybridbrdf.acquire.geometry import pixel_geometry
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import RigError, load_rig, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.acquire.simulate import simulate
@@ -313,3 +314,48 @@ def test_the_command_writes_a_capture_and_refuses_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert code != 0 and words in err[-1] and "Traceback" not in "\n".join(err), err
     assert os.listdir(tmp_path / "other") == ["keep.txt"]
+
+
+# ---- step 2's input: the observations of each texel ------------------------------------------
+
+def test_observations_invert_the_radiometry_texel_by_texel():
+    a, b = hb.open_source("synthetic:plastic"), hb.open_source("synthetic:gold")
+    half = np.zeros((4, 64, 2))
+    half[:, :32, 0], half[:, 32:, 1] = 1, 1  # A left of u = 0.5, B right of it (blended within 1/64 of it)
+    rig = light_stage_rig(3, 2, size=(64, 48))
+    cap = simulate(rig, Mixture([a, b], half))
+    obs = texel_observations(rig, cap.photos, (8, 4))
+    assert obs.offsets[-1] == len(obs.value) > 0 and obs.dropped["grazing"] == 0
+    for t in range(32):
+        i, j = t % 8, t // 8
+        r = obs.rows(t)
+        if r.stop == r.start:
+            continue
+        uv = obs.uv[r].astype(np.float64)
+        assert ((uv[:, 0] >= i / 8 - 1e-6) & (uv[:, 0] <= (i + 1) / 8 + 1e-6)).all()
+        assert ((uv[:, 1] >= j / 4 - 1e-6) & (uv[:, 1] <= (j + 1) / 4 + 1e-6)).all()
+        if i in (3, 4):
+            continue  # holds the blend at u = 0.5
+        source = a if i < 4 else b
+        g = source.eval(obs.wi[r].astype(np.float64), obs.wo[r].astype(np.float64))
+        np.testing.assert_allclose(obs.value[r], g, rtol=2e-5, atol=1e-7)
+    assert obs.counts().sum() == len(obs.value) and set(np.unique(obs.shot)) == set(range(6))
+
+
+def test_observations_leave_out_grazing_pixels_and_refuse_bad_photographs():
+    rig = rig_from_dict({
+        "format_version": 1, "image_size": [32, 32], "sample_extent": [4.0, 4.0],  # far rows seen at wo.z < 0.05
+        "cameras": [{"position": [0, -2.1, 0.1], "look_at": [0, 1, 0], "up": [0, 0, 1], "fov_deg": 50}],
+        "lights": [{"position": [0, 0, 1], "intensity": [1, 1, 1]}], "shots": [{"camera": 0, "light": 0}]})
+    photos = simulate(rig, Mixture([lambertian()], np.ones((1, 1, 1)))).photos
+    obs = texel_observations(rig, photos, (4, 4), min_cos=0.05)
+    assert obs.dropped["grazing"] > 0 and (obs.wo[:, 2] >= 0.05).all() and (obs.wi[:, 2] >= 0.05).all()
+    assert obs.dropped["grazing"] + len(obs.value) == pixel_geometry(rig, 0).mask.sum()
+    with pytest.raises(ValueError, match="2 photographs for the rig's 1 shots"):
+        texel_observations(rig, photos * 2, (4, 4))
+    with pytest.raises(ValueError, match=r"photograph 0 \(photo_000.exr\) has shape \(32, 31, 3\)"):
+        texel_observations(rig, [photos[0][:, :31]], (4, 4))
+    bad = photos[0].copy()
+    bad[3, 3, 0] = np.inf
+    with pytest.raises(ValueError, match="values that are not finite"):
+        texel_observations(rig, [bad], (4, 4))

@@ -5,7 +5,8 @@
 - :mod:`~hybridbrdf.acquire.geometry`: what each pixel sees (uv, wi, wo, distance to the light);
 - :mod:`~hybridbrdf.acquire.mixture`: the ground truth, an exact mixture of measured BRDFs;
 - :mod:`~hybridbrdf.acquire.noise`: the sensor's Poisson-Gaussian noise;
-- :mod:`~hybridbrdf.acquire.simulate`: the photographs; :mod:`~hybridbrdf.acquire.capture`: their folder.
+- :mod:`~hybridbrdf.acquire.simulate`: the photographs; :mod:`~hybridbrdf.acquire.capture`: their folder;
+- :mod:`~hybridbrdf.acquire.observations`: the photographs turned back into BRDF values per texel (a fit's input).
 
     rig = flash_rig(16, size=(512, 512))
     mixture = Mixture.painted(open_source("synthetic:plastic"), [open_source("synthetic:gold")], [mask])
