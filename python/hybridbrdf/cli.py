@@ -19,21 +19,26 @@ import signal
 import sys
 import threading
 
+from tqdm import tqdm
+
 from hybridbrdf import spec
 from hybridbrdf.acquire.command import add_acquire_parser
 from hybridbrdf.demo import run_demo
 from hybridbrdf.errors import InputFileError, one_line_text
-from hybridbrdf.evaluate.evaluation import evaluate, format_extended_table, format_table
+from hybridbrdf.evaluate.evaluation import bytes_per_pair, evaluate, format_extended_table, format_table
 from hybridbrdf.fit import checkpoint as ckpt, distributed as dd
 from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.distributed import RankLostError
 from hybridbrdf.fit.paint import paint
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
-from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
+from hybridbrdf.fit.settings import (ADD_LOSS_EPS, ADD_STEPS, MAX_COUNT, PAIRS, FitSettings, Number, parse_mlp,
+                                     positive_int)
+from hybridbrdf.demo import BYTES_PER_SAMPLE as DEMO_BYTES_PER_SAMPLE
+from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
-from hybridbrdf.model.editing import parse_assignments
-from hybridbrdf.model.file import load_model
+from hybridbrdf.model.editing import albedo_bytes_per_sample, parse_assignments
+from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.prior import prior_path
 from hybridbrdf.render.preview import ROWS, render_preview
 from hybridbrdf.render.tracer import RenderMaterialError, render
@@ -46,6 +51,48 @@ from hybridbrdf.viewer.page import write_page
 
 EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
           "or synthetic:NAME (synthetic:all = every built-in material).")
+
+
+#: A loop that can run for minutes shows a progress bar on stderr: on a terminal from the start,
+#: elsewhere (a log) once it has run this many seconds, and then a line every PROGRESS_LOG_S.
+PROGRESS_DELAY_S = 3.0
+PROGRESS_LOG_S = 10.0
+
+
+def progress_bar(iterable, total: int, desc: str, unit: str, quiet: bool = False):
+    """``iterable`` with a progress bar on stderr (tqdm) unless ``quiet``: drawn at once when stderr
+    is a terminal, else only after :data:`PROGRESS_DELAY_S` seconds, so quick runs and pipes
+    stay clean. Print lines meanwhile with :func:`print_beside`, which does not tear it."""
+    tty = sys.stderr.isatty()
+    return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr, disable=quiet, leave=False,
+                delay=0.0 if tty else PROGRESS_DELAY_S, mininterval=0.1 if tty else PROGRESS_LOG_S)
+
+
+def print_beside(bar, line: str) -> None:
+    """``line`` on stdout while ``bar`` runs: through ``bar.write`` (which clears and redraws it)
+    when both go to one terminal, else a plain print (a redraw would write the bar into a log)."""
+    if sys.stdout.isatty() and sys.stderr.isatty():
+        bar.write(line, file=sys.stdout)
+    else:
+        print(line, flush=True)
+
+
+def bounded_count(bytes_each: float, lo: int = 1):
+    """argparse type: an integer in [lo, MAX_COUNT] ("2e4" allowed) whose memory, ``bytes_each``
+    bytes a unit, fits this machine (hybridbrdf.limits.check_count): a one-line usage error
+    naming the flag, what the count would take and the largest that fits."""
+    number = Number(int, lo, MAX_COUNT)
+
+    def parse(text: str) -> int:
+        value = number(text)
+        try:
+            check_count("", value, bytes_each)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).strip()) from None
+        return value
+
+    parse.__name__ = "count"  # argparse names the type in its "invalid count value" message
+    return parse
 
 
 def _open_all(specs):
@@ -374,6 +421,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         raise ValueError(f"--pairs {problem}")
     # eval writes no file: its inputs are checked by load_model and the readers.
     model = load_model(args.model)
+    check_count("--pairs", args.pairs, bytes_per_pair(model))  # before any pair is drawn
     # The sources are read outside the --pairs advice below: a reader's failure is the reader's
     # (each refuses files larger than its format, so memory is the machine's limit, not --pairs').
     try:
@@ -404,8 +452,6 @@ def _shown(value) -> str:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    if args.albedo_samples < 0:
-        raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
     model = load_model(args.model)
     a = model.arch
     written_by = getattr(model, "written_by", None)
@@ -432,8 +478,11 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(_settings_line("sparse fit", t["sparse_fit"], ("training", "sparse"), RECORDED_TIMINGS))
         elif t.get("init_from"):
             print(f"warm start: the network of {_shown(t['init_from'])}, trained further")
-    print(f"{len(model.materials)} materials:")
-    for m in model.material_info:
+    print(f"{len(model.materials)} materials:", flush=True)
+    # The albedo estimates are the slow part (about 12 ms a material; 4 minutes for 20,000).
+    bar = progress_bar(model.material_info, len(model.materials), "albedo", " materials",
+                       quiet=args.quiet or not args.albedo_samples)
+    for m in bar:
         line = f"  {m['name']:28s} {'iso ' if m.get('isotropic', True) else 'aniso'} {_shown(m.get('origin', ''))}"
         if model.has_analytic:
             p = model.analytic_params(m["name"])
@@ -459,7 +508,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         if isinstance(st, dict):
             line += (f"\n      sparse fit started from {_shown(st.get('material'))} "
                      f"(smape {_shown(st.get('smape'))}, cmae {_shown(st.get('cmae'))})")
-        print(line)
+        print_beside(bar, line)
     return 0
 
 
@@ -677,8 +726,10 @@ def _add_bound_parser(sub) -> None:
     p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
     p.add_argument("--materials", metavar="A,B,...", help="only these materials (default: all); the others keep "
                                                           "their tables (or none: a table of ones)")
-    p.add_argument("--samples", type=positive_int, default=energy.SAMPLES,
-                   help="MIS samples per direction of the albedo estimate (default: %(default)s)")
+    p.add_argument("--samples", type=bounded_count(energy.bytes_per_sample()), default=energy.SAMPLES, metavar="N",
+                   help="MIS samples per direction of the albedo estimate (default: %(default)s; at most what fits "
+                        f"this machine's memory, {energy.bytes_per_sample() / 1024:.0f} KiB a sample; "
+                        "docs/CONVENTIONS.md, \"Counts and memory\")")
     p.add_argument("--verbose", action="store_true", help="list every material, not only the dimmed ones")
     p.set_defaults(func=_cmd_bound)
 
@@ -740,10 +791,16 @@ def _add_info_parser(sub) -> None:
     p = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
                                                                          "training settings and materials.")
     p.add_argument("model", help="model file")
-    p.add_argument("--albedo-samples", type=int, default=1 << 11, metavar="N",
+    p.add_argument("--albedo-samples", metavar="N", default=1 << 11,
+                   type=bounded_count(albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR), lo=0),
                    help="incident samples per outgoing direction for each material's maximum directional albedo "
                         "(44 outgoing directions; default: %(default)s, about 1%% noise; hbrdf edit and mix use "
-                        "8192; 0: do not estimate it)")
+                        "8192; 0: do not estimate it); at most what fits this machine's memory, about "
+                        f"{albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR) / 1024:.1f} KiB a sample "
+                        "(docs/CONVENTIONS.md, \"Counts and memory\")")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (shown on stderr while the albedo estimates run: at once on a terminal, "
+                        "elsewhere after a few seconds)")
     p.set_defaults(func=_cmd_info)
 
 
@@ -757,7 +814,9 @@ def _add_demo_parser(sub) -> None:
         "directional albedo estimated with every sampling strategy.",
     )
     p.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
-    p.add_argument("--samples", type=int, default=200_000, help="samples per albedo estimate (default: %(default)s)")
+    p.add_argument("--samples", type=bounded_count(DEMO_BYTES_PER_SAMPLE), default=200_000, metavar="N",
+                   help=f"samples per albedo estimate (default: %(default)s; at most what fits this machine's memory, "
+                        f"{DEMO_BYTES_PER_SAMPLE} bytes a sample; docs/CONVENTIONS.md, \"Counts and memory\")")
     p.set_defaults(func=_cmd_demo)
 
 

@@ -18,7 +18,12 @@ import torch
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
 from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
+from hybridbrdf.limits import check_count, count_argument
 from hybridbrdf.util import atomic_write_bytes
+
+#: Peak bytes per sample of one albedo estimate (directional_albedo: the repeated wo, u, the
+#: sampler's float32 copies and outputs, the float64 weights; 88 measured), with a margin.
+BYTES_PER_SAMPLE = 128
 
 #: Built-in analytic materials (no measured data needed).
 DEMO_MATERIALS: Dict[str, AnalyticParams] = {
@@ -56,13 +61,13 @@ def _write_png_atomically(fig, path: str) -> None:
 
 
 def run_demo(out: str, samples: int = 200_000) -> None:
-    """Write the slice plot to ``out`` (PNG) and print the albedo table."""
+    """Write the slice plot to ``out`` (PNG) and print the albedo table. ``samples`` (--samples)
+    is bounded by memory (:data:`BYTES_PER_SAMPLE`; hybridbrdf.limits), checked first."""
+    check_count("--samples", count_argument("--samples", samples), BYTES_PER_SAMPLE)
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    if samples < 1:
-        raise ValueError(f"--samples must be positive, got {samples}")
     theta_o = np.linspace(-89.5, 89.5, 359)
     angles = (0.0, 30.0, 60.0, 75.0)
     fig, axes = plt.subplots(len(DEMO_MATERIALS), 2, figsize=(11, 3.1 * len(DEMO_MATERIALS)), squeeze=False)

@@ -15,12 +15,22 @@ from typing import Tuple, Union
 import numpy as np
 
 from hybridbrdf import _core
+from hybridbrdf.limits import pair_arguments
+
+#: Peak bytes per direction pair of analytic_eval / sample / pdf (float32 copies of the inputs,
+#: the outputs), measured at 36 plus margin: what a call's row count is bounded by.
+BYTES_PER_PAIR = 64
 
 ArrayLike = Union[np.ndarray, "object"]
 
 
 def _vector(value, n: int, name: str) -> np.ndarray:
-    """`value` as a float64 vector of n entries; a scalar is broadcast."""
+    """`value` as a float64 vector of n entries; a scalar is broadcast. Strings and booleans are
+    refused (TypeError naming the parameter): NumPy would read "0.5" as 0.5 and True as 1."""
+    probe = np.asarray(value) if not isinstance(value, (str, bytes)) else None
+    if probe is None or probe.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be a number or {n} numbers, got {type(value).__name__} {value!r:.60}"
+                        .replace("\n", " "))
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
@@ -83,16 +93,16 @@ class AnalyticParams:
         return f"AnalyticParams(kd={self.kd.tolist()}, eta={self.eta.tolist()}, alpha={self.alpha.tolist()})"
 
 
-def _rows(x, cols: int, name: str) -> np.ndarray:
-    arr = np.ascontiguousarray(np.asarray(x, dtype=np.float32))
-    if arr.ndim != 2 or arr.shape[1] != cols:
-        raise ValueError(f"{name} must have shape (N, {cols}), got {arr.shape}")
-    return arr
+def _rows(names, values, cols) -> list:
+    """The row arrays of one call, checked (types, shapes, rows bounded by memory; hybridbrdf.limits)
+    before they are copied to C-contiguous float32, the library's working precision."""
+    return [np.ascontiguousarray(a, dtype=np.float32) for a in pair_arguments(names, values, cols, BYTES_PER_PAIR)]
 
 
-def _same_rows(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str) -> None:
-    if a.shape[0] != b.shape[0]:
-        raise ValueError(f"{name_a} has {a.shape[0]} rows but {name_b} has {b.shape[0]}")
+def _strategy(strategy) -> str:
+    if not isinstance(strategy, str):
+        raise TypeError(f"strategy must be a str (one of {', '.join(_core.STRATEGIES)}), got {type(strategy).__name__}")
+    return strategy
 
 
 def _core_params(params) -> "_core.AnalyticParams":
@@ -105,8 +115,7 @@ def _core_params(params) -> "_core.AnalyticParams":
 
 def analytic_eval(wi, wo, params: AnalyticParams) -> np.ndarray:
     """f_a(wi, wo) for (N,3) direction arrays; returns (N,3) float32 RGB, no cosine."""
-    wi_a, wo_a = _rows(wi, 3, "wi"), _rows(wo, 3, "wo")
-    _same_rows(wi_a, wo_a, "wi", "wo")
+    wi_a, wo_a = _rows(("wi", "wo"), (wi, wo), (3, 3))
     return _core.eval_analytic(wi_a, wo_a, _core_params(params))
 
 
@@ -124,16 +133,14 @@ def sample(wo, u, params: AnalyticParams, strategy: str = "mis") -> Tuple[np.nda
     ``f * max(wi.z, 0) / pdf``. A row with pdf 0 is "no sample" (wo invalid or
     below the horizon); a GGX sample below the horizon has weight 0.
     """
-    wo_a, u_a = _rows(wo, 3, "wo"), _rows(u, 2, "u")
-    _same_rows(wo_a, u_a, "wo", "u")
-    return _core.sample(wo_a, u_a, _core_params(params), strategy)  # ValueError for unknown names
+    wo_a, u_a = _rows(("wo", "u"), (wo, u), (3, 2))
+    return _core.sample(wo_a, u_a, _core_params(params), _strategy(strategy))  # ValueError for unknown names
 
 
 def pdf(wi, wo, params: AnalyticParams, strategy: str = "mis") -> np.ndarray:
     """Solid-angle density with which ``sample(wo, ..., strategy)`` produces wi, (N,)."""
-    wi_a, wo_a = _rows(wi, 3, "wi"), _rows(wo, 3, "wo")
-    _same_rows(wi_a, wo_a, "wi", "wo")
-    return _core.pdf(wi_a, wo_a, _core_params(params), strategy)
+    wi_a, wo_a = _rows(("wi", "wo"), (wi, wo), (3, 3))
+    return _core.pdf(wi_a, wo_a, _core_params(params), _strategy(strategy))
 
 
 def simd_path() -> str:

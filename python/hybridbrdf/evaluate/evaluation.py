@@ -13,8 +13,18 @@ import torch
 
 from hybridbrdf.evaluate.metrics import cmae, directional_albedo, mae, metric_directions, reciprocity_error, smape
 from hybridbrdf.model.file import HybridModel
-from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.sources.base import BYTES_PER_PAIR as SOURCE_BYTES_PER_PAIR, BRDFSource
 from hybridbrdf.sources.names import source_material
+
+#: Bytes per metric pair of :func:`evaluate` besides the source's and the model's evaluations:
+#: the float64 directions, the reference, f_t and f_a, the metrics' temporaries (an estimate).
+BYTES_PER_PAIR = 256
+
+
+def bytes_per_pair(model: HybridModel) -> int:
+    """Peak memory of :func:`evaluate` per metric pair, what ``hbrdf eval --pairs`` is bounded by
+    (hybridbrdf.limits): its own arrays, one source's evaluation and the model's in PyTorch."""
+    return BYTES_PER_PAIR + SOURCE_BYTES_PER_PAIR + model.bytes_per_pair(torch.float32)
 
 
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,

@@ -26,6 +26,7 @@ import numpy as np
 
 from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
+from hybridbrdf.limits import bool_argument, check_count, count_argument, real_argument
 from hybridbrdf.model import energy
 from hybridbrdf.names import names_problem
 
@@ -42,6 +43,22 @@ ALBEDO_SAMPLES = 1 << 13
 #: What ``conserve_energy`` holds the maximum estimated albedo to: 1 less a margin that covers
 #: the estimate's noise (the energy bound's target, spec/model.json).
 ALBEDO_TARGET = spec.ENERGY_TARGET
+#: Peak bytes per incident sample and outgoing direction of an albedo estimate, besides the
+#: model's own evaluation (model.bytes_per_pair): the repeated directions, u, the sampler's
+#: outputs, the contributions (119 bytes measured in all through libhybridbrdf).
+ALBEDO_BYTES_PER_SAMPLE = 96
+
+
+def albedo_bytes_per_sample(pair_bytes: int) -> int:
+    """Peak memory of :func:`albedo_profile` per incident sample (all outgoing directions of
+    the grid) for a model whose evaluation takes ``pair_bytes`` a pair (model.bytes_per_pair()):
+    what ``samples`` is bounded by (hybridbrdf.limits)."""
+    return len(ALBEDO_THETA_DEG) * len(ALBEDO_PHI_DEG) * (ALBEDO_BYTES_PER_SAMPLE + pair_bytes)
+
+
+def _check_name(name) -> None:
+    if not isinstance(name, str):
+        raise TypeError(f"name (the new material's) must be a str, got {type(name).__name__}")
 
 
 def _lerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
@@ -91,7 +108,12 @@ def edit(model, material, name: str, *, kd=None, eta=None, alpha=None, conserve_
       by kd). The kd actually used is recorded in the material's ``edit`` record.
 
     Raises ValueError (one line) for an out-of-range or NaN value, an unknown material, a taken
-    or invalid name, or a model without an analytic part (the neural baseline)."""
+    or invalid name, or a model without an analytic part (the neural baseline); TypeError naming
+    the argument for one of the wrong type (a name that is not a str, a parameter given as a
+    string, a conserve_energy that is not a bool)."""
+    _check_name(name)
+    bool_argument("conserve_energy", conserve_energy)
+    model.index(material)  # KeyError / TypeError before anything else
     if not model.has_analytic:
         raise ValueError("the neural baseline has no analytic parameters to edit (hbrdf mix blends its latent codes)")
     if kd is None and eta is None and alpha is None:
@@ -143,8 +165,11 @@ def mix(model, a, b, t: float, name: str, conserve_energy: bool = False):
     The blend is isotropic when both are. A latent code between two fitted ones can make the
     network's correction brighter than either end (bench/edit_guarantees.py measures how often);
     ``conserve_energy`` then scales the blend's kd as :func:`edit` does. Raises ValueError for t
-    outside [0, 1] (or NaN)."""
-    t = float(t)
+    outside [0, 1] (or NaN), TypeError for a t that is not a number (a string, a bool) and for
+    the other arguments' wrong types as :func:`edit` does."""
+    t = real_argument("t", t)
+    _check_name(name)
+    bool_argument("conserve_energy", conserve_energy)
     if not 0.0 <= t <= 1.0:  # written so that NaN fails
         raise ValueError(f"t = {t!r} is outside [0, 1]: a blend does not extrapolate")
     ra, rb = _material_row(model, a), _material_row(model, b)
@@ -172,8 +197,8 @@ def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarra
     """Incident directions for every outgoing direction of the grid, drawn by the MIS sampler of
     the material's f_a (cosine sampling for the neural baseline): (wi, wo, pdf), rows grouped
     by outgoing direction."""
-    if isinstance(samples, bool) or not (isinstance(samples, (int, np.integer)) and samples >= 1):
-        raise ValueError(f"albedo samples must be a positive integer, got {samples!r}")
+    samples = count_argument("samples", samples)
+    check_count("samples", samples, albedo_bytes_per_sample(model.bytes_per_pair()))
     wo_grid = _outgoing_grid()
     wo = np.repeat(wo_grid, samples, axis=0)
     u = np.tile(energy.stratified_u(samples, seed), (len(wo_grid), 1))
@@ -249,5 +274,5 @@ def parse_assignments(items: Sequence[str]) -> Dict[str, Any]:
     return out
 
 
-__all__ = ["ALBEDO_SAMPLES", "ALBEDO_TARGET", "ALBEDO_THETA_DEG", "ALBEDO_PHI_DEG", "albedo_profile", "edit", "mix",
+__all__ = ["ALBEDO_BYTES_PER_SAMPLE", "ALBEDO_SAMPLES", "albedo_bytes_per_sample", "ALBEDO_TARGET", "ALBEDO_THETA_DEG", "ALBEDO_PHI_DEG", "albedo_profile", "edit", "mix",
            "parse_assignments"]

@@ -39,6 +39,7 @@ import numpy as np
 
 from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
+from hybridbrdf.limits import check_count, count_argument
 from hybridbrdf.util import scratch_folder
 
 #: Largest directional albedo the bound leaves (spec.ENERGY_TARGET: 1 less a margin for the estimate).
@@ -60,6 +61,15 @@ SAMPLES = 4096
 #: directions errs upward; bench/energy_bound.py checks the result from outside.
 SCREEN_SAMPLES = 512
 SCREEN_MARGIN = 0.85
+#: Peak bytes per sample and fixed direction of a material's estimate (the repeated directions,
+#: u, the sampler's outputs, both sides' values and contributions: 228 measured, with a margin).
+BYTES_PER_DIRECTION_SAMPLE = 256
+
+
+def bytes_per_sample() -> int:
+    """Peak memory of one material's tables per sample (every fixed direction): what
+    ``samples`` is bounded by (hybridbrdf.limits)."""
+    return len(_directions()) * BYTES_PER_DIRECTION_SAMPLE
 #: Smallest cos theta of the regular elevations: the horizon itself is outside every hemisphere (f = 0 there).
 MIN_COS = 0.004
 #: Elevations closer to the horizon (cos theta; 89.97 to 89.89 degrees), where a network's
@@ -166,7 +176,10 @@ def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, 
     """Energy-bound tables of ``model``'s materials (default all), fitted to its unbounded f_t.
 
     Returns ``{"table": (n, NODES) float32, "max_albedo_unbounded": [...], "max_albedo": [...]}``,
-    the maxima being the estimates over the directions used (max over RGB)."""
+    the maxima being the estimates over the directions used (max over RGB). ``samples`` is
+    bounded by memory (:func:`bytes_per_sample`; ValueError naming it)."""
+    samples = count_argument("samples", samples)
+    check_count("samples", samples, bytes_per_sample())
     f_t = unbounded(model)
     idx = [model.index(m) for m in (range(len(model.materials)) if materials is None else materials)]
     out = {"table": np.ones((len(idx), NODES), np.float32), "max_albedo_unbounded": [], "max_albedo": []}
@@ -231,4 +244,4 @@ def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPL
                        dict(model.training) if isinstance(model.training, dict) else {})
 
 
-__all__ = ["NODES", "TARGET", "attach", "fit_table", "scale", "stratified_u", "tables", "unbounded", "with_bound"]
+__all__ = ["NODES", "TARGET", "attach", "bytes_per_sample", "fit_table", "scale", "stratified_u", "tables", "unbounded", "with_bound"]

@@ -43,6 +43,7 @@ from hybridbrdf import _core, spec
 from hybridbrdf.brdf.analytic import AnalyticParams
 from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import ModelFileError
+from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model import editing
 from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
                                         output_layer)
@@ -59,6 +60,11 @@ class HybridModel:
     and ``eval_analytic(wi, wo, material)`` its analytic part (hybrid kinds).
     Computed in PyTorch (float32 by default; ``dtype=torch.float64`` for a reference).
     """
+
+    #: Peak bytes per direction pair of :meth:`eval` through libhybridbrdf: float32 copies of the
+    #: directions, the float32 output and its float64 copy (62 measured from float64 views), with
+    #: a margin.
+    LIBRARY_BYTES_PER_PAIR = 96
 
     def __init__(self, arch: Dict[str, Any], materials: List[Dict[str, Any]], tensors: Dict[str, np.ndarray],
                  training: Optional[Dict[str, Any]] = None, path: Optional[str] = None):
@@ -90,6 +96,10 @@ class HybridModel:
         return [m["name"] for m in self.material_info]
 
     def index(self, material) -> int:
+        """The row of ``material``, a name or an index: KeyError naming it when the model has no
+        such material, TypeError when it is neither a str nor an int (a bool is neither)."""
+        if isinstance(material, (bool, np.bool_)) or not isinstance(material, (str, int, np.integer)):
+            raise TypeError(f"material must be a name (str) or an index (int), got {type(material).__name__}")
         if isinstance(material, (int, np.integer)):
             if not 0 <= int(material) < len(self.material_info):
                 raise KeyError(f"material index {material} out of range (0..{len(self.material_info) - 1})")
@@ -155,7 +165,7 @@ class HybridModel:
         libhybridbrdf in float32, the runtime every engine uses; ``dtype``
         (torch.float32 or torch.float64) evaluates the PyTorch model instead,
         float64 being the reference the C++ library is tested against."""
-        if dtype is None and self.path is not None:
+        if self._check_dtype(dtype) is None and self.path is not None:
             return self._cpp_model().eval(*self._rows(wi, wo), self.index(material)).astype(np.float64)
         return self._eval(wi, wo, material, dtype or torch.float32)[0]
 
@@ -163,7 +173,7 @@ class HybridModel:
         """The analytic part f_a of a hybrid material (not available for the neural baseline)."""
         if not self.has_analytic:
             raise ValueError("the neural baseline has no analytic part")
-        if dtype is None and self.path is not None:
+        if self._check_dtype(dtype) is None and self.path is not None:
             return self._cpp_model().eval_analytic(*self._rows(wi, wo), self.index(material)).astype(np.float64)
         return self._eval(wi, wo, material, dtype or torch.float32)[1]
 
@@ -173,18 +183,30 @@ class HybridModel:
         return self._cpp
 
     @staticmethod
-    def _rows(wi, wo):
-        a, b = np.asarray(wi, dtype=np.float32), np.asarray(wo, dtype=np.float32)
-        if a.ndim != 2 or a.shape[1] != 3 or b.shape != a.shape:
-            raise ValueError(f"wi and wo must both have shape (N, 3), got {a.shape} and {b.shape}")
-        return a, b
+    def _check_dtype(dtype):
+        if dtype is not None and dtype not in (torch.float32, torch.float64):
+            raise TypeError(f"dtype must be None (libhybridbrdf), torch.float32 or torch.float64, got {dtype!r}")
+        return dtype
+
+    def bytes_per_pair(self, dtype: Optional[torch.dtype] = None) -> int:
+        """Peak memory of :meth:`eval` per direction pair, what its row count is bounded by
+        (hybridbrdf.limits): libhybridbrdf's float32 copies and outputs
+        (:data:`LIBRARY_BYTES_PER_PAIR`), or PyTorch's activations, two per hidden unit and layer
+        (827 bytes measured at 32x3 in float32), each with a margin."""
+        if dtype is None and self.path is not None:
+            return self.LIBRARY_BYTES_PER_PAIR
+        size = 8 if dtype == torch.float64 else 4
+        return size * (64 + 2 * self.arch["width"] * (self.arch["depth"] + 1))
+
+    def _rows(self, wi, wo):
+        a, b = pair_arguments(("wi", "wo"), (wi, wo), (3, 3), self.bytes_per_pair())
+        return np.asarray(a, dtype=np.float32), np.asarray(b, dtype=np.float32)
 
     def _eval(self, wi, wo, material, dtype):
         i = self.index(material)
-        wi_t = torch.as_tensor(np.asarray(wi), dtype=dtype)
-        wo_t = torch.as_tensor(np.asarray(wo), dtype=dtype)
-        if wi_t.ndim != 2 or wi_t.shape[1] != 3 or wo_t.shape != wi_t.shape:
-            raise ValueError(f"wi and wo must both have shape (N, 3), got {tuple(wi_t.shape)} and {tuple(wo_t.shape)}")
+        wi, wo = pair_arguments(("wi", "wo"), (wi, wo), (3, 3), self.bytes_per_pair(dtype))
+        wi_t = torch.as_tensor(wi, dtype=dtype)
+        wo_t = torch.as_tensor(wo, dtype=dtype)
         mod = self._module(dtype)
         m = self._material_tensors(i, dtype)
         with torch.no_grad():

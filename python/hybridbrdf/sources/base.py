@@ -11,6 +11,11 @@ import numpy as np
 
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import read_input_bytes
+from hybridbrdf.limits import pair_arguments
+
+#: Peak bytes per direction pair of :meth:`BRDFSource.eval` (float64 copies, masks, the unit
+#: directions, the reader's work: 408 measured for a synthetic material), with a margin.
+BYTES_PER_PAIR = 512
 
 
 class BRDFFormatError(InputFileError):
@@ -97,15 +102,13 @@ class BRDFSource(abc.ABC):
         Directions are normalised. Rows where either direction is at or
         below the horizon, has zero length or is not finite give 0. Measured
         sources return their data as it is: values may be slightly negative
-        where the measurement was noisy (metrics clamp them to 0).
+        where the measurement was noisy (metrics clamp them to 0). Arrays that are not numbers
+        raise TypeError, row counts beyond memory ValueError (hybridbrdf.limits), each naming
+        the argument.
         """
+        wi, wo = pair_arguments(("wi", "wo"), (wi, wo), (3, 3), BYTES_PER_PAIR)
         wi = np.asarray(wi, dtype=np.float64)
         wo = np.asarray(wo, dtype=np.float64)
-        for arr, nm in ((wi, "wi"), (wo, "wo")):
-            if arr.ndim != 2 or arr.shape[1] != 3:
-                raise ValueError(f"{nm} must have shape (N, 3), got {arr.shape}")
-        if wi.shape[0] != wo.shape[0]:
-            raise ValueError(f"wi has {wi.shape[0]} rows but wo has {wo.shape[0]}")
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             li = np.sqrt((wi * wi).sum(axis=1))
             lo = np.sqrt((wo * wo).sum(axis=1))

@@ -26,6 +26,7 @@ from hybridbrdf import spec
 from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
+from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.networks import energy_bound_scale
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
@@ -37,6 +38,10 @@ CHANNELS = SV["map_channels"]
 INDEX_KEYS = {"format_version", "model", "size", "addressing", "layers", "maps"}
 MAP_KEYS = {"file", "quantity", "layer", "first", "decode"}
 LAYER_QUANTITIES = ("kd", "eta", "alpha", "latent")
+#: Bytes per pair of :meth:`SVBRDF.eval` besides the model's evaluation: float64 copies of uv,
+#: wi, wo and four layers' texel values from four bilinear taps (an estimate, not a measurement:
+#: 4 layers x 4 taps x 16 float64 values is 2 KiB).
+BYTES_PER_PAIR = 2048
 
 
 class SVBRDFError(InputFileError):
@@ -162,9 +167,9 @@ class SVBRDF:
         ``addressing``), wi and wo (N, 3). By default libhybridbrdf's scalar path
         (``HybridModel::eval_texel``, the tracer's and the shaders' twin) for a model read from a
         file; ``dtype`` (torch.float32 / torch.float64) evaluates the PyTorch model instead."""
+        uv, wi, wo = pair_arguments(("uv", "wi", "wo"), (uv, wi, wo), (2, 3, 3),
+                                    BYTES_PER_PAIR + self.model.bytes_per_pair(dtype))
         wi, wo = (np.asarray(a, dtype=np.float64) for a in (wi, wo))
-        if wi.ndim != 2 or wi.shape[1] != 3 or wo.shape != wi.shape or len(wi) != len(np.asarray(uv)):
-            raise ValueError("uv (N, 2), wi and wo (N, 3) must have the same N")
         t = self.texels(uv, filter)
         if dtype is None and self.model.path is not None:
             mat = np.broadcast_to(np.asarray(self.indices, dtype=np.int32), t["weight"].shape)
