@@ -115,7 +115,7 @@
     textured.thumbnails.forEach(function (t) {
       const fig = document.createElement("figure"), img = document.createElement("img"),
         cap = document.createElement("figcaption");
-      img.src = t.src;
+      img.setAttribute("src", t.src);
       img.alt = t.label;
       cap.textContent = t.label + " (" + t.how + ")";
       fig.appendChild(img);
