@@ -25,9 +25,9 @@ import numpy as np
 import pytest
 
 from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
-from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8
+from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8, tracer_scene
 from helpers import run_cli, saved_random_model
-from test_view import open_page, read_state
+from test_view import SIZE as TRACER_SIZE, assert_matches_tracer, needs_renderer, open_page, page_state, read_state
 
 SIZE = 48
 
@@ -131,6 +131,22 @@ def test_page_is_libhybridbrdf_under_the_sun(model, tmp_path):
     assert np.abs(got - flipped)[shown].mean() > 1, "the comparison cannot tell v down from v up"
 
 
+@needs_renderer
+@pytest.mark.parametrize("analytic", [False, True], ids=["full", "analytic"])
+def test_page_matches_tracer_of_the_scene_it_prints(tmp_path, analytic):
+    """The scene the page prints (a textured material, bilinear) is tracer_scene's, and the path tracer's
+    render of it is the page's picture within test_view.py's bound (two tracer seeds' difference + 1),
+    the full model and the layers' f_a alone (``analytic=1``, the tracer's "evaluate": "analytic")."""
+    path, m = saved_random_model(tmp_path, "hybrid")
+    _four_layer_material(m, tmp_path / "sv")
+    page = _view(tmp_path, tmp_path / "sv")
+    img, scene, _ = page_state(page, f"analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
+    assert scene == tracer_scene(str(tmp_path / "sv" / "model.safetensors"), m.materials[0], width=TRACER_SIZE,
+                                 height=TRACER_SIZE, analytic=analytic, spp=64, light="sun", elevation=40, azimuth=130,
+                                 svbrdf=str(tmp_path / "sv"))
+    assert_matches_tracer(img, scene)
+
+
 def test_constant_maps_are_the_uniform_material(model, tmp_path):
     h, w = 3, 4
     kd, eta, alpha = [0.62, 0.31, 0.12], [1.7, 2.2, 1.4], [0.09, 0.35]
@@ -149,6 +165,8 @@ def test_constant_maps_are_the_uniform_material(model, tmp_path):
     want = _pixels(uniform, f"{common}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}")
     other = _pixels(uniform, f"{common}&material={model.materials[1]}")
     diff = np.abs(got - want)
+    print(f"constant maps against the uniform page: mean {diff.mean():.4f}, max {diff.max()}; "
+          f"against the material without them {np.abs(got - other).mean():.2f}")
     assert diff.mean() <= 0.05 and diff.max() <= 1, (diff.mean(), diff.max())
     assert np.abs(got - other).mean() > 2, "the maps' values change the picture"
 
@@ -177,6 +195,7 @@ def test_two_regions_show_each_material(model, tmp_path):
         assert pure.sum() > 100, pure.sum()
         want = _pixels(uniform, f"{common}&material={material}")
         diff = np.abs(got - want)[pure]
+        print(f"region of layer {layer}: mean {diff.mean():.4f}, max {diff.max()} over {pure.sum()} pixels")
         assert diff.mean() <= 0.05 and diff.max() <= 1, (layer, diff.mean(), diff.max())
         assert np.abs(got - want)[~pure & corners[0][1]].mean() > 1, "the other region differs"
 
