@@ -20,6 +20,7 @@ from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import RigError, load_rig, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.acquire.texel_fit import fit_analytic_texels
 from hybridbrdf.cli import main
 from hybridbrdf.render.tracer import write_exr
 from hybridbrdf.sources.synthetic import LambertGGXDielectric
@@ -359,3 +360,23 @@ def test_observations_leave_out_grazing_pixels_and_refuse_bad_photographs():
     bad[3, 3, 0] = np.inf
     with pytest.raises(ValueError, match="values that are not finite"):
         texel_observations(rig, [bad], (4, 4))
+
+
+def test_the_analytic_texel_fit_recovers_each_texels_parameters():
+    # Two f_a materials (exactly representable), left and right of u = 0.5; truth known per texel.
+    left = LambertGGXDielectric("left", kd=(0.45, 0.22, 0.08), eta=1.5, alpha_x=0.2, alpha_y=0.2)
+    right = LambertGGXDielectric("right", kd=(0.1, 0.3, 0.6), eta=2.2, alpha_x=0.45, alpha_y=0.45)
+    half = np.zeros((2, 64, 2))
+    half[:, :32, 0], half[:, 32:, 1] = 1, 1
+    rig = light_stage_rig(8, 3, size=(32, 32))
+    cap = simulate(rig, Mixture([left, right], half))
+    maps = fit_analytic_texels(texel_observations(rig, cap.photos, (4, 1)), steps=200)
+    assert (maps.counts > 0).all()
+    for i, truth in ((0, left), (3, right)):  # the outer texels are pure
+        np.testing.assert_allclose(maps.kd[0, i], truth.kd, atol=0.01)
+        np.testing.assert_allclose(maps.alpha[0, i], [truth.alpha_x] * 2, atol=0.01)
+        np.testing.assert_allclose(maps.eta[0, i], truth.eta, atol=0.05)
+    noisy = simulate(rig, Mixture([left, right], half), NoiseModel(photons=2000.0, read_noise=2.0), seed=3)
+    maps = fit_analytic_texels(texel_observations(rig, noisy.photos, (4, 1)), steps=200)
+    np.testing.assert_allclose(maps.kd[0, 0], left.kd, atol=0.02)
+    np.testing.assert_allclose(maps.alpha[0, 0], [left.alpha_x] * 2, atol=0.02)

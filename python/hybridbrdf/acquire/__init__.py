@@ -7,6 +7,7 @@
 - :mod:`~hybridbrdf.acquire.noise`: the sensor's Poisson-Gaussian noise;
 - :mod:`~hybridbrdf.acquire.simulate`: the photographs; :mod:`~hybridbrdf.acquire.capture`: their folder;
 - :mod:`~hybridbrdf.acquire.observations`: the photographs turned back into BRDF values per texel (a fit's input).
+- :mod:`~hybridbrdf.acquire.texel_fit`: fits per texel from the observations (analytic only so far).
 
     rig = flash_rig(16, size=(512, 512))
     mixture = Mixture.painted(open_source("synthetic:plastic"), [open_source("synthetic:gold")], [mask])
