@@ -19,8 +19,14 @@ sparse file, symlink loop, folder) through every reader; structured JSON (deep n
 types, huge counts) as model metadata and as scene files, and tabulated scenes over the tracer's
 table budget; forged sizes (safetensors header lengths, shapes and offsets; Radiance HDR header
 dimensions); and output over input (hbrdf-codegen -o and hbrdf render -o reaching the model or
-the scene by the same path, a symlink, a hard link or a dot-dot path). The headline counts the
-inputs and violations of each of these four kinds."""
+the scene by the same path, a symlink, a hard link or a dot-dot path).
+
+Round three (issue 45), every input invalid too: API type confusion (a wrong type or value for one
+argument of a public function: edit, mix, albedo, eval, AnalyticParams, analytic_eval, sample,
+pdf, BRDFSource.eval), absurd counts (10^8 .. 2^50 through the API's counts and pair counts as
+broadcast views, and hbrdf's count flags), non-finite environment maps (+-Inf, NaN and negative
+texels through the tracer and hbrdf view --env) and extreme geometry (planes, spheres, meshes and
+cameras at 3e10 .. 3e38). The headline counts the inputs and violations of each of these kinds."""
 
 from __future__ import annotations
 
@@ -193,6 +199,7 @@ def main(argv=None) -> int:
         counts[f"directions: {label}"]["_seconds"] = round(time.perf_counter() - t0, 1)
 
     hostile_round_two(k, rng, work, seeds, docs, counts, failures)
+    hostile_round_three(k, rng, work, counts, failures)
 
     def inputs(c):
         return sum(v for key, v in c.items() if not key.startswith("_"))
@@ -216,7 +223,8 @@ def main(argv=None) -> int:
     return 1 if violations else 0
 
 
-HOSTILE_KINDS = ("special files", "structured JSON", "forged sizes", "output over input")
+HOSTILE_KINDS = ("special files", "structured JSON", "forged sizes", "output over input", "API type confusion",
+                 "absurd counts", "non-finite environment maps", "extreme geometry")
 
 
 def refused(check):
@@ -263,6 +271,29 @@ def hostile_round_two(k, rng, work, seeds, docs, counts, failures):
     out.mkdir()
     run("output over input: hbrdf-codegen -o, hbrdf render -o", int(400 * k),
         lambda i: (*cases[i % len(cases)], out, seeds["hybrid"]), fs.check_output_over_input, counts, failures)
+
+
+def hostile_round_three(k, rng, work, counts, failures):
+    """The hostile inputs of round three (issue 45), every one invalid: wrong types at the public
+    API, absurd counts through the API and hbrdf's count flags, non-finite or negative environment
+    texels through the tracer and hbrdf view --env, geometry beyond float32's reach."""
+    third = work / "round3"
+    third.mkdir()
+    model, source = fs.api_seed(third)
+    run("API type confusion: public functions", int(20_000 * k),
+        lambda i: (*fs.api_type_confusion(rng), model, source), fs.check_api_call, counts, failures)
+    run("absurd counts: API counts and pair counts", int(3_000 * k),
+        lambda i: (*fs.absurd_count(rng), model), fs.check_absurd_count, counts, failures)
+    run("absurd counts: hbrdf count flags", int(1_000 * k),
+        lambda i: (*fs.COUNT_FLAGS[i % len(fs.COUNT_FLAGS)], fs.CLI_COUNTS[int(rng.integers(0, len(fs.CLI_COUNTS)))],
+                   third, pathlib.Path(model.path)), fs.check_cli_count, counts, failures)
+    if getattr(_core, "HAVE_RENDERER", False):
+        run("non-finite environment maps: render, hbrdf view --env", int(1_000 * k),
+            lambda i: (fs.ENV_KINDS[i % len(fs.ENV_KINDS)], rng, third, ("render", "view")[i // len(fs.ENV_KINDS) % 2]),
+            fs.check_environment, counts, failures)
+        run("extreme geometry: spheres, planes, meshes, camera", int(2_000 * k),
+            lambda i: (fs.GEOMETRY_KINDS[i % len(fs.GEOMETRY_KINDS)], rng, third), fs.check_extreme_geometry,
+            counts, failures)
 
 
 if __name__ == "__main__":

@@ -100,7 +100,11 @@ def rows_argument(name: str, value, cols: int) -> np.ndarray:
     and None; ValueError for another shape."""
     if value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be an (N, {cols}) array of numbers, got {type(value).__name__}")
-    arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+    try:
+        arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+    except (ValueError, TypeError):  # ragged nested lists: NumPy's words name no argument
+        raise ValueError(f"{name} must be an (N, {cols}) array of numbers, got {type(value).__name__} of rows of "
+                         f"different lengths") from None
     if arr.dtype.kind not in "iuf":
         raise TypeError(f"{name} must be an (N, {cols}) array of numbers, got an array of dtype {arr.dtype}")
     if arr.ndim != 2 or arr.shape[1] != cols:

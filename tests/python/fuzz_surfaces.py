@@ -43,9 +43,10 @@ def _printable_line(text: str) -> bool:
     return "\n" not in text and "\r" not in text and all(ch >= " " and ch != "\x7f" for ch in text)
 
 
-def expect_clean_error(surface: str, exc: BaseException, names: str) -> str:
-    """REJECTED when ``exc`` is a clean one-line error naming ``names``; Violation otherwise."""
-    if not isinstance(exc, CLEAN_ERRORS):
+def expect_clean_error(surface: str, exc: BaseException, names: str, errors: tuple = CLEAN_ERRORS) -> str:
+    """REJECTED when ``exc`` is a clean one-line error (one of ``errors``) naming ``names``;
+    Violation otherwise."""
+    if not isinstance(exc, errors):
         raise Violation(f"{surface}: {type(exc).__name__} escaped: {exc!r}"[:2000]) from exc
     msg = str(exc)
     if not _printable_line(msg):
@@ -445,10 +446,11 @@ def _memory_bound(extra: int = MEMORY_BOUND):
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
 
 
-def check_hostile(surface: str, call: Callable[[], object], names: str, may_accept: bool = False) -> str:
-    """``call()`` must raise a clean one-line error naming ``names`` within HOSTILE_TIME_S and
-    MEMORY_BOUND; returning is a Violation too (the input is invalid by construction) unless
-    ``may_accept``, for generators that can make valid inputs."""
+def check_hostile(surface: str, call: Callable[[], object], names: str, may_accept: bool = False,
+                  errors: tuple = CLEAN_ERRORS) -> str:
+    """``call()`` must raise a clean one-line error (one of ``errors``) naming ``names`` within
+    HOSTILE_TIME_S and MEMORY_BOUND; returning is a Violation too (the input is invalid by
+    construction) unless ``may_accept``, for generators that can make valid inputs."""
     import time
 
     t0 = time.monotonic()
@@ -457,7 +459,7 @@ def check_hostile(surface: str, call: Callable[[], object], names: str, may_acce
             call()
         outcome = VALID
     except Exception as exc:  # noqa: BLE001
-        outcome = expect_clean_error(surface, exc, names)
+        outcome = expect_clean_error(surface, exc, names, errors)
     if outcome == VALID and not may_accept:
         raise Violation(f"{surface}: accepted")
     seconds = time.monotonic() - t0
@@ -697,3 +699,288 @@ def check_output_over_input(command: str, kind: str, which: str, workdir: pathli
         if p.read_bytes() != data:
             raise Violation(f"{prog} -o {which} ({kind}): {p.name} was changed")
     return REJECTED
+
+
+# ---- hostile inputs, round three (issue 45): API type confusion, absurd counts, non-finite
+# environment maps, extreme geometry ----
+#
+# Every input below is invalid by construction and must be refused within HOSTILE_TIME_S and
+# MEMORY_BOUND (check_hostile): the Python API with a one-line TypeError or ValueError naming the
+# argument (docs/CONVENTIONS.md, "Counts and memory"), counts before anything is allocated (a
+# count of 10^9 and more under a 1 GiB address-space allowance), environment maps and geometry
+# with one line naming the scene file (docs/RENDERING.md, "Limits and validation").
+
+#: A refusal at the public API: a wrong type, a value out of range, an unknown material.
+API_ERRORS = (TypeError, ValueError, KeyError)
+
+_ROWS = 10 ** 9  # rows of the broadcast views: 24 bytes of data each, 10^9 rows
+
+
+def _view(cols: int, rows: int = _ROWS) -> np.ndarray:
+    return np.broadcast_to(np.linspace(0.2, 0.9, cols), (rows, cols))
+
+
+#: Wrong values by the kind of argument they are given for: each is invalid for every argument
+#: of its kind (a string where a number belongs, a bool where a count or a name does, ...).
+WRONG = {
+    "count": [True, "64", 64.0, [64], np.float64(64), 1 + 2j, -1, 0, 10 ** 12, 2 ** 63, 2 ** 70],
+    "real": [None, True, False, "0.5", b"0.5", [0.5], {"t": 0.5}, 0.5 + 0j, float("nan"), float("inf"), -0.1, 1.5,
+             np.bool_(True), np.array([0.5, 0.5])],
+    "name": [None, 5, True, 1.5, b"new", ["new"], ("new",), np.int64(3), {"new": 1}],
+    "material": [None, True, False, 1.5, b"mat-0", ["mat-0"], ("mat-0",), -1, 3, 2 ** 70, "no such material",
+                 np.float64(0), np.bool_(False)],
+    "parameter": [True, "0.5", b"0.5", [0.5, "x"], {"a": 1}, float("nan"), -1.0, [0.1] * 5, np.zeros((2, 2)),
+                  np.array(["0.5"]), 1 + 1j],
+    "flag": [None, "no", "True", 1, 0, [True], np.float64(1.0)],
+    "rows": [None, "wi", b"xyz", 5, [["a", "b", "c"]], np.zeros((2, 3), object), np.ones((2, 3), bool),
+             np.zeros((2, 4)), np.zeros(3), [[1, 2, 3], [1, 2]], np.zeros((2, 3), complex), _view(3)],
+    "strategy": [None, 5, b"mis", ["mis"], "MIS ", "nope"],
+    "dtype": ["float32", np.float32, 5, "torch.float64"],
+}
+
+#: (surface, argument, kind, call(model, source, value)): one argument of one public function
+#: given the wrong value. ``model`` is a HybridModel read from a file with materials mat-0..2.
+API_ARGUMENTS = [
+    ("model.edit", "name", "name", lambda m, s, v: m.edit("mat-0", v, kd=0.5)),
+    ("model.edit", "material", "material", lambda m, s, v: m.edit(v, "new", kd=0.5)),
+    ("model.edit", "kd", "parameter", lambda m, s, v: m.edit("mat-0", "new", kd=v)),
+    ("model.edit", "eta", "parameter", lambda m, s, v: m.edit("mat-0", "new", eta=v)),
+    ("model.edit", "alpha", "parameter", lambda m, s, v: m.edit("mat-0", "new", alpha=v)),
+    ("model.edit", "conserve_energy", "flag", lambda m, s, v: m.edit("mat-0", "new", kd=0.5, conserve_energy=v)),
+    ("model.mix", "t", "real", lambda m, s, v: m.mix("mat-0", "mat-1", v, "new")),
+    ("model.mix", "name", "name", lambda m, s, v: m.mix("mat-0", "mat-1", 0.5, v)),
+    ("model.mix", "material", "material", lambda m, s, v: m.mix(v, "mat-1", 0.5, "new")),
+    ("model.mix", "conserve_energy", "flag", lambda m, s, v: m.mix("mat-0", "mat-1", 0.5, "new", conserve_energy=v)),
+    ("model.albedo", "samples", "count", lambda m, s, v: m.albedo("mat-0", samples=v)),
+    ("model.albedo", "material", "material", lambda m, s, v: m.albedo(v, samples=16)),
+    ("model.eval", "wi", "rows", lambda m, s, v: m.eval(v, [[0.0, 0.0, 1.0]], 0)),
+    ("model.eval", "wo", "rows", lambda m, s, v: m.eval([[0.0, 0.0, 1.0]], v, 0)),
+    ("model.eval (torch)", "wi", "rows", lambda m, s, v: m.eval(v, [[0.0, 0.0, 1.0]], 0, dtype=_torch().float32)),
+    ("model.eval", "material", "material", lambda m, s, v: m.eval([[0.0, 0.0, 1.0]], [[0.0, 0.0, 1.0]], v)),
+    ("model.eval", "dtype", "dtype", lambda m, s, v: m.eval([[0.0, 0.0, 1.0]], [[0.0, 0.0, 1.0]], 0, dtype=v)),
+    ("model.eval_analytic", "wo", "rows", lambda m, s, v: m.eval_analytic([[0.0, 0.0, 1.0]], v, 0)),
+    ("AnalyticParams", "kd", "parameter", lambda m, s, v: hb.AnalyticParams(kd=v)),
+    ("AnalyticParams", "alpha", "parameter", lambda m, s, v: hb.AnalyticParams(alpha=v)),
+    ("analytic_eval", "wi", "rows", lambda m, s, v: hb.analytic_eval(v, [[0.0, 0.0, 1.0]], hb.AnalyticParams())),
+    ("pdf", "wo", "rows", lambda m, s, v: hb.pdf([[0.0, 0.0, 1.0]], v, hb.AnalyticParams())),
+    ("pdf", "strategy", "strategy", lambda m, s, v: hb.pdf([[0.0, 0.0, 1.0]], [[0.0, 0.0, 1.0]], hb.AnalyticParams(), v)),
+    ("sample", "wo", "rows", lambda m, s, v: hb.sample(v, [[0.5, 0.5]], hb.AnalyticParams())),
+    ("sample", "strategy", "strategy", lambda m, s, v: hb.sample([[0.0, 0.0, 1.0]], [[0.5, 0.5]], hb.AnalyticParams(), v)),
+    ("BRDFSource.eval", "wi", "rows", lambda m, s, v: s.eval(v, [[0.0, 0.0, 1.0]])),
+]
+
+# What an error must contain to name the argument: its name ("t " for t, which any word holds).
+_NAMED_BY = {"t": "t "}
+
+
+def _torch():
+    import torch
+
+    return torch
+
+
+def api_seed(workdir: pathlib.Path):
+    """(model, source) the API generators call: a small random model read from a file (materials
+    mat-0, mat-1, mat-2) and synthetic:gold."""
+    import torch
+
+    from hybridbrdf.sources import open_source
+
+    torch.manual_seed(0)
+    _, model = random_model("hybrid", latent=2, width=8, depth=1)
+    path = workdir / "api-model.safetensors"
+    model.save(path)
+    return hb.load_model(path), open_source("synthetic:gold")
+
+
+def api_type_confusion(rng: np.random.Generator):
+    """(surface, argument, value, call): one public function with one argument given a wrong value."""
+    surface, argument, kind, call = API_ARGUMENTS[int(rng.integers(0, len(API_ARGUMENTS)))]
+    values = WRONG[kind]
+    value = values[int(rng.integers(0, len(values)))]
+    return surface, argument, value, call
+
+
+def check_api_call(surface: str, argument: str, value, call, model, source) -> str:
+    """``surface`` with ``argument`` = ``value`` (wrong by construction): a one-line TypeError,
+    ValueError or KeyError naming the argument, within the time and memory bounds."""
+    return check_hostile(f"{surface}({argument}={value!r:.60})", lambda: call(model, source, value),
+                         _NAMED_BY.get(argument, argument), errors=API_ERRORS)
+
+
+#: (surface, argument, call(model, count)): every public count and pair count, given an absurd
+#: one. Pair counts come as broadcast views (24 bytes whatever their rows): nothing but the check
+#: stops a copy.
+API_COUNTS = [
+    ("model.albedo", "samples", lambda m, n: m.albedo("mat-0", samples=n)),
+    ("energy.tables", "samples", lambda m, n: _energy().tables(m, ["mat-0"], samples=n)),
+    ("demo.run_demo", "--samples", lambda m, n: _demo().run_demo("/nonexistent/never-written.png", samples=n)),
+    ("model.eval", "wi rows", lambda m, n: m.eval(_view(3, n), _view(3, n), 0)),
+    ("model.eval (torch)", "wi rows", lambda m, n: m.eval(_view(3, n), _view(3, n), 0, dtype=_torch().float64)),
+    ("model.eval_analytic", "wi rows", lambda m, n: m.eval_analytic(_view(3, n), _view(3, n), 1)),
+    ("analytic_eval", "wi rows", lambda m, n: hb.analytic_eval(_view(3, n), _view(3, n), hb.AnalyticParams())),
+    ("sample", "wo rows", lambda m, n: hb.sample(_view(3, n), _view(2, n), hb.AnalyticParams())),
+    ("pdf", "wi rows", lambda m, n: hb.pdf(_view(3, n), _view(3, n), hb.AnalyticParams(), "ggx")),
+    ("BRDFSource.eval", "wi rows", lambda m, n: _gold().eval(_view(3, n), _view(3, n))),
+]
+
+#: Absurd counts: from past the machine's memory at the smallest per-unit cost to 2^50 (NumPy
+#: refuses views of more than 2^63 bytes itself).
+ABSURD = [10 ** 9, 3 * 10 ** 9, 10 ** 10, 10 ** 12, 2 ** 40, 2 ** 50]
+
+
+def _energy():
+    from hybridbrdf.model import energy
+
+    return energy
+
+
+def _demo():
+    from hybridbrdf import demo
+
+    return demo
+
+
+@functools.lru_cache(maxsize=1)
+def _gold():
+    from hybridbrdf.sources import open_source
+
+    return open_source("synthetic:gold")
+
+
+def absurd_count(rng: np.random.Generator):
+    """(surface, argument, count, call): one public count or pair count at an absurd size."""
+    surface, argument, call = API_COUNTS[int(rng.integers(0, len(API_COUNTS)))]
+    return surface, argument, ABSURD[int(rng.integers(0, len(ABSURD)))], call
+
+
+def check_absurd_count(surface: str, argument: str, count: int, call, model) -> str:
+    """Refused in one line naming the argument and the largest count that fits ("at most"),
+    before allocating: within 2 s and a 1 GiB address-space allowance."""
+    def run():
+        try:
+            call(model, count)
+        except ValueError as exc:
+            if "at most" not in str(exc):
+                raise Violation(f"{surface}({argument}={count}): refused without its bound: {exc}") from exc
+            raise
+
+    return check_hostile(f"{surface}({argument}={count})", run, argument, errors=(ValueError,))
+
+
+#: hbrdf's count flags (docs/CONVENTIONS.md, "Counts and memory"): COMMAND, FLAG.
+COUNT_FLAGS = [("info", "--albedo-samples"), ("demo", "--samples"), ("bound", "--samples"), ("eval", "--pairs")]
+#: Counts for them: within the flags' ranges (refused by memory) and beyond (refused by range).
+CLI_COUNTS = [10 ** 8, 3 * 10 ** 8, 10 ** 9, 10 ** 12, 2 ** 63, 10 ** 30]
+
+
+def check_cli_count(command: str, flag: str, count: int, workdir: pathlib.Path, model_path: pathlib.Path) -> str:
+    """``hbrdf COMMAND ... FLAG COUNT`` run in this process: exit 1 or 2 with one error line
+    naming the flag, nothing written, within the time and memory bounds (no MemoryError)."""
+    from hybridbrdf.cli import main
+
+    out = workdir / f"count-{command}.out"
+    argv = {"info": ["info", str(model_path)], "demo": ["demo", "--out", str(out)],
+            "bound": ["bound", str(model_path), "--out", str(out)],
+            "eval": ["eval", str(model_path), "synthetic:gold"]}[command] + [flag, str(count)]
+    err = io.StringIO()
+    result = {}
+
+    def run():
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                result["rc"] = main(argv)
+        except SystemExit as exc:
+            result["rc"] = exc.code
+        raise ValueError(f"{flag} exit {result['rc']}")  # the outcome is checked below
+
+    check_hostile(f"hbrdf {command} {flag} {count}", run, flag)
+    lines = [line for line in err.getvalue().splitlines() if line.strip()]
+    errors = [line for line in lines if line.startswith(f"hbrdf {command}") and "error:" in line]
+    if result.get("rc") not in (1, 2) or len(errors) != 1 or flag not in errors[0] or "Traceback" in err.getvalue():
+        raise Violation(f"hbrdf {command} {flag} {count}: exit {result.get('rc')}, stderr {err.getvalue()[-500:]!r}")
+    if os.path.lexists(out):
+        raise Violation(f"hbrdf {command} {flag} {count}: wrote {out.name}")
+    return REJECTED
+
+
+# Non-finite and negative environment texels: refused at load with one line naming the scene file
+# (docs/RENDERING.md, "Environment texels"), through the tracer and through hbrdf view --env.
+
+ENV_KINDS = ("one +inf texel", "one -inf texel", "one nan texel", "all nan", "all negative", "one negative texel",
+             "one huge negative")
+
+
+def hostile_environment(kind: str, rng: np.random.Generator, path: pathlib.Path) -> None:
+    """An EXR environment map at ``path`` (8 to 64 texels wide, 2:1) of ``kind``."""
+    from hybridbrdf.render.tracer import write_exr
+
+    w = int(rng.choice([8, 16, 64]))
+    img = rng.uniform(0.0, 4.0, (w // 2, w, 3)).astype(np.float32)
+    y, x, c = int(rng.integers(0, w // 2)), int(rng.integers(0, w)), int(rng.integers(0, 3))
+    if kind == "all nan":
+        img[:] = np.nan
+    elif kind == "all negative":
+        img = -img - np.float32(1e-3)
+    else:
+        img[y, x, c] = {"one +inf texel": np.inf, "one -inf texel": -np.inf, "one nan texel": np.nan,
+                        "one negative texel": -float(rng.uniform(1e-6, 1.0)), "one huge negative": -3e38}[kind]
+    write_exr(img, str(path))
+
+
+def check_environment(kind: str, rng: np.random.Generator, workdir: pathlib.Path, through: str = "render") -> str:
+    """A hostile map through ``render()`` of a 4 x 4 scene file ("render") or the viewer's
+    environment (``hbrdf view --env``, "view"): refused in one line naming the scene file (the
+    map for the viewer, which has no scene file)."""
+    env = workdir / "hostile-env.exr"
+    hostile_environment(kind, rng, env)
+    if through == "view":
+        from hybridbrdf.viewer.lighting import environment_spec, page_environment
+
+        return check_hostile(f"hbrdf view --env ({kind})", lambda: page_environment(environment_spec(str(env))),
+                             str(env))
+    from hybridbrdf.render.tracer import render
+
+    scene = workdir / "hostile-env.json"
+    scene.write_text(json.dumps({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4},
+                                 "environment": {"type": "file", "file": str(env)},
+                                 "objects": [{"type": "sphere", "material": {"type": "analytic"}}],
+                                 "spp": 1, "threads": 1}))
+    return check_hostile(f"environment map ({kind})", lambda: render(str(scene)), str(scene))
+
+
+# Extreme geometry: objects far beyond float32's reach at the camera's scale.
+
+GEOMETRY_KINDS = ("huge plane", "huge sphere", "far sphere", "huge mesh", "far camera")
+
+
+def extreme_geometry_scene(kind: str, rng: np.random.Generator, workdir: pathlib.Path) -> dict:
+    """A 4 x 4 scene (camera at distance ~3) with one object of ``kind`` at 3e10 .. 3e38."""
+    big = float(rng.choice([3e10, 1e12 + 1, 1e15, 1e20, 1e30, 3e38]))
+    analytic = {"type": "analytic"}
+    camera = {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 4, "height": 4}
+    if kind == "huge plane":
+        obj = {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": big, "material": analytic}
+    elif kind == "huge sphere":
+        obj = {"type": "sphere", "center": [0, 0, 0], "radius": big, "material": analytic}
+    elif kind == "far sphere":
+        obj = {"type": "sphere", "center": [big, 0, 0], "radius": 1, "material": analytic}
+    elif kind == "huge mesh":
+        mesh = workdir / "hostile-mesh.obj"
+        mesh.write_text(f"v {-big} -1 {-big}\nv {big} -1 {-big}\nv 0 -1 {big}\nf 1 2 3\n")
+        obj = {"type": "mesh", "file": str(mesh), "material": analytic}
+    elif kind == "far camera":
+        camera = dict(camera, position=[big, 0, 3], look_at=[big, 0, 0])
+        obj = {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": analytic}
+    else:
+        raise ValueError(f"unknown geometry kind {kind!r}")
+    return {"camera": camera, "objects": [obj], "spp": 1, "threads": 1}
+
+
+def check_extreme_geometry(kind: str, rng: np.random.Generator, workdir: pathlib.Path) -> str:
+    """A scene file with extreme geometry through ``render()``: refused in one line naming the file."""
+    from hybridbrdf.render.tracer import render
+
+    scene = workdir / "hostile-geometry.json"
+    scene.write_text(json.dumps(extreme_geometry_scene(kind, rng, workdir)))
+    return check_hostile(f"scene geometry ({kind})", lambda: render(str(scene)), str(scene))

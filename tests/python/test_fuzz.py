@@ -246,3 +246,47 @@ def test_output_over_input(tmp_path, seed_model, command, kind, which):
     if command == "render" and not getattr(_core, "HAVE_RENDERER", False):
         pytest.skip("built without the renderer")
     assert fs.check_output_over_input(command, kind, which, tmp_path, seed_model["hybrid"]) == fs.REJECTED
+
+
+# ---- hostile inputs, round three (issue 45) -----------------------------------------------------
+# Every input is invalid: the API refuses a wrong type or an absurd count in one line naming the
+# argument (counts before allocating: 2 s and a 1 GiB address-space allowance), hbrdf's count
+# flags in one line naming the flag, the tracer and the viewer a non-finite or negative
+# environment texel and geometry beyond float32's reach in one line naming the scene file.
+
+@pytest.fixture(scope="module")
+def api_seed(tmp_path_factory):
+    return fs.api_seed(tmp_path_factory.mktemp("api"))
+
+
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1))
+def test_api_type_confusion(api_seed, seed):
+    surface, argument, value, call = fs.api_type_confusion(np.random.default_rng(seed))
+    assert fs.check_api_call(surface, argument, value, call, *api_seed) == fs.REJECTED
+
+
+@pytest.mark.parametrize("surface, argument, call", fs.API_COUNTS, ids=[f"{s} {a}" for s, a, _ in fs.API_COUNTS])
+@pytest.mark.parametrize("count", fs.ABSURD)
+def test_absurd_api_counts(api_seed, surface, argument, call, count):
+    assert fs.check_absurd_count(surface, argument, count, call, api_seed[0]) == fs.REJECTED
+
+
+@pytest.mark.parametrize("command, flag", fs.COUNT_FLAGS)
+@pytest.mark.parametrize("count", fs.CLI_COUNTS)
+def test_absurd_cli_counts(tmp_path, api_seed, command, flag, count):
+    assert fs.check_cli_count(command, flag, count, tmp_path, pathlib.Path(api_seed[0].path)) == fs.REJECTED
+
+
+@pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+@pytest.mark.parametrize("through", ["render", "view"])
+@pytest.mark.parametrize("kind", fs.ENV_KINDS)
+def test_non_finite_environment_maps(tmp_path, kind, through):
+    assert fs.check_environment(kind, np.random.default_rng(len(kind)), tmp_path, through) == fs.REJECTED
+
+
+@pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="built without the renderer")
+@FEW
+@given(kind=st.sampled_from(fs.GEOMETRY_KINDS), seed=st.integers(0, 2**32 - 1))
+def test_extreme_geometry(tmp_path, kind, seed):
+    assert fs.check_extreme_geometry(kind, np.random.default_rng(seed), tmp_path) == fs.REJECTED

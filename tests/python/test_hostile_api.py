@@ -185,6 +185,7 @@ def _one_line(exc_info, *names):
     (lambda m: m.eval([[0, 0, 1]], "wo", 0), TypeError, ("wo", "str")),
     (lambda m: m.eval(np.array([[True, False, True]]), [[0, 0, 1]], 0), TypeError, ("wi", "bool")),
     (lambda m: m.eval([[0, 0, 1]], [[0, 0, 1]], 0, dtype=torch.float16), TypeError, ("dtype",)),
+    (lambda m: m.eval([[0, 0, 1], [0, 0]], [[0, 0, 1]] * 2, 0), ValueError, ("wi", "different lengths")),
     (lambda m: hb.AnalyticParams(kd="0.5"), TypeError, ("kd",)),
     (lambda m: hb.AnalyticParams(alpha=None), TypeError, ("alpha",)),
     (lambda m: hb.sample([[0, 0, 1]], [[0.5, 0.5]], hb.AnalyticParams(), strategy=5), TypeError, ("strategy",)),
