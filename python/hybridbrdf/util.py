@@ -233,6 +233,47 @@ def atomic_write_bytes(path, data: bytes, verify=None, wait: float = None) -> No
     _fsync_folder(folder)
 
 
+@contextlib.contextmanager
+def atomic_folder(folder):
+    """A temporary folder beside ``folder`` for the block to fill; when the block ends normally
+    it replaces ``folder`` (the old one renamed aside, then removed), so that a reader sees the
+    old folder or the complete new one. An exception, Ctrl-C or SIGTERM in the block removes the
+    temporary; temporaries of writers killed outright (their pid, in the name, no longer alive)
+    are removed first. The replacement is made under :func:`file_lock` of ``folder``. Every
+    OSError is raised as :class:`~hybridbrdf.errors.OutputFileError` naming ``folder``."""
+    folder = os.path.abspath(os.fspath(folder))
+    parent = os.path.dirname(folder)
+    try:
+        os.makedirs(parent, exist_ok=True)
+    except OSError as exc:
+        raise _named(folder, exc) from None
+    pattern = re.compile(re.escape(_temp_prefix(folder)) + r"(\d+)-[A-Za-z0-9_]+(\.old)?\Z")
+    with contextlib.suppress(OSError):
+        for entry in os.listdir(parent):
+            m = pattern.match(entry)
+            if m and int(m.group(1)) != os.getpid() and not _pid_alive(int(m.group(1))):
+                shutil.rmtree(os.path.join(parent, entry), ignore_errors=True)
+    with _sigterm_cleans_up():
+        tmp = _temporary_name(folder, parent)  # known to the cleanup before the folder exists
+        old = tmp + ".old"
+        try:
+            os.mkdir(tmp)
+            yield tmp
+            with file_lock(folder):
+                if os.path.lexists(folder):
+                    os.rename(folder, old)
+                os.rename(tmp, folder)
+        except OutputFileError as exc:  # a file in the temporary: name the folder, and the file in it
+            inner = os.path.relpath(exc.path, tmp) if exc.path.startswith(tmp + os.sep) else exc.path
+            raise OutputFileError(folder, f"{exc.problem} (writing {inner})", exc.errno or 0) from None
+        except OSError as exc:
+            raise _named(folder, exc) from None
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+            shutil.rmtree(old, ignore_errors=True)
+    _fsync_folder(parent)
+
+
 # ---- locks for updates in place ----------------------------------------------------------
 
 #: How long an update waits for another process's lock on the same file before refusing.

@@ -17,6 +17,7 @@ import hybridbrdf as hb
 import hybridbrdf.render.tracer  # noqa: F401  (hb.render.tracer)
 from hybridbrdf import spec
 from hybridbrdf.brdf.torch_brdf import eval_analytic
+from hybridbrdf.errors import OutputFileError
 from hybridbrdf.evaluate.metrics import metric_directions
 from hybridbrdf.fit.paint import composite, paint
 from hybridbrdf.fit.settings import FitSettings
@@ -602,3 +603,30 @@ def test_tracer_refuses_the_tabulated_sampler_for_textured_materials(tmp_path):
     with pytest.raises(ValueError, match="tabulated sampler tabulates one BRDF"):
         hb.render.tracer.render(_sphere_scene({"type": "textured", "svbrdf": str(tmp_path / "sv")}, sampler="tabulated"),
                                 quiet=True)
+
+
+def test_save_is_atomic_and_names_the_folder(tmp_path, monkeypatch):
+    """SVBRDF.save: a failure while writing (ENOSPC at an fsync) leaves the old folder as it was,
+    no temporary beside it, and one OutputFileError naming the folder; a temporary folder of a
+    writer killed outright (a dead pid in its name) is removed by the next save."""
+    import hybridbrdf.util as util
+
+    _, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, [m.materials[0]], (2, 2)).save(tmp_path / "sv")
+    before = sorted(os.listdir(tmp_path / "sv"))
+    stale = tmp_path / ".sv.tmp-999999999-0123456789abcdef"
+    stale.mkdir()
+    (stale / "svbrdf.json").write_text("{}")
+    real_fsync = os.fsync
+
+    def full(fd):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(util.os, "fsync", full)
+    with pytest.raises(OutputFileError, match=r"/sv: No space left on device \(writing model.safetensors\)$"):
+        SVBRDF(m, [m.materials[1]], (2, 2)).save(tmp_path / "sv")
+    monkeypatch.setattr(util.os, "fsync", real_fsync)
+    assert sorted(os.listdir(tmp_path / "sv")) == before
+    assert load_svbrdf(tmp_path / "sv").layers == [m.materials[0]]
+    assert not stale.exists()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".sv")) == []

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from typing import Dict, List, Optional, Sequence
 
 import numpy as np
@@ -31,6 +30,7 @@ from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.networks import energy_bound_scale
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
 from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
+from hybridbrdf.util import atomic_folder, atomic_write_bytes
 
 SV = spec.SVBRDF
 MAX_LAYERS = SV["max_layers"]
@@ -180,8 +180,9 @@ class SVBRDF:
 
     # ---- persistence ---------------------------------------------------------------------
     def save(self, folder, format: str = "png") -> None:
-        """Write the folder (index, model, maps) atomically: into a temporary folder beside it, then
-        renamed over it. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
+        """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.util.atomic_folder`):
+        into a temporary folder beside it, then renamed over it; SIGTERM or an error leaves the old
+        folder, an OSError names ``folder``. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
         the values) or 'exr' (float32, decoded values stored). An existing ``folder`` is replaced
         only when it is a textured material's folder (it holds svbrdf.json) or empty."""
         if format not in ("png", "exr"):
@@ -192,13 +193,7 @@ class SVBRDF:
                 raise InputFileError(folder, "exists and is not a folder")
             if os.listdir(folder) and not os.path.isfile(os.path.join(folder, SV["index_file"])):
                 raise InputFileError(folder, f"is a folder without {SV['index_file']}; refusing to replace it")
-        parent = os.path.dirname(folder)
-        os.makedirs(parent, exist_ok=True)
-        tmp = f"{folder}.tmp{os.getpid()}"
-        old = f"{folder}.old{os.getpid()}"
-        shutil.rmtree(tmp, ignore_errors=True)
-        try:
-            os.makedirs(tmp)
+        with atomic_folder(folder) as tmp:
             self.model.save_checked(os.path.join(tmp, SV["model_file"]))
             entries = []
             if self.weights is not None:
@@ -209,18 +204,8 @@ class SVBRDF:
                         entries += _write_layer_quantity(tmp, q, k, maps[q], format)
             index = {"format_version": SV["format_version"], "model": SV["model_file"], "size": list(self.size),
                      "addressing": self.addressing, "layers": [{"material": m} for m in self.layers], "maps": entries}
-            with open(os.path.join(tmp, SV["index_file"]), "w") as fh:
-                json.dump(index, fh, indent=1)
-                fh.write("\n")
-                fh.flush()
-                os.fsync(fh.fileno())
+            atomic_write_bytes(os.path.join(tmp, SV["index_file"]), (json.dumps(index, indent=1) + "\n").encode())
             load_svbrdf(tmp)  # what was written reads back
-            if os.path.lexists(folder):
-                os.rename(folder, old)
-            os.rename(tmp, folder)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-            shutil.rmtree(old, ignore_errors=True)
         self.path = folder
         self.model = load_model(os.path.join(folder, SV["model_file"]))  # evaluated by libhybridbrdf from now on
 
