@@ -32,8 +32,7 @@ from hybridbrdf.fit.distributed import RankLostError
 from hybridbrdf.fit.paint import paint
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
-from hybridbrdf.fit.settings import (ADD_LOSS_EPS, ADD_STEPS, MAX_COUNT, PAIRS, FitSettings, Number, parse_mlp,
-                                     positive_int)
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
 from hybridbrdf.demo import BYTES_PER_SAMPLE as DEMO_BYTES_PER_SAMPLE
 from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
@@ -75,24 +74,6 @@ def print_beside(bar, line: str) -> None:
         bar.write(line, file=sys.stdout)
     else:
         print(line, flush=True)
-
-
-def bounded_count(bytes_each: float, lo: int = 1):
-    """argparse type: an integer in [lo, MAX_COUNT] ("2e4" allowed) whose memory, ``bytes_each``
-    bytes a unit, fits this machine (hybridbrdf.limits.check_count): a one-line usage error
-    naming the flag, what the count would take and the largest that fits."""
-    number = Number(int, lo, MAX_COUNT)
-
-    def parse(text: str) -> int:
-        value = number(text)
-        try:
-            check_count("", value, bytes_each)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc).strip()) from None
-        return value
-
-    parse.__name__ = "count"  # argparse names the type in its "invalid count value" message
-    return parse
 
 
 def _open_all(specs):
@@ -330,6 +311,7 @@ def _describe_new_material(model, name: str, out: str) -> int:
 
 
 def _cmd_bound(args: argparse.Namespace) -> int:
+    check_count("--samples", args.samples, energy.bytes_per_sample())
     check_writable(args.out, "model")
     with file_lock(args.out):  # --out MODEL: MODEL is read under the lock (docs/CONVENTIONS.md, "Writing files")
         model = load_model(args.model)
@@ -452,6 +434,9 @@ def _shown(value) -> str:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    if args.albedo_samples < 0:
+        raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
+    check_count("--albedo-samples", args.albedo_samples, albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR))
     model = load_model(args.model)
     a = model.arch
     written_by = getattr(model, "written_by", None)
@@ -726,7 +711,7 @@ def _add_bound_parser(sub) -> None:
     p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
     p.add_argument("--materials", metavar="A,B,...", help="only these materials (default: all); the others keep "
                                                           "their tables (or none: a table of ones)")
-    p.add_argument("--samples", type=bounded_count(energy.bytes_per_sample()), default=energy.SAMPLES, metavar="N",
+    p.add_argument("--samples", type=positive_int, default=energy.SAMPLES, metavar="N",
                    help="MIS samples per direction of the albedo estimate (default: %(default)s; at most what fits "
                         f"this machine's memory, {energy.bytes_per_sample() / 1024:.0f} KiB a sample; "
                         "docs/CONVENTIONS.md, \"Counts and memory\")")
@@ -791,8 +776,7 @@ def _add_info_parser(sub) -> None:
     p = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
                                                                          "training settings and materials.")
     p.add_argument("model", help="model file")
-    p.add_argument("--albedo-samples", metavar="N", default=1 << 11,
-                   type=bounded_count(albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR), lo=0),
+    p.add_argument("--albedo-samples", type=int, default=1 << 11, metavar="N",
                    help="incident samples per outgoing direction for each material's maximum directional albedo "
                         "(44 outgoing directions; default: %(default)s, about 1%% noise; hbrdf edit and mix use "
                         "8192; 0: do not estimate it); at most what fits this machine's memory, about "
@@ -814,7 +798,7 @@ def _add_demo_parser(sub) -> None:
         "directional albedo estimated with every sampling strategy.",
     )
     p.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
-    p.add_argument("--samples", type=bounded_count(DEMO_BYTES_PER_SAMPLE), default=200_000, metavar="N",
+    p.add_argument("--samples", type=int, default=200_000, metavar="N",
                    help=f"samples per albedo estimate (default: %(default)s; at most what fits this machine's memory, "
                         f"{DEMO_BYTES_PER_SAMPLE} bytes a sample; docs/CONVENTIONS.md, \"Counts and memory\")")
     p.set_defaults(func=_cmd_demo)
