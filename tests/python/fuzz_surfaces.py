@@ -869,7 +869,8 @@ def check_absurd_count(surface: str, argument: str, count: int, call, model) -> 
 
 
 #: hbrdf's count flags (docs/CONVENTIONS.md, "Counts and memory"): COMMAND, FLAG.
-COUNT_FLAGS = [("info", "--albedo-samples"), ("demo", "--samples"), ("bound", "--samples"), ("eval", "--pairs")]
+COUNT_FLAGS = [("info", "--albedo-samples"), ("demo", "--samples"), ("bound", "--samples"), ("eval", "--pairs"),
+               ("fit", "--pool"), ("fit", "--batch"), ("fit", "--eval-pairs")]
 #: Counts for them: within the flags' ranges (refused by memory) and beyond (refused by range).
 CLI_COUNTS = [10 ** 8, 3 * 10 ** 8, 10 ** 9, 10 ** 12, 2 ** 63, 10 ** 30]
 
@@ -882,7 +883,8 @@ def check_cli_count(command: str, flag: str, count: int, workdir: pathlib.Path, 
     out = workdir / f"count-{command}.out"
     argv = {"info": ["info", str(model_path)], "demo": ["demo", "--out", str(out)],
             "bound": ["bound", str(model_path), "--out", str(out)],
-            "eval": ["eval", str(model_path), "synthetic:gold"]}[command] + [flag, str(count)]
+            "eval": ["eval", str(model_path), "synthetic:gold"],
+            "fit": ["fit", "synthetic:gold", "--out", str(out), "--no-preview", "--quiet"]}[command] + [flag, str(count)]
     err = io.StringIO()
     result = {}
 

@@ -60,12 +60,15 @@ def model(tmp_path_factory):
     ("demo", "--samples", "1000000000000"),      # issue 45: 671 GiB
     ("bound", "--samples", "10000000"),          # 2.4 TiB of energy-table samples
     ("eval", "--pairs", "100000000"),            # within PAIRS' 1e8: ~190 GiB with the model's activations
+    ("fit", "--pool", "1073741824"),             # within POOL's 2^30: 652 GiB of pairs and values
+    ("fit", "--batch", "16000000"),              # within BATCH's 2^24: 8 materials' activations, 458 GiB
 ])
 def test_absurd_counts_are_refused_in_one_line_before_allocating(tmp_path, model, command, flag, value):
     path, _ = model
     argv = {"info": ["info", str(path)], "demo": ["demo", "--out", str(tmp_path / "d.png")],
             "bound": ["bound", str(path), "--out", str(tmp_path / "b.safetensors")],
-            "eval": ["eval", str(path), "synthetic:gold"]}[command]
+            "eval": ["eval", str(path), "synthetic:gold"],
+            "fit": ["fit", "synthetic:all", "--out", str(tmp_path / "f.safetensors"), "--no-preview"]}[command]
     t0 = time.monotonic()
     r = _hbrdf(*argv, flag, value)
     seconds = time.monotonic() - t0
@@ -77,7 +80,7 @@ def test_absurd_counts_are_refused_in_one_line_before_allocating(tmp_path, model
     m = re.search(r"at most ([\d,]+)", lines[0]) or re.search(r"in \[\d+, (\d+)\]", lines[0])
     assert m, lines[0]
     assert int(m.group(1).replace(",", "")) < int(value)
-    assert not (tmp_path / "d.png").exists() and not (tmp_path / "b.safetensors").exists()
+    assert not any((tmp_path / f).exists() for f in ("d.png", "b.safetensors", "f.safetensors"))
     assert seconds < 60  # refused up front (the interpreter's start is most of it)
 
 

@@ -32,13 +32,14 @@ from hybridbrdf import spec
 from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
-from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.limits import check_count
+from hybridbrdf.sources.base import BYTES_PER_PAIR as SOURCE_BYTES_PER_PAIR, BRDFSource
 from hybridbrdf.util import check_writable, file_lock
 
-from hybridbrdf.evaluate.evaluation import evaluate
+from hybridbrdf.evaluate.evaluation import BYTES_PER_PAIR as METRIC_BYTES_PER_PAIR, evaluate
 from hybridbrdf.fit.loop import FitState, run_steps
 from hybridbrdf.fit.loss import batch_loss_function, loss_epsilons
-from hybridbrdf.fit.pool import TrainingPool
+from hybridbrdf.fit.pool import TrainingPool, pool_bytes_per_pair
 from hybridbrdf.fit.record import training_record
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.fit.sparse_start import best_starts, keep_materials, start_from_nearest
@@ -182,6 +183,7 @@ def _check_fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Opt
               if frozen is not None and settings.sparse_init == "nearest" else 1)
     if starts > 1 and checkpoint:
         raise ValueError("--sparse-starts above 1 fits without --checkpoint (a sparse fit is minutes long)")
+    _check_counts(settings, len(sources) * starts)
     if checkpoint and ranks.main:
         ckpt.check_not_another_fits(checkpoint, resume, force)
     saved = None
@@ -191,6 +193,18 @@ def _check_fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Opt
         if not checksummed:
             log(f"{checkpoint}: checkpoint from an earlier hybridbrdf has no checksum; damage cannot be detected")
     return names, starts, saved
+
+
+def _check_counts(settings: FitSettings, rows: int) -> None:
+    """--pool, --batch and --eval-pairs bounded by the memory they take for ``rows`` material rows
+    (hybridbrdf.limits; one line naming the flag), before the pool is drawn. A step's cost per pair
+    and row: the network's float32 activations (HybridModel.bytes_per_pair's formula) three times
+    over for the backward pass, 3840 bytes at 32x3 where a step of 32768 pairs x 8 materials
+    measured 2145 (peak RSS over a fit of batch 64)."""
+    activations = 4 * (64 + 2 * settings.width * (settings.depth + 1))
+    check_count("--pool", settings.pool, pool_bytes_per_pair(rows))
+    check_count("--batch", settings.batch, 3 * activations * rows)
+    check_count("--eval-pairs", settings.eval_pairs, METRIC_BYTES_PER_PAIR + SOURCE_BYTES_PER_PAIR + activations)
 
 
 def _build_module(settings: FitSettings, n_sources: int, iso: List[bool], starts: int,

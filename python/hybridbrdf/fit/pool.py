@@ -44,6 +44,17 @@ def specular_pairs(rng: np.random.Generator, n: int, alpha: float) -> Tuple[np.n
     return wi_out, wo_out
 
 
+#: Peak bytes per pool pair besides the values: the float64 pairs (48), their float32 copies (24),
+#: one source's evaluation (sources.base.BYTES_PER_PAIR) and its float64 values (24), with a margin.
+POOL_BYTES_PER_PAIR = 640
+
+
+def pool_bytes_per_pair(rows: int) -> int:
+    """Peak memory of a :class:`TrainingPool` per pair for ``rows`` material rows (float32 RGB
+    each): what ``--pool`` is bounded by (hybridbrdf.limits)."""
+    return POOL_BYTES_PER_PAIR + 12 * rows
+
+
 class TrainingPool:
     """Direction pairs and every source's reference values on them (float32).
 
