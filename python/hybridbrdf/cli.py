@@ -318,7 +318,10 @@ def _cmd_bound(args: argparse.Namespace) -> int:
         names = [n.strip() for n in args.materials.split(",")] if args.materials else None
         for n in names or []:
             model.index(n)  # KeyError naming the material and the model's
-        bounded = energy.with_bound(model, names, samples=args.samples).save_checked(args.out)
+        n = len(names) if names is not None else len(model.materials)
+        with progress_bar(None, n, "energy bound", " materials", quiet=args.quiet) as bar:
+            bounded = energy.with_bound(model, names, samples=args.samples, progress=bar.update)
+        bounded = bounded.save_checked(args.out)
     changed = 0
     for m in bounded.material_info:
         rec = m.get("energy_bound")
@@ -411,7 +414,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     except MemoryError:
         raise ValueError("out of memory while reading the sources") from None
     try:
-        rows = evaluate(model, sources, n_pairs=args.pairs, extended=args.all_metrics)
+        with progress_bar(None, len(sources), "eval", " sources", quiet=args.quiet) as bar:
+            rows = evaluate(model, sources, n_pairs=args.pairs, extended=args.all_metrics, progress=bar.update)
     except MemoryError:
         raise ValueError(f"out of memory for {args.pairs} pairs; lower --pairs") from None
     print(format_table(rows, args.pairs))
@@ -636,12 +640,17 @@ def _add_eval_parser(sub) -> None:
                                    "name): SMAPE and cMAE of the analytic part and of the full model.", epilog=EPILOG)
     p.add_argument("model", help="model file")
     p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
-    p.add_argument("--pairs", type=positive_int, default=1_000_000, help="metric direction pairs (default: %(default)s)")
+    p.add_argument("--pairs", type=positive_int, default=1_000_000,
+                   help="metric direction pairs (default: %(default)s; at most 10^8 and what fits this machine's "
+                        "memory: docs/CONVENTIONS.md, \"Counts and memory\")")
     p.add_argument("--all-metrics", action="store_true",
                    help="also print MAE, reciprocity error (SMAPE of f(wi,wo) vs f(wo,wi)) and directional albedo "
                         "at 45 degrees for the reference, the analytic part and the model, and the model's largest "
                         "directional albedo with the outgoing direction where it occurs (above 1: it reflects more "
                         "light than it receives)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (shown on stderr while the sources are evaluated: at once on a terminal, "
+                        "elsewhere after a few seconds)")
     p.set_defaults(func=_cmd_eval)
 
 
@@ -716,6 +725,9 @@ def _add_bound_parser(sub) -> None:
                         f"this machine's memory, {energy.bytes_per_sample() / 1024:.0f} KiB a sample; "
                         "docs/CONVENTIONS.md, \"Counts and memory\")")
     p.add_argument("--verbose", action="store_true", help="list every material, not only the dimmed ones")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (shown on stderr while the tables are fitted: at once on a terminal, "
+                        "elsewhere after a few seconds)")
     p.set_defaults(func=_cmd_bound)
 
 

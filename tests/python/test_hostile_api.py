@@ -159,6 +159,22 @@ def test_info_shows_progress_when_slow_and_is_quiet_when_asked(model, capsys, mo
     assert capsys.readouterr().err == ""
 
 
+def test_bound_and_eval_show_progress_when_slow(model, tmp_path, capsys, monkeypatch):
+    _, m = model
+    infos = [dict(info) for info in m.material_info]
+    infos[0]["name"] = "gold"  # matched to synthetic:gold by name
+    path = tmp_path / "gold.safetensors"
+    type(m)(dict(m.arch), infos, dict(m.tensors), dict(m.training)).save(path)
+    monkeypatch.setattr(cli, "PROGRESS_DELAY_S", 0.0)
+    assert cli.main(["bound", str(path), "--out", str(tmp_path / "b.safetensors"), "--samples", "64"]) == 0
+    assert re.search(r"energy bound: .*\d+/3", capsys.readouterr().err)  # 0/3 at first, then every 10 s
+    assert cli.main(["eval", str(path), "synthetic:gold", "--pairs", "1000"]) == 0
+    out, err = capsys.readouterr()
+    assert re.search(r"eval: .*\d+/1", err) and "gold" in out
+    assert cli.main(["eval", str(path), "synthetic:gold", "--pairs", "1000", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+
+
 # ---- defect 11: type confusion at the public API ---------------------------------------------------
 
 def _one_line(exc_info, *names):

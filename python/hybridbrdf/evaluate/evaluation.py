@@ -6,7 +6,7 @@ analytic part per material, and on request MAE, reciprocity and albedo at 45 deg
 from __future__ import annotations
 
 import math
-from typing import Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 import torch
@@ -28,7 +28,8 @@ def bytes_per_pair(model: HybridModel) -> int:
 
 
 def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1_000_000,
-             seed: int = 7, names: Optional[Sequence[str]] = None, extended: bool = False) -> List[Dict[str, object]]:
+             seed: int = 7, names: Optional[Sequence[str]] = None, extended: bool = False,
+             progress: Optional[Callable[[], object]] = None) -> List[Dict[str, object]]:
     """Per-material metrics of CONVENTIONS on ``n_pairs`` seeded cosine-weighted pairs:
     SMAPE and cMAE of the full model and (hybrid kinds) of its analytic part.
     Sources are matched to the model's materials by name (``<name>`` or
@@ -56,6 +57,8 @@ def evaluate(model: HybridModel, sources: Sequence[BRDFSource], n_pairs: int = 1
         if extended:
             row.update(_extended_metrics(model, name, src, ref, f, fa, min(n_pairs, 100_000), seed))
         rows.append(row)
+        if progress is not None:  # after each source (hbrdf eval's progress bar)
+            progress()
     return rows
 
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Callable, Dict, Optional, Sequence
 
 import numpy as np
 
@@ -172,12 +172,14 @@ def fit_table(c: np.ndarray, z: np.ndarray, x: np.ndarray, target: float = TARGE
     return k
 
 
-def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, seed: int = 7) -> Dict[str, Any]:
+def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, seed: int = 7,
+           progress: Optional[Callable[[], object]] = None) -> Dict[str, Any]:
     """Energy-bound tables of ``model``'s materials (default all), fitted to its unbounded f_t.
 
     Returns ``{"table": (n, NODES) float32, "max_albedo_unbounded": [...], "max_albedo": [...]}``,
     the maxima being the estimates over the directions used (max over RGB). ``samples`` is
-    bounded by memory (:func:`bytes_per_sample`; ValueError naming it)."""
+    bounded by memory (:func:`bytes_per_sample`; ValueError naming it). ``progress()`` is called
+    after each material (``hbrdf bound``'s progress bar)."""
     samples = count_argument("samples", samples)
     check_count("samples", samples, bytes_per_sample())
     f_t = unbounded(model)
@@ -197,6 +199,8 @@ def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, 
             out["table"][r] = k32
             out["max_albedo_unbounded"].append(_max_albedo(c, z, x, np.ones(NODES)))
             out["max_albedo"].append(_max_albedo(c, z, x, k32.astype(np.float64)))
+            if progress is not None:
+                progress()
     return out
 
 
@@ -222,7 +226,8 @@ def unbounded(model):
                        dict(model.training) if isinstance(model.training, dict) else {})
 
 
-def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPLES):
+def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPLES,
+               progress: Optional[Callable[[], object]] = None):
     """A copy of ``model`` with energy-bound tables (spec/model.json ``albedo_table``): fitted for
     ``materials`` (default all), the others keeping theirs (1 where the model had none). Each
     fitted material's record gains ``energy_bound``: its estimated maximum albedo before and after
@@ -231,7 +236,7 @@ def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPL
     table = (model.tensors["materials.energy_bound"].copy() if "materials.energy_bound" in model.tensors
              else np.ones((n, NODES), np.float32))
     idx = list(range(n)) if materials is None else [model.index(m) for m in materials]
-    fitted = tables(model, idx, samples)
+    fitted = tables(model, idx, samples, progress=progress)
     infos = [dict(m) for m in model.material_info]
     for r, i in enumerate(idx):
         table[i] = fitted["table"][r]
