@@ -12,7 +12,7 @@ reads them from its input buffer: 17 floats per pair against eval's 6); then gls
 which reads uv per pair and looks the weights map and an sRGB kd map of layer 0 up itself
 (bilinear). Pairs on pure texels, on the whole texture (texture order) and on mixed texels.
 
-    python bench/svbrdf_glsl_cost.py [--model results/rgl54_fast.safetensors] [--pairs 262144]
+    python bench/svbrdf_glsl_cost.py [--model results/rgl54_fast.safetensors] [--pairs 262144] [--anatomy]
 """
 
 from __future__ import annotations
@@ -58,6 +58,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_fast.safetensors"))
     ap.add_argument("--pairs", type=int, default=1 << 18)
+    ap.add_argument("--anatomy", action="store_true",
+                    help="also time the map-reading kernel with its lookup replaced: weights zero but unknown to the "
+                         "compiler (the four guarded layer evaluations stay), and weights the constant (1, 0, 0, 0)")
     args = ap.parse_args()
     model = hb.load_model(args.model)
     names = [n for n, _ in LAYERS]
@@ -129,6 +132,21 @@ def main() -> int:
             print(f"  textured kernel reading the maps ({'weights + kd' if kd0 else 'weights     '}), {label:13s} "
                   f"{r / 1e6:6.2f} M/s = {base_rate / r:.2f}x the uniform constant, {r / runtime_rate:.2f}x the "
                   f"throughput of the uniform chosen at run time")
+    if args.anatomy:  # where the map-reading kernel's time goes
+        kernel = render_shader("textured.comp.glsl", include="model.glsl", materials=layer_consts, n=n, width=SIZE,
+                               height=SIZE, kd0=False)
+        lookup = "vec3 w = a00 * map_texel"
+        variants = {"no lookup, weights 0 at run time (the layers' branches kept)":
+                    kernel.replace(lookup, "vec3 w = vec3(min(data_in[8u * N], 0.0)); vec3 unused = a00 * map_texel"),
+                    "no lookup, weights constant (1, 0, 0, 0): one evaluation in the code":
+                    kernel.replace(lookup, "vec3 w = vec3(0.0); vec3 unused = a00 * map_texel")}
+        uv = np.stack([(np.arange(n) % SIZE + 0.5) / SIZE, (np.arange(n) // SIZE % SIZE + 0.5) / SIZE], axis=1)
+        rows = np.concatenate([np.concatenate([uv.astype(np.float32), wi, wo], axis=1), maps])
+        for label, code in variants.items():
+            src.write_text(code)
+            compile_spirv(src, textured_spv, "glsl", include_dir=work)
+            r = rate(textured_spv, rows, 4, work)
+            print(f"  anatomy: {label:68s} {r / 1e6:6.2f} M/s = {base_rate / r:.2f}x the uniform constant")
     return 0
 
 
