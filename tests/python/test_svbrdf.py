@@ -630,3 +630,15 @@ def test_save_is_atomic_and_names_the_folder(tmp_path, monkeypatch):
     assert load_svbrdf(tmp_path / "sv").layers == [m.materials[0]]
     assert not stale.exists()
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".sv")) == []
+
+
+def test_texels_bound_the_row_count_before_copying(tmp_path):
+    """A broadcast view of 10^10 uv rows (16 bytes of data) is refused by its row count at once,
+    not after numpy tried to convert it; a wrong shape names uv."""
+    _, m = saved_random_model(tmp_path, "hybrid")
+    sv = SVBRDF(m, [m.materials[0]], (2, 2))
+    huge = np.broadcast_to(np.array([[0.5, 0.5]]), (10**10, 2))
+    with pytest.raises(ValueError, match="uv rows"):
+        sv.texels(huge)
+    with pytest.raises(ValueError, match=r"uv must have shape \(N, 2\)"):
+        sv.texels(np.zeros((3, 3)))

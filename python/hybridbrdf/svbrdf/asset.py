@@ -128,10 +128,9 @@ class SVBRDF:
     def texels(self, uv, filter: str = "bilinear") -> Dict[str, np.ndarray]:
         """Per pair the texel's layer values: ``weight`` (N, L), ``kd``, ``eta`` (N, L, 3),
         ``alpha`` (N, L, 2), ``latent`` (N, L, l), float32; decoded values filtered, then the
-        weights normalised (w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when above 1)."""
-        uv = np.asarray(uv, dtype=np.float64)
-        if uv.ndim != 2 or uv.shape[1] != 2:
-            raise ValueError(f"uv must have shape (N, 2), got {uv.shape}")
+        weights normalised (w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when above 1). The row
+        count is bounded by memory before anything is converted (hybridbrdf.limits: ValueError)."""
+        uv = np.asarray(pair_arguments(("uv",), (uv,), (2,), BYTES_PER_PAIR)[0], dtype=np.float64)  # bounded first
         if not np.isfinite(uv).all():
             raise ValueError("uv must be finite")
         n, L = len(uv), len(self.layers)
