@@ -695,7 +695,8 @@ def _add_paint_parser(sub) -> None:
                    help="a layer over the others (repeatable, at most 3): a material or measured file and its mask "
                         "(PNG or EXR; grey values, the first channel, are the layer's coverage)")
     p.add_argument("--kd", action="append", metavar="LAYER=ALBEDO",
-                   help="layer LAYER's kd from an albedo texture (sRGB 8-bit PNG or linear EXR; repeatable)")
+                   help="layer LAYER's kd from an albedo texture (sRGB 8-bit PNG or linear EXR; repeatable); a texture "
+                        "brighter than the layer's material gives the layer an energy-bounded edit, MATERIAL.kdmapLAYER")
     p.add_argument("--roughness", action="append", metavar="LAYER=ROUGHNESS",
                    help="layer LAYER's GGX alpha = r^2 from a grey roughness texture r (repeatable)")
     p.add_argument("--size", metavar="WxH", help="texels (default: the masks' size; masks and textures must have it)")

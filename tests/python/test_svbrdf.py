@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 
 import numpy as np
 import pytest
@@ -18,9 +17,11 @@ import hybridbrdf.render.tracer  # noqa: F401  (hb.render.tracer)
 from hybridbrdf import spec
 from hybridbrdf.brdf.torch_brdf import eval_analytic
 from hybridbrdf.errors import OutputFileError
+from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.evaluate.metrics import metric_directions
 from hybridbrdf.fit.paint import composite, paint
 from hybridbrdf.fit.settings import FitSettings
+from hybridbrdf.model.file import load_model
 from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
 from hybridbrdf.svbrdf.decode import decode, encode, png_channel, transfer
 from hybridbrdf.svbrdf.maps import write_map
@@ -293,12 +294,54 @@ def test_paint_with_masks_and_an_albedo_texture(tmp_path):
     sv = paint(path, m.materials[0], [(m.materials[2], tmp_path / "mask.png")], tmp_path / "sv",
                kd={1: tmp_path / "albedo.png"})
     back = load_svbrdf(tmp_path / "sv")
-    assert back.layers == [m.materials[0], m.materials[2]] and back.size == (8, 6)
+    # the albedo texture is brighter than material 2 somewhere: the layer uses its bounded edit
+    assert back.layers == [m.materials[0], m.materials[2] + ".kdmap1"] and back.size == (8, 6)
     np.testing.assert_allclose(back.weights[..., 0], mask / 255.0, atol=0.5 / 255 + 1e-7)
     kd = transfer("srgb", albedo / 255.0)
     step = np.abs(transfer("srgb", np.minimum(albedo + 1, 255) / 255.0) - kd)
     assert np.all(np.abs(back.maps[1]["kd"] - kd) <= step + 1e-6)  # 8-bit sRGB round trip
     assert sv.path == str((tmp_path / "sv").resolve())
+
+
+def _max_albedo(sv, uv, n=200_000, seed=3):
+    """The largest directional albedo (max over RGB) of the texel at uv over 9 viewing elevations:
+    pi times the mean of f over n cosine-distributed light directions (independent of the library's
+    energy estimator, which samples f_a's MIS lobes)."""
+    rng = np.random.default_rng(seed)
+    wi = cosine_directions(rng, n)
+    best = 0.0
+    for theta in np.radians(np.linspace(0, 85, 9)):
+        wo = np.tile([np.sin(theta), 0.0, np.cos(theta)], (n, 1))
+        f = sv.eval(np.tile(uv, (n, 1)), wi, wo)
+        best = max(best, float((np.pi * f.mean(axis=0)).max()))
+    return best
+
+
+def test_paint_bounds_a_kd_map_brighter_than_its_material(tmp_path):
+    """A white albedo texture on a glossy, dark material (eta 10, kd 0.05): without a new table the
+    texel reflects far more than it receives; paint gives the layer an edit of its material at the
+    map's brightest kd, whose energy-bound table keeps every texel within the bound. A map darker
+    than its material keeps the material."""
+    import hybridbrdf.model.editing as editing
+
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    shiny = editing.edit(m, m.materials[0], "shiny", kd=0.05, eta=10.0, alpha=0.2)
+    shiny.save(tmp_path / "shiny.safetensors")
+    _write_png(tmp_path / "white.png", np.full((4, 4, 3), 255, np.uint8), "RGB")
+    _write_png(tmp_path / "dark.png", np.full((4, 4, 3), 10, np.uint8), "RGB")
+    bright = paint(tmp_path / "shiny.safetensors", "shiny", [], tmp_path / "bright", size=(4, 4),
+                   kd={0: tmp_path / "white.png"})
+    assert bright.layers == ["shiny.kdmap0"]
+    unbounded = SVBRDF(load_model(tmp_path / "shiny.safetensors"), ["shiny"], (4, 4), None,
+                       [{"kd": np.ones((4, 4, 3), np.float32)}])
+    unbounded.save(tmp_path / "unbounded", format="exr")
+    before = _max_albedo(load_svbrdf(tmp_path / "unbounded"), [0.5, 0.5])
+    after = _max_albedo(load_svbrdf(tmp_path / "bright"), [0.5, 0.5])
+    assert before > 1.1, before  # the control: the material's own table does not bound a white kd
+    assert after <= spec.ENERGY_TARGET + 0.02, after
+    dark = paint(tmp_path / "shiny.safetensors", "shiny", [], tmp_path / "dark", size=(4, 4),
+                 kd={0: tmp_path / "dark.png"})
+    assert dark.layers == ["shiny"]
 
 
 def test_paint_fits_a_measured_layer_on_the_frozen_network(tmp_path):

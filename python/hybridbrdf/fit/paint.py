@@ -29,6 +29,7 @@ from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.inputs import check_input_file
+from hybridbrdf.model.editing import edit
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.names import material_names
@@ -115,6 +116,28 @@ def _layer_materials(model_path: PathLike, model: HybridModel, names: Sequence[s
     return merged, out
 
 
+def bound_bright_kd(model: HybridModel, names: Sequence[str], kd_maps: Dict[int, np.ndarray],
+                    log: Callable[[str], None] = lambda msg: None) -> Tuple[HybridModel, list]:
+    """Keep a layer whose kd map is brighter than its material within the energy bound: such a
+    layer gets an edit of its material with kd = the map's per-channel maximum, and that edit's
+    energy-bound table (``edit`` fits it), named ``<material>.kdmap<k>``. Every hybrid combine is
+    non-decreasing in f_a and f_a in kd, so each texel's f_t is at most the edit's, and the edit's
+    table keeps every texel's directional albedo within the bound; texels use their own kd (the
+    map's) and the material's latent code and output layer as before. Returns (model, names)."""
+    names = list(names)
+    for k, kd in sorted(kd_maps.items()):
+        brightest = kd.reshape(-1, 3).max(axis=0).astype(np.float64)
+        own = np.asarray(model.analytic_params(names[k]).kd, np.float64)
+        if np.all(brightest <= own):
+            continue  # the material's table already bounds every texel
+        name = f"{names[k][:56]}.kdmap{k}"
+        model = edit(model, names[k], name, kd=np.clip(brightest, 0.0, 1.0))
+        log(f"layer {k}: kd map up to {np.round(brightest, 3).tolist()} is brighter than {names[k]}'s kd "
+            f"{np.round(own, 3).tolist()}: the layer uses {name}, its energy-bound table fitted for the brightest texel")
+        names[k] = name
+    return model, names
+
+
 def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], out: PathLike,
           size: Optional[Tuple[int, int]] = None, format: str = "png", addressing: str = "repeat",
           kd: Optional[Dict[int, PathLike]] = None, roughness: Optional[Dict[int, PathLike]] = None,
@@ -162,6 +185,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     if len(set(names)) != len(names):
         raise ValueError("a material appears in two layers; paint it once with the union of its masks")
     merged, names = _layer_materials(model, base_model, names, settings, progress, log)
+    merged, names = bound_bright_kd(merged, names, {k: v for (k, label), v in textures.items() if label == "kd"}, log)
     weights = composite(masks).astype(np.float32) if masks else None
     if weights is not None and weights.shape[2] < 3:
         weights = np.concatenate([weights, np.zeros((h, w, 3 - weights.shape[2]), np.float32)], axis=2)
