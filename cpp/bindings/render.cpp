@@ -392,6 +392,13 @@ void bind_render(py::module_& m) {
         if (!arr) throw std::invalid_argument("weights must be an (N, 3) float array or None");
         return arr;
     };
+    // Pair i's texel: weights from the map, or row i of the caller's (N, 3) weights.
+    const auto texel_of = [](const hbrdf::Svbrdf& sv, const FloatArray& uv, const std::optional<FloatArray>& weights,
+                             py::ssize_t i, hbrdf::TexelFilter flt, hbrdf::Texel* tx) {
+        const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
+        if (weights) sv.texel(t, flt, weights->data() + 3 * i, tx);
+        else sv.texel(t, flt, tx);
+    };
     py::class_<hbrdf::Svbrdf, SvbrdfPtr>(m, "Svbrdf",
                                          "A textured material's folder read by libhybridbrdf's loader (render::load_svbrdf, "
                                          "the tracer's; docs/SVBRDF.md).")
@@ -422,7 +429,7 @@ void bind_render(py::module_& m) {
                     const hbrdf::Vec3<float> b(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
                     hbrdf::Vec3<float> v;
                     if (weights) {
-                        sv.texel(t, flt, weights->data() + 3 * i, &tx);
+                        texel_of(sv, uv, weights, i, flt, &tx);
                         v = analytic ? hbrdf::Svbrdf::eval_analytic(tx, a, b) : sv.model().eval_texel(tx.layers, tx.n_layers, a, b);
                     } else {
                         v = analytic ? sv.eval_analytic(t, flt, a, b) : sv.eval(t, flt, a, b);
@@ -449,10 +456,8 @@ void bind_render(py::module_& m) {
                 FloatArray wi({n, py::ssize_t(3)}), pdf({n}), again({n});
                 hbrdf::Texel tx;
                 for (py::ssize_t i = 0; i < n; ++i) {
-                    const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
                     const hbrdf::Vec3<float> o(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]);
-                    if (weights) sv.texel(t, flt, weights->data() + 3 * i, &tx);
-                    else sv.texel(t, flt, &tx);
+                    texel_of(sv, uv, weights, i, flt, &tx);
                     const auto b = hbrdf::Svbrdf::sample(tx, s, o, hbrdf::Vec2<float>(u.data()[2 * i], u.data()[2 * i + 1]));
                     for (int c = 0; c < 3; ++c) wi.mutable_data()[3 * i + c] = b.wi[c];
                     pdf.mutable_data()[i] = b.pdf;
@@ -477,9 +482,7 @@ void bind_render(py::module_& m) {
                 FloatArray pdf({n});
                 hbrdf::Texel tx;
                 for (py::ssize_t i = 0; i < n; ++i) {
-                    const hbrdf::Vec2<float> t(uv.data()[2 * i], uv.data()[2 * i + 1]);
-                    if (weights) sv.texel(t, flt, weights->data() + 3 * i, &tx);
-                    else sv.texel(t, flt, &tx);
+                    texel_of(sv, uv, weights, i, flt, &tx);
                     pdf.mutable_data()[i] = hbrdf::Svbrdf::pdf(tx, s, hbrdf::Vec3<float>(wi.data()[3 * i], wi.data()[3 * i + 1], wi.data()[3 * i + 2]),
                                                                hbrdf::Vec3<float>(wo.data()[3 * i], wo.data()[3 * i + 1], wo.data()[3 * i + 2]));
                 }

@@ -15,6 +15,7 @@ import numpy as np
 
 from hybridbrdf.fit.paint import composite
 from hybridbrdf.sources.base import BRDFSource
+from hybridbrdf.svbrdf.asset import texel_taps
 
 
 class Mixture:
@@ -44,14 +45,7 @@ class Mixture:
     def weights_at(self, uv: np.ndarray) -> np.ndarray:
         """(N, K) weights at uv (N, 2): bilinear between texel centres, clamped at the edges."""
         h, w, _ = self.weights.shape
-        x = np.clip(uv[:, 0], 0, 1) * w - 0.5
-        y = np.clip(uv[:, 1], 0, 1) * h - 0.5
-        x0, y0 = np.floor(x), np.floor(y)
-        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-        c0, r0 = np.clip(x0, 0, w - 1).astype(np.int64), np.clip(y0, 0, h - 1).astype(np.int64)
-        c1, r1 = np.clip(x0 + 1, 0, w - 1).astype(np.int64), np.clip(y0 + 1, 0, h - 1).astype(np.int64)
-        W = self.weights
-        return ((1 - fy) * ((1 - fx) * W[r0, c0] + fx * W[r0, c1]) + fy * ((1 - fx) * W[r1, c0] + fx * W[r1, c1]))
+        return sum(t[:, None] * self.weights[rows, cols] for rows, cols, t in texel_taps(uv, (w, h), "clamp", "bilinear"))
 
     def eval(self, uv, wi, wo) -> np.ndarray:
         """g(uv, wi, wo) (N, 3) float64, no cosine; each source evaluated only where it weighs.

@@ -44,6 +44,38 @@ LAYER_QUANTITIES = ("kd", "eta", "alpha", "latent")
 BYTES_PER_PAIR = 2048
 
 
+def texel_taps(uv: np.ndarray, size, addressing: str, filter: str):
+    """[(rows, cols, weights)] of the texels a (W, H) = ``size`` map reads at uv (N, 2): one tap
+    (``nearest``) or four (``bilinear``, between texel centres), ``repeat`` or ``clamp``
+    addressing (docs/SVBRDF.md, "Texture coordinates")."""
+    w, h = size
+    u, v = uv[:, 0], uv[:, 1]
+    repeat = addressing == "repeat"
+    if filter == "nearest":
+        if repeat:
+            cols, rows = np.floor(u * w).astype(np.int64) % w, np.floor(v * h).astype(np.int64) % h
+        else:
+            cols = np.clip(np.floor(np.clip(u, 0, 1) * w), 0, w - 1).astype(np.int64)
+            rows = np.clip(np.floor(np.clip(v, 0, 1) * h), 0, h - 1).astype(np.int64)
+        return [(rows, cols, np.ones(len(uv)))]
+    if filter != "bilinear":
+        raise ValueError(f"filter must be one of {', '.join(SV['filters'])}, got {filter!r}")
+    x = (u if repeat else np.clip(u, 0, 1)) * w - 0.5
+    y = (v if repeat else np.clip(v, 0, 1)) * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = x - x0, y - y0
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+
+    def wrap(i, n):
+        return i % n if repeat else np.clip(i, 0, n - 1)
+
+    taps = []
+    for dy, wy in ((0, 1 - fy), (1, fy)):
+        for dx, wx in ((0, 1 - fx), (1, fx)):
+            taps.append((wrap(y0 + dy, h), wrap(x0 + dx, w), wx * wy))
+    return taps
+
+
 class SVBRDFError(InputFileError):
     """A textured-material folder, index or map that cannot be used (one line naming the file)."""
 
@@ -97,33 +129,8 @@ class SVBRDF:
 
     # ---- texel lookup ------------------------------------------------------------------
     def _taps(self, uv: np.ndarray, filter: str):
-        """[(rows, cols, weights)] of the texels ``uv`` reads: one tap (nearest) or four (bilinear)."""
-        w, h = self.size
-        u, v = uv[:, 0], uv[:, 1]
-        repeat = self.addressing == "repeat"
-        if filter == "nearest":
-            if repeat:
-                cols, rows = np.floor(u * w).astype(np.int64) % w, np.floor(v * h).astype(np.int64) % h
-            else:
-                cols = np.clip(np.floor(np.clip(u, 0, 1) * w), 0, w - 1).astype(np.int64)
-                rows = np.clip(np.floor(np.clip(v, 0, 1) * h), 0, h - 1).astype(np.int64)
-            return [(rows, cols, np.ones(len(uv)))]
-        if filter != "bilinear":
-            raise ValueError(f"filter must be one of {', '.join(SV['filters'])}, got {filter!r}")
-        x = (u if repeat else np.clip(u, 0, 1)) * w - 0.5
-        y = (v if repeat else np.clip(v, 0, 1)) * h - 0.5
-        x0, y0 = np.floor(x), np.floor(y)
-        fx, fy = x - x0, y - y0
-        x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
-
-        def wrap(i, n):
-            return i % n if repeat else np.clip(i, 0, n - 1)
-
-        taps = []
-        for dy, wy in ((0, 1 - fy), (1, fy)):
-            for dx, wx in ((0, 1 - fx), (1, fx)):
-                taps.append((wrap(y0 + dy, h), wrap(x0 + dx, w), wx * wy))
-        return taps
+        """[(rows, cols, weights)] of the texels ``uv`` reads (:func:`texel_taps`)."""
+        return texel_taps(uv, self.size, self.addressing, filter)
 
     def texels(self, uv, filter: str = "bilinear") -> Dict[str, np.ndarray]:
         """Per pair the texel's layer values: ``weight`` (N, L), ``kd``, ``eta`` (N, L, 3),
