@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from hybridbrdf import spec
+from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.brdf.torch_brdf import eval_analytic
 
@@ -31,6 +32,16 @@ class AnalyticMaps:
     eta: np.ndarray
     alpha: np.ndarray
     counts: np.ndarray
+
+    def eval(self, texel: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """The fitted f_a (no cosine) at texels ``texel`` ((M,) int, j * W + i) for directions
+        ``wi``, ``wo`` (M, 3) in the sample's frame: (M, 3) float64, evaluated in chunks."""
+        texel = np.asarray(texel, dtype=np.int64)
+        kd, eta, alpha = (m.reshape(-1, m.shape[-1]) for m in (self.kd, self.eta, self.alpha))
+        return eval_chunked(texel, wi, wo, kd.shape[0],
+                            lambda t, a, b: eval_analytic(a, b, torch.from_numpy(kd[t]).double(),
+                                                          torch.from_numpy(eta[t]).double(),
+                                                          torch.from_numpy(alpha[t]).double()))
 
 
 def _logit(p: np.ndarray) -> np.ndarray:
