@@ -1,16 +1,15 @@
-"""Per-texel fits from a capture's observations (docs/ACQUISITION.md, issue 46 step 2, begun).
-
-Built so far: the **analytic-only** model, f_a's parameters p = (kd, eta, alpha) per texel (the
-same Lambert + GGX as the hybrid's analytic part; isotropic alpha), all texels fitted at once in
-one batched PyTorch problem (each texel's parameters see only its own rows, so a step is one
-vectorised evaluation over every observation, not a loop over texels). The loss is the paper's
-per pair, L = || log(1 + cos(theta_i) g_obs) - log(1 + cos(theta_i) f_a) ||^2 (docs/CONVENTIONS.md),
-observations below 0 (noise) clamped to 0 first. The hybrid (p, z on a frozen prior) and the
-neural-only fits of issue 46 are not built yet."""
+"""The **analytic-only** per-texel fit (docs/ACQUISITION.md, issue 46): f_a's parameters
+p = (kd, eta, alpha) per texel (the same Lambert + GGX as the hybrid's analytic part; isotropic
+alpha), all texels fitted at once in one batched PyTorch problem (each texel's parameters see only
+its own rows, so a step is one vectorised evaluation over rows of every texel, not a loop over
+texels; :mod:`~hybridbrdf.acquire.texel_rows`). The loss is the paper's per pair,
+L = || log(1 + cos(theta_i) g_obs) - log(1 + cos(theta_i) f_a) ||^2 (docs/CONVENTIONS.md),
+observations below 0 (noise) clamped to 0 first. The hybrid and neural-only fits start from it."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Dict, Optional
 
 import numpy as np
 import torch
@@ -18,6 +17,7 @@ import torch
 from hybridbrdf import spec
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
 from hybridbrdf.brdf.torch_brdf import eval_analytic
 
 #: kd, eta, alpha of a texel without observations (and a fit's start for eta and alpha).
@@ -49,48 +49,55 @@ def _logit(p: np.ndarray) -> np.ndarray:
     return np.log(p / (1 - p))
 
 
-def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, seed: int = 0) -> AnalyticMaps:
-    """Fit f_a per texel to ``obs`` by Adam on every observation at once (``steps`` steps, rate
-    ``lr``). Parameters are reparameterised to stay in range: kd = sigmoid, eta = 1 + 9 sigmoid,
-    alpha = ALPHA_MIN + (1 - ALPHA_MIN) sigmoid^2 (a perceptual roughness). kd starts at pi times
-    the texel's mean observed value (the Lambertian that explains it), eta and alpha at
-    :data:`START_ETA`, :data:`START_ALPHA`."""
-    w, h = obs.size
-    n_tex = w * h
+def analytic_start(obs: Observations) -> Dict[str, torch.Tensor]:
+    """Raw (unconstrained) start values per texel: kd at pi times the texel's mean observed value
+    (the Lambertian that explains it), eta and alpha at :data:`START_ETA`, :data:`START_ALPHA`."""
+    n_tex = obs.size[0] * obs.size[1]
     counts = np.diff(obs.offsets)
-    texel = torch.from_numpy(np.repeat(np.arange(n_tex), counts))
-    wi, wo = torch.from_numpy(obs.wi), torch.from_numpy(obs.wo)
-    g = torch.from_numpy(np.maximum(obs.value, 0.0))
     sums = np.zeros((n_tex, 3))
-    np.add.at(sums, texel.numpy(), np.maximum(obs.value, 0.0))
+    np.add.at(sums, np.repeat(np.arange(n_tex), counts), np.maximum(obs.value, 0.0))
     mean = sums / np.maximum(counts, 1)[:, None]
-    torch.manual_seed(seed)
-    kd_u = torch.tensor(_logit(np.clip(np.pi * mean, 0.02, 0.98)), dtype=torch.float32, requires_grad=True)
-    eta_u = torch.full((n_tex, 3), float(_logit(np.array((START_ETA - 1) / 9))), requires_grad=True)
-    rough_u = torch.full((n_tex, 1), float(_logit(np.sqrt(np.array(START_ALPHA)))), requires_grad=True)
-    params = [kd_u, eta_u, rough_u]
+    return {"kd": torch.tensor(_logit(np.clip(np.pi * mean, 0.02, 0.98)), dtype=torch.float32),
+            "eta": torch.full((n_tex, 3), float(_logit(np.array((START_ETA - 1) / (spec.ETA_MAX - 1))))),
+            "rough": torch.full((n_tex, 1), float(_logit(np.sqrt(np.array(START_ALPHA)))))}
 
-    def decoded():
-        kd = torch.sigmoid(kd_u)
-        eta = 1 + (spec.ETA_MAX - 1) * torch.sigmoid(eta_u)
-        r = torch.sigmoid(rough_u)
-        alpha = spec.ALPHA_MIN + (1 - spec.ALPHA_MIN) * r * r
-        return kd, eta, torch.cat([alpha, alpha], dim=1)
 
-    if len(g):
-        opt = torch.optim.Adam(params, lr=lr)
-        cos_i = wi[:, 2:3]
-        target = torch.log1p(cos_i * g)
-        for _ in range(steps):
-            opt.zero_grad()
-            kd, eta, alpha = decoded()
-            f = eval_analytic(wi, wo, kd[texel], eta[texel], alpha[texel])
-            d = target - torch.log1p(cos_i * f)
-            loss = (d * d).sum()
-            loss.backward()
-            opt.step()
+def decode_analytic(raw: Dict[str, torch.Tensor]):
+    """(kd, eta, alpha (., 2)) of raw values: kd = sigmoid, eta = 1 + 9 sigmoid,
+    alpha = ALPHA_MIN + (1 - ALPHA_MIN) sigmoid^2 (a perceptual roughness, isotropic)."""
+    kd = torch.sigmoid(raw["kd"])
+    eta = 1 + (spec.ETA_MAX - 1) * torch.sigmoid(raw["eta"])
+    r = torch.sigmoid(raw["rough"])
+    alpha = spec.ALPHA_MIN + (1 - spec.ALPHA_MIN) * r * r
+    return kd, eta, torch.cat([alpha, alpha], dim=1)
+
+
+def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, seed: int = 0,
+                        rows_per_texel: Optional[int] = ROWS_PER_TEXEL, progress: Optional[Progress] = None,
+                        state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None
+                        ) -> AnalyticMaps:
+    """Fit f_a per texel to ``obs``: ``steps`` Adam steps (rate ``lr`` decaying to a tenth), each
+    on ``rows_per_texel`` rows drawn from every texel's own (None: every observation every step).
+    Parameters are reparameterised to stay in range (:func:`decode_analytic`) and start at
+    :func:`analytic_start`. ``progress`` is called after each step with ("analytic", done,
+    steps); ``save_state`` gets a resumable state every 50 steps, ``state`` resumes one."""
+    w, h = obs.size
+    counts = np.diff(obs.offsets)
+    raw = {k: v.requires_grad_() for k, v in analytic_start(obs).items()}
+    data = ObservationTensors(obs)
+    sampler = RowSampler(obs, rows_per_texel or 1)
+    every_row = (torch.from_numpy(np.repeat(np.arange(w * h), counts)), torch.arange(len(obs.value)))
+
+    def loss(gen):
+        texel, rows = every_row if rows_per_texel is None else sampler.draw(gen)
+        kd, eta, alpha = decode_analytic(raw)
+        d = data.residual(rows, eval_analytic(data.wi[rows], data.wo[rows], kd[texel], eta[texel], alpha[texel]))
+        return (d * d).sum() / (rows_per_texel or 1)
+
+    if len(obs.value):
+        adam_texels(raw, loss, steps, lr, seed, "analytic", progress, state, save_state)
     with torch.no_grad():
-        kd, eta, alpha = decoded()
+        kd, eta, alpha = decode_analytic(raw)
     shape = (h, w)
     return AnalyticMaps(kd.numpy().reshape(*shape, 3), eta.numpy().reshape(*shape, 3),
                         alpha.numpy().reshape(*shape, 2), counts.reshape(shape))
