@@ -28,8 +28,8 @@ pixels that see the sample and the three channels (a relative MAE). The same err
 own per-texel rendering (each pixel at its texel centre's weights) is the floor any per-texel map
 has at this texel resolution.
 
-    python bench/acquire_compare.py [--steps 300] [--pairs 100000] [--photo 64] [--map 16]
-        [--texels 32] [--ns 1,2,4,8,16,32,64] [--out results/acquire_compare_MACHINE]
+    python bench/acquire_compare.py [--steps 400] [--rows-per-texel 8] [--pairs 100000] [--photo 128]
+        [--map 32] [--texels 32] [--ns 1,2,4,8,16,32,64] [--out results/acquire_compare_MACHINE]
     python bench/acquire_compare.py --plot results/acquire_compare_X1.jsonl [--png docs/figures/acquire_compare.png]
 
 A model whose fit function does not exist in hybridbrdf.acquire yet is skipped (printed).
@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import json
 import math
 import os
@@ -59,6 +60,7 @@ from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import Camera, Light, Rig, Shot, check_rig
 from hybridbrdf.acquire.rigs import flash_rig
 from hybridbrdf.acquire.simulate import radiance, simulate
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 from hybridbrdf.model.prior import prior_path
 
@@ -202,28 +204,41 @@ def find_fit(name: str):
     for info in pkgutil.iter_modules(acquire_pkg.__path__):
         if info.name == "command":
             continue
-        module = importlib.import_module(f"hybridbrdf.acquire.{info.name}")
+        try:  # a fit module mid-edit elsewhere must not stop the models that exist
+            module = importlib.import_module(f"hybridbrdf.acquire.{info.name}")
+        except Exception as e:  # noqa: BLE001
+            print(f"hybridbrdf.acquire.{info.name} does not import ({type(e).__name__}: {e}); skipped", flush=True)
+            continue
         if callable(getattr(module, name, None)):
             return getattr(module, name)
     return None
 
 
-def models(steps: int):
-    """[(key, label, held_out, fit(obs) or None)]: the comparison's models with the same step budget."""
+def budget(fn, steps: int, rows_per_texel):
+    """``fn``'s keyword arguments for the shared budget: ``steps`` Adam steps, each reading
+    ``rows_per_texel`` rows per texel (passed where the fit takes it)."""
+    kw = {"steps": steps}
+    if "rows_per_texel" in inspect.signature(fn).parameters:
+        kw["rows_per_texel"] = rows_per_texel
+    return kw
+
+
+def models(steps: int, rows_per_texel):
+    """[(key, label, held_out, fit(obs) or None)]: the comparison's models with the same budget."""
     analytic, hybrid, neural = (find_fit(n) for n in ("fit_analytic_texels", "fit_hybrid_texels", "fit_neural_texels"))
     out = [("analytic", "analytic only (f_a p per texel)", True,
-            (lambda obs: analytic(obs, steps=steps)) if analytic else None)]
+            (lambda obs: analytic(obs, **budget(analytic, steps, rows_per_texel))) if analytic else None)]
     for key, label, path, held in (("hybrid_heldout", "hybrid, prior that never saw them", HELD_OUT_PRIOR, True),
                                    ("hybrid_shipped", "hybrid, shipped prior (not held out)", pathlib.Path(prior_path()), False)):
         fn = None
         if hybrid:
             model = hb.load_model(str(path))
-            fn = (lambda m: lambda obs: hybrid(obs, m, steps=steps, seed=0))(model)
+            fn = (lambda m: lambda obs: hybrid(obs, m, seed=0, **budget(hybrid, steps, rows_per_texel)))(model)
         out.append((key, label, held, fn))
     fn = None
     if neural:
         net = hb.load_model(str(NEURAL))
-        fn = lambda obs: neural(obs, net, steps=steps)  # noqa: E731
+        fn = lambda obs: neural(obs, net, **budget(neural, steps, rows_per_texel))  # noqa: E731
     out.append(("neural", "neural only, rgl54_neural_32x3 (not held out)", False, fn))
     return out
 
@@ -321,11 +336,12 @@ def sweep(args) -> int:
     true_render = radiance(novel, 0, mixture)
     mask = pixel_geometry(novel, 0).mask
     floor = relative_mae(render_fit(CentreTruth(mixture, size), novel, size), true_render, mask)
-    todo = models(args.steps)
+    todo = models(args.steps, args.rows_per_texel)
     out = Output(args.out)
     out.line(f"acquire_compare: {', '.join(LAYERS)} under the disc/stripes masks, {args.map}x{args.map} texel map "
              f"(= the weights map; {int((mixture.weights.max(axis=2) <= PURE).sum())} of {args.map ** 2} texels mixed); "
-             f"flash rig, {args.photo}x{args.photo} photographs, no light jitter; {args.steps} Adam steps per model; "
+             f"flash rig, {args.photo}x{args.photo} photographs, no light jitter; {args.steps} Adam steps per model, "
+             f"{args.rows_per_texel or 'every'} rows per texel per step; "
              f"{len(texels)} sampled texels ({n_pure} pure, {len(texels) - n_pure} mixed, seed 0), {args.pairs} metric pairs each; "
              f"torch threads {torch.get_num_threads()}; machine {args.machine}")
     out.line(f"noise: " + "; ".join(f"{l}: photons {p:g}, read noise {r:g}" for l, p, r in NOISE))
@@ -352,7 +368,7 @@ def sweep(args) -> int:
                 render = relative_mae(render_fit(fit, novel, size), true_render, mask)
                 row = {"machine": args.machine, "noise": noise_label, "photons": photons, "read_noise": read, "n": n,
                        "observations": int(len(obs.value)), "model": key, "label": label, "held_out": held,
-                       "steps": args.steps, "fit_s": round(fit_s, 2), "texels": len(texels), "pairs": args.pairs,
+                       "steps": args.steps, "rows_per_texel": args.rows_per_texel, "fit_s": round(fit_s, 2), "texels": len(texels), "pairs": args.pairs,
                        "smape_median": float(np.median(s_err)), "smape_p95": float(np.percentile(s_err, 95)),
                        "cmae_median": float(np.median(c_err)), "cmae_p95": float(np.percentile(c_err, 95)),
                        "render": render, "render_floor": floor, "photo": args.photo, "map": args.map}
@@ -407,6 +423,7 @@ def plot(jsonl: str, png: str) -> int:
             if metric == "render":
                 ax.axhline(level["render_floor"], color="grey", lw=0.8, ls=":", label="per-texel floor")
             ax.set_xscale("log", base=2)
+            ax.set_xticks(sorted({r["n"] for r in rows}), [str(n) for n in sorted({r["n"] for r in rows})])
             ax.set_yscale("log")
             ax.set_xlabel("photographs N")
             ax.set_title(f"{title}, {noise} noise (photons {level['photons']:g}, read {level['read_noise']:g})",
@@ -432,11 +449,13 @@ def plot(jsonl: str, png: str) -> int:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=300, help="Adam steps per fit, the same for every model (default 300)")
+    ap.add_argument("--steps", type=int, default=400, help="Adam steps per fit, the same for every model (default 400)")
+    ap.add_argument("--rows-per-texel", type=int, default=ROWS_PER_TEXEL,
+                    help=f"rows of each texel every step of every fit reads (default {ROWS_PER_TEXEL}; 0: every observation)")
     ap.add_argument("--pairs", type=int, default=100_000, help="metric direction pairs per sampled texel (default 10^5)")
     ap.add_argument("--texels", type=int, default=32, help="sampled texels, half pure, half mixed (default 32)")
-    ap.add_argument("--photo", type=int, default=64, help="photograph side in pixels (default 64)")
-    ap.add_argument("--map", type=int, default=16, help="texel map side (= the weights map's; default 16)")
+    ap.add_argument("--photo", type=int, default=128, help="photograph side in pixels (default 128)")
+    ap.add_argument("--map", type=int, default=32, help="texel map side (= the weights map's; default 32)")
     ap.add_argument("--ns", default="1,2,4,8,16,32,64", help="photograph counts N, comma-separated")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
@@ -448,6 +467,7 @@ def main() -> int:
     if args.plot:
         return plot(args.plot, args.png)
     args.ns = [int(v) for v in args.ns.split(",")]
+    args.rows_per_texel = args.rows_per_texel or None
     args.out = args.out or str(ROOT / "results" / f"acquire_compare_{args.machine}")
     return sweep(args)
 
