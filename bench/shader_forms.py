@@ -122,10 +122,91 @@ def form_mat4(layer, index, last, fp16=False, let=None):
     return out
 
 
+# ---- packed half precision (GL_EXT_shader_explicit_arithmetic_types_float16) -------------------
+#
+# Precision notes (Filament-style: say where half is enough and where it is not):
+# - binary16 has an 11-bit significand (relative step 2^-11 = 4.9e-4) and a range of +-65504.
+# - Hidden layers: weights are O(0.01 .. 6), inputs (unit directions, latent codes) and hardGeLU
+#   activations O(1 .. 30): well inside the range; the cost is rounding. Two neurons share one
+#   f16vec2, so one fma() over f16vec2 is one packed HFMA2 on NVIDIA (two multiply-adds per
+#   instruction, where the FP32 path issues one FFMA each).
+# - The inputs x[] arrive in float32 (normalised directions, the material's latent code) and are
+#   rounded to half once, at the first layer.
+# - The output layer stays float32: its outputs feed exp(o) with o up to HBRDF_PRE_EXP_MAX = 16
+#   (exp(16) = 8.9e6 is beyond half's range), and an absolute error e in o is a relative error e
+#   in exp(o): half's step at |o| = 8..16 is 2^-7..2^-6, i.e. 0.8-1.6% in f_c, too coarse.
+#   Its 32 inputs are widened from half (exact). f_a and the combine (exp, sigmoid) are untouched
+#   float32 code.
+# - Accumulation: a 32-term dot product summed in half rounds after every term; the pre-activations
+#   of this model reach |a| of 10-30 where the half step is 2^-6..2^-5, so the summed rounding can
+#   reach ~0.05 absolute, which the float32 output layer (weights up to ~4) turns into a few percent
+#   of f. Hence two forms, measured side by side: ``half2`` (products and sums in half) and
+#   ``half2acc8`` (half products summed in half over blocks of 8 inputs, the blocks summed in
+#   float32, the activation in float32): per-term float32 accumulation would convert every product
+#   (a conversion and an FADD per term cost more than the FFMA they replace), blocks of 8 keep 7 of
+#   8 operations packed.
+HALF_EXT = "#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require\n"
+ACT_H2 = ("f16vec2 hbrdf_act_h2(f16vec2 x) {\n"
+          "    return x * clamp((x + f16vec2(1.5hf)) * f16vec2(0.333333343hf), f16vec2(0.0hf), f16vec2(1.0hf));\n}\n"
+          "vec2 hbrdf_act2(vec2 x) { return x * clamp((x + 1.5f) * 0.333333343f, 0.0f, 1.0f); }\n")
+_UNROLLED = cg.unrolled_layer  # the generator's own form: the float32 output layer of the half forms
+
+
+def half_lit(v) -> str:
+    """``v`` rounded to binary16, as a GLSL half literal (shortest digits that round-trip)."""
+    h = np.float16(v)
+    if not np.isfinite(h):
+        raise ValueError(f"weight {float(v)!r} is beyond the half-precision range (65504)")
+    return f"{np.format_float_positional(h, unique=True, trim='0')}hf"
+
+
+def _half_inputs(index, n_in):
+    """The layer's inputs as f16vec2 broadcasts: x[k] rounded once (layer 0), else the previous
+    layer's packed activations ``p<index-1>_<k/2>`` swizzled (.xx / .yy: free operand selects)."""
+    if index == 0:
+        return [f"f16vec2(float16_t(x[{k}]))" for k in range(n_in)]
+    return [f"p{index - 1}_{k // 2}.{'xx' if k % 2 == 0 else 'yy'}" for k in range(n_in)]
+
+
+def form_half2(layer, index, last, fp16=False, let=None, block=None):
+    """Hidden layers in packed half: two neurons per f16vec2, ``fma`` over f16vec2 (HFMA2).
+    ``block``: sum half products in half over blocks of ``block`` inputs, the blocks in float32
+    (None: every sum in half). The output layer: float32, its inputs widened."""
+    w, b = _weights(layer)
+    n_out, n_in = w.shape
+    if last:
+        widen = [f"float h{index - 1}_{k} = float(p{index - 1}_{k // 2}.{'x' if k % 2 == 0 else 'y'});"
+                 for k in range(n_in)]
+        return widen + _UNROLLED(layer, index, last)
+    if n_out % 2:  # a zero neuron pads the last pair (never read)
+        w, b = np.vstack([w, np.zeros((1, n_in), np.float32)]), np.append(b, np.float32(0))
+    xs, out = _half_inputs(index, n_in), []
+    for p in range(w.shape[0] // 2):
+        j = 2 * p
+        wk = [f"f16vec2({half_lit(w[j, k])}, {half_lit(w[j + 1, k])})" for k in range(n_in)]
+        if block is None:
+            e = f"f16vec2({half_lit(b[j])}, {half_lit(b[j + 1])})"
+            for k in range(n_in):
+                e = f"fma({wk[k]}, {xs[k]}, {e})"
+            out.append(f"f16vec2 p{index}_{p} = hbrdf_act_h2({e});")
+        else:
+            sums = [f"vec2({lit(b[j])}, {lit(b[j + 1])})"]
+            for k0 in range(0, n_in, block):
+                e = f"{wk[k0]} * {xs[k0]}"
+                for k in range(k0 + 1, min(n_in, k0 + block)):
+                    e = f"fma({wk[k]}, {xs[k]}, {e})"
+                sums.append(f"vec2({e})")
+            out.append(f"f16vec2 p{index}_{p} = f16vec2(hbrdf_act2({' + '.join(sums)}));")
+    return out
+
+
 #: The forms besides the generator's own ``unrolled`` (one-pair-per-invocation forms: the network
 #: written differently, the rest of the shader unchanged).
 FORMS = {"fma": form_fma, "tree": form_tree, "acc4": lambda *a, **k: form_tree(*a, **k, parts=4),
          "rows4": form_rows4, "mat4": form_mat4}
+#: Packed half-precision forms (GPU only in effect: lavapipe computes half in float32 lanes and
+#: rounds, so there they measure accuracy, not speed).
+HALF_FORMS = {"half2": form_half2, "half2acc8": lambda *a, **k: form_half2(*a, **k, block=8)}
 
 
 def form_glsl(model, material, name):
@@ -134,13 +215,17 @@ def form_glsl(model, material, name):
     if name == "unrolled":
         return generate(model, "glsl", [material])
     default = cg.unrolled_layer
-    cg.unrolled_layer = FORMS[name]
+    cg.unrolled_layer = {**FORMS, **HALF_FORMS}[name]
     try:
         glsl = generate(model, "glsl", [material])
     finally:
         cg.unrolled_layer = default
-    # mat4 calls a vec4 activation the generated code does not define
-    return glsl.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1) if name == "mat4" else glsl
+    # mat4 and the half forms call activations the generated code does not define
+    if name == "mat4":
+        return glsl.replace("void hbrdf_mlp(", ACT4 + "void hbrdf_mlp(", 1)
+    if name in HALF_FORMS:  # the extension before any declaration: glslang wants it first in the file
+        return HALF_EXT + glsl.replace("void hbrdf_mlp(", ACT_H2 + "void hbrdf_mlp(", 1)
+    return glsl
 
 
 def pairs4_shader(glsl, material):

@@ -14,7 +14,8 @@
 // Both buffers live in device-local memory, filled and read back through
 // host-visible staging buffers outside the timed loop: on a discrete GPU the
 // host-visible types are system memory across PCIe, which would time the bus
-// rather than the shader. A discrete GPU is preferred over other devices.
+// rather than the shader. A discrete GPU is preferred over other devices. Half-precision shader
+// arithmetic (shaderFloat16) is enabled where the device has it ("shader_float16 1" in the output).
 // Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
 #include <vulkan/vulkan.h>
 
@@ -179,6 +180,31 @@ int run(int argc, char** argv) {
     VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     dci.queueCreateInfoCount = 1;
     dci.pQueueCreateInfos = &qci;
+    // Half-precision arithmetic in shaders (SPIR-V Float16: GL_EXT_shader_explicit_arithmetic_types_float16,
+    // bench/shader_forms.py's packed-half forms) needs shaderFloat16 enabled at device creation; enabled
+    // wherever the device has it (VK_KHR_shader_float16_int8, core in Vulkan 1.2; this instance asks for
+    // 1.1, so through the extension). Buffers stay float32: no 16-bit storage is needed.
+    uint32_t n_ext = 0;
+    vkEnumerateDeviceExtensionProperties(phys, nullptr, &n_ext, nullptr);
+    std::vector<VkExtensionProperties> exts(n_ext);
+    vkEnumerateDeviceExtensionProperties(phys, nullptr, &n_ext, exts.data());
+    const bool has_f16_ext = std::any_of(exts.begin(), exts.end(), [](const VkExtensionProperties& e) {
+        return !std::strcmp(e.extensionName, VK_KHR_SHADER_FLOAT16_INT8_EXTENSION_NAME);
+    });
+    VkPhysicalDeviceShaderFloat16Int8FeaturesKHR f16{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_FLOAT16_INT8_FEATURES_KHR};
+    const char* device_extensions[] = {VK_KHR_SHADER_FLOAT16_INT8_EXTENSION_NAME};
+    if (has_f16_ext) {
+        VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+        features.pNext = &f16;
+        vkGetPhysicalDeviceFeatures2(phys, &features);
+        f16.shaderInt8 = VK_FALSE;  // only what the half forms use
+        if (f16.shaderFloat16) {
+            dci.pNext = &f16;
+            dci.enabledExtensionCount = 1;
+            dci.ppEnabledExtensionNames = device_extensions;
+        }
+    }
     VkDevice dev;
     check(vkCreateDevice(phys, &dci, nullptr, &dev), "vkCreateDevice");
     VkQueue queue;
@@ -353,7 +379,7 @@ int run(int argc, char** argv) {
         if (!out) throw std::runtime_error("cannot write " + out_path);
     }
     vkUnmapMemory(dev, out_stage.memory);
-    std::printf("device %s\nbest_ms %.4f\n", props.deviceName, best_ms);
+    std::printf("device %s\nshader_float16 %d\nbest_ms %.4f\n", props.deviceName, int(f16.shaderFloat16), best_ms);
     if (!gpu_ms.empty()) {
         std::sort(gpu_ms.begin(), gpu_ms.end());
         std::printf("best_gpu_ms %.4f\nmedian_gpu_ms %.4f\n", gpu_ms.front(), gpu_ms[gpu_ms.size() / 2]);
