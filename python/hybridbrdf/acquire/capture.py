@@ -110,9 +110,10 @@ def write_capture(capture: Capture, folder) -> str:
     return folder
 
 
-def read_photo(path: str, size: Tuple[int, int]) -> np.ndarray:
+def read_photo(path: str, size: Tuple[int, int], finite: bool = True) -> np.ndarray:
     """One photograph (H, W, 3) float32, checked: a regular EXR file of the rig's ``size`` (W, H)
-    whose pixels are all finite (:class:`CaptureError` naming the file otherwise)."""
+    whose pixels are all finite (:class:`CaptureError` naming the file otherwise); ``finite``
+    False lets values that are not finite through (a fit masks them)."""
     check_input_file(path, "photograph", MAX_PHOTO_BYTES, CaptureError)
     try:
         image = read_image(path)
@@ -122,15 +123,15 @@ def read_photo(path: str, size: Tuple[int, int]) -> np.ndarray:
     if image.shape != (h, w, 3):
         raise CaptureError(path, f"photograph is {image.shape[1]}x{image.shape[0]}; the rig says {w}x{h}")
     bad = ~np.isfinite(image)
-    if bad.any():
+    if finite and bad.any():
         r, c, _ = (int(v[0]) for v in np.nonzero(bad))
         raise CaptureError(path, f"{int(bad.sum())} values are not finite (first at column {c}, row {r})")
     return image
 
 
-def load_capture(folder) -> Tuple[Rig, List[np.ndarray], dict]:
+def load_capture(folder, finite: bool = True) -> Tuple[Rig, List[np.ndarray], dict]:
     """(rig, photos, index) of a capture folder (or of a rig file, whose folder holds its images):
-    every photograph present, of the rig's size, finite."""
+    every photograph present, of the rig's size, finite (unless ``finite`` is False)."""
     folder = os.fspath(folder)
     if os.path.isdir(folder):
         index_path = os.path.join(folder, INDEX_FILE)
@@ -146,5 +147,5 @@ def load_capture(folder) -> Tuple[Rig, List[np.ndarray], dict]:
         rig_path, index = folder, {}
     rig = load_rig(rig_path)
     base = os.path.dirname(rig_path)
-    photos = [read_photo(os.path.join(base, s.image), rig.image_size) for s in rig.shots]
+    photos = [read_photo(os.path.join(base, s.image), rig.image_size, finite) for s in rig.shots]
     return rig, photos, index

@@ -1,6 +1,7 @@
 """``hbrdf acquire``: the acquisition commands (docs/ACQUISITION.md). ``hbrdf acquire simulate``
 photographs a flat sample, an exact mixture of measured BRDFs under masks, with a rig (a rig file, a
-phone's flash at N positions or a K x V light stage) and writes the capture folder.
+phone's flash at N positions or a K x V light stage) and writes the capture folder; ``hbrdf acquire
+fit`` fits per-texel maps on a frozen prior to a capture's photographs and writes a textured material.
 
 Its flags and their run live here, beside the code they drive; hybridbrdf.cli registers the
 command with :func:`add_acquire_parser`."""
@@ -11,8 +12,10 @@ import argparse
 import math
 import os
 
+import torch
 from tqdm import tqdm
 
+from hybridbrdf.acquire.acquisition import STEPS, acquire
 from hybridbrdf.acquire.capture import check_output_folder, write_capture
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -111,11 +114,38 @@ def run_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_fit(args: argparse.Namespace) -> int:
+    """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, texels)."""
+    bars = {}
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage not in bars:
+            for bar in bars.values():
+                bar.close()
+            bars[stage] = tqdm(total=total, desc=stage, unit="step", disable=args.quiet)
+        bar = bars[stage]
+        bar.total = total
+        bar.update(done - bar.n)
+
+    say = (lambda msg: None) if args.quiet else (lambda msg: tqdm.write(msg))
+    torch.set_num_threads(args.threads)
+    try:
+        maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
+                       resume=args.resume, force=args.force, progress=progress, log=say)
+    finally:
+        for bar in bars.values():
+            bar.close()
+    h, w = maps.layer.shape
+    print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
+          f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}")
+    return 0
+
+
 def add_acquire_parser(sub) -> None:
-    """``hbrdf acquire`` and its subcommands (``simulate``)."""
+    """``hbrdf acquire`` and its subcommands (``simulate``, ``fit``)."""
     p = sub.add_parser("acquire", help="SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
                        description="SVBRDF acquisition from photographs (docs/ACQUISITION.md).")
-    commands = p.add_subparsers(dest="acquire_command", required=True, metavar="{simulate}")
+    commands = p.add_subparsers(dest="acquire_command", required=True, metavar="{simulate,fit}")
     s = commands.add_parser(
         "simulate", help="photograph a flat sample, an exact mixture of measured BRDFs under masks",
         description="Photograph a flat sample whose SVBRDF is an exact mixture of measured BRDFs under grey masks "
@@ -157,3 +187,33 @@ def add_acquire_parser(sub) -> None:
     s.add_argument("--out", required=True, metavar="DIR", help="the capture folder to write")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=run_simulate)
+
+    f = commands.add_parser(
+        "fit", help="fit per-texel maps on a frozen prior to a capture's photographs; write a textured material",
+        description="Fit per-texel maps (analytic parameters p and latent code z per texel) on a frozen hybrid prior "
+                    "to the photographs of a capture (a capture folder, or a rig file beside its photographs) and "
+                    "write a textured-material folder as hbrdf paint does (docs/SVBRDF.md): texels are clustered "
+                    "(at most 4: the layers), each cluster starts at the prior's material that explains it best, "
+                    "each texel is refined from its cluster's values. Pixels that are not finite are left out "
+                    "(counted); photographs whose sample pixels mostly read below 3x the noise floor are left out "
+                    "(counted); a capture with nothing usable is refused. A checkpoint beside OUT "
+                    "(.OUT.acquire-checkpoint) lets --resume continue an interrupted run; OUT is written once "
+                    "complete and replaced only when it is a textured material's folder (or empty).")
+    f.add_argument("capture", metavar="CAPTURE", help="a capture folder (capture.json, rig.json, photographs) or a "
+                                                     "rig file whose folder holds the photographs")
+    f.add_argument("--out", required=True, metavar="DIR", help="the textured-material folder to write")
+    f.add_argument("--prior", metavar="MODEL", help="a hybrid model file whose frozen network and materials the fit "
+                                                    "uses (default: the shipped prior)")
+    f.add_argument("--size", type=_pair(int, 1, MAX_SIDE, "WxH texels"), default=(128, 128), metavar="WxH",
+                   help="the texel map's size (default 128x128)")
+    f.add_argument("--steps", type=_count(1, 1000000), default=STEPS, metavar="N",
+                   help=f"per-texel steps, each reading 8 rows of every texel (default {STEPS}; the analytic stage "
+                        "runs N/2)")
+    f.add_argument("--seed", type=_count(0, 2 ** 63 - 1), default=0, help="seed of the row draws and clusters (default 0)")
+    f.add_argument("--threads", type=_count(1, 1024), default=1, metavar="N",
+                   help="torch threads (default 1: on a busy 2-core machine two threads made a step 15-35x slower, "
+                        "docs/ACQUISITION.md)")
+    f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
+    f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
+    f.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    f.set_defaults(func=run_fit)

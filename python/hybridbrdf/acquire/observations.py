@@ -16,7 +16,7 @@ channel of zero intensity are left out; the counts are kept (``Observations.drop
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, Sequence, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -53,9 +53,11 @@ class Observations:
 
 
 def texel_observations(rig: Rig, photos: Sequence[np.ndarray], size: Tuple[int, int],
-                       min_cos: float = MIN_COS) -> Observations:
+                       min_cos: float = MIN_COS, usable: Optional[Sequence[np.ndarray]] = None) -> Observations:
     """The observations of a texel map of ``size`` (W, H) from ``photos`` (one (H, W, 3) linear
-    radiance image per shot of ``rig``, finite), with the rig's stated light positions."""
+    radiance image per shot of ``rig``, finite), with the rig's stated light positions.
+    ``usable``: per photograph an (H, W) bool mask; pixels outside it are left out (counted as
+    ``masked``) and may hold anything, NaN included (:mod:`hybridbrdf.acquire.exposure`)."""
     w, h = int(size[0]), int(size[1])
     if w < 1 or h < 1:
         raise ValueError(f"the texel map needs a positive size, got {w}x{h}")
@@ -63,17 +65,24 @@ def texel_observations(rig: Rig, photos: Sequence[np.ndarray], size: Tuple[int, 
         raise ValueError(f"{len(photos)} photographs for the rig's {len(rig.shots)} shots")
     pw, ph = rig.image_size
     parts = {"wi": [], "wo": [], "value": [], "uv": [], "shot": [], "texel": []}
-    dropped = {"grazing": 0, "dark light channel": 0}
+    dropped = {"grazing": 0, "dark light channel": 0, "masked": 0}
+    if usable is not None and len(usable) != len(photos):
+        raise ValueError(f"{len(usable)} usable-pixel masks for {len(photos)} photographs")
     for k, (shot, photo) in enumerate(zip(rig.shots, photos)):
         photo = np.asarray(photo)
         if photo.shape != (ph, pw, 3):
             raise ValueError(f"photograph {k} ({shot.image}) has shape {photo.shape}; the rig says {(ph, pw, 3)}")
-        if not np.isfinite(photo).all():
+        ok = np.ones((ph, pw), dtype=bool) if usable is None else np.asarray(usable[k], dtype=bool)
+        if ok.shape != (ph, pw):
+            raise ValueError(f"usable-pixel mask {k} has shape {ok.shape}; the rig says {(ph, pw)}")
+        if not np.isfinite(photo[ok]).all():
             raise ValueError(f"photograph {k} ({shot.image}) has values that are not finite")
         geo = pixel_geometry(rig, k)
         intensity = rig.lights[shot.light].intensity
-        keep = (geo.wi[:, 2] >= min_cos) & (geo.wo[:, 2] >= min_cos)
-        dropped["grazing"] += int((~keep).sum())
+        masked = ~ok[geo.mask]
+        dropped["masked"] += int(masked.sum())
+        keep = (geo.wi[:, 2] >= min_cos) & (geo.wo[:, 2] >= min_cos) & ~masked
+        dropped["grazing"] += int((~keep & ~masked).sum())
         if (intensity <= 0).any():
             dropped["dark light channel"] += int(keep.sum())
             continue

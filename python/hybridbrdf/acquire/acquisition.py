@@ -1,0 +1,103 @@
+"""``hbrdf acquire fit``'s run: a capture folder (or rig file) in, a textured-material folder out
+(docs/ACQUISITION.md, "The fit on a frozen prior").
+
+    acquire("capture", "out/acquired", size=(128, 128), steps=300)
+
+Everything that can be refused is refused before the fit: the output (an existing folder that is
+not a textured material's, or one holding the capture), the checkpoint (a fresh run over another
+run's checkpoint without ``force``), the capture (its rig and photographs), a capture with nothing
+usable (:mod:`~hybridbrdf.acquire.exposure`). The run keeps a checkpoint beside the output,
+``.<out>.acquire-checkpoint`` (every 50 steps and after each stage, written atomically with a
+checksum, held under its lock so that a second run on it is refused), which ``resume`` continues
+and a finished run removes; the output folder is written whole or not at all."""
+
+from __future__ import annotations
+
+import os
+from typing import Callable, Optional, Tuple
+
+from hybridbrdf import spec
+from hybridbrdf.acquire.capture import load_capture
+from hybridbrdf.acquire.exposure import stated_noise_floor, usable_pixels
+from hybridbrdf.acquire.hybrid_fit import HybridMaps, fit_hybrid_texels
+from hybridbrdf.acquire.observations import texel_observations
+from hybridbrdf.acquire.texel_rows import Progress
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.fit import checkpoint
+from hybridbrdf.model.file import load_model
+from hybridbrdf.model.prior import load_prior
+from hybridbrdf.util import file_lock
+
+#: Steps of the per-texel stage by default (the analytic stage runs half as many).
+STEPS = 300
+
+
+def checkpoint_path(out) -> str:
+    """The checkpoint of a run writing ``out``: ``.<name>.acquire-checkpoint`` beside it."""
+    out = os.path.abspath(os.fspath(out))
+    return os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.acquire-checkpoint")
+
+
+def _inside(path: str, folder: str) -> bool:
+    path, folder = os.path.realpath(path), os.path.realpath(folder)
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def check_output(out: str, capture: str) -> None:
+    """Refuse, in one line naming ``out``, an output that would destroy an input or another folder."""
+    if _inside(capture, out):
+        raise InputFileError(out, f"holds the capture {capture}; writing it would destroy that input")
+    if os.path.lexists(out):
+        if not os.path.isdir(out):
+            raise InputFileError(out, "exists and is not a folder")
+        if os.listdir(out) and not os.path.isfile(os.path.join(out, spec.SVBRDF["index_file"])):
+            raise InputFileError(out, f"is a folder without {spec.SVBRDF['index_file']}; refusing to replace it")
+
+
+def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
+            resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
+            log: Callable[[str], None] = lambda msg: None) -> HybridMaps:
+    """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
+    photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
+    (:meth:`HybridMaps.save`). ``resume`` continues the checkpoint of an interrupted run with the
+    same settings; ``force`` starts afresh over one. Returns the fit."""
+    capture, out = os.path.abspath(os.fspath(capture)), os.path.abspath(os.fspath(out))
+    check_output(out, capture)
+    ckpt = checkpoint_path(out)
+    checkpoint.check_not_another_fits(ckpt, resume, force)
+    if resume and not os.path.lexists(ckpt):
+        raise checkpoint.CheckpointError(ckpt, "no checkpoint to resume (run without --resume)")
+    model = load_prior() if prior is None else load_model(prior)
+    settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
+                "steps": int(steps), "seed": int(seed)}
+    rig, photos, index = load_capture(capture, finite=False)
+    masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture)
+    if report["not finite"]:
+        log(f"{report['not finite']} pixels not finite: left out")
+    if report["under-exposed"]:
+        log(f"{len(report['under-exposed'])} of {len(photos)} photographs under-exposed (most sample pixels below "
+            f"3x the noise floor): left out ({', '.join(rig.shots[k].image for k in report['under-exposed'])})")
+    obs = texel_observations(rig, photos, size, usable=masks)
+    counts = obs.counts()
+    log(f"{len(obs.value):,} observations, {int(counts.min())} to {int(counts.max())} per texel "
+        f"({int((counts == 0).sum())} texels unseen); left out: "
+        + (", ".join(f"{n} {why}" for why, n in obs.dropped.items() if n) or "none"))
+    with file_lock(ckpt, wait=0):
+        state = None
+        if resume:
+            saved, _ = checkpoint.read(ckpt)
+            if saved.get("settings") != settings:
+                raise checkpoint.CheckpointError(ckpt, f"is another run's (settings {saved.get('settings')}); "
+                                                       f"--force starts afresh")
+            state = saved.get("fit")
+            log(f"resuming from {ckpt}: stages done: {', '.join(k for k in state if not k.endswith('_partial')) or 'none'}")
+
+        def save_state(fit_state):
+            checkpoint.save(ckpt, {"settings": settings, "fit": fit_state})
+
+        maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
+                                 save_state=save_state, log=log)
+        maps.save(out)
+        if os.path.lexists(ckpt):
+            os.unlink(ckpt)
+    return maps

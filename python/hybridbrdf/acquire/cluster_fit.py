@@ -1,0 +1,211 @@
+"""Per-texel fits on a frozen prior that share work between texels (docs/ACQUISITION.md, "The
+fit on a frozen prior"): the hybrid (p, z per texel) and the neural-only (a latent per texel)
+fits run the same three stages, on a *family* (the model's network and its per-material values):
+
+1. **analytic**: the analytic-only fit (:func:`fit_analytic_texels`), half the steps: per-texel
+   features (log kd, log alpha, eta) cheap to get and good enough to group texels by.
+2. **clusters**: k-means (K <= 4: a textured material holds a base and up to 3 layers) on the
+   standardised features; per cluster, every material of the prior scored with its own values
+   on a subsample of the cluster's rows, the best :data:`CANDIDATES` fitted (all of the family's
+   per-texel values, one set for the cluster, on the frozen network), the lowest loss kept.
+3. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
+   material (output layer, energy table), a Gaussian pull toward the cluster's values (below).
+
+The pull is the MAP estimate's prior: a texel's rows have log residuals of variance sigma^2 (the
+cluster fit's mean squared residual per row and channel) and its values are a draw around the
+cluster's with variance tau_j^2 per component (the spread of that component over the prior's
+materials: how far materials differ). Dividing the negative log posterior by 3 n_t / sigma^2:
+
+    L_t = mean_{rows, channels} d^2 + sigma^2 / (3 n_t) sum_j (theta_tj - theta_cj)^2 / tau_j^2,
+
+so a texel seen once stays near its cluster, one seen 100 times follows its own rows."""
+
+from __future__ import annotations
+
+from typing import Callable, Dict, Optional, Tuple
+
+import numpy as np
+import torch
+
+from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
+
+#: Clusters of texels at most (a textured material's base and 3 layers).
+MAX_CLUSTERS = 4
+#: Materials of the prior fitted per cluster (the best scored with their own values).
+CANDIDATES = 2
+#: Rows of a cluster its materials are scored and fitted on, and the steps of each candidate's fit.
+CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
+
+
+def kmeans(features: np.ndarray, k: int, seed: int, iterations: int = 30) -> np.ndarray:
+    """Labels (N,) of k-means on ``features`` (N, d), k-means++ started by ``seed``; at most ``k``
+    clusters, empty ones dropped and the labels renumbered 0.. by decreasing size."""
+    rng = np.random.default_rng(seed)
+    n = len(features)
+    k = min(k, n)
+    centres = [features[rng.integers(n)]]
+    for _ in range(1, k):
+        d2 = np.min([((features - c) ** 2).sum(1) for c in centres], axis=0)
+        if d2.sum() <= 0:
+            break
+        centres.append(features[rng.choice(n, p=d2 / d2.sum())])
+    centres = np.array(centres)
+    for _ in range(iterations):
+        labels = np.argmin(((features[:, None] - centres[None]) ** 2).sum(2), axis=1)
+        centres = np.array([features[labels == c].mean(0) if (labels == c).any() else centres[c]
+                            for c in range(len(centres))])
+    sizes = np.bincount(labels, minlength=len(centres))
+    order = [c for c in np.argsort(-sizes, kind="stable") if sizes[c] > 0]
+    renumber = np.zeros(len(centres), dtype=np.int64)
+    renumber[order] = np.arange(len(order))
+    return renumber[labels]
+
+
+def texel_clusters(maps: AnalyticMaps, k: int, seed: int) -> np.ndarray:
+    """(H * W,) cluster of every texel from its analytic fit: k-means on (log kd, log alpha, eta),
+    each feature standardised; texels without observations join the largest cluster."""
+    kd = maps.kd.reshape(-1, 3).astype(np.float64)
+    feats = np.concatenate([np.log(np.maximum(kd, 1e-3)), np.log(maps.alpha.reshape(-1, 2)[:, :1]),
+                            maps.eta.reshape(-1, 3)[:, :1]], axis=1)
+    seen = maps.counts.reshape(-1) > 0
+    labels = np.zeros(len(feats), dtype=np.int64)
+    if seen.any():
+        f = feats[seen]
+        f = (f - f.mean(0)) / np.maximum(f.std(0), 1e-6)
+        labels[seen] = kmeans(f, k, seed)
+    return labels
+
+
+def _loss_rows(family, data: ObservationTensors, materials: torch.Tensor, raw: Dict[str, torch.Tensor],
+               rows: torch.Tensor) -> torch.Tensor:
+    """Mean squared residual per row and channel of ``family`` with per-row values ``raw``."""
+    d = data.residual(rows, family.evaluate(materials, raw, data.wi[rows], data.wo[rows]))
+    return (d * d).mean()
+
+
+def _cluster_rows(obs: Observations, labels: np.ndarray, c: int, n: int, seed: int) -> torch.Tensor:
+    """Up to ``n`` rows of cluster ``c``'s texels, drawn without replacement (seeded)."""
+    per_row = np.repeat(labels, np.diff(obs.offsets))
+    rows = np.nonzero(per_row == c)[0]
+    if len(rows) > n:
+        rows = np.sort(np.random.default_rng([seed, c]).choice(rows, n, replace=False))
+    return torch.from_numpy(rows)
+
+
+def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, seed: int,
+                 progress: Optional[Progress] = None) -> Dict[str, object]:
+    """Per cluster: the prior's material that explains its rows best after fitting (see the module
+    docstring), its fitted values and the fit's residual variance. Returns {"material" (K,),
+    "centres" {name: (K, c)}, "sigma2" (K,)}."""
+    k = int(labels.max()) + 1
+    every = family.raw_of_materials()
+    n_mat = len(next(iter(every.values())))
+    materials, centres, sigma2 = [], {name: [] for name in every}, []
+    total = k * CANDIDATES * CLUSTER_STEPS
+    done = 0
+    for c in range(k):
+        rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
+        if not len(rows):  # a cluster of texels without observations only: the largest's values
+            materials.append(materials[0] if materials else 0)
+            for name in every:
+                centres[name].append(centres[name][0] if centres[name] else every[name][0])
+            sigma2.append(sigma2[0] if sigma2 else 1.0)
+            continue
+        score_rows = rows[:1024]
+        with torch.no_grad():
+            scores = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
+                                             {name: v[m].expand(len(score_rows), -1) for name, v in every.items()},
+                                             score_rows) for m in range(n_mat)])
+        best = None
+        for m in torch.argsort(scores)[:CANDIDATES].tolist():
+            raw = {name: v[m:m + 1].clone().requires_grad_() for name, v in every.items()}
+            mats = torch.full((len(rows),), m)
+
+            def loss(gen, raw=raw, mats=mats):
+                return _loss_rows(family, data, mats, {n: v.expand(len(rows), -1) for n, v in raw.items()}, rows)
+
+            adam_texels(raw, loss, CLUSTER_STEPS, 0.03, seed, f"cluster{c}-{m}")
+            done += CLUSTER_STEPS
+            if progress is not None:
+                progress("clusters", done, total)
+            with torch.no_grad():
+                final = float(loss(None))
+            if best is None or final < best[0]:
+                best = (final, m, {n: v.detach()[0] for n, v in raw.items()})
+        materials.append(best[1])
+        for name in every:
+            centres[name].append(best[2][name])
+        sigma2.append(max(best[0], 1e-8))
+    return {"material": torch.tensor(materials), "centres": {n: torch.stack(v) for n, v in centres.items()},
+            "sigma2": torch.tensor(sigma2)}
+
+
+def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
+                  steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL, lr: float = 0.01,
+                  progress: Optional[Progress] = None, state: Optional[dict] = None,
+                  save_state: Optional[Callable[[dict], None]] = None) -> Dict[str, torch.Tensor]:
+    """Every texel's values (n_texels, c) refined from its cluster's with the pull of the module
+    docstring: ``steps`` steps of ``rows_per_texel`` rows of every texel."""
+    lab = torch.from_numpy(labels)
+    counts = torch.from_numpy(np.diff(obs.offsets)).double()
+    every = family.raw_of_materials()
+    tau2 = {n: v.var(dim=0).clamp_min(1e-4) for n, v in every.items()}
+    weight = (clusters["sigma2"][lab].double() / (3 * counts.clamp_min(1))).float()  # sigma^2 / (3 n_t)
+    centre = {n: v[lab] for n, v in clusters["centres"].items()}
+    raw = {n: v.clone().requires_grad_() for n, v in centre.items()}
+    material_of_texel = clusters["material"][lab]
+    sampler = RowSampler(obs, rows_per_texel)
+    seen = sampler.texels
+
+    def loss(gen):
+        texel, rows = sampler.draw(gen)
+        d = data.residual(rows, family.evaluate(material_of_texel[texel], {n: v[texel] for n, v in raw.items()},
+                                                data.wi[rows], data.wo[rows]))
+        data_term = (d * d).sum() / (3 * rows_per_texel)  # sum over texels of each texel's mean
+        pull = sum((((raw[n][seen] - centre[n][seen]) ** 2) / tau2[n]).sum(1) * weight[seen] for n in raw).sum()
+        return data_term + pull
+
+    if len(seen):
+        adam_texels(raw, loss, steps, lr, seed, "texels", progress, state, save_state)
+    return {n: v.detach() for n, v in raw.items()}
+
+
+def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
+                 progress: Optional[Progress] = None, state: Optional[dict] = None,
+                 save_state: Optional[Callable[[dict], None]] = None) -> Tuple[np.ndarray, Dict, Dict]:
+    """The three stages (module docstring): (labels (n_texels,), clusters, per-texel raw values).
+    ``state`` (what ``save_state`` was last given) resumes after the last finished stage or within
+    the analytic and texel stages at their last checkpoint (every 50 steps)."""
+    state = dict(state or {})
+
+    def saver(key):
+        def save(partial):
+            if save_state is not None:
+                save_state({**state, key: partial})
+        return save
+
+    def finish(key, value):
+        state[key] = value
+        state.pop(key + "_partial", None)
+        if save_state is not None:
+            save_state(dict(state))
+
+    if "analytic" not in state:
+        maps = fit_analytic_texels(obs, steps=max(1, steps // 2), seed=seed, rows_per_texel=rows_per_texel,
+                                   progress=progress, state=state.get("analytic_partial"),
+                                   save_state=saver("analytic_partial"))
+        finish("analytic", {"kd": torch.from_numpy(maps.kd), "eta": torch.from_numpy(maps.eta),
+                            "alpha": torch.from_numpy(maps.alpha)})
+    a = state["analytic"]
+    maps = AnalyticMaps(a["kd"].numpy(), a["eta"].numpy(), a["alpha"].numpy(), obs.counts())
+    labels = texel_clusters(maps, MAX_CLUSTERS, seed)
+    data = ObservationTensors(obs)
+    if "clusters" not in state:
+        finish("clusters", fit_clusters(family, obs, data, labels, seed, progress))
+    clusters = state["clusters"]
+    raw = refine_texels(family, obs, data, labels, clusters, steps, seed, rows_per_texel, progress=progress,
+                        state=state.get("texels_partial"), save_state=saver("texels_partial"))
+    return labels, clusters, raw
+

@@ -1,0 +1,170 @@
+"""The **hybrid** per-texel fit (docs/ACQUISITION.md, issue 46 step 2): p = (kd, eta, alpha) and z
+per texel on a frozen hybrid prior, each texel with the output layer and energy table of its
+cluster's prior material (:mod:`~hybridbrdf.acquire.cluster_fit`), written as a textured material
+(docs/SVBRDF.md): the clusters' materials are the layers, the weights map the (one-hot) cluster
+assignment, and each layer's kd, eta, alpha and latent maps the texels' values.
+
+    maps = fit_hybrid_texels(texel_observations(rig, photos, (128, 128)), load_prior(), steps=300)
+    maps.eval(texel, wi, wo)   # (M, 3) the fitted BRDF at those texels
+    maps.save("out/acquired")  # the folder hbrdf paint writes; loads in libhybridbrdf"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Optional
+
+import numpy as np
+import torch
+
+from hybridbrdf import spec
+from hybridbrdf.acquire.cluster_fit import fit_on_prior
+from hybridbrdf.acquire.evaluation import eval_chunked
+from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
+from hybridbrdf.brdf.torch_brdf import _normalize
+from hybridbrdf.fit.paint import bound_bright_kd
+from hybridbrdf.model.file import HybridModel
+from hybridbrdf.model.networks import energy_bound_scale
+from hybridbrdf.svbrdf.asset import SVBRDF
+
+_LOG_ALPHA_MIN = math.log(spec.ALPHA_MIN)
+_KD_SPAN, _ETA_SPAN = spec.KD_MAX - spec.KD_MIN, spec.ETA_MAX - spec.ETA_MIN
+
+
+def _logit(p: torch.Tensor) -> torch.Tensor:
+    p = p.clamp(1e-6, 1 - 1e-6)
+    return torch.log(p) - torch.log1p(-p)
+
+
+class HybridFamily:
+    """A hybrid model's frozen network and per-material values, as the per-texel fits use them:
+    raw values per row (kd, eta, alpha, z; HybridBRDF's reparameterisation, so every value stays
+    in the contract's range) and ``evaluate(material, raw, wi, wo)`` = f (N, 3), each row with its
+    material's output layer and energy table."""
+
+    def __init__(self, model: HybridModel):
+        if not model.has_analytic:
+            raise ValueError(f"the hybrid fit needs a hybrid model; {model.path or 'this one'} is '{model.kind}'")
+        self.model = model
+        self.module = model._module(torch.float32)
+        for p in self.module.parameters():
+            p.requires_grad_(False)
+        t = {k: torch.from_numpy(v) for k, v in model.tensors.items() if k.startswith("materials.")}
+        self.tensors = t
+
+    def raw_of_materials(self) -> Dict[str, torch.Tensor]:
+        """Every material's raw values (M, c)."""
+        t = self.tensors
+        return {"kd": _logit((t["materials.kd"] - spec.KD_MIN) / _KD_SPAN),
+                "eta": _logit((t["materials.eta"] - spec.ETA_MIN) / _ETA_SPAN),
+                "alpha": _logit(1.0 - torch.log(t["materials.alpha"].clamp(spec.ALPHA_MIN, 1.0)) / _LOG_ALPHA_MIN),
+                "z": t["materials.z"].clone()}
+
+    @staticmethod
+    def decode(raw: Dict[str, torch.Tensor]):
+        """(kd, eta, alpha, z) of raw values, as HybridBRDF decodes its parameters."""
+        kd = spec.KD_MIN + _KD_SPAN * torch.sigmoid(raw["kd"])
+        eta = spec.ETA_MIN + _ETA_SPAN * torch.sigmoid(raw["eta"])
+        alpha = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(raw["alpha"]))).clamp(spec.ALPHA_MIN, spec.ALPHA_MAX)
+        return kd, eta, alpha, raw["z"]
+
+    def evaluate(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+        return self.evaluate_values(material, *self.decode(raw), wi, wo)
+
+    def evaluate_values(self, material, kd, eta, alpha, z, wi, wo) -> torch.Tensor:
+        """f (N, 3) of rows with decoded values, grouped by material (one output layer each)."""
+        out = torch.zeros((len(wi), 3), dtype=wi.dtype)
+        wi, wo = wi.to(torch.float32), wo.to(torch.float32)
+        t = self.tensors
+        for m in torch.unique(material).tolist():
+            rows = torch.nonzero(material == m)[:, 0]
+            head = (t["materials.head_weight"][m], t["materials.head_bias"][m]) if "materials.head_weight" in t else None
+            f, _ = self.module.evaluate_pairs(wi[rows], wo[rows], kd[rows], eta[rows], alpha[rows], z[rows], head)
+            if "materials.energy_bound" in t:  # as HybridModel.eval scales a material's f_t
+                table = t["materials.energy_bound"][m]
+                ci, co = (_normalize(w[rows])[0][:, 2] for w in (wi, wo))
+                f = f * (energy_bound_scale(table, ci) * energy_bound_scale(table, co))[:, None]
+            out = out.index_copy(0, rows, f.to(out.dtype))
+        return out
+
+
+@dataclass
+class HybridMaps:
+    """A hybrid fit: ``model`` (the prior, with an edit per layer whose kd map is brighter than its
+    material: :func:`hybridbrdf.fit.paint.bound_bright_kd`), ``layers`` (material names, at most 4),
+    ``layer`` (H, W) each texel's layer, per texel ``kd``, ``eta`` (H, W, 3), ``alpha`` (H, W, 2),
+    ``z`` (H, W, l) float32, ``counts`` (H, W) observations per texel (0: its cluster's values)."""
+    model: HybridModel
+    layers: List[str]
+    layer: np.ndarray
+    kd: np.ndarray
+    eta: np.ndarray
+    alpha: np.ndarray
+    z: np.ndarray
+    counts: np.ndarray
+
+    def eval(self, texel: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """The fitted BRDF (no cosine) at texels ``texel`` ((M,) int, j * W + i) for ``wi``, ``wo``
+        (M, 3): (M, 3) float64, evaluated in chunks without gradients (float32 network)."""
+        family = HybridFamily(self.model)
+        index = torch.tensor([self.model.index(n) for n in self.layers])
+        flat = {k: torch.from_numpy(np.ascontiguousarray(getattr(self, k).reshape(-1, getattr(self, k).shape[-1])))
+                for k in ("kd", "eta", "alpha", "z")}
+        material = index[torch.from_numpy(self.layer.reshape(-1).astype(np.int64))]
+
+        def fn(t, a, b):
+            t = torch.from_numpy(t)
+            return family.evaluate_values(material[t], flat["kd"][t], flat["eta"][t], flat["alpha"][t],
+                                          flat["z"][t], a, b)
+        return eval_chunked(texel, wi, wo, self.layer.size, fn)
+
+    def svbrdf(self) -> SVBRDF:
+        """The textured material (docs/SVBRDF.md): layer k's maps hold its texels' values and, at
+        the other texels, its texels' mean (what a bilinear tap across a layer boundary mixes in)."""
+        h, w = self.layer.shape
+        weights = np.zeros((h, w, 3), np.float32)
+        maps = []
+        for k in range(len(self.layers)):
+            mine = self.layer == k
+            if k > 0:
+                weights[..., k - 1] = mine
+            layer_maps = {}
+            for q, arr in (("kd", self.kd), ("eta", self.eta), ("alpha", self.alpha), ("latent", self.z)):
+                filled = np.where(mine[..., None], arr, arr[mine].mean(axis=0)).astype(np.float32)
+                layer_maps[q] = filled
+            maps.append(layer_maps)
+        return SVBRDF(self.model, self.layers, (w, h), weights if len(self.layers) > 1 else None, maps, "clamp")
+
+    def save(self, folder, format: str = "exr") -> SVBRDF:
+        """Write the textured-material folder (:meth:`SVBRDF.save`: atomic, an existing folder replaced
+        only when it is a textured material's); EXR keeps the fitted values exactly (float32), so
+        the folder evaluates as :meth:`eval` does."""
+        sv = self.svbrdf()
+        sv.save(folder, format=format)
+        return sv
+
+
+def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, seed: int = 0,
+                      progress: Optional[Progress] = None, rows_per_texel: int = ROWS_PER_TEXEL,
+                      state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
+                      log: Callable[[str], None] = lambda msg: None) -> HybridMaps:
+    """Fit (p, z) per texel on ``model``'s frozen network (a hybrid prior with its materials):
+    the stages of :func:`hybridbrdf.acquire.cluster_fit.fit_on_prior` (analytic ``steps // 2``
+    steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each). ``progress``
+    gets (stage, done, total) after each step; ``save_state`` a resumable state, ``state`` resumes."""
+    family = HybridFamily(model)
+    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state)
+    w, h = obs.size
+    with torch.no_grad():
+        kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))
+    # Clusters that chose the same material share its layer (p and z are per texel anyway).
+    cluster_material = clusters["material"].tolist()
+    chosen = list(dict.fromkeys(cluster_material))
+    layer = np.array([chosen.index(m) for m in cluster_material])[labels]
+    names = [model.materials[m] for m in chosen]
+    kd_maps = {k: kd[layer == k] for k in range(len(names))}
+    model, names = bound_bright_kd(model, names, kd_maps, log)
+    shape = (h, w)
+    return HybridMaps(model, names, layer.reshape(shape), kd.reshape(*shape, 3), eta.reshape(*shape, 3),
+                      alpha.reshape(*shape, 2), z.reshape(*shape, -1), obs.counts())
