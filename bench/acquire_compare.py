@@ -13,8 +13,9 @@ is fitted per texel to the same observations with the same number of Adam steps:
 - hybrid: p and z per texel on a frozen prior (fit_hybrid_texels), once on the prior that never
   saw the three measurements (results/prior132_minus_rgl5_32x2_l8_heads_20k) and once on the
   shipped prior, which did ("not held out");
-- neural: a latent per texel on the neural baseline's network (fit_neural_texels on
-  results/rgl54_neural_32x3_10k, which saw them: "not held out").
+- neural: a latent per texel on a neural baseline's network (fit_neural_texels), once on
+  results/rgl44_heldout_neural_32x3_10k (44 NBRDF-RGL networks, never saw the three) and once on
+  the issue's results/rgl54_neural_32x3_10k, which saw them ("not held out").
 
 Errors against the truth over all directions, not only the photographed ones: for S sampled
 texels (half pure, half mixed, fixed seed), --pairs cosine pairs each (CONVENTIONS' metric
@@ -71,6 +72,10 @@ from svbrdf_mixture import masks  # noqa: E402
 LAYERS = ("paper_white_rgb.bsdf", "vch_golden_yellow_rgb.bsdf", "cc_ibiza_sunset_rgb.bsdf")
 HELD_OUT_PRIOR = ROOT / "results" / "prior132_minus_rgl5_32x2_l8_heads_20k.safetensors"
 NEURAL = ROOT / "results" / "rgl54_neural_32x3_10k.safetensors"
+HELD_OUT_NEURAL = ROOT / "results" / "rgl44_heldout_neural_32x3_10k.safetensors"
+#: (hybrid, neural) pairs the verdict compares: both held out (the honest pair), both not held
+#: out, and the issue's literal pair (the honest hybrid against the network that saw them).
+PAIRS = (("hybrid_heldout", "neural_heldout"), ("hybrid_shipped", "neural"), ("hybrid_heldout", "neural"))
 #: The two noise levels: (label, photons at radiance 1, read noise in electrons).
 NOISE = (("low", 1e4, 2.0), ("high", 200.0, 4.0))
 #: A texel is pure when one weight is above this.
@@ -235,11 +240,14 @@ def models(steps: int, rows_per_texel):
             model = hb.load_model(str(path))
             fn = (lambda m: lambda obs: hybrid(obs, m, seed=0, **budget(hybrid, steps, rows_per_texel)))(model)
         out.append((key, label, held, fn))
-    fn = None
-    if neural:
-        net = hb.load_model(str(NEURAL))
-        fn = lambda obs: neural(obs, net, **budget(neural, steps, rows_per_texel))  # noqa: E731
-    out.append(("neural", "neural only, rgl54_neural_32x3 (not held out)", False, fn))
+    for key, label, path, held in (("neural_heldout", "neural only, rgl44_heldout_neural_32x3 (never saw them)",
+                                    HELD_OUT_NEURAL, True),
+                                   ("neural", "neural only, rgl54_neural_32x3 (not held out)", NEURAL, False)):
+        fn = None
+        if neural:
+            net = hb.load_model(str(path))
+            fn = (lambda m: lambda obs: neural(obs, m, seed=0, **budget(neural, steps, rows_per_texel)))(net)
+        out.append((key, label, held, fn))
     return out
 
 
@@ -283,7 +291,7 @@ class Output:
             os.replace(t + ".partial", t)
 
 
-def verdicts(rows, hybrid_key: str = "hybrid_heldout"):
+def verdicts(rows, hybrid_key: str = "hybrid_heldout", neural_key: str = "neural_heldout"):
     """Lines of the claim's three conditions per noise level and metric, from ``rows`` (the
     jsonl's dicts): (a) hybrid <= analytic at every N <= SPARSE, (b) hybrid <= neural at every
     N >= DENSE, (c) hybrid strictly below both at some N between; the claim holds when all three do."""
@@ -315,10 +323,10 @@ def verdicts(rows, hybrid_key: str = "hybrid_heldout"):
                 return ok, ("yes" if ok else "no") + " (" + "; ".join(g[2] for g in got) + ")"
 
             a = every([n for n in ns if n <= SPARSE], ["analytic"])
-            b = every([n for n in ns if n >= DENSE], ["neural"])
-            c = some([n for n in ns if SPARSE < n < DENSE], ["analytic", "neural"])
+            b = every([n for n in ns if n >= DENSE], [neural_key])
+            c = some([n for n in ns if SPARSE < n < DENSE], ["analytic", neural_key])
             holds = "not measured" if None in (a[0], b[0], c[0]) else ("HOLDS" if a[0] and b[0] and c[0] else "FAILS")
-            lines.append(f"verdict {noise} noise, {hybrid_key}, {label}: claim {holds}; "
+            lines.append(f"verdict {noise} noise, {hybrid_key} vs {neural_key}, {label}: claim {holds}; "
                          f"(a) hybrid <= analytic at N <= {SPARSE}: {a[1]}; (b) hybrid <= neural at N >= {DENSE}: "
                          f"{b[1]}; (c) hybrid below analytic/neural at some {SPARSE} < N < {DENSE}: {c[1]}")
     return lines
@@ -377,8 +385,8 @@ def sweep(args) -> int:
                 out.line(f"{noise_label:5s} {n:3d} {row['observations']:7d} {key:15s} {fit_s:7.1f} "
                          f"{row['smape_median']:9.4f} {row['smape_p95']:7.4f} {row['cmae_median']:9.5f} "
                          f"{row['cmae_p95']:8.5f} {render:7.4f}")
-    for key in ("hybrid_heldout", "hybrid_shipped"):
-        for line in verdicts(rows, key):
+    for hybrid_key, neural_key in PAIRS:
+        for line in verdicts(rows, hybrid_key, neural_key):
             out.line(line)
     out.line(f"total {time.perf_counter() - t_start:.0f} s")
     out.close()
@@ -388,7 +396,8 @@ def sweep(args) -> int:
 # --- The figure --------------------------------------------------------------------------------
 
 STYLE = {"analytic": ("tab:blue", "o", "-"), "hybrid_heldout": ("tab:red", "s", "-"),
-         "hybrid_shipped": ("tab:red", "s", "--"), "neural": ("tab:green", "^", "-")}
+         "hybrid_shipped": ("tab:red", "s", "--"), "neural_heldout": ("tab:green", "^", "-"),
+         "neural": ("tab:green", "^", "--")}
 
 
 def plot(jsonl: str, png: str) -> int:
@@ -440,8 +449,8 @@ def plot(jsonl: str, png: str) -> int:
     fig.savefig(tmp, dpi=110)
     os.replace(tmp, png)
     print(f"wrote {png}")
-    for key in ("hybrid_heldout", "hybrid_shipped"):
-        for line in verdicts(rows, key):
+    for hybrid_key, neural_key in PAIRS:
+        for line in verdicts(rows, hybrid_key, neural_key):
             print(line)
     return 0
 
