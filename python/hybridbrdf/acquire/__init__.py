@@ -7,9 +7,16 @@
 - :mod:`~hybridbrdf.acquire.noise`: the sensor's Poisson-Gaussian noise;
 - :mod:`~hybridbrdf.acquire.simulate`: the photographs; :mod:`~hybridbrdf.acquire.capture`: their folder;
 - :mod:`~hybridbrdf.acquire.observations`: the photographs turned back into BRDF values per texel (a fit's input).
-- :mod:`~hybridbrdf.acquire.texel_fit`: fits per texel from the observations (analytic only so far).
+- :mod:`~hybridbrdf.acquire.exposure`: the pixels a fit may use (NaN pixels, under-exposed photographs);
+- :mod:`~hybridbrdf.acquire.texel_rows`: rows drawn per texel per step, the resumable Adam loop;
+- per-texel fits, each with ``.eval(texel, wi, wo)`` (:mod:`~hybridbrdf.acquire.evaluation`) and ``.counts``:
+  :mod:`~hybridbrdf.acquire.texel_fit` (analytic only), :mod:`~hybridbrdf.acquire.hybrid_fit` (p, z on a
+  frozen prior; the textured material), :mod:`~hybridbrdf.acquire.neural_fit` (a latent per texel), their
+  shared stages in :mod:`~hybridbrdf.acquire.cluster_fit`;
+- :mod:`~hybridbrdf.acquire.acquisition`: ``hbrdf acquire fit``'s run (checks, masking, checkpoint, output).
 
     rig = flash_rig(16, size=(512, 512))
     mixture = Mixture.painted(open_source("synthetic:plastic"), [open_source("synthetic:gold")], [mask])
     write_capture(simulate(rig, mixture, NoiseModel(photons=1000, read_noise=2), seed=1), "capture")
+    acquire("capture", "acquired", size=(128, 128))   # per-texel (p, z) on the shipped prior
 """

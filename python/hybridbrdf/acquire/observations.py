@@ -10,8 +10,10 @@ work between texels (clusters, a pyramid) reads them all at once.
 
 Stated masking: pixels that do not see the sample, pixels lit or seen at grazing angles
 (cos(theta_i) or cos(theta_o) below ``min_cos``: the division by cos(theta_i) amplifies their
-noise without bound, and a pixel's footprint there spans many texels) and pixels of a light with a
-channel of zero intensity are left out; the counts are kept (``Observations.dropped``)."""
+noise without bound, and a pixel's footprint there spans many texels), pixels of a light with a
+channel of zero intensity and pixels outside the caller's ``usable`` masks (NaN pixels, under-exposed
+photographs: :mod:`hybridbrdf.acquire.exposure`) are left out; the counts are kept
+(``Observations.dropped``)."""
 
 from __future__ import annotations
 
