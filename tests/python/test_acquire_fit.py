@@ -219,4 +219,6 @@ def test_an_under_exposed_capture_is_refused_in_one_line_and_one_dark_photograph
     with pytest.raises(ValueError, match="nothing usable"):
         acquire(capture, tmp_path / "out", size=(2, 2), steps=10)
     assert not os.path.lexists(tmp_path / "out") and not os.path.lexists(checkpoint_path(tmp_path / "out"))
+    with pytest.raises(ValueError, match=r"--size \(texels\) 67,108,864: would allocate about"):  # before reading
+        acquire(capture, tmp_path / "out", size=(8192, 8192), steps=10)
     assert json.load(open(os.path.join(capture, "capture.json")))["format_version"] == 1

@@ -24,12 +24,17 @@ from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.texel_rows import Progress
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit import checkpoint
+from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.util import file_lock
 
 #: Steps of the per-texel stage by default (the analytic stage runs half as many).
 STEPS = 300
+#: Peak bytes per texel of the map, an estimate with a margin: the 128x128 run of docs/ACQUISITION.md
+#: peaked at 1.56 GB, about 0.8 GB of it the photographs, observations and libraries, the rest
+#: (about 46 KiB a texel) the 8 rows per texel and their activations through the network with autograd.
+BYTES_PER_TEXEL = 64 * 1024
 
 
 def checkpoint_path(out) -> str:
@@ -62,6 +67,7 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     (:meth:`HybridMaps.save`). ``resume`` continues the checkpoint of an interrupted run with the
     same settings; ``force`` starts afresh over one. Returns the fit."""
     capture, out = os.path.abspath(os.fspath(capture)), os.path.abspath(os.fspath(out))
+    check_count("--size (texels)", int(size[0]) * int(size[1]), BYTES_PER_TEXEL)
     check_output(out, capture)
     ckpt = checkpoint_path(out)
     checkpoint.check_not_another_fits(ckpt, resume, force)
