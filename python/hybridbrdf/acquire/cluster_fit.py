@@ -116,7 +116,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
                 centres[name].append(centres[name][0] if centres[name] else every[name][0])
             sigma2.append(sigma2[0] if sigma2 else 1.0)
             continue
-        score_rows = rows[:1024]
+        score_rows = rows[::max(1, len(rows) // 1024)][:1024]  # spread over the cluster (rows are sorted by texel)
         with torch.no_grad():
             scores = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
                                              {name: v[m].expand(len(score_rows), -1) for name, v in every.items()},
