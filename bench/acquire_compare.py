@@ -438,13 +438,14 @@ def plot(jsonl: str, png: str) -> int:
             ax.set_title(f"{title}, {noise} noise (photons {level['photons']:g}, read {level['read_noise']:g})",
                          fontsize=9)
             ax.grid(alpha=0.3, which="both")
-    axes[0][0].legend(fontsize=6)
-    axes[-1][0].legend(fontsize=6)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    h2, l2 = axes[-1][0].get_legend_handles_labels()
+    fig.legend(handles + h2[-1:], labels + l2[-1:], loc="lower center", ncol=3, fontsize=7)
     r0 = rows[0]
     fig.suptitle(f"Acquisition from N flash photographs ({r0['photo']}x{r0['photo']} onto {r0['map']}x{r0['map']} texels, "
                  f"{r0['steps']} steps each; {r0['texels']} texels x {r0['pairs']} pairs; machine {r0['machine']})",
                  fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 0.98))
     tmp = png + ".partial.png"
     fig.savefig(tmp, dpi=110)
     os.replace(tmp, png)
