@@ -308,23 +308,17 @@ def verdicts(rows, hybrid_key: str = "hybrid_heldout", neural_key: str = "neural
                 h, o = h[key], [r[key] for r in o]
                 return all(h <= x for x in o), all(h < x for x in o), f"N={n} {h:.4g} vs {'/'.join(f'{x:.4g}' for x in o)}"
 
-            def every(range_ns, others):
+            def over(range_ns, others, quantifier, strict):
+                """quantifier (all or any) of the comparisons at range_ns: hybrid <= others (strict: <)."""
                 got = [compare(n, others) for n in range_ns]
                 if not got or None in got:
                     return None, "not measured"
-                ok = all(g[0] for g in got)
+                ok = quantifier(g[1] if strict else g[0] for g in got)
                 return ok, ("yes" if ok else "no") + " (" + "; ".join(g[2] for g in got) + ")"
 
-            def some(range_ns, others):
-                got = [compare(n, others) for n in range_ns]
-                if not got or None in got:
-                    return None, "not measured"
-                ok = any(g[1] for g in got)
-                return ok, ("yes" if ok else "no") + " (" + "; ".join(g[2] for g in got) + ")"
-
-            a = every([n for n in ns if n <= SPARSE], ["analytic"])
-            b = every([n for n in ns if n >= DENSE], [neural_key])
-            c = some([n for n in ns if SPARSE < n < DENSE], ["analytic", neural_key])
+            a = over([n for n in ns if n <= SPARSE], ["analytic"], all, False)
+            b = over([n for n in ns if n >= DENSE], [neural_key], all, False)
+            c = over([n for n in ns if SPARSE < n < DENSE], ["analytic", neural_key], any, True)
             holds = "not measured" if None in (a[0], b[0], c[0]) else ("HOLDS" if a[0] and b[0] and c[0] else "FAILS")
             lines.append(f"verdict {noise} noise, {hybrid_key} vs {neural_key}, {label}: claim {holds}; "
                          f"(a) hybrid <= analytic at N <= {SPARSE}: {a[1]}; (b) hybrid <= neural at N >= {DENSE}: "
