@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import signal
 import sys
@@ -32,7 +33,7 @@ from hybridbrdf.fit.distributed import RankLostError
 from hybridbrdf.fit.paint import paint
 from hybridbrdf.fit.fit import default_device, fit, frozen_arch_settings
 from hybridbrdf.fit.record import environment_line
-from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, PAIRS, FitSettings, parse_mlp, positive_int
+from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, PAIRS, FitSettings, Number, parse_mlp, positive_int
 from hybridbrdf.demo import BYTES_PER_SAMPLE as DEMO_BYTES_PER_SAMPLE
 from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
@@ -553,6 +554,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+#: A render setting's number: finite (nan and inf say nothing about a scene); the library checks
+#: each setting's own range when rendering.
+FINITE = Number(float, -math.inf, math.inf)
+#: --exposure's range in stops: 2^64 scales any radiance float32 holds past its range or below it.
+EXPOSURE_STOPS = 64
+
+
 def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
     """--spp, --max-depth, ...: one flag per scene setting of the library's table (hybridbrdf.render.tracer.settings()),
     typed and documented by it; the library checks the ranges when rendering (one-line errors)."""
@@ -564,7 +572,7 @@ def _add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
             parser.add_argument(flag, dest=s["name"], action=argparse.BooleanOptionalAction, default=None,
                                 help=help_text)
         else:
-            parser.add_argument(flag, dest=s["name"], type={"int": int, "float": float, "str": str}[s["type"]],
+            parser.add_argument(flag, dest=s["name"], type={"int": int, "float": FINITE, "str": str}[s["type"]],
                                 choices=s["choices"], default=None,
                                 metavar=None if s["choices"] else ("N" if s["type"] == "int" else "X"),
                                 help=help_text)
@@ -626,7 +634,7 @@ def _add_add_parser(sub) -> None:
                    help="with --to BASE: after the sparse fit, train BASE's network further with the new materials "
                         "and BASE's own, replayed against BASE's outputs with their (p, z) free; each BASE "
                         "material's drift (SMAPE and cMAE against BASE) is printed and recorded")
-    p.add_argument("--max-drift", type=float, default=None, metavar="X",
+    p.add_argument("--max-drift", type=Number(float, 0, math.inf, lo_open=True), default=None, metavar="X",
                    help="with --refine: the largest drift (SMAPE against BASE's own output) a BASE material may "
                         "take; above it nothing is written (default: 0.75)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or log messages")
@@ -742,7 +750,7 @@ def _add_mix_parser(sub) -> None:
     p.add_argument("model", help="model file holding both materials")
     p.add_argument("a", metavar="A", help="material at t = 0")
     p.add_argument("b", metavar="B", help="material at t = 1")
-    p.add_argument("--t", type=float, required=True, help="blend weight of B, in [0, 1]")
+    p.add_argument("--t", type=FINITE, required=True, help="blend weight of B, in [0, 1] (the library checks the range)")
     _add_new_material_flags(p, "the blend's kd", "its")
     p.set_defaults(func=_cmd_mix)
 
@@ -826,7 +834,8 @@ def _add_render_parser(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="OpenEXR file to write (linear RGB, float32)")
     p.add_argument("--png", help="also write an 8-bit sRGB PNG")
     _add_render_setting_flags(p)
-    p.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops (default: %(default)s)")
+    p.add_argument("--exposure", type=Number(float, -EXPOSURE_STOPS, EXPOSURE_STOPS), default=0.0,
+                   help=f"PNG exposure in stops, within +-{EXPOSURE_STOPS} (default: %(default)s)")
     p.add_argument("--tonemap", choices=("clamp", "aces"), default="clamp", help="PNG tone map (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_render)

@@ -260,21 +260,23 @@ def check_material_name(name: str, seed_bytes: bytes, path: pathlib.Path) -> str
 
 # ---- command-line flags ----------------------------------------------------------------------
 
-def _int_and_float_flags(parser: argparse.ArgumentParser) -> Dict[str, List[argparse.Action]]:
-    out: Dict[str, List[argparse.Action]] = {}
+def _commands(parser: argparse.ArgumentParser, path: tuple = ()) -> Dict[str, argparse.ArgumentParser]:
+    """Every ``hbrdf`` command at any depth (``acquire fit``, ``acquire simulate``), by its words."""
+    out: Dict[str, argparse.ArgumentParser] = {}
     for action in parser._actions:  # noqa: SLF001 - argparse has no public walk over actions
         if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
             for name, sub in action.choices.items():
-                out[name] = [a for a in sub._actions if a.option_strings and a.type is not None]  # noqa: SLF001
+                out[" ".join(path + (name,))] = sub
+                out.update(_commands(sub, path + (name,)))
     return out
 
 
 def cli_flags() -> List[tuple]:
-    """(command, flag) for every typed flag of every ``hbrdf`` command."""
+    """(command, flag) for every typed flag of every ``hbrdf`` command, nested ones included."""
     from hybridbrdf.cli import build_parser
 
-    return [(cmd, a.option_strings[-1]) for cmd, actions in _int_and_float_flags(build_parser()).items()
-            for a in actions]
+    return [(cmd, a.option_strings[-1]) for cmd, sub in _commands(build_parser()).items()
+            for a in sub._actions if a.option_strings and a.type is not None]  # noqa: SLF001
 
 
 @functools.lru_cache(maxsize=1)
@@ -284,18 +286,37 @@ def _parser() -> argparse.ArgumentParser:
     return build_parser()  # parsing does not change it, so one serves every example
 
 
+def _required_args(sub: argparse.ArgumentParser, flag: str) -> List[str]:
+    """Arguments that satisfy ``sub``'s required positionals, options and exclusive groups other
+    than ``flag``: without them every value ends in the same "required" usage error, which would
+    hide a flag that accepts a value it should refuse. A typed option gets "1", any other "x"."""
+    out: List[str] = []
+    def filler(action):
+        return "1" if action.type is not None else "x"
+    for a in sub._actions:  # noqa: SLF001
+        if not a.option_strings and not isinstance(a, argparse._SubParsersAction) and a.nargs != 0:  # noqa: SLF001
+            if a.required or a.nargs in ("+", None):
+                out.append(filler(a))
+        elif a.required and flag not in a.option_strings:
+            out += [a.option_strings[-1], filler(a)]
+    for group in sub._mutually_exclusive_groups:  # noqa: SLF001
+        options = [a for a in group._group_actions if a.option_strings]  # noqa: SLF001
+        if group.required and options and not any(flag in a.option_strings for a in options):
+            out += [options[0].option_strings[-1]] + ([filler(options[0])] if options[0].nargs != 0 else [])
+    return out
+
+
 def check_cli_flag(command: str, flag: str, value: str) -> str:
-    """``hbrdf COMMAND FLAG VALUE`` parsed (nothing run): a usage error of one line, or a value
-    that is finite and of the flag's type."""
+    """``hbrdf COMMAND FLAG VALUE`` parsed (nothing run), the command's other required arguments
+    given: a usage error of one line, or a value that is finite and of the flag's type."""
     from hybridbrdf.cli import settings_from_args
 
     parser = _parser()
-    positional = {"fit": ["synthetic:gold"], "eval": ["m.safetensors", "synthetic:gold"], "info": ["m"],
-                  "render": ["scene.json"], "demo": []}.get(command, [])
+    words = command.split()
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err):
-            args = parser.parse_args([command, *positional, f"{flag}={value}"])
+            args = parser.parse_args([*words, *_required_args(_commands(parser)[command], flag), f"{flag}={value}"])
             if command == "fit":
                 settings_from_args(args)
     except SystemExit as exc:
@@ -304,11 +325,14 @@ def check_cli_flag(command: str, flag: str, value: str) -> str:
         last = err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else ""
         if not last.startswith("hbrdf") or "error:" not in last:
             raise Violation(f"hbrdf {command} {flag}={value!r}: no usage error line: {err.getvalue()[-500:]!r}")
+        if "the following arguments are required" in last or "one of the arguments" in last:
+            raise Violation(f"hbrdf {command} {flag}={value!r}: the check's own arguments fell short: {last!r}")
         return REJECTED
     except Exception as exc:  # noqa: BLE001
         return expect_clean_error(f"hbrdf {command} {flag}", exc, "")
     v = getattr(args, flag.lstrip("-").replace("-", "_"), None)
-    if isinstance(v, float) and not np.isfinite(v):
+    values = v if isinstance(v, (tuple, list)) else [v]
+    if any(isinstance(x, float) and not np.isfinite(x) for x in values):
         raise Violation(f"hbrdf {command} {flag}={value!r} accepted a non-finite value {v}")
     return VALID
 

@@ -143,6 +143,18 @@ def test_cli_flags(flag, value):
     fs.check_cli_flag(flag[0], flag[1], value)
 
 
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e999", "nanxnan", "1xinf"])
+def test_every_typed_flag_refuses_non_finite_numbers(value):
+    """Every typed flag of every command, nested ones (``acquire fit``) included, with the command's
+    other required arguments given: before they were, every value ended in the same "required"
+    usage error and hid four flags that took nan and inf (add --max-drift, mix --t, render
+    --exposure and the render settings' floats)."""
+    flags = fs.cli_flags()
+    assert {"acquire fit", "acquire simulate", "render", "mix"} <= {cmd for cmd, _ in flags}
+    for cmd, flag in flags:
+        fs.check_cli_flag(cmd, flag, value)
+
+
 # ---- directions through every evaluation path ------------------------------------------------------
 
 hostile_float = st.floats(width=32) | st.sampled_from([0.0, -0.0, 1e-45, -1e-45, 1e-38, 1e30, -1e30, 1e-4, -1e-4])

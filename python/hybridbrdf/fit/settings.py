@@ -99,6 +99,8 @@ class Number:
         """The range in words: "an integer in [1, 1000000000]", "a number > 0"."""
         noun = "an integer" if self.kind is int else "a number"
         fmt = str if self.kind is int else (lambda v: f"{v:g}")
+        if math.isinf(self.hi) and math.isinf(self.lo):
+            return f"a finite {noun.split()[-1]}"
         if math.isinf(self.hi):
             return f"{noun} {'>' if self.lo_open else '>='} {fmt(self.lo)}"
         return (f"{noun} in {'(' if self.lo_open else '['}{fmt(self.lo)}, "
