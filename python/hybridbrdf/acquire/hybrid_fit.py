@@ -10,14 +10,12 @@ assignment, and each layer's kd, eta, alpha and latent maps the texels' values.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
 
 import numpy as np
 import torch
 
-from hybridbrdf import spec
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
@@ -25,17 +23,8 @@ from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
 from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.fit.paint import bound_bright_kd
 from hybridbrdf.model.file import HybridModel
-from hybridbrdf.model.networks import energy_bound_scale
+from hybridbrdf.model.networks import alpha_from_raw, energy_bound_scale, eta_from_raw, kd_from_raw, raw_from_analytic
 from hybridbrdf.svbrdf.asset import SVBRDF
-
-_LOG_ALPHA_MIN = math.log(spec.ALPHA_MIN)
-_KD_SPAN, _ETA_SPAN = spec.KD_MAX - spec.KD_MIN, spec.ETA_MAX - spec.ETA_MIN
-
-
-def _logit(p: torch.Tensor) -> torch.Tensor:
-    p = p.clamp(1e-6, 1 - 1e-6)
-    return torch.log(p) - torch.log1p(-p)
-
 
 class HybridFamily:
     """A hybrid model's frozen network and per-material values, as the per-texel fits use them:
@@ -56,18 +45,13 @@ class HybridFamily:
     def raw_of_materials(self) -> Dict[str, torch.Tensor]:
         """Every material's raw values (M, c)."""
         t = self.tensors
-        return {"kd": _logit((t["materials.kd"] - spec.KD_MIN) / _KD_SPAN),
-                "eta": _logit((t["materials.eta"] - spec.ETA_MIN) / _ETA_SPAN),
-                "alpha": _logit(1.0 - torch.log(t["materials.alpha"].clamp(spec.ALPHA_MIN, 1.0)) / _LOG_ALPHA_MIN),
-                "z": t["materials.z"].clone()}
+        kd, eta, alpha = raw_from_analytic(t["materials.kd"], t["materials.eta"], t["materials.alpha"])
+        return {"kd": kd, "eta": eta, "alpha": alpha, "z": t["materials.z"].clone()}
 
     @staticmethod
     def decode(raw: Dict[str, torch.Tensor]):
         """(kd, eta, alpha, z) of raw values, as HybridBRDF decodes its parameters."""
-        kd = spec.KD_MIN + _KD_SPAN * torch.sigmoid(raw["kd"])
-        eta = spec.ETA_MIN + _ETA_SPAN * torch.sigmoid(raw["eta"])
-        alpha = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(raw["alpha"]))).clamp(spec.ALPHA_MIN, spec.ALPHA_MAX)
-        return kd, eta, alpha, raw["z"]
+        return kd_from_raw(raw["kd"]), eta_from_raw(raw["eta"]), alpha_from_raw(raw["alpha"]), raw["z"]
 
     def evaluate(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
         return self.evaluate_values(material, *self.decode(raw), wi, wo)

@@ -18,7 +18,6 @@ from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
 from hybridbrdf.model.file import HybridModel
-from hybridbrdf.model.networks import _unit_pair, combine
 
 
 class NeuralFamily:
@@ -39,16 +38,9 @@ class NeuralFamily:
         return {"z": torch.from_numpy(self.model.tensors["materials.z"]).clone()}
 
     def evaluate(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
-        """NeuralBRDF.evaluate with a code per pair: each pair's directions in its own code's
-        shading frames, then the shared MLP, f = exp(o)."""
-        mod, z = self.module, raw["z"]
-        out_dtype = wi.dtype
-        wi_n, wo_n, valid = _unit_pair(wi.to(torch.float32), wo.to(torch.float32))
-        frames = mod.shading_frames(z)  # (N, F, 3, 3)
-        wi_f = torch.einsum("nfac,nc->nfa", frames, wi_n).reshape(len(z), -1)
-        wo_f = torch.einsum("nfac,nc->nfa", frames, wo_n).reshape(len(z), -1)
-        f = combine("exp", mod.mlp(torch.cat([wi_f, wo_f, z], dim=-1)), None, mod.pre_exp_max)
-        return torch.where(valid[:, None], f, torch.zeros_like(f)).to(out_dtype)
+        """NeuralBRDF.evaluate_pairs: each pair's directions in its own code's shading frames,
+        then the shared MLP, f = exp(o)."""
+        return self.module.evaluate_pairs(wi.to(torch.float32), wo.to(torch.float32), raw["z"]).to(wi.dtype)
 
 
 @dataclass

@@ -150,6 +150,27 @@ def _inverse_sigmoid(p: torch.Tensor) -> torch.Tensor:
     return torch.log(p) - torch.log1p(-p)
 
 
+# The hybrid's reparameterisation (the per-texel fits of hybridbrdf.acquire use it too): kd and eta
+# sigmoids into the contract's ranges, alpha log-uniform in [ALPHA_MIN, 1].
+def kd_from_raw(raw: torch.Tensor) -> torch.Tensor:
+    return spec.KD_MIN + _KD_SPAN * torch.sigmoid(raw)
+
+
+def eta_from_raw(raw: torch.Tensor) -> torch.Tensor:
+    return spec.ETA_MIN + _ETA_SPAN * torch.sigmoid(raw)
+
+
+def alpha_from_raw(raw: torch.Tensor) -> torch.Tensor:
+    # The clamp only absorbs exp()'s last-bit rounding below ALPHA_MIN.
+    return torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(raw))).clamp(ALPHA_MIN, spec.ALPHA_MAX)
+
+
+def raw_from_analytic(kd: torch.Tensor, eta: torch.Tensor, alpha: torch.Tensor):
+    """The inverse of :func:`kd_from_raw`, :func:`eta_from_raw` and :func:`alpha_from_raw`: (kd_raw, eta_raw, alpha_raw) of parameter values."""
+    return (_inverse_sigmoid((kd - spec.KD_MIN) / _KD_SPAN), _inverse_sigmoid((eta - spec.ETA_MIN) / _ETA_SPAN),
+            _inverse_sigmoid(1.0 - torch.log(alpha.clamp(ALPHA_MIN, 1.0)) / _LOG_ALPHA_MIN))
+
+
 class HybridBRDF(nn.Module):
     """Shared network + per-material (p, z) for the hybrid architecture and its ablations.
 
@@ -235,23 +256,20 @@ class HybridBRDF(nn.Module):
 
     # ---- analytic parameters -------------------------------------------------
     def kd(self) -> torch.Tensor:
-        return spec.KD_MIN + _KD_SPAN * torch.sigmoid(self.kd_raw)
+        return kd_from_raw(self.kd_raw)
 
     def eta(self) -> torch.Tensor:
-        return spec.ETA_MIN + _ETA_SPAN * torch.sigmoid(self.eta_raw)
+        return eta_from_raw(self.eta_raw)
 
     def alpha(self) -> torch.Tensor:
-        # The clamp only absorbs exp()'s last-bit rounding below ALPHA_MIN.
-        a = torch.exp(_LOG_ALPHA_MIN * (1.0 - torch.sigmoid(self.alpha_raw))).clamp(ALPHA_MIN, spec.ALPHA_MAX)
+        a = alpha_from_raw(self.alpha_raw)
         return torch.where(self.isotropic[:, None], a[:, :1].expand_as(a), a)
 
     def set_analytic(self, index: int, kd, eta, alpha) -> None:
         """Initialise material ``index`` from parameter values (inverse of the reparameterisation)."""
         with torch.no_grad():
-            self.kd_raw[index] = _inverse_sigmoid((torch.as_tensor(kd, dtype=torch.float32) - spec.KD_MIN) / _KD_SPAN)
-            self.eta_raw[index] = _inverse_sigmoid((torch.as_tensor(eta, dtype=torch.float32) - spec.ETA_MIN) / _ETA_SPAN)
-            a = torch.as_tensor(alpha, dtype=torch.float32).clamp(ALPHA_MIN, 1.0)
-            self.alpha_raw[index] = _inverse_sigmoid(1.0 - torch.log(a) / _LOG_ALPHA_MIN)
+            raw = raw_from_analytic(*(torch.as_tensor(v, dtype=torch.float32) for v in (kd, eta, alpha)))
+            self.kd_raw[index], self.eta_raw[index], self.alpha_raw[index] = raw
 
     # ---- evaluation ------------------------------------------------------------
     def forward(self, wi: torch.Tensor, wo: torch.Tensor, material: Optional[torch.Tensor] = None):
@@ -408,6 +426,16 @@ class NeuralBRDF(nn.Module):
         o = self.mlp(torch.cat([wi_f, wo_f, z[:, None].expand(m, b, self.latent_dim)], dim=-1))
         f = combine("exp", o, None, self.pre_exp_max)
         return torch.where(valid[None, :, None], f, torch.zeros_like(f)), None
+
+    def evaluate_pairs(self, wi, wo, z):
+        """f (N, 3) where pair i has its own latent code z (N, L) on directions wi, wo (N, 3): the
+        per-texel codes of hybridbrdf.acquire's neural-only fit. Same function as :meth:`evaluate`."""
+        frames = self.shading_frames(z)  # (N, F, 3, 3)
+        wi_n, wo_n, valid = _unit_pair(wi, wo)
+        wi_f = torch.einsum("nfac,nc->nfa", frames, wi_n).reshape(len(z), -1)
+        wo_f = torch.einsum("nfac,nc->nfa", frames, wo_n).reshape(len(z), -1)
+        f = combine("exp", self.mlp(torch.cat([wi_f, wo_f, z], dim=-1)), None, self.pre_exp_max)
+        return torch.where(valid[:, None], f, torch.zeros_like(f))
 
     def material_tensors(self) -> Dict[str, torch.Tensor]:
         return {"z": self.z.detach().float()}
