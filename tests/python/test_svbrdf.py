@@ -23,7 +23,7 @@ from hybridbrdf.fit.paint import composite, paint
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.file import load_model
 from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
-from hybridbrdf.svbrdf.decode import decode, encode, png_channel, transfer
+from hybridbrdf.svbrdf.decode import decode, encode, inverse_transfer, png_channel, transfer
 from hybridbrdf.svbrdf.maps import write_map
 
 from helpers import run_cli, saved_random_model
@@ -67,25 +67,75 @@ def test_constant_exr_maps_are_the_uniform_material_bit_for_bit(model, tmp_path)
     assert np.abs(f).max() > 0
 
 
+# The spec's transfers written out here from spec/model.json's text and IEC 61966-2-1, independently
+# of hybridbrdf.svbrdf.decode: the references the quantisation and transfer tests measure against.
+def _srgb_eotf(v):
+    v = np.asarray(v, np.float64)
+    return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+def _srgb_oetf(t):
+    t = np.asarray(t, np.float64)
+    return np.where(t <= 0.0031308, 12.92 * t, 1.055 * np.maximum(t, 0.0031308) ** (1 / 2.4) - 0.055)
+
+
+_REFERENCE_TRANSFERS = {"linear": (lambda v: np.asarray(v, np.float64), lambda t: np.asarray(t, np.float64)),
+                        "srgb": (_srgb_eotf, _srgb_oetf),
+                        "square": (lambda v: np.asarray(v, np.float64) ** 2, lambda t: np.sqrt(np.asarray(t, np.float64)))}
+
+
+def _reference_decode(v, d):
+    return d["offset"] + d["scale"] * _REFERENCE_TRANSFERS[d["transfer"]][0](v)
+
+
+def _reference_stored(x, d):
+    """The exact (unrounded) stored value in [0, 1] whose decode is x."""
+    return np.clip(_REFERENCE_TRANSFERS[d["transfer"]][1]((np.asarray(x, np.float64) - d["offset"]) / d["scale"]), 0, 1)
+
+
 def test_constant_png_maps_stay_within_their_quantisation(model, tmp_path):
     """8-bit maps of a material's values: every decoded value within half a step of the value (the
-    decode of the nearest byte), and f within the change that step makes (measured against EXR)."""
+    decode of the nearest byte, not of the one below or above it), and f within the change that
+    half step makes to it, measured against the same maps stored unquantised (EXR)."""
     h, w = 4, 4
     maps = _constant_maps(model, 0, h, w)
     SVBRDF(model, [model.materials[0]], (w, h), None, [maps]).save(tmp_path / "png", format="png")
     back = load_svbrdf(tmp_path / "png")
-    for q, values in maps.items():
-        got = back.maps[0][q]
-        index = json.loads((tmp_path / "png" / "svbrdf.json").read_text())
-        for entry in (e for e in index["maps"] if e["quantity"] == q):
-            for ch, d in enumerate(entry["decode"]):
-                if d is None:
-                    continue
-                c = entry["first"] + ch
-                v = encode(values[..., c], d)  # the exact stored value, before rounding
-                lo = decode(np.floor(v * 255) / 255, d)
-                hi = decode(np.ceil(v * 255) / 255, d)
-                assert np.all((got[..., c] >= np.minimum(lo, hi) - 1e-6) & (got[..., c] <= np.maximum(lo, hi) + 1e-6)), q
+    index = json.loads((tmp_path / "png" / "svbrdf.json").read_text())
+    half = 0.5 / 255
+    steps = {}  # (quantity, component) -> the largest change in the decoded value half a step makes
+    for entry in index["maps"]:
+        q = entry["quantity"]
+        for ch, d in enumerate(entry["decode"]):
+            if d is None:
+                continue
+            c = entry["first"] + ch
+            x = maps[q][0, 0, c].astype(np.float64)
+            v = _reference_stored(x, d)
+            lo, hi = (_reference_decode(np.clip(v + s, 0, 1), d) for s in (-half, half))
+            got = back.maps[0][q][..., c].astype(np.float64)
+            slack = 1e-6 * max(1.0, abs(x))  # the float32 of the decoded value
+            assert np.all((got >= min(lo, hi) - slack) & (got <= max(lo, hi) + slack)), (q, c, x, got[0, 0], lo, hi)
+            steps[q, c] = max(abs(hi - x), abs(lo - x))
+    assert ("kd", 0) in steps and ("eta", 0) in steps and ("alpha", 0) in steps
+    # f: the PNG texel against the EXR one (the material's float values), within the sum over the
+    # parameters of the change half a step of each makes on its own (the first-order bound), per pair.
+    wi, wo = _directions(1500)
+    uv = np.full((len(wi), 2), 0.5)
+
+    def f_of(values):
+        return SVBRDF(model, [model.materials[0]], (w, h), None, [values]).eval(uv, wi, wo, "nearest", torch.float64)
+
+    exact = f_of(maps)
+    bound = np.zeros_like(exact)
+    for (q, c), step in steps.items():
+        moved = {k: a.copy() for k, a in maps.items()}
+        moved[q][..., c] += np.float32(step)
+        bound += np.abs(f_of(moved) - exact)
+    f_png = back.eval(uv, wi, wo, "nearest", torch.float64)
+    err = np.abs(f_png - exact)
+    assert err.max() > 0  # the control: the 8-bit maps do change f
+    assert np.all(err <= 1.05 * bound + 1e-6 * np.abs(exact) + 1e-9), float(np.max(err / np.maximum(bound, 1e-30)))
 
 
 def test_mixed_texels_are_the_mixture_of_their_layers(model, tmp_path):
@@ -112,24 +162,52 @@ def test_mixed_texels_are_the_mixture_of_their_layers(model, tmp_path):
         assert np.abs(torch_f - ref).max() <= 1e-9 * scale + 1e-12
 
 
-def test_bilinear_weights_filter_the_brdfs(model, tmp_path):
+def _reference_bilinear_taps(uv, w, h, addressing):
+    """[(row, col, weight)] per uv, written from docs/CONVENTIONS.md alone: texel (i, j) centred at
+    ((i + 0.5) / W, (j + 0.5) / H), u right (columns), v down (rows); the four centres around uv,
+    weighted by the distances to them; repeat wraps the texel indices, clamp clamps uv to [0, 1]
+    first and then the indices to the map."""
+    out = []
+    for u, v in uv:
+        if addressing == "clamp":
+            u, v = min(max(u, 0.0), 1.0), min(max(v, 0.0), 1.0)
+        i0, j0 = int(np.floor(u * w - 0.5)), int(np.floor(v * h - 0.5))
+        taps = []
+        for j in (j0, j0 + 1):
+            for i in (i0, i0 + 1):
+                cu, cv = (i + 0.5) / w, (j + 0.5) / h  # the texel centre (outside the map for i = -1 or W)
+                weight = (1 - abs(u - cu) * w) * (1 - abs(v - cv) * h)
+                col, row = (i % w, j % h) if addressing == "repeat" else (min(max(i, 0), w - 1), min(max(j, 0), h - 1))
+                taps.append((row, col, weight))
+        out.append(taps)
+    return out
+
+
+@pytest.mark.parametrize("addressing", ["repeat", "clamp"])
+def test_bilinear_weights_filter_the_brdfs(model, addressing):
     """Without p or z maps, the bilinear texel is the bilinear combination of the four texels'
-    BRDFs (f is linear in the weights): the filter of the BRDFs, not an approximation of it."""
+    BRDFs (f is linear in the weights): the filter of the BRDFs, not an approximation of it. The
+    taps and their weights are computed here from the convention (not from the lookup under test),
+    on a non-square map with uv outside [0, 1] (wrapping or clamping)."""
     rng = np.random.default_rng(1)
     h, w = 6, 5
     raw = rng.uniform(0, 1, size=(h, w, 3)).astype(np.float32)
     raw[..., 1:] *= 0.5
     weights = raw / np.maximum(raw.sum(axis=2, keepdims=True), 1)
     weights[..., 2] = 0
-    sv = SVBRDF(model, model.materials[:3], (w, h), weights)
-    wi, wo = _directions(400)
-    uv = rng.uniform(0, 1, size=(len(wi), 2))
+    sv = SVBRDF(model, model.materials[:3], (w, h), weights, addressing=addressing)
+    wi, wo = _directions(300)
+    uv = rng.uniform(-0.3, 1.3, size=(len(wi), 2))
+    uv[:4] = [[0.5 / w, 0.5 / h], [0.0, 0.0], [1.0, 1.0], [0.3, 0.95]]  # a centre, both corners, an edge
     f = sv.eval(uv, wi, wo, filter="bilinear", dtype=torch.float64)
-    taps = sv._taps(uv, "bilinear")
+    # Each texel's own f, at its centre (one nearest tap): (h, w, N, 3) for the N pairs.
+    centres = [[(c + 0.5) / w, (r + 0.5) / h] for r in range(h) for c in range(w)]
+    own = np.stack([sv.eval(np.tile(cu, (len(wi), 1)), wi, wo, filter="nearest", dtype=torch.float64)
+                    for cu in centres]).reshape(h, w, len(wi), 3)
     ref = np.zeros_like(f)
-    for r, c, t in taps:
-        centre = np.stack([(c + 0.5) / w, (r + 0.5) / h], axis=1)
-        ref += t[:, None] * sv.eval(centre, wi, wo, filter="nearest", dtype=torch.float64)
+    for n, taps in enumerate(_reference_bilinear_taps(uv, w, h, addressing)):
+        assert abs(sum(t for _, _, t in taps) - 1) < 1e-12 and all(t >= -1e-12 for _, _, t in taps)
+        ref[n] = sum(t * own[r, c, n] for r, c, t in taps)
     assert np.abs(f - ref).max() <= 1e-5 * np.abs(ref).max()
 
 
@@ -164,9 +242,27 @@ def test_transfers_invert():
     for name in spec.SVBRDF["transfers"]:
         d = {"transfer": name, "scale": 1.0, "offset": 0.0}
         np.testing.assert_allclose(encode(decode(v, d), d), v, atol=1e-12)
-    # The sRGB EOTF's published anchor points (IEC 61966-2-1).
-    np.testing.assert_allclose(transfer("srgb", np.array([0.04045, 1.0])), [0.04045 / 12.92, 1.0])
     assert png_channel("latent", -2.0, 6.0) == {"transfer": "linear", "scale": 8.0, "offset": -2.0}
+
+
+def test_transfers_are_the_published_functions():
+    """Each transfer and its inverse against its definition written out here (not a round trip
+    through the module: a gamma of 2.2 in both directions inverts as well as the sRGB curve does):
+    the sRGB EOTF and its inverse of IEC 61966-2-1 (linear below 0.04045 / 0.0031308, 2.4 above),
+    at published points and on a grid over both pieces, T(v) = v^2 and T(v) = v."""
+    # Published values: sRGB 0.5 is 21.4% linear, 18% grey is sRGB 0.4614; the pieces meet at
+    # (0.04045, 0.0031308); 8-bit 1 / 255 is in the linear toe.
+    np.testing.assert_allclose(transfer("srgb", np.array([0.0, 1 / 255, 0.04045, 0.5, 1.0])),
+                               [0.0, 1 / 255 / 12.92, 0.0031308, 0.21404114, 1.0], rtol=2e-6, atol=1e-9)
+    np.testing.assert_allclose(inverse_transfer("srgb", np.array([0.0, 0.001, 0.0031308, 0.18, 0.21404114, 1.0])),
+                               [0.0, 0.01292, 0.04045, 0.46135613, 0.5, 1.0], rtol=2e-6, atol=1e-9)
+    v = np.linspace(0, 1, 1001)
+    for name, (eotf, oetf) in _REFERENCE_TRANSFERS.items():
+        np.testing.assert_allclose(transfer(name, v), eotf(v), rtol=1e-12, atol=1e-15, err_msg=name)
+        np.testing.assert_allclose(inverse_transfer(name, v), oetf(v), rtol=1e-12, atol=1e-15, err_msg=name)
+    # A channel's decode is offset + scale T(v) (spec/model.json), here alpha's 8-bit decode.
+    d = png_channel("alpha")
+    np.testing.assert_allclose(decode(v, d), 1e-4 + 0.9999 * v * v, rtol=1e-12)
 
 
 # ---- malformed folders ------------------------------------------------------------------
@@ -345,6 +441,10 @@ def test_paint_bounds_a_kd_map_brighter_than_its_material(tmp_path):
 
 
 def test_paint_fits_a_measured_layer_on_the_frozen_network(tmp_path):
+    """A measured file as a layer is fitted onto the model's frozen network: the network kept bit
+    for bit, and the layer's material fits the measurement better than any material it could have
+    started from (the model's own; the sparse fit starts from the nearest of them), measured
+    here with the fit's loss (log(1 + cos f), docs/CONVENTIONS.md "Fitting") on pairs of its own."""
     path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
     _write_png(tmp_path / "mask.png", np.full((4, 4), 128, np.uint8), "L")
     sv = paint(path, m.materials[1], [("synthetic:gold", tmp_path / "mask.png")], tmp_path / "sv",
@@ -353,6 +453,22 @@ def test_paint_fits_a_measured_layer_on_the_frozen_network(tmp_path):
     for key, value in m.tensors.items():
         if not key.startswith("materials."):
             np.testing.assert_array_equal(sv.model.tensors[key], value)  # the network kept bit for bit
+    wi, wo = _directions(20000, seed=11)
+    g = np.maximum(hb.open_source("synthetic:gold").eval(wi, wo), 0)
+
+    def loss(f):
+        c = wi[:, 2:3]
+        return float(np.mean((np.log1p(c * np.maximum(f, 0)) - np.log1p(c * g)) ** 2))
+
+    start = min(loss(m.eval(wi, wo, k, dtype=torch.float64)) for k in range(len(m.materials)))
+    fitted = loss(sv.model.eval(wi, wo, "gold", dtype=torch.float64))
+    # 150 steps bring it to 0.68 of the best start (a 1-step fit stays at 1.0).
+    assert fitted < 0.8 * start, (fitted, start)
+    # The painted texel (mask 128: half gold) is the mixture of the base and the fitted layer.
+    texel = sv.eval(np.full((len(wi), 2), 0.5), wi, wo)
+    w1 = 128 / 255
+    mixed = (1 - w1) * m.eval(wi, wo, 1, dtype=torch.float64) + w1 * sv.model.eval(wi, wo, "gold", dtype=torch.float64)
+    assert np.abs(texel - mixed).max() <= 2e-4 * np.abs(mixed).max()
 
 
 def test_hbrdf_paint_command_line(tmp_path):
