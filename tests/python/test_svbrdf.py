@@ -22,6 +22,7 @@ from hybridbrdf.evaluate.metrics import metric_directions
 from hybridbrdf.fit.paint import composite, paint
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.file import load_model
+from hybridbrdf.model.random import random_model
 from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
 from hybridbrdf.svbrdf.decode import decode, encode, inverse_transfer, png_channel, transfer
 from hybridbrdf.svbrdf.maps import write_map
@@ -260,9 +261,25 @@ def test_transfers_are_the_published_functions():
     for name, (eotf, oetf) in _REFERENCE_TRANSFERS.items():
         np.testing.assert_allclose(transfer(name, v), eotf(v), rtol=1e-12, atol=1e-15, err_msg=name)
         np.testing.assert_allclose(inverse_transfer(name, v), oetf(v), rtol=1e-12, atol=1e-15, err_msg=name)
+    # Below the range (a float32 alpha a rounding under ALPHA_MIN): the bottom of it, not NaN.
+    np.testing.assert_array_equal(inverse_transfer("square", np.array([-1e-9, -1.0])), [0.0, 0.0])
+    np.testing.assert_array_equal(inverse_transfer("srgb", np.array([-1e-9, -1.0])), [0.0, 0.0])
     # A channel's decode is offset + scale T(v) (spec/model.json), here alpha's 8-bit decode.
     d = png_channel("alpha")
     np.testing.assert_allclose(decode(v, d), 1e-4 + 0.9999 * v * v, rtol=1e-12)
+
+
+def test_unknown_transfers_are_refused_and_8_bit_codes_are_bytes():
+    for name in ("gamma", "Linear", "sRGB", "", "squares"):  # before, between and after the known names
+        for fn in (transfer, inverse_transfer):
+            with pytest.raises(ValueError, match="unknown transfer"):
+                fn(name, np.array([0.5]))
+    d = {"transfer": "linear", "scale": 1.0, "offset": 0.0}
+    x = np.array([0.0, 0.2, 0.61, 1.0])  # 0.61: 155.55 of 255 (the nearest byte 156, not 155), 39976.35 of 65535
+    codes = encode(x, d, bits=8)
+    assert codes.dtype == np.uint8 and codes.tolist() == [0, 51, 156, 255]
+    codes = encode(x, d, bits=16)
+    assert codes.dtype == np.uint16 and codes.tolist() == [0, 13107, 39976, 65535]
 
 
 # ---- malformed folders ------------------------------------------------------------------
@@ -306,6 +323,8 @@ CORRUPTIONS = [
     ("unknown material", lambda f: _edit_index(f, lambda i: i["layers"][1].update(material="nope")), "'nope' is not in"),
     ("five layers", lambda f: _edit_index(f, lambda i: i.update(layers=i["layers"] * 3)), "1 to 4 layers"),
     ("decode out of range", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", scale=2.0)), "outside kd's range"),
+    ("decode below range", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", offset=-0.5, scale=1.0)),
+     "decodes to [-0.5, 0.5], outside kd's range"),
     ("unknown transfer", lambda f: _edit_index(f, lambda i: _set_decode(i, "kd", transfer="gamma")), "unknown transfer"),
     ("nan scale", lambda f: (f / "svbrdf.json").write_text((f / "svbrdf.json").read_text().replace('"scale": 1.0', '"scale": NaN', 1)),
      "not valid JSON"),
@@ -352,6 +371,45 @@ def test_exr_maps_with_nan_or_out_of_range_values_are_refused(tmp_path):
     hb._core.render_write_exr(bad, str(tmp_path / "sv" / "layer0_eta.exr"))
     with pytest.raises(hb.InputFileError, match="must be finite"):
         load_svbrdf(tmp_path / "sv")
+
+
+def test_a_truncated_exr_map_is_one_line_naming_the_file_once(tmp_path):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, m.materials[:1], (3, 3), None, [{"eta": np.full((3, 3, 3), 1.5, np.float32)}]).save(tmp_path / "sv", format="exr")
+    path = tmp_path / "sv" / "layer0_eta.exr"
+    path.write_bytes(path.read_bytes()[:60])
+    with pytest.raises(hb.InputFileError) as err:
+        load_svbrdf(tmp_path / "sv")
+    text = str(err.value)
+    assert "\n" not in text and text.count("layer0_eta.exr") == 1, text
+    assert text.split("layer0_eta.exr: ", 1)[-1].startswith("Failed to read"), text  # the reader's reason after the name
+
+
+@pytest.mark.parametrize("size", [(5, 1), (1, 4), (1, 1)])
+def test_maps_one_texel_wide_or_high(tmp_path, size):
+    _, m = saved_random_model(tmp_path, "hybrid")
+    w, h = size
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[..., 0] = np.linspace(0, 1, w * h).reshape(h, w)
+    for fmt in ("png", "exr"):
+        SVBRDF(m, m.materials[:2], size, weights).save(tmp_path / fmt, format=fmt)
+        back = load_svbrdf(tmp_path / fmt)
+        assert back.size == size
+        np.testing.assert_allclose(back.weights[..., 0], weights[..., 0], atol=0.5 / 255 + 1e-7)
+
+
+def test_weights_summing_above_one_are_divided_by_their_sum():
+    """docs/CONVENTIONS.md: w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when it exceeds 1."""
+    _, m = random_model("hybrid", n=4)
+    texels = [(0.2, 0.3, 0.1), (0.9, 0.6, 0.0), (0.7, 0.6, 0.5), (1.0, 1.0, 1.0)]
+    weights = np.array([texels], np.float32)  # (1, 4, 3)
+    sv = SVBRDF(m, m.materials[:4], (4, 1), weights)
+    uv = np.array([[(i + 0.5) / 4, 0.5] for i in range(4)])
+    got = sv.texels(uv, "nearest")["weight"].astype(np.float64)
+    for n, rest in enumerate(texels):
+        total = sum(rest)
+        expect = [1 - total, *rest] if total <= 1 else [0.0, *(r / total for r in rest)]
+        np.testing.assert_allclose(got[n], expect, atol=1e-6, err_msg=str(rest))
 
 
 def test_save_refuses_to_replace_a_folder_that_is_not_a_textured_material(tmp_path):
