@@ -24,8 +24,11 @@ def sources():
 
 
 def quick(recipe="hybridbrdf", **kw):
-    # The fit's own mechanics: the guard that acts on what it returns is tested in test_guard.py.
-    base = dict(width=16, depth=2, steps=400, batch=512, pool=1 << 14, eval_pairs=20_000, seed=3, analytic_guard=False)
+    # The fit's own mechanics: the guard that acts on what it returns is tested in test_guard.py, the
+    # energy bound that follows the fit (3-5 s of tables a material, more than the fit itself) in
+    # test_energy_bound.py; neither changes the weights these tests compare.
+    base = dict(width=16, depth=2, steps=400, batch=512, pool=1 << 14, eval_pairs=20_000, seed=3, analytic_guard=False,
+                energy_bound=False)
     base.update(kw)
     return FitSettings.from_recipe(recipe, **base)
 
@@ -444,8 +447,9 @@ def test_an_exponential_schedule_trains_and_is_recorded(tmp_path):
 
 def _tiny(**kw):
     """A fit of one synthetic material small enough to run dozens of times (without the guard, which
-    acts on what a fit returns: test_guard.py)."""
-    base = dict(width=8, depth=1, steps=1, batch=64, pool=256, eval_pairs=500, seed=5, analytic_guard=False)
+    acts on what a fit returns: test_guard.py, and the energy bound: test_energy_bound.py)."""
+    base = dict(width=8, depth=1, steps=1, batch=64, pool=256, eval_pairs=500, seed=5, analytic_guard=False,
+                energy_bound=False)
     base.update(kw)
     return FitSettings(**base)
 
