@@ -10,12 +10,19 @@
 #   python      the Python suite (pytest on every core: pytest-xdist)
 # HBRDF_TEST_STAGES="build ctest ..." runs a subset (default: all, in the order above);
 # PYTEST_ARGS replaces pytest's arguments (default: tests/python -n JOBS); CTEST_ARGS adds to ctest's.
+# After the summary: the Python stage's 15 slowest tests and their total (from pytest's JUnit report),
+# and a warning line (not a failure) when the stage took longer than PYTHON_BUDGET_S, the budget the
+# README states (HBRDF_PYTHON_BUDGET_S overrides it).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
 PY=${PYTHON:-python3}
 JOBS=${JOBS:-$(nproc)}
 STAGES=${HBRDF_TEST_STAGES:-setup build ctest guard sanitizers python}
+# The Python stage's budget in seconds, as the README states it (2-core machine, fresh clone).
+PYTHON_BUDGET_S=${HBRDF_PYTHON_BUDGET_S:-420}
+JUNIT=${HBRDF_JUNIT:-build/pytest-junit.xml}
+python_seconds=
 if [ "${HBRDF_TEST_SETUP:-1}" = 0 ]; then STAGES=${STAGES//setup/}; fi
 
 stage_setup() { bash scripts/setup.sh; }
@@ -55,7 +62,9 @@ stage_sanitizers() {
 stage_python() {
   local args
   if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS" --dist worksteal); fi
-  HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 "$PY" -m pytest "${args[@]}"
+  mkdir -p "$(dirname "$JUNIT")" && rm -f "$JUNIT"
+  HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 HBRDF_REQUIRE_BUILD=1 \
+    "$PY" -m pytest "${args[@]}" --junitxml="$JUNIT" -o junit_family=xunit1
 }
 
 for stage in $STAGES; do
@@ -73,6 +82,7 @@ for stage in $STAGES; do
   "stage_$stage"
   rc=$?
   took=$((SECONDS - start))
+  if [ "$stage" = python ]; then python_seconds=$took; fi
   if [ "$rc" = 0 ]; then
     summary+=("$(printf 'test: %-10s passed  %4d s' "$stage" "$took")")
   else
@@ -80,6 +90,15 @@ for stage in $STAGES; do
     failed=1
   fi
 done
+
+if [ -n "$python_seconds" ]; then
+  echo
+  echo "== slowest tests =="
+  "$PY" scripts/slowest_tests.py "$JUNIT" 15 || true
+  if [ "$python_seconds" -gt "$PYTHON_BUDGET_S" ]; then
+    echo "test: WARNING: the python stage took $python_seconds s, over its budget of $PYTHON_BUDGET_S s (README; docs/CONVENTIONS.md, \"Testing\")"
+  fi
+fi
 
 echo
 echo "== summary =="

@@ -15,8 +15,10 @@ import pytest
 import hybridbrdf as hb
 from hybridbrdf.fit import checkpoint as ckpt
 
+# Without the energy bound that follows a fit (its tables, 3-5 s a material in each of a test's three
+# fits, are the same computation on one rank or two: test_energy_bound.py tests them).
 FIT = ["fit", "synthetic:gold", "synthetic:plastic", "--mlp", "16x2", "--batch", "256", "--pool", "8192",
-       "--eval-pairs", "20000", "--seed", "3", "--quiet"]
+       "--eval-pairs", "20000", "--seed", "3", "--quiet", "--no-energy-bound"]
 ENV = dict(os.environ, OMP_NUM_THREADS="1")
 
 

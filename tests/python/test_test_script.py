@@ -79,3 +79,20 @@ def test_an_unknown_stage_is_refused(tmp_path):
     r = run_script(tmp_path, HBRDF_TEST_STAGES="ctest lint")
     assert r.returncode == 2
     assert "unknown stage 'lint'" in r.stderr
+
+
+def test_the_python_stage_prints_its_slowest_tests_and_warns_over_its_budget(tmp_path):
+    """After the stages: the slowest tests of the Python stage (here the probe alone) and their total;
+    a warning line, not a failure, when the stage took longer than its budget, and none within it."""
+    junit = str(tmp_path / "junit.xml")
+    over = run_script(tmp_path, HBRDF_TEST_STAGES="python", HBRDF_PYTHON_BUDGET_S="0", HBRDF_JUNIT=junit)
+    assert over.returncode == 0, over.stdout[-3000:] + over.stderr[-3000:]
+    slowest = over.stdout.split("== slowest tests ==\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    assert slowest[0].endswith(" s  tests/data/test_script/probe_stage.py::test_the_python_stage_ran"), slowest
+    assert slowest[1].startswith("1 tests, ") and slowest[1].endswith(" s of test time in all"), slowest
+    warning = [ln for ln in over.stdout.splitlines() if ln.startswith("test: WARNING: the python stage took")]
+    assert len(warning) == 1 and "over its budget of 0 s" in warning[0], over.stdout[-2000:]
+    assert "test: all stages passed" in summary(over)
+    within = run_script(tmp_path, HBRDF_TEST_STAGES="python", HBRDF_PYTHON_BUDGET_S="100000", HBRDF_JUNIT=junit)
+    assert within.returncode == 0 and "== slowest tests ==" in within.stdout
+    assert "WARNING" not in within.stdout, within.stdout[-2000:]
