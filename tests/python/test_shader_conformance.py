@@ -48,8 +48,18 @@ NEURAL = next(c for c in CASES if not spec.ARCHS[c[0]]["analytic"])
 
 # The network as straight-line code with literal weights (the shader default) and as loops over
 # constant arrays (the C++ default, and the form fp16 uses), both against the library.
+# The loops form runs the paper's depth and activation and material output layers at width 12
+# (issue 56): lavapipe's compile time of constant arrays indexed in loops grows with the square of
+# their size (Slang's all_outputs kernel of a 3-deep hybrid, 2026-11-28: width 8 2 s, 12 10 s,
+# 16 21 s, 32 81 s), and the loops' code paths are the same at any width: width 12 is above the
+# hybrid's 10 inputs, as the paper's 32 is (the first layer 10 -> 12 is not square, so a transposed
+# or mis-strided index reads other weights), and NEURAL's 30 inputs above its width cover the other
+# side. A transposed weight index in the loops form fails these cases.
+LOOPS_PAPER = ("hybrid", "hardgelu", 12, 3)
+LOOPS_HEADS = ("hybrid", "hardgelu", 12, 2, "material")
 FORMS = [(case, target, "unrolled") for case in CASES for target in ("glsl", "hlsl")] + [
-    (PAPER, "glsl", "loops"), (NEURAL, "hlsl", "loops"), (HEADS, "glsl", "loops"), (HEADS, "hlsl", "loops")]
+    (LOOPS_PAPER, "glsl", "loops"), (NEURAL, "hlsl", "loops"), (LOOPS_HEADS, "glsl", "loops"),
+    (LOOPS_HEADS, "hlsl", "loops")]
 
 
 @pytest.mark.parametrize("case,target,mlp_form", FORMS)
