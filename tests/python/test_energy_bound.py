@@ -84,6 +84,44 @@ def test_the_table_is_its_definition_in_float64():
     np.testing.assert_allclose(at_nodes, table, rtol=1e-7)
 
 
+def test_the_table_fit_from_moments_is_the_direct_estimate():
+    """energy.moments turns the bound's estimate mean_s(k(z_s) c_s) into sum_j k_j M[d, j] (k is
+    linear in its nodes): for any table the same number as the direct mean, and the fitted table
+    the one the direct damped steps reach, to rounding. z as the sampler returns it (float32,
+    some below the horizon, exactly 0 and 1, at nodes)."""
+    rng = np.random.default_rng(8)
+    n, samples, nodes = 96, 300, spec.ENERGY_NODES
+    z = rng.uniform(-0.2, 1.0, (n, samples)).astype(np.float32)
+    z[:, :nodes] = (np.arange(nodes) / (nodes - 1)).astype(np.float32)
+    z[:, nodes], z[:, nodes + 1] = 0.0, 1.0
+    c = rng.gamma(0.5, 2.0, (n, samples, 3)) * (z > 0)[..., None]
+    x = rng.choice(np.concatenate([[0.0005, 0.002], np.linspace(0.004, 1.0, 61)]), n)
+    m = energy.moments(c, z)
+
+    def direct(k):  # the estimate by its definition: k at every sample, then the mean
+        return energy.scale(k, x) * (energy.scale(k, z)[..., None] * c).mean(axis=1).max(axis=1)
+
+    for k in (np.ones(nodes), rng.uniform(0.3, 1.0, nodes)):
+        np.testing.assert_allclose(energy._albedo(m, x, k), direct(k), rtol=1e-12, atol=1e-15)
+    top = direct(np.ones(nodes)).max()
+    for target in (0.95 * top, 0.5 * top):  # binding at a few nodes, and everywhere
+        k = np.ones(nodes)
+
+        def room(k):
+            rho = direct(k)
+            return energy._node_minimum(np.where(rho > 0, target / rho, np.inf), x)
+
+        if direct(k).max() > target:
+            k = np.minimum(1.0, room(k))
+            for _ in range(energy.ITERATIONS):
+                k = np.minimum(1.0, k * np.sqrt(room(k)))
+            k = k * np.minimum(1.0, room(k))
+        got = energy.fit_table(c, z, x, target)
+        assert got.min() < 1.0  # the control: the table binds
+        np.testing.assert_allclose(got, k, rtol=1e-12, atol=1e-15)
+        assert direct(got).max() <= target * (1 + 1e-12)
+
+
 def test_a_model_with_tables_agrees_between_implementations(tmp_path):
     """libhybridbrdf's scalar path and every batched kernel against the float64 PyTorch model, for
     the hybrid, the reciprocal form with material output layers and the neural baseline."""

@@ -29,6 +29,7 @@ from hybridbrdf.brdf.analytic import AnalyticParams, sample
 from hybridbrdf.limits import bool_argument, check_count, count_argument, real_argument
 from hybridbrdf.model import energy
 from hybridbrdf.names import names_problem
+from hybridbrdf.util import scratch_folder
 
 #: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
 #: where Fresnel and masking change fastest.
@@ -145,7 +146,9 @@ def _add_material(model, name, row, info, record, conserve_energy: bool):
         if "kd" not in row:
             raise ValueError("the neural baseline has no kd to scale: conserve_energy needs a hybrid model")
         dark = _with_material(unbounded, name, dict(row, kd=np.zeros(3, np.float32)), info)
-        scale = _energy_conserving_kd_scale(new, dark, name)
+        with scratch_folder() as tmp:  # evaluated by libhybridbrdf, as the energy bound's tables are
+            scale = _energy_conserving_kd_scale(energy.on_file(new, tmp, "kd.safetensors"),
+                                                energy.on_file(dark, tmp, "dark.safetensors"), name)
         if scale is None:
             record["kd_scaled_for_energy"] = None  # kd cannot do it: the table alone bounds the material
         elif scale < 1.0:
@@ -226,7 +229,11 @@ def albedo_profile(model, material, samples: int = ALBEDO_SAMPLES, seed: int = 1
     (theta, phi)}``; ``max`` > 1 means the material reflects more light than it receives from
     some direction (an edit can do that; :func:`edit` with ``conserve_energy`` prevents it)."""
     wi, wo, pdf = _albedo_samples(model, material, samples, seed)
-    f = model.eval(wi, wo, material)
+    if model.path is None:  # an edit, a blend: libhybridbrdf (float32, the runtime) reads a copy
+        with scratch_folder() as tmp:
+            f = energy.on_file(model, tmp, "albedo.safetensors").eval(wi, wo, material)
+    else:
+        f = model.eval(wi, wo, material)
     rho = _albedo_estimate(f, wi, pdf, len(wo) // samples)
     k = int(np.argmax(rho.max(axis=1)))
     theta, phi = np.meshgrid(ALBEDO_THETA_DEG, ALBEDO_PHI_DEG, indexing="ij")

@@ -31,6 +31,7 @@ s_d k gives at most s_d k at d, and lowering k elsewhere only lowers the integra
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from typing import Any, Callable, Dict, Optional, Sequence
@@ -137,6 +138,16 @@ def _contributions(model, material: int, samples: int, seed: int):
     return c, z, x
 
 
+def on_file(model, folder: str, name: str):
+    """``model`` itself when it was read from (or saved to) a file, else a copy written to
+    ``folder``/``name`` and read back: libhybridbrdf evaluates files, in float32 like every engine,
+    tens of times faster than PyTorch on the CPU (a path-less model, as an edit or a fit returns
+    it, would be evaluated by PyTorch). ``model`` is not changed (its ``path`` stays None)."""
+    if model.path is not None:
+        return model
+    return copy.copy(model).save_checked(os.path.join(folder, name))
+
+
 def _node_minimum(values: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Per node j, the smallest of ``values`` over the directions whose cos theta lies in an
     interval next to j (each direction counts for both ends of its interval)."""
@@ -149,21 +160,51 @@ def _node_minimum(values: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
+def moments(c: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """M[d, j, rgb] = mean over the samples s of hat_j(z[d, s]) c[d, s, rgb], (n_dir, NODES, 3):
+    k(z) = sum_j k_j hat_j(z) (hat_j(x) = max(0, 1 - |(NODES - 1) x - j|), cos theta clamped to
+    [0, 1] as :func:`scale` clamps it), so the estimate mean_s(k(z_s) c_s) of the bounded
+    integral is sum_j k_j M[d, j] for every table k, exactly: one pass over the samples instead
+    of one per table tried."""
+    n, samples = z.shape
+    t = np.clip(np.asarray(z, dtype=np.float64), 0.0, 1.0) * (NODES - 1)  # the sampler's cos theta is float32
+    lo = np.minimum(t.astype(np.intp), NODES - 2)  # t >= 0: truncation is floor; t = NODES - 1 in the last interval
+    upper = t - lo  # the weight of node lo + 1; 1 - upper that of node lo
+    index = (lo + (np.arange(n, dtype=np.intp) * NODES)[:, None]).ravel()
+    del t, lo
+    out = np.empty((n * NODES, 3))
+    for ch in range(3):
+        cc = c[..., ch]
+        hi_part = (upper * cc).ravel()
+        lo_part = cc.ravel() - hi_part  # (1 - upper) c, rounded once
+        out[:, ch] = np.bincount(index, lo_part, n * NODES)
+        out[1:, ch] += np.bincount(index, hi_part, n * NODES)[:-1]  # index + 1 < n NODES: lo <= NODES - 2
+    return out.reshape(n, NODES, 3) / samples
+
+
+def _albedo(m: np.ndarray, x: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The estimated albedo (max over RGB) of f = k k f_t per direction, from :func:`moments`."""
+    return scale(k, x) * np.einsum("njc,j->nc", m, k).max(axis=1)
+
+
 def fit_table(c: np.ndarray, z: np.ndarray, x: np.ndarray, target: float = TARGET,
               iterations: int = ITERATIONS) -> np.ndarray:
     """The table (NODES,) from the contributions of :func:`_contributions`: as large as the damped
     steps reach, with every estimated albedo k(x) mean(k(z) c) at most ``target`` (max over RGB)."""
-    def albedo(k):
-        inner = (scale(k, z)[..., None] * c).mean(axis=1).max(axis=1)
-        return scale(k, x) * inner
+    return fit_table_from_moments(moments(c, z), x, target, iterations)
 
+
+def fit_table_from_moments(m: np.ndarray, x: np.ndarray, target: float = TARGET,
+                           iterations: int = ITERATIONS) -> np.ndarray:
+    """:func:`fit_table` from the contributions' :func:`moments` ``m``: each step costs
+    O(n_dir NODES), not O(n_dir samples)."""
     def room(k):
-        rho = albedo(k)
+        rho = _albedo(m, x, k)
         with np.errstate(divide="ignore"):
             return _node_minimum(np.where(rho > 0, target / rho, np.inf), x)
 
     k = np.ones(NODES)
-    if albedo(k).max() <= target:
+    if _albedo(m, x, k).max() <= target:
         return k
     k = np.minimum(1.0, room(k))  # the first, cautious pass: every direction within target
     for _ in range(iterations):
@@ -186,27 +227,30 @@ def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, 
     idx = [model.index(m) for m in (range(len(model.materials)) if materials is None else materials)]
     out = {"table": np.ones((len(idx), NODES), np.float32), "max_albedo_unbounded": [], "max_albedo": []}
     with scratch_folder() as tmp:  # removed on SIGTERM too; after SIGKILL by the next one
-        if f_t.path is None:  # libhybridbrdf evaluates a file: write one
-            f_t = f_t.save_checked(os.path.join(tmp, "unbounded.safetensors"))
+        f_t = on_file(f_t, tmp, "unbounded.safetensors")
         for r, i in enumerate(idx):
             c, z, x = _contributions(f_t, i, min(samples, SCREEN_SAMPLES), seed)
-            if _max_albedo(c, z, x, np.ones(NODES)) > SCREEN_MARGIN * TARGET and samples > SCREEN_SAMPLES:
+            m = moments(c, z)
+            del c, z
+            if _max_albedo(m, x, np.ones(NODES)) > SCREEN_MARGIN * TARGET and samples > SCREEN_SAMPLES:
                 c, z, x = _contributions(f_t, i, samples, seed)
-            k = fit_table(c, z, x)
+                m = moments(c, z)
+                del c, z
+            k = fit_table_from_moments(m, x)
             # Rounding to float32 could lift a node by half an ulp: round down, never up.
             k32 = k.astype(np.float32)
             k32 = np.where(k32.astype(np.float64) > k, np.nextafter(k32, np.float32(0)), k32)
             out["table"][r] = k32
-            out["max_albedo_unbounded"].append(_max_albedo(c, z, x, np.ones(NODES)))
-            out["max_albedo"].append(_max_albedo(c, z, x, k32.astype(np.float64)))
+            out["max_albedo_unbounded"].append(_max_albedo(m, x, np.ones(NODES)))
+            out["max_albedo"].append(_max_albedo(m, x, k32.astype(np.float64)))
             if progress is not None:
                 progress()
     return out
 
 
-def _max_albedo(c, z, x, k) -> float:
-    """The largest estimated directional albedo (max over RGB) of f = k k f_t."""
-    return float(((scale(k, z)[..., None] * c).mean(axis=1).max(axis=1) * scale(k, x)).max())
+def _max_albedo(m, x, k) -> float:
+    """The largest estimated directional albedo (max over RGB) of f = k k f_t, from :func:`moments`."""
+    return float(_albedo(m, x, k).max())
 
 
 def attach(model, table: np.ndarray):
@@ -249,4 +293,4 @@ def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPL
                        dict(model.training) if isinstance(model.training, dict) else {})
 
 
-__all__ = ["NODES", "TARGET", "attach", "bytes_per_sample", "fit_table", "scale", "stratified_u", "tables", "unbounded", "with_bound"]
+__all__ = ["NODES", "TARGET", "attach", "bytes_per_sample", "fit_table", "fit_table_from_moments", "moments", "on_file", "scale", "stratified_u", "tables", "unbounded", "with_bound"]
