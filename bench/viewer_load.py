@@ -60,7 +60,7 @@ def collection(model: HybridModel, n: int) -> HybridModel:
 
 def load_ms(page: pathlib.Path, backend: str) -> tuple:
     t = time.perf_counter()
-    title, status, dom, _ = open_page_devtools(str(page), f"backend={backend}&readback=1&spp=1")
+    title, status, dom, _ = open_page_devtools(str(page), f"backend={backend}&readback=1&spp=1", fresh=True)
     wall = time.perf_counter() - t
     if title != "hbrdf view: ok":
         raise SystemExit(f"{page}: the page did not load ({backend}): {title}")

@@ -1,8 +1,9 @@
 """``hbrdf view`` (hybridbrdf.viewer.page, docs/VIEWER.md): the page in a real browser.
 
 Chromium headless with software WebGL2 (ANGLE on SwiftShader) opens the page from its file path
-with ``--dump-dom``; the page draws at load and, with ``#readback=1``, writes its canvas's pixels
-into the DOM and its outcome into the title ("hbrdf view: ok" or "hbrdf view: error: ...").
+(one browser per test process and set of flags, a new tab per page, read over the DevTools
+protocol: view_harness.py); the page draws at load and, with ``#readback=1``, writes its canvas's
+pixels into the DOM and its outcome into the title ("hbrdf view: ok" or "hbrdf view: error: ...").
 Without chromium the browser tests skip, unless HBRDF_REQUIRE_BROWSER=1 (then they fail).
 
 The oracle for the pixels is the C++ path tracer rendering the same camera, light and material
@@ -26,8 +27,6 @@ import re
 import shlex
 import shutil
 import subprocess
-import tempfile
-import urllib.parse
 
 import numpy as np
 import pytest
@@ -38,6 +37,7 @@ from hybridbrdf.viewer.scene import CAMERA, srgb8, tracer_scene
 from hybridbrdf.viewer.glsl import DISPLAY_SHADER
 from hybridbrdf.model.file import load_model
 from helpers import run_cli
+import view_harness
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 MODEL = os.path.join(REPO, "results", "rgl54_hybrid_32x2.safetensors")
@@ -52,6 +52,9 @@ SPP = 64
 CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                   "--enable-webgl", "--ignore-gpu-blocklist", "--enable-logging=stderr", "--v=0",
                   "--virtual-time-budget=20000", "--disable-dev-shm-usage", "--no-first-run"]
+#: The same without virtual time, for the browser the tests drive over DevTools (view_harness): the
+#: page is read once its title says it is done.
+BROWSER_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-budget")]
 
 
 def chromium():
@@ -67,7 +70,9 @@ needs_renderer = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), 
 
 
 def open_page(page, hash_="", extra_flags=(), backend="webgl2"):
-    """(title, status line, dom, the page's console lines) of the page opened from its path.
+    """(title, status line, dom, the page's console lines) of the page opened from its path, in this
+    test process's chromium for these flags (view_harness: one browser, a new tab per page; the
+    document once loaded and titled "hbrdf view: ...", every console message of the tab).
     ``backend``: put ``backend=...`` in front of the URL's fragment (``None``: the fragment as
     given). These tests are the WebGL2 backend's: the page would first ask for a WebGPU adapter,
     and chromium without WebGPU flags answers none and logs "No available adapters." on the console
@@ -75,15 +80,9 @@ def open_page(page, hash_="", extra_flags=(), backend="webgl2"):
     exe = chromium()
     if backend is not None:
         hash_ = f"backend={backend}" + ("&" + hash_ if hash_ else "")
-    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
-    with tempfile.TemporaryDirectory() as profile:
-        r = subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *extra_flags, "--dump-dom", url],
-                           capture_output=True, text=True, timeout=180)
-    assert r.returncode == 0, r.stderr[-3000:]
-    dom = r.stdout
-    title = re.search(r"<title>(.*?)</title>", dom, re.S).group(1)
+    title, dom, console = view_harness.open_url(exe, [*BROWSER_FLAGS, *extra_flags], page, hash_, timeout=180)
+    assert re.search(r"<title>(.*?)</title>", dom, re.S).group(1) == title
     status = re.search(r'<div id="status">(.*?)</div>', dom, re.S).group(1)
-    console = [line for line in r.stderr.splitlines() if ":CONSOLE" in line]
     return title, status, dom, console
 
 
@@ -204,13 +203,13 @@ def test_slider_previews_hbrdf_edit(tmp_path, key, value):
     model = tmp_path / "m.safetensors"
     shutil.copyfile(MODEL, model)
     page = tmp_path / "p.html"
-    assert run_cli("view", str(model), "--out", str(page)).returncode == 0
+    assert view_harness.cli("view", str(model), "--out", str(page)).returncode == 0
     material = "cc_ibiza_sunset_rgb.rgl"
     img, scene, cmd = page_state(page, f"material={material}&light=sun&{key}={value}")
     argv = shlex.split(cmd)
     assert argv == ["hbrdf", "edit", str(model), material, "--set", f"{key}={value}", "--as", f"{material}_edit",
                     "--out", str(model)], cmd
-    r = run_cli(*argv[1:])  # the page's command line, run
+    r = view_harness.cli(*argv[1:])  # the page's command line, run
     assert r.returncode == 0, r.stderr
     assert scene["materials"]["m"] == {"type": "model", "file": str(model), "material": f"{material}_edit",
                                        "evaluate": "full"}
@@ -235,7 +234,7 @@ def test_page_is_self_contained_and_logs_nothing(page):
 @pytest.mark.parametrize("model", [HEADS_MODEL, NEURAL_MODEL], ids=["heads", "neural"])
 def test_other_architectures_load(tmp_path, model):
     out = tmp_path / "p.html"
-    r = run_cli("view", model, "--out", str(out))
+    r = view_harness.cli("view", model, "--out", str(out))
     assert r.returncode == 0, r.stderr
     img = page_pixels(out, "")
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
@@ -249,7 +248,7 @@ def test_a_reciprocal_model_loads(tmp_path):
     path = tmp_path / "r.safetensors"
     model.save(path)
     out = tmp_path / "p.html"
-    r = run_cli("view", str(path), "--out", str(out))
+    r = view_harness.cli("view", str(path), "--out", str(out))
     assert r.returncode == 0, r.stderr
     img = page_pixels(out, "")
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
@@ -268,7 +267,7 @@ def test_hostile_text_cannot_inject(tmp_path):
     hostile_path = tmp_path / "m'<b>&.safetensors"
     model.save(str(hostile_path))
     out = tmp_path / "p.html"
-    r = run_cli("view", str(hostile_path), "--out", str(out))
+    r = view_harness.cli("view", str(hostile_path), "--out", str(out))
     assert r.returncode == 0, r.stderr
     html = out.read_text(encoding="utf-8")
     assert html.count("<script") == 2 and html.lower().count("</script") == 2
@@ -288,7 +287,7 @@ def test_hostile_text_cannot_inject(tmp_path):
         assert title == "hbrdf view: ok" and console == [], (title, console)
         info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
         shown = info.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
-        assert shown.startswith("origin: " + HOSTILE[i].replace("\r", "\n")), (HOSTILE[i], shown)  # text mode reads CR as LF
+        assert shown.startswith("origin: " + HOSTILE[i]), (HOSTILE[i], shown)  # exactly: the DOM over DevTools keeps CR
 
 
 def _error_line(capsys, *argv):
@@ -417,7 +416,7 @@ def test_env_file_lights_page_and_tracer_alike(tmp_path):
     env = tmp_path / "studio map.exr"
     _core.render_write_exr(image, str(env))
     out = tmp_path / "p.html"
-    r = run_cli("view", MODEL, "--env", str(env), "--out", str(out))
+    r = view_harness.cli("view", MODEL, "--env", str(env), "--out", str(out))
     assert r.returncode == 0, r.stderr
     material = "cc_ibiza_sunset_rgb.rgl"
     img, scene, _ = page_state(out, f"material={material}&rotation=25&spp=256")
@@ -433,7 +432,7 @@ def test_reduced_map_is_said_on_the_page(tmp_path):
     env = tmp_path / "wide.exr"
     _core.render_write_exr(np.full((1024, 2048, 3), 0.5, np.float32), str(env))
     out = tmp_path / "p.html"
-    assert run_cli("view", MODEL, "--env", str(env), "--out", str(out)).returncode == 0
+    assert view_harness.cli("view", MODEL, "--env", str(env), "--out", str(out)).returncode == 0
     title, status, dom, console = open_page(out, "light=sun")
     assert title == "hbrdf view: ok" and console == [], (title, status, console)
     info = unescape(re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1))
@@ -446,7 +445,7 @@ def test_env_refused_with_its_name(tmp_path):
     bad = tmp_path / "broken.hdr"
     bad.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n\x02")
     for env in (str(tmp_path / "missing.exr"), str(bad)):
-        r = run_cli("view", MODEL, "--env", env, "--out", str(out))
+        r = view_harness.cli("view", MODEL, "--env", env, "--out", str(out))
         assert r.returncode != 0 and not out.exists()
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and os.path.basename(env) in lines[0], r.stderr

@@ -38,7 +38,7 @@ from hybridbrdf.model.file import load_model
 from hybridbrdf.model.random import random_model
 from textbook_reference import textbook_fa
 from hybridbrdf.sources import open_source
-from helpers import run_cli
+import view_harness
 from test_view import chromium, open_page, unescape
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -70,7 +70,7 @@ def synthetic_model(tmp_path_factory):
 @pytest.fixture(scope="module")
 def synthetic_page(synthetic_model, tmp_path_factory):
     out = tmp_path_factory.mktemp("vs") / "page.html"
-    r = run_cli("view", synthetic_model, "synthetic:plastic", "synthetic:brushed_aluminium", "--out", str(out),
+    r = view_harness.cli("view", synthetic_model, "synthetic:plastic", "synthetic:brushed_aluminium", "--out", str(out),
                 "--source-size", str(S), "--source-spp", str(SPP))
     assert r.returncode == 0, r.stderr
     return out
@@ -293,7 +293,7 @@ def test_hostile_source_path_is_text(synthetic_model, tmp_path):
     path.parent.mkdir(parents=True)
     write_merl(str(path), open_source("synthetic:gold"))
     out = tmp_path / "p.html"
-    r = run_cli("view", synthetic_model, str(path), "--out", str(out), "--source-size", "32", "--source-spp", "4")
+    r = view_harness.cli("view", synthetic_model, str(path), "--out", str(out), "--source-size", "32", "--source-spp", "4")
     assert r.returncode == 0, r.stderr
     html = out.read_text(encoding="utf-8")
     assert html.count("<script") == 2 and html.lower().count("</script") == 2 and "\u2028" not in html
@@ -312,7 +312,7 @@ def test_rgl_source_beside_its_model(tmp_path):
     measurement (median |log ratio| of the luminance slices small; another material's slices do not)."""
     source = os.path.join(RGL_DIR, "cc_ibiza_sunset_rgb.bsdf")
     out = tmp_path / "p.html"
-    r = run_cli("view", RGL_MODEL, source, "--out", str(out), "--source-size", str(S), "--source-spp", str(SPP))
+    r = view_harness.cli("view", RGL_MODEL, source, "--out", str(out), "--source-size", str(S), "--source-spp", str(SPP))
     assert r.returncode == 0, r.stderr
     data = page_json(out)
     row, _ = check_slices(RGL_MODEL, data, "cc_ibiza_sunset_rgb.rgl", source)

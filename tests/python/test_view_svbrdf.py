@@ -26,7 +26,8 @@ import pytest
 
 from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
 from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8, tracer_scene
-from helpers import run_cli, saved_random_model
+from helpers import saved_random_model
+import view_harness
 from test_view import SIZE as TRACER_SIZE, assert_matches_tracer, needs_renderer, open_page, page_state, read_state
 
 SIZE = 48
@@ -41,7 +42,7 @@ def model(request, tmp_path):
 
 def _view(tmp_path, folder, *extra):
     out = tmp_path / "page.html"
-    r = run_cli("view", "--svbrdf", str(folder), "--out", str(out), *extra)
+    r = view_harness.cli("view", "--svbrdf", str(folder), "--out", str(out), *extra)
     assert r.returncode == 0, r.stderr
     return out
 
@@ -158,7 +159,7 @@ def test_constant_maps_are_the_uniform_material(model, tmp_path):
     SVBRDF(model, [model.materials[1]], (w, h), None, [maps]).save(tmp_path / "sv", format="exr")
     textured = _view(tmp_path, tmp_path / "sv")
     uniform = tmp_path / "uniform.html"
-    assert run_cli("view", str(load_svbrdf(tmp_path / "sv").model.path), "--out", str(uniform)).returncode == 0
+    assert view_harness.cli("view", str(load_svbrdf(tmp_path / "sv").model.path), "--out", str(uniform)).returncode == 0
     common = "spp=16&rotation=30"
     got = _pixels(textured, common)
     f32 = lambda v: ",".join(repr(float(np.float32(x))) for x in v)  # noqa: E731
@@ -179,7 +180,7 @@ def test_two_regions_show_each_material(model, tmp_path):
     sv = load_svbrdf(tmp_path / "sv")
     textured = _view(tmp_path, tmp_path / "sv")
     uniform = tmp_path / "uniform.html"
-    assert run_cli("view", str(sv.model.path), "--out", str(uniform)).returncode == 0
+    assert view_harness.cli("view", str(sv.model.path), "--out", str(uniform)).returncode == 0
     common = "spp=8&rotation=-40"
     got = _pixels(textured, common)
     # A pixel reads pure texels of one layer when the corners of its footprint do (the page jitters
@@ -243,7 +244,7 @@ def test_bad_folders_refused_with_the_loaders_line(tmp_path, damage):
     with pytest.raises(SVBRDFError) as exc:
         load_svbrdf(folder)
     out = tmp_path / "page.html"
-    r = run_cli("view", "--svbrdf", str(folder), "--out", str(out))
+    r = view_harness.cli("view", "--svbrdf", str(folder), "--out", str(out))
     assert r.returncode == 1 and r.stderr == f"hbrdf view: error: {exc.value}\n", r.stderr
     assert str(folder) in r.stderr and not out.exists()
 
@@ -257,11 +258,11 @@ def test_model_must_be_the_folders(tmp_path):
     out = tmp_path / "page.html"
     (tmp_path / "other").mkdir()
     other, _ = saved_random_model(tmp_path / "other", "hybrid", width=8)
-    r = run_cli("view", str(other), "--svbrdf", str(folder), "--out", str(out))
+    r = view_harness.cli("view", str(other), "--svbrdf", str(folder), "--out", str(out))
     assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
     assert r.stderr.startswith(f"hbrdf view: error: {other}: is not the model of the textured material"), r.stderr
-    r = run_cli("view", str(path), "synthetic:plastic", "--svbrdf", str(folder), "--out", str(out))
+    r = view_harness.cli("view", str(path), "synthetic:plastic", "--svbrdf", str(folder), "--out", str(out))
     assert r.returncode == 1 and "SOURCE arguments are not shown beside a textured material" in r.stderr, r.stderr
     assert not out.exists()
-    r = run_cli("view", str(path), "--svbrdf", str(folder), "--out", str(out))  # the same bytes: accepted
+    r = view_harness.cli("view", str(path), "--svbrdf", str(folder), "--out", str(out))  # the same bytes: accepted
     assert r.returncode == 0 and out.exists(), r.stderr

@@ -1,10 +1,9 @@
 """``hbrdf view``'s WebGPU backend (docs/VIEWER.md, "WebGPU"): the page in headless chromium with
 WebGPU on SwiftShader, against the C++ path tracer and against the page's own WebGL2 backend.
 
-WebGPU is asynchronous and ``--dump-dom`` does not wait for it (its virtual time runs out while the
-GPU works: the title is still "hbrdf view"), so these tests drive chromium through its DevTools
-protocol on a pipe (``--remote-debugging-pipe``: JSON messages on file descriptors 3 and 4, no
-package needed) and read the document once the page's title says how loading went.
+WebGPU is asynchronous: the tests drive chromium through its DevTools protocol on a pipe
+(view_harness.py: one browser per test process and set of flags, a new tab per page) and read the
+document once the page's title says how loading went, as test_view.py does.
 
 Flags: test_view's CHROMIUM_FLAGS without ``--virtual-time-budget``, and
 ``--enable-unsafe-webgpu --use-webgpu-adapter=swiftshader`` (WebGPU on SwiftShader) with
@@ -27,14 +26,9 @@ backends draw the same random numbers, so in practice they agree far closer (mea
 same bytes, on SwiftShader). The sun alone is one exact evaluation per pixel in both: at most 1
 (8-bit rounding) at every interior pixel."""
 
-import json
 import os
 import pathlib
 import re
-import select
-import subprocess
-import tempfile
-import time
 import urllib.parse
 
 import numpy as np
@@ -44,7 +38,7 @@ from hybridbrdf.viewer import page as viewer
 from hybridbrdf.viewer.scene import tracer_scene
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.model.file import load_model
-from helpers import run_cli
+import view_harness
 from test_view import (CHROMIUM_FLAGS, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
                        interior_mask, mad, needs_renderer, page, page_state, read_state, tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
@@ -58,97 +52,23 @@ WEBGPU_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-bu
 PAGE_TIMEOUT = 180
 
 
-class _DevTools:
-    """Chromium's DevTools protocol over --remote-debugging-pipe: requests written to its fd 3,
-    answers read from its fd 4, each message JSON ended by a NUL byte."""
-
-    def __init__(self, exe, flags, url, profile, stderr):
-        to_r, self.to_w = os.pipe()
-        self.from_r, from_w = os.pipe()
-
-        def child():  # chromium reads fd 3 and writes fd 4 (copies first: the pipes may hold 3 or 4)
-            a, b = os.dup(to_r), os.dup(from_w)
-            os.dup2(a, 3)
-            os.dup2(b, 4)
-
-        self.proc = subprocess.Popen([exe, *flags, f"--user-data-dir={profile}", "--remote-debugging-pipe", url],
-                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=stderr,
-                                     preexec_fn=child, close_fds=False)
-        os.close(to_r)
-        os.close(from_w)
-        self.buf = b""
-        self.next_id = 0
-
-    def call(self, method, params=None, session=None, timeout=60.0):
-        self.next_id += 1
-        msg = {"id": self.next_id, "method": method, "params": params or {}}
-        if session:
-            msg["sessionId"] = session
-        os.write(self.to_w, json.dumps(msg).encode() + b"\0")
-        deadline = time.monotonic() + timeout
-        while True:
-            while b"\0" in self.buf:
-                raw, self.buf = self.buf.split(b"\0", 1)
-                answer = json.loads(raw)
-                if answer.get("id") == self.next_id:
-                    if "error" in answer:
-                        raise RuntimeError(f"DevTools {method}: {answer['error']}")
-                    return answer["result"]
-            left = deadline - time.monotonic()
-            if left <= 0 or not select.select([self.from_r], [], [], left)[0]:
-                raise TimeoutError(f"DevTools {method}: no answer in {timeout} s")
-            chunk = os.read(self.from_r, 1 << 20)
-            if not chunk:
-                raise RuntimeError(f"DevTools {method}: chromium closed the pipe (exit {self.proc.poll()})")
-            self.buf += chunk
-
-    def evaluate(self, session, expression):
-        r = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True}, session)
-        return r["result"].get("value")
-
-    def close(self):
-        try:
-            self.call("Browser.close", timeout=10)
-        except Exception:
-            pass
-        try:
-            self.proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()  # our own chromium, by its handle
-            self.proc.wait()
-        os.close(self.to_w)
-        os.close(self.from_r)
-
-
-def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT):
+def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT, fresh=False):
     """As test_view.open_page: (title, status line, dom, console lines), the page opened from its
-    path, read when its title is "hbrdf view: ..." (ok or an error) or after ``timeout`` seconds."""
+    path, read when its title is "hbrdf view: ..." (ok or an error) or after ``timeout`` seconds.
+    In this test process's chromium for ``flags`` (view_harness: a new tab per page), or with
+    ``fresh`` in a chromium started for this page alone (bench/viewer_load.py: a cold load)."""
     exe = chromium()
-    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
-    with tempfile.TemporaryDirectory() as profile, tempfile.TemporaryFile() as err:
-        tools = _DevTools(exe, WEBGPU_FLAGS if flags is None else flags, url, profile, err)
+    flags = WEBGPU_FLAGS if flags is None else flags
+    if fresh:
+        b = view_harness.Browser(exe, flags)
         try:
-            deadline = time.monotonic() + timeout
-            while True:
-                pages = [t for t in tools.call("Target.getTargets")["targetInfos"] if t["type"] == "page"]
-                if pages or time.monotonic() > deadline:
-                    break
-                time.sleep(0.1)
-            assert pages, "chromium opened no page"
-            session = tools.call("Target.attachToTarget", {"targetId": pages[0]["targetId"], "flatten": True})["sessionId"]
-            while True:
-                title = tools.evaluate(session, "document.location.href.startsWith('file:') ? document.title : ''")
-                if (title or "").startswith("hbrdf view:") or time.monotonic() > deadline:
-                    break
-                time.sleep(0.2)
-            dom = tools.evaluate(session, "document.documentElement.outerHTML")
+            url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+            title, dom, console = b.open(url, timeout)
         finally:
-            tools.close()
-        err.seek(0)
-        stderr = err.read().decode("utf-8", "replace")
-    title = re.search(r"<title>(.*?)</title>", dom, re.S).group(1)
+            b.close()
+    else:
+        title, dom, console = view_harness.open_url(exe, flags, page, hash_, timeout=timeout)
     status = re.search(r'<div id="status">(.*?)</div>', dom, re.S)
-    console = [line for line in stderr.splitlines() if ":CONSOLE" in line]
     return title, status.group(1) if status else "", dom, console
 
 
@@ -263,7 +183,7 @@ def test_webgpu_is_chosen_and_logs_nothing(webgpu, page):
 def test_webgpu_other_architectures_load(webgpu, tmp_path, model):
     """(4) A model with material output layers (the head from the uniform buffer) and the neural baseline."""
     out = tmp_path / "p.html"
-    r = run_cli("view", model, "--out", str(out))
+    r = view_harness.cli("view", model, "--out", str(out))
     assert r.returncode == 0, r.stderr
     img = webgpu_state(out, "spp=16")[0]
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit

@@ -1,0 +1,302 @@
+"""The browser tests' harness (issue 56): one headless chromium per set of flags per test process,
+driven over its DevTools protocol, instead of one chromium per page opened; and ``hbrdf`` run in
+the test's own process where a test is about the page, not the command's process.
+
+Why (measured on 2 loaded cores, 2026-11-28): a page opened by ``chromium --dump-dom`` took 7-9 s,
+of which about 3 s was chromium starting (a trivial page: 2-3 s) and the rest the page's own load
+(parsing its 2 MiB of inlined data, SwiftShader compiling its shader, drawing); in one browser a
+second page with the same shader loads in 1-5 s (no start, and the GPU process keeps the compiled
+program). ``hbrdf view`` as a subprocess took 5-8 s, of which importing torch was 3-4 s; in the
+test's process (torch already imported) 0.5 s.
+
+Each page gets a tab of its own (a new target), closed after it is read: no state of one page
+(its WebGL2 context, its console) reaches the next. What a page reports is as ``--dump-dom`` and
+chromium's log gave it: the document once the window's load event has fired and the page's title
+says "hbrdf view: ..." (ok or an error; WebGPU draws after the load event), and every console
+message of that tab (the console API, uncaught exceptions and the browser's own messages: the
+Runtime and Log domains' events) as a line with ``:CONSOLE``, as chromium's log writes them.
+After the title the page draws the one animation frame it has asked for, if any (its frame loop runs
+as a user's page's does; a readback page has drawn all its samples before its title) and no more
+(a page without readback refines its 320 x 320 picture frame after frame, seconds a frame on
+SwiftShader, and nothing reads them: ``--dump-dom`` drew them for its 20 s virtual-time budget);
+then messages the GPU process sends about the work so far (a driver's error, a performance note)
+are waited for: the page's WebGPU queues done, one synchronous call on each of its WebGL2 contexts
+(a round trip through the GPU process), one task turn.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import ctypes
+import io
+import json
+import os
+import select
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+import types
+import urllib.parse
+
+#: JavaScript run in every page before its own scripts. It keeps the WebGL2 contexts and WebGPU
+#: devices the page makes (the page's calls pass through unchanged) and counts its animation
+#: frames; window.__hbrdfSettle() (called once the title is set) lets the page draw the one frame
+#: it has asked for, if any (its frame loop runs once, as a user's page does), holds the frames it
+#: asks for after that (a page without readback refines its picture frame after frame, each a draw
+#: of the 320 x 320 canvas on SwiftShader, seconds each, which nothing reads), then settles the GPU
+#: work: the WebGPU queues done, one synchronous call on each WebGL2 context (a round trip through
+#: the GPU process: its messages about the work so far come first), one task turn (the console
+#: messages those posted are added).
+_KEEP_CONTEXTS = """(function () {
+  const contexts = [], devices = [];
+  const getContext = HTMLCanvasElement.prototype.getContext;
+  HTMLCanvasElement.prototype.getContext = function () {
+    const c = getContext.apply(this, arguments);
+    if (c && typeof WebGL2RenderingContext !== "undefined" && c instanceof WebGL2RenderingContext && contexts.indexOf(c) < 0) contexts.push(c);
+    return c;
+  };
+  if (typeof GPUAdapter !== "undefined") {
+    const requestDevice = GPUAdapter.prototype.requestDevice;
+    GPUAdapter.prototype.requestDevice = function () {
+      return requestDevice.apply(this, arguments).then(function (d) { devices.push(d); return d; });
+    };
+  }
+  let asked = 0, hold = false, afterFrame = null;
+  const raf = window.requestAnimationFrame.bind(window);
+  window.requestAnimationFrame = function (callback) {
+    if (hold) return 0;
+    asked++;
+    return raf(function (t) {
+      asked--;
+      if (hold) return;
+      try { callback(t); } finally {
+        if (afterFrame) { const f = afterFrame; afterFrame = null; hold = true; f(); }
+      }
+    });
+  };
+  function gpuSettled() {
+    return Promise.all(devices.map(function (d) { return d.queue.onSubmittedWorkDone().catch(function () {}); }))
+      .then(function () {
+        contexts.forEach(function (gl) { gl.getError(); });
+        return new Promise(function (resolve) {
+          const channel = new MessageChannel();
+          channel.port1.onmessage = function () { resolve(); };
+          channel.port2.postMessage(0);
+        });
+      });
+  }
+  Object.defineProperty(window, "__hbrdfSettle", { value: function () {
+    return new Promise(function (resolve) { if (asked > 0) afterFrame = resolve; else { hold = true; resolve(); } })
+      .then(gpuSettled);
+  } });
+})();"""
+
+#: JavaScript: a promise of the title once it says "hbrdf view: ..." (a MutationObserver: the page's
+#: own event, no polling) and the page settled (_KEEP_CONTEXTS), or of whatever it says after the
+#: deadline.
+_WAIT_FOR_TITLE = """new Promise(function (resolve) {
+  function done() { return document.title.startsWith('hbrdf view:'); }
+  function settle() { window.__hbrdfSettle().then(function () { resolve(document.title); }); }
+  if (done()) return settle();
+  const observer = new MutationObserver(function () { if (done()) { observer.disconnect(); settle(); } });
+  observer.observe(document, {subtree: true, childList: true, characterData: true});
+  setTimeout(function () { observer.disconnect(); resolve(document.title); }, %d);  // the deadline
+})"""
+
+
+def _die_with_parent():
+    """In the child before exec: SIGTERM when the test process dies (a killed xdist worker leaves
+    no browser behind)."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+class Browser:
+    """Chromium with ``flags`` and a profile of its own, driven over --remote-debugging-pipe
+    (requests on its fd 3, answers and events on its fd 4, JSON ended by a NUL byte)."""
+
+    def __init__(self, exe, flags):
+        self.flags = list(flags)
+        self.profile = tempfile.mkdtemp(prefix="hbrdf-chromium-")
+        self.stderr = tempfile.TemporaryFile()
+        to_r, self.to_w = os.pipe()
+        self.from_r, from_w = os.pipe()
+
+        def child():  # chromium reads fd 3 and writes fd 4 (copies first: the pipes may hold 3 or 4)
+            a, b = os.dup(to_r), os.dup(from_w)
+            os.dup2(a, 3)
+            os.dup2(b, 4)
+            _die_with_parent()
+
+        self.proc = subprocess.Popen([exe, *self.flags, f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
+                                      "about:blank"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                     stderr=self.stderr, preexec_fn=child, close_fds=False)
+        os.close(to_r)
+        os.close(from_w)
+        self.buf = b""
+        self.next_id = 0
+        self.events = []
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def _pump(self, deadline, what):
+        """Reads what chromium has sent, waiting until ``deadline`` for something."""
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([self.from_r], [], [], left)[0]:
+            raise TimeoutError(f"DevTools {what}: no answer in time")
+        chunk = os.read(self.from_r, 1 << 20)
+        if not chunk:
+            raise RuntimeError(f"DevTools {what}: chromium closed the pipe (exit {self.proc.poll()})")
+        self.buf += chunk
+        while b"\0" in self.buf:
+            raw, self.buf = self.buf.split(b"\0", 1)
+            self.events.append(json.loads(raw))
+
+    def call(self, method, params=None, session=None, timeout=60.0):
+        self.next_id += 1
+        want = self.next_id
+        msg = {"id": want, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        os.write(self.to_w, json.dumps(msg).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        while True:
+            for i, m in enumerate(self.events):
+                if m.get("id") == want:
+                    del self.events[i]
+                    if "error" in m:
+                        raise RuntimeError(f"DevTools {method}: {m['error']}")
+                    return m["result"]
+            self._pump(deadline, method)
+
+    def wait_event(self, method, session, timeout):
+        deadline = time.monotonic() + timeout
+        while True:
+            for i, m in enumerate(self.events):
+                if m.get("method") == method and m.get("sessionId") == session:
+                    return self.events.pop(i)
+            self._pump(deadline, method)
+
+    def take_events(self, session):
+        mine = [m for m in self.events if m.get("sessionId") == session and "method" in m]
+        self.events = [m for m in self.events if not (m.get("sessionId") == session and "method" in m)]
+        return mine
+
+    def open(self, url, timeout):
+        """(title, dom, console lines) of ``url`` in a new tab, read as the module docstring says."""
+        target = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+        try:
+            session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+            for domain in ("Page", "Runtime", "Log"):
+                self.call(f"{domain}.enable", session=session)
+            self.call("Page.addScriptToEvaluateOnNewDocument", {"source": _KEEP_CONTEXTS}, session)
+            self.take_events(session)  # about:blank's
+            deadline = time.monotonic() + timeout
+            nav = self.call("Page.navigate", {"url": url}, session)
+            assert "errorText" not in nav, nav
+            self.wait_event("Page.loadEventFired", session, timeout)
+            left_ms = max(1, int((deadline - time.monotonic()) * 1000))
+            self.call("Runtime.evaluate", {"expression": _WAIT_FOR_TITLE % left_ms, "awaitPromise": True,
+                                           "returnByValue": True}, session, timeout=left_ms / 1000 + 30)
+            r = self.call("Runtime.evaluate", {"expression": "[document.title, document.documentElement.outerHTML]",
+                                               "returnByValue": True}, session)
+            title, dom = r["result"]["value"]
+            console = [_console_line(m) for m in self.take_events(session)]
+            return title, dom, [c for c in console if c is not None]
+        finally:
+            try:
+                self.call("Target.closeTarget", {"targetId": target}, timeout=30)
+            except (RuntimeError, TimeoutError):
+                pass
+            self.events.clear()  # the closed tab's late events (calls are sequential: no answer is pending)
+
+    def close(self):
+        try:
+            self.call("Browser.close", timeout=10)
+        except Exception:
+            pass
+        try:
+            self.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()  # our own chromium, by its handle
+            self.proc.wait()
+        for fd in (self.to_w, self.from_r):
+            os.close(fd)
+        self.stderr.close()
+        shutil.rmtree(self.profile, ignore_errors=True)
+
+
+def _console_line(event):
+    """A console event as chromium's log line (``...:CONSOLE(line)] "text", source: url (line)``);
+    None for the events that are no console message."""
+    method, p = event["method"], event["params"]
+    if method == "Runtime.consoleAPICalled":
+        text = " ".join(str(a.get("value", a.get("description", a.get("type")))) for a in p.get("args", []))
+        frame = (p.get("stackTrace") or {}).get("callFrames", [{}])[:1] or [{}]
+        url, line = frame[0].get("url", ""), frame[0].get("lineNumber", -1) + 1
+        return f"[{p.get('type', 'log')}:CONSOLE({line})] \"{text}\", source: {url} ({line})"
+    if method == "Runtime.exceptionThrown":
+        d = p["exceptionDetails"]
+        text = (d.get("exception") or {}).get("description") or d.get("text", "")
+        return f"[exception:CONSOLE({d.get('lineNumber', -1) + 1})] \"{text}\", source: {d.get('url', '')}"
+    if method == "Log.entryAdded":
+        e = p["entry"]
+        return f"[{e.get('level')}:{e.get('source')}:CONSOLE({e.get('lineNumber', 0)})] \"{e.get('text')}\", " \
+               f"source: {e.get('url', '')}"
+    return None
+
+
+_BROWSERS: dict = {}
+
+
+def browser(exe, flags) -> Browser:
+    """This process's chromium with ``flags`` (started at the first call; again if it died)."""
+    key = (exe, tuple(flags))
+    b = _BROWSERS.get(key)
+    if b is None or not b.alive():
+        b = _BROWSERS[key] = Browser(exe, flags)
+    return b
+
+
+@atexit.register
+def _close_all():
+    for b in list(_BROWSERS.values()):
+        b.close()
+    _BROWSERS.clear()
+
+
+def open_url(exe, flags, page, hash_="", timeout=180.0):
+    """(title, dom, console lines) of the page file ``page`` with URL fragment ``hash_``."""
+    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+    b = browser(exe, flags)
+    try:
+        return b.open(url, timeout)
+    except (RuntimeError, TimeoutError):
+        if b.alive():
+            raise
+        raise RuntimeError("chromium died: " + _tail(b))
+
+
+def _tail(b):
+    b.stderr.seek(0)
+    return b.stderr.read().decode("utf-8", "replace")[-3000:]
+
+
+def cli(*args):
+    """``hbrdf ARGS`` in this process (the same ``hybridbrdf.cli.main`` as the command; torch is
+    imported once): an object with returncode, stdout and stderr, as helpers.run_cli returns."""
+    from hybridbrdf import cli as hbrdf_cli
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = hbrdf_cli.main([str(a) for a in args])
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code if isinstance(exc.code, int) else 2
+    return types.SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue(), args=args)
