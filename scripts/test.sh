@@ -59,9 +59,12 @@ stage_sanitizers() {
     ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_render_tests"
 }
 
+# The Python suite: tests marked slow first (tests/python/conftest.py), handed to the workers one
+# at a time as each becomes free (--dist load --maxschedchunk 1): the longest tests start at once
+# on both workers, the short ones fill in around them, and no long test is left for the end.
 stage_python() {
   local args
-  if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS" --dist worksteal); fi
+  if [ -n "${PYTEST_ARGS:-}" ]; then read -r -a args <<< "$PYTEST_ARGS"; else args=(tests/python -n "$JOBS" --dist load --maxschedchunk 1); fi
   mkdir -p "$(dirname "$JUNIT")" && rm -f "$JUNIT"
   HBRDF_REQUIRE_VULKAN=1 HBRDF_REQUIRE_BROWSER=1 HBRDF_REQUIRE_WEBGPU=1 HBRDF_REQUIRE_BUILD=1 \
     "$PY" -m pytest "${args[@]}" --junitxml="$JUNIT" -o junit_family=xunit1

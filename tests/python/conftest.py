@@ -18,3 +18,12 @@ import pytest  # noqa: E402
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``slow`` (pyproject.toml: more than a few seconds) run first. pytest-xdist's
+    worksteal gives each worker a share of the list and lets an idle worker take half of another's
+    remaining tests; a long test left at the end of a share would set the wall time alone, so the
+    long ones start first and the short ones fill in around them. The order within each group is
+    pytest's."""
+    items[:] = sorted(items, key=lambda item: item.get_closest_marker("slow") is None)

@@ -65,6 +65,7 @@ def halves_fit():
     return prior, obs, fit_hybrid_texels(obs, prior, steps=120, seed=0)
 
 
+@pytest.mark.slow
 def test_the_hybrid_fit_recovers_prior_materials_on_pure_texels_in_every_direction(halves_fit):
     prior, obs, maps = halves_fit
     assert (maps.counts > 0).all() and len(maps.layers) == 2

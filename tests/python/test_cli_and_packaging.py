@@ -52,6 +52,7 @@ def test_alpha_min_is_one_constant():
     assert np.isfinite(f).all() and f[0, 0] > 1e5  # a near-mirror lobe, still finite
 
 
+@pytest.mark.slow
 def test_fit_eval_info_on_synthetic_materials(tmp_path):
     out = tmp_path / "m.safetensors"
     r = run_cli("fit", "synthetic:plastic", "synthetic:gold", "--mlp", "16x2", "--steps", "150", "--pool", "4096",
@@ -226,6 +227,7 @@ def _readme_main_job():
     return line.split("&&", 1)[1].split()
 
 
+@pytest.mark.slow
 def test_the_readme_main_job_prints_no_warning_and_ends_with_a_picture(tmp_path):
     """A newcomer's first run, shortened: the README's command with fewer steps. Its
     output holds no warning (Python's, PyTorch's or the project's), and it writes and names a PNG

@@ -61,6 +61,7 @@ def smapes(model):
     return np.array([m["metrics"]["smape"] for m in model.material_info])
 
 
+@pytest.mark.slow
 def test_two_ranks_fit_the_one_rank_model(tmp_path):
     one = run(hbrdf_cmd(*FIT, "--steps", "300", "--out", "one.safetensors"), tmp_path)
     assert one.returncode == 0, one.stderr
@@ -86,6 +87,7 @@ def test_two_ranks_fit_the_one_rank_model(tmp_path):
     assert max_weight_difference(a, hb.load_model(tmp_path / "half.safetensors")) > 1e-3
 
 
+@pytest.mark.slow
 def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path):
     args = [*FIT, "--steps", "1500", "--checkpoint", "ck.pt", "--checkpoint-every", "100"]
     proc = subprocess.Popen(hbrdf_cmd(*args, "--out", "m.safetensors"), cwd=tmp_path, env=ENV,
@@ -113,6 +115,7 @@ def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path):
     assert np.allclose(smapes(m), smapes(f), rtol=0.02, atol=1e-4), (smapes(m), smapes(f))
 
 
+@pytest.mark.slow
 def test_a_rank_that_dies_ends_the_run_and_keeps_the_files(tmp_path):
     (tmp_path / "m.safetensors").write_bytes(b"the previous model")
     args = [*FIT, "--steps", "100000", "--checkpoint", "ck.pt", "--checkpoint-every", "100", "--out", "m.safetensors"]

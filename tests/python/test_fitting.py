@@ -54,6 +54,7 @@ def test_expectile_loss_matches_its_definition():
         assert np.allclose(got, want, rtol=1e-12), tau
 
 
+@pytest.mark.slow
 def test_analytic_expectile_fits_an_upper_envelope():
     """tau > 0.5 lifts f_a above the data (mean log ratio and share of values above both grow with
     tau), which the gate can dim: the hybrid stays close to the symmetric fit."""
@@ -104,6 +105,7 @@ def test_relative_epsilon_trains():
         assert info["metrics"]["smape"] < 0.9 * info["metrics"]["smape_analytic"]
 
 
+@pytest.mark.slow
 def test_analytic_term_epsilon_changes_only_the_analytic_term():
     """FitSettings.analytic_loss_eps: spelling out the default is bit-identical; a much larger
     epsilon makes the analytic term nearly linear and small beside the hybrid term, so it stops
@@ -139,6 +141,7 @@ def test_loss_without_cos_weighs_grazing_pairs_like_the_others():
         assert lo <= float(g[1] / g[0]) <= hi, loss_cos
 
 
+@pytest.mark.slow
 def test_loss_without_cos_fits_grazing_angles_better():
     from hybridbrdf.evaluate.metrics import smape_terms
 
@@ -285,6 +288,7 @@ def test_a_resumed_fit_records_the_time_of_every_segment(tmp_path, monkeypatch):
     assert "train_seconds_from_step" not in resumed.training
 
 
+@pytest.mark.slow
 def test_compiled_steps_fit_the_same_model_as_eager_ones():
     # torch.compile fuses the step's arithmetic; only float rounding may differ. The loss
     # options go through the compiled graph too (a per-material epsilon, the expectile term).

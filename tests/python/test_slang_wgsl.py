@@ -66,7 +66,14 @@ FORMS = ([(case, "unrolled", target) for case in CASES for target in TARGETS]
          + [(case, "loops", target) for case in (NEURAL, HEADS_8) for target in TARGETS])
 
 
-@pytest.mark.parametrize("case,mlp_form,target", FORMS, ids=[f"{'-'.join(map(str, c))}-{f}-{t}" for c, f, t in FORMS])
+# The neural baseline's loops form is the suite's slowest shader (lavapipe compiles its constant arrays
+# for one to three minutes): marked slow, so that it starts first (conftest.py).
+FORM_PARAMS = [pytest.param(c, f, t, id=f"{'-'.join(map(str, c))}-{f}-{t}",
+                            marks=[pytest.mark.slow] if (f == "loops" and c == NEURAL) else [])
+               for c, f, t in FORMS]
+
+
+@pytest.mark.parametrize("case,mlp_form,target", FORM_PARAMS)
 def test_every_output_matches_the_library(tmp_path, case, mlp_form, target):
     skip_without(target)
     arch, activation, width, depth, output_layer = (tuple(case) + ("shared",))[:5]

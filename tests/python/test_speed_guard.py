@@ -69,6 +69,7 @@ def test_the_guard_fails_when_the_vector_kernels_are_lost(guard_tools):
         assert ratio in names, r.stderr
 
 
+@pytest.mark.slow
 def test_the_guard_fails_on_the_struct_return_regression(tmp_path, guard_tools):
     source = tmp_path / "src"
     source.mkdir()
