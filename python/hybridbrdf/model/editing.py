@@ -203,8 +203,9 @@ def _albedo_samples(model, material, samples: int, seed: int) -> Tuple[np.ndarra
     samples = count_argument("samples", samples)
     check_count("samples", samples, albedo_bytes_per_sample(model.bytes_per_pair()))
     wo_grid = _outgoing_grid()
-    wo = np.repeat(wo_grid, samples, axis=0)
-    u = np.tile(energy.stratified_u(samples, seed), (len(wo_grid), 1))
+    # float32: the sampler and libhybridbrdf would each convert a float64 copy
+    wo = np.repeat(wo_grid.astype(np.float32), samples, axis=0)
+    u = np.tile(energy.stratified_u(samples, seed).astype(np.float32), (len(wo_grid), 1))
     if model.has_analytic:
         params, strategy = model.analytic_params(material), "mis"
     else:

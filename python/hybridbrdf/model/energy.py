@@ -125,8 +125,9 @@ def _contributions(model, material: int, samples: int, seed: int):
     u = stratified_u(samples, seed)
     params = model.analytic_params(material) if model.has_analytic else AnalyticParams()
     strategy = "mis" if model.has_analytic else "cosine"
-    w_fixed = np.repeat(fixed, samples, axis=0)
-    w_s, pdf, _ = sample(w_fixed, np.tile(u, (len(fixed), 1)), params, strategy)
+    # float32, the library's working precision (sample and eval would each convert a float64 copy)
+    w_fixed = np.repeat(fixed.astype(np.float32), samples, axis=0)
+    w_s, pdf, _ = sample(w_fixed, np.tile(u.astype(np.float32), (len(fixed), 1)), params, strategy)
     ok = pdf > 0
     weight = np.where(ok, np.maximum(w_s[:, 2], 0.0) / np.where(ok, pdf, 1.0), 0.0)[:, None]
     sides = [model.eval(w_s, w_fixed, material)]  # albedo over wi for a fixed wo
