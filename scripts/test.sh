@@ -10,9 +10,9 @@
 #   python      the Python suite (pytest on every core: pytest-xdist)
 # HBRDF_TEST_STAGES="build ctest ..." runs a subset (default: all, in the order above);
 # PYTEST_ARGS replaces pytest's arguments (default: tests/python -n JOBS); CTEST_ARGS adds to ctest's.
-# After the summary: the Python stage's 15 slowest tests and their total (from pytest's JUnit report),
-# and a warning line (not a failure) when the stage took longer than PYTHON_BUDGET_S, the budget the
-# README states (HBRDF_PYTHON_BUDGET_S overrides it).
+# Before the summary: the Python stage's 15 slowest tests and their total (from pytest's JUnit report,
+# written to HBRDF_JUNIT, default build/pytest-junit.xml), and a warning line (not a failure) when the
+# stage took longer than PYTHON_BUDGET_S, the budget the README states (HBRDF_PYTHON_BUDGET_S overrides it).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
