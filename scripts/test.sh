@@ -56,7 +56,7 @@ stage_sanitizers() {
   # third-party leak is suppressed and why).
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     LSAN_OPTIONS=suppressions=$PWD/tests/cpp/lsan.supp \
-    ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_render_tests"
+    ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_tabulated_tests|cpp_render_tests"
 }
 
 # The Python suite: tests marked slow first (tests/python/conftest.py), handed to the workers one
