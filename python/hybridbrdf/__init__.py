@@ -6,6 +6,8 @@ Fresnel) is evaluated and sampled by the C++ library (``hybridbrdf._core``);
 Conventions: ``docs/CONVENTIONS.md``.
 """
 
+import importlib as _importlib
+
 from hybridbrdf._core import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -18,7 +20,6 @@ from hybridbrdf import _core
 from hybridbrdf._core import __version__ as _core_version
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
-from hybridbrdf.fit.adding import add
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.prior import load_prior, prior_path
@@ -26,6 +27,10 @@ from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 from hybridbrdf.version import __version__
+
+#: Public names whose modules import PyTorch, loaded on first access (PEP 562): importing torch
+#: costs seconds, and ``import hybridbrdf`` (every ``hbrdf`` command line, even ``--help``) should not.
+_LAZY = {"add": "hybridbrdf.fit.adding"}
 
 if _core_version != __version__:  # a stale extension from an older build
     raise ImportError(f"hybridbrdf {__version__} found extension hybridbrdf._core {_core_version}; reinstall the package")
@@ -61,3 +66,15 @@ __all__ = [
     "sample",
     "simd_path",
 ]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value  # later accesses are plain attribute lookups
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -13,11 +13,9 @@ import io
 from typing import Dict
 
 import numpy as np
-import torch
 
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
-from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
 from hybridbrdf.limits import check_count, count_argument
 from hybridbrdf.util import atomic_write_bytes
 
@@ -65,6 +63,9 @@ def run_demo(out: str, samples: int = 200_000) -> None:
     is bounded by memory (:data:`BYTES_PER_SAMPLE`; hybridbrdf.limits), checked first."""
     check_count("--samples", count_argument("--samples", samples), BYTES_PER_SAMPLE)
     import matplotlib
+    import torch  # the check drawn over the C++ slices; hbrdf --help should not wait for it
+
+    from hybridbrdf.brdf.torch_brdf import eval_analytic as torch_eval
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -50,6 +50,8 @@ def error_line(capsys) -> str:
 UPDATER = """
 import os, sys, time
 import hybridbrdf.cli as cli
+import hybridbrdf.cli.edit as edit
+import hybridbrdf.cli.mix as mix
 import hybridbrdf.fit.adding as adding
 role, marks, argv = sys.argv[1], sys.argv[2], sys.argv[3:]
 mark = lambda name: os.path.join(marks, name)
@@ -66,7 +68,8 @@ def slow(load):
             time.sleep(1.0)
         return model
     return load_model
-cli.load_model = slow(cli.load_model)
+edit.load_model = slow(edit.load_model)
+mix.load_model = slow(mix.load_model)
 adding.load_model = slow(adding.load_model)
 if role == "second":
     wait_for("first-read")

@@ -100,8 +100,10 @@ def test_every_import_goes_down_the_drawing():
 
 
 def test_no_import_circles():
-    graph = {name: {t for t, _, _ in imports(path) if t in MODULES and t != name} for name, path in MODULES.items()}
     # A package's __init__ importing its own submodules is not a circle of two modules' code.
+    graph = {name: {t for t, _, _ in imports(path) if t in MODULES and t != name
+                    and not (path.name == "__init__.py" and t.startswith(name + "."))}
+             for name, path in MODULES.items()}
     state, stack, circles = {}, [], []
 
     def visit(n):
@@ -170,23 +172,68 @@ def test_console_scripts_resolve(script):
     assert target, f"pyproject.toml names no console script {script}"
     module = importlib.import_module(target.group(1))
     assert callable(getattr(module, target.group(2)))
-    assert sys.modules[target.group(1)].__file__.endswith(target.group(1).split(".")[-1] + ".py")
+    last = target.group(1).split(".")[-1]
+    assert sys.modules[target.group(1)].__file__.endswith((f"{last}.py", f"{last}/__init__.py"))
 
 
 # The only imports inside functions: dependencies that one command or one file format needs and
-# the rest of the package does not (docs/ARCHITECTURE.md, "The Python package's layers").
-LAZY = {"matplotlib", "mitsuba", "drjit", "h5py"}
+# the rest of the package does not (docs/ARCHITECTURE.md, "The Python package's layers"), PyTorch
+# and the package's modules that import it (seconds: ``import hybridbrdf`` imports none of them),
+# and in the command line (hybridbrdf.cli) whatever a command runs: ``hbrdf --help`` builds every
+# command's parser and should answer at once.
+LAZY = {"matplotlib", "mitsuba", "drjit", "h5py", "torch"}
+
+
+def top_level_imports(path: pathlib.Path):
+    """The modules a module's own top-level import statements name (not its functions')."""
+    out = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out |= {node.module} | {f"{node.module}.{a.name}" for a in node.names if module_path(f"{node.module}.{a.name}")}
+    return out
+
+
+def importing_torch():
+    """The package's modules whose import imports torch: by their top-level imports, their
+    packages' and those of the modules they import."""
+    edges = {}
+    for name, path in MODULES.items():
+        named = top_level_imports(path) | {name.rsplit(".", 1)[0]} if "." in name else top_level_imports(path)
+        edges[name] = {".".join(m.split(".")[:i + 1]) for m in named for i in range(len(m.split(".")))}
+    heavy = {n for n, e in edges.items() if "torch" in e}
+    while True:
+        more = {n for n, e in edges.items() if n not in heavy and e & heavy}
+        if not more:
+            return heavy
+        heavy |= more
 
 
 def test_imports_are_at_the_top_of_modules():
+    heavy = importing_torch()
     wrong = []
     for name, path in MODULES.items():
+        if name == "hybridbrdf.cli" or name.startswith("hybridbrdf.cli."):
+            continue
         tree = ast.parse(path.read_text())
         top = {id(n) for n in tree.body}
         for node in ast.walk(tree):
             if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
-                roots = {a.name.split(".")[0] for a in node.names} if isinstance(node, ast.Import) \
-                    else {(node.module or "").split(".")[0]}
-                if not roots <= LAZY:
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif node.module in heavy:
+                    names = [node.module]
+                else:  # from package import module, ...: the modules
+                    names = [f"{node.module}.{a.name}" for a in node.names]
+                if not all(n.split(".")[0] in LAZY or n in heavy for n in names):
                     wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
     assert not wrong, "\n".join(wrong)
+
+
+def test_import_hybridbrdf_imports_no_torch():
+    """The public namespace loads the names whose modules import torch on first use (PEP 562)."""
+    import hybridbrdf
+
+    heavy = importing_torch()
+    assert "hybridbrdf" not in heavy and "hybridbrdf.cli" not in heavy, sorted(heavy)

@@ -14,20 +14,20 @@ and a finished run removes; the output folder is written whole or not at all."""
 from __future__ import annotations
 
 import os
-from typing import Callable, Optional, Tuple
+from typing import TYPE_CHECKING, Callable, Optional, Tuple
 
 from hybridbrdf import spec
-from hybridbrdf.acquire.capture import load_capture
 from hybridbrdf.acquire.exposure import stated_noise_floor, usable_pixels
-from hybridbrdf.acquire.hybrid_fit import HybridMaps, fit_hybrid_texels
 from hybridbrdf.acquire.observations import texel_observations
-from hybridbrdf.acquire.texel_rows import Progress
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.fit import checkpoint
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.util import file_lock
+
+if TYPE_CHECKING:  # annotations only: the fit's modules (PyTorch) load when acquire() runs
+    from hybridbrdf.acquire.hybrid_fit import HybridMaps
+    from hybridbrdf.acquire.texel_rows import Progress
 
 #: Steps of the per-texel stage by default (the analytic stage runs half as many).
 STEPS = 300
@@ -66,6 +66,10 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`). ``resume`` continues the checkpoint of an interrupted run with the
     same settings; ``force`` starts afresh over one. Returns the fit."""
+    from hybridbrdf.acquire.capture import load_capture
+    from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
+    from hybridbrdf.fit import checkpoint
+
     capture, out = os.path.abspath(os.fspath(capture)), os.path.abspath(os.fspath(out))
     check_count("--size (texels)", int(size[0]) * int(size[1]), BYTES_PER_TEXEL)
     check_output(out, capture)

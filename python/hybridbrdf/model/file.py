@@ -34,23 +34,31 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Dict, List, Optional
+from typing import TYPE_CHECKING, Any, Dict, List, Optional
 
 import numpy as np
-import torch
 
 from hybridbrdf import _core, spec
 from hybridbrdf.brdf.analytic import AnalyticParams
-from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model import editing
 from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
                                         output_layer)
-from hybridbrdf.model.networks import build_model, energy_bound_scale
 from hybridbrdf.model.validate import read_document, validate
 from hybridbrdf.util import atomic_write_bytes
 from hybridbrdf.version import __version__
+
+if TYPE_CHECKING:  # annotations only: PyTorch is imported where a model runs in it
+    import torch
+
+
+def _torch():
+    """PyTorch, imported on first use: reading, checking, editing and writing model files (and
+    evaluating them through libhybridbrdf) need none of it, and importing it costs seconds."""
+    import torch
+
+    return torch
 
 
 class HybridModel:
@@ -141,6 +149,9 @@ class HybridModel:
     # ---- evaluation ------------------------------------------------------------
     def _module(self, dtype: torch.dtype):
         if dtype not in self._modules:
+            import torch
+
+            from hybridbrdf.model.networks import build_model
             a = self.arch
             mod = build_model(a["kind"], 1, a["width"], a["depth"], a["latent"], a["activation"],
                               pre_exp_max=a["pre_exp_max"], output_layer=self.output_layer)
@@ -154,6 +165,8 @@ class HybridModel:
         return self._modules[dtype]
 
     def _material_tensors(self, i: int, dtype):
+        import torch
+
         t = {k.split(".", 1)[1]: torch.from_numpy(v[i:i + 1]).to(dtype)
              for k, v in self.tensors.items() if k.startswith("materials.")}
         return t
@@ -167,7 +180,7 @@ class HybridModel:
         float64 being the reference the C++ library is tested against."""
         if self._check_dtype(dtype) is None and self.path is not None:
             return self._cpp_model().eval(*self._rows(wi, wo), self.index(material)).astype(np.float64)
-        return self._eval(wi, wo, material, dtype or torch.float32)[0]
+        return self._eval(wi, wo, material, dtype or _torch().float32)[0]
 
     def eval_analytic(self, wi, wo, material, dtype: Optional[torch.dtype] = None) -> np.ndarray:
         """The analytic part f_a of a hybrid material (not available for the neural baseline)."""
@@ -175,7 +188,7 @@ class HybridModel:
             raise ValueError("the neural baseline has no analytic part")
         if self._check_dtype(dtype) is None and self.path is not None:
             return self._cpp_model().eval_analytic(*self._rows(wi, wo), self.index(material)).astype(np.float64)
-        return self._eval(wi, wo, material, dtype or torch.float32)[1]
+        return self._eval(wi, wo, material, dtype or _torch().float32)[1]
 
     def _cpp_model(self):
         if self._cpp is None:
@@ -184,7 +197,7 @@ class HybridModel:
 
     @staticmethod
     def _check_dtype(dtype):
-        if dtype is not None and dtype not in (torch.float32, torch.float64):
+        if dtype is not None and dtype not in (_torch().float32, _torch().float64):
             raise TypeError(f"dtype must be None (libhybridbrdf), torch.float32 or torch.float64, got {dtype!r}")
         return dtype
 
@@ -195,7 +208,7 @@ class HybridModel:
         (827 bytes measured at 32x3 in float32), each with a margin."""
         if dtype is None and self.path is not None:
             return self.LIBRARY_BYTES_PER_PAIR
-        size = 8 if dtype == torch.float64 else 4
+        size = 8 if dtype is not None and dtype == _torch().float64 else 4
         return size * (64 + 2 * self.arch["width"] * (self.arch["depth"] + 1))
 
     def _rows(self, wi, wo):
@@ -203,6 +216,11 @@ class HybridModel:
         return np.asarray(a, dtype=np.float32), np.asarray(b, dtype=np.float32)
 
     def _eval(self, wi, wo, material, dtype):
+        import torch
+
+        from hybridbrdf.brdf.torch_brdf import _normalize
+        from hybridbrdf.model.networks import energy_bound_scale
+
         i = self.index(material)
         wi, wo = pair_arguments(("wi", "wo"), (wi, wo), (3, 3), self.bytes_per_pair(dtype))
         wi_t = torch.as_tensor(wi, dtype=dtype)

@@ -16,21 +16,21 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Dict, List, Optional, Sequence
+from typing import TYPE_CHECKING, Dict, List, Optional, Sequence
 
 import numpy as np
-import torch
 
 from hybridbrdf import spec
-from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
 from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
-from hybridbrdf.model.networks import energy_bound_scale
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
 from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
 from hybridbrdf.util import atomic_folder, atomic_write_bytes
+
+if TYPE_CHECKING:  # annotations only: PyTorch is imported where a material runs in it
+    import torch
 
 SV = spec.SVBRDF
 MAX_LAYERS = SV["max_layers"]
@@ -182,6 +182,8 @@ class SVBRDF:
             return self.model._cpp_model().eval_texels(
                 wi.astype(np.float32), wo.astype(np.float32), np.ascontiguousarray(mat), t["weight"], t["kd"],
                 t["eta"], t["alpha"], t["latent"]).astype(np.float64)
+        import torch
+
         return _eval_torch(self.model, self.indices, t, wi, wo, dtype or torch.float32)
 
     # ---- persistence ---------------------------------------------------------------------
@@ -223,6 +225,11 @@ def _no_constant(name: str):
 
 def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray], wi, wo, dtype) -> np.ndarray:
     """The texels' f with the PyTorch model: per layer, the pairs of positive weight."""
+    import torch
+
+    from hybridbrdf.brdf.torch_brdf import _normalize
+    from hybridbrdf.model.networks import energy_bound_scale
+
     mod = model._module(dtype)
     f = torch.zeros((len(wi), 3), dtype=dtype)
     wi_t, wo_t = torch.as_tensor(wi, dtype=dtype), torch.as_tensor(wo, dtype=dtype)

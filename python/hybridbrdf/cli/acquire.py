@@ -3,8 +3,8 @@ photographs a flat sample, an exact mixture of measured BRDFs under masks, with 
 phone's flash at N positions or a K x V light stage) and writes the capture folder; ``hbrdf acquire
 fit`` fits per-texel maps on a frozen prior to a capture's photographs and writes a textured material.
 
-Its flags and their run live here, beside the code they drive; hybridbrdf.cli registers the
-command with :func:`add_acquire_parser`."""
+Each run imports the acquisition code it drives (PyTorch, the fit) when it runs: building the
+parser imports none of it."""
 
 from __future__ import annotations
 
@@ -12,18 +12,11 @@ import argparse
 import math
 import os
 
-import torch
-from tqdm import tqdm
-
-from hybridbrdf.acquire.acquisition import STEPS, acquire
-from hybridbrdf.acquire.capture import check_output_folder, write_capture
-from hybridbrdf.acquire.mixture import Mixture
+from hybridbrdf.acquire.acquisition import STEPS
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.rig import MAX_ITEMS, MAX_SIDE, load_rig
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
-from hybridbrdf.acquire.simulate import simulate
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.fit.paint import read_grey
 from hybridbrdf.sources import open_source
 
 
@@ -73,6 +66,13 @@ def _inside(path: str, folder: str) -> bool:
 def run_simulate(args: argparse.Namespace) -> int:
     """``hbrdf acquire simulate``: everything checked (rig, masks, sources, the output folder) before
     the first photograph; the folder written once complete."""
+    from tqdm import tqdm
+
+    from hybridbrdf.acquire.capture import check_output_folder, write_capture
+    from hybridbrdf.acquire.mixture import Mixture
+    from hybridbrdf.acquire.simulate import simulate
+    from hybridbrdf.fit.paint import read_grey
+
     layers = []
     for v in args.layer or []:
         name, sep, mask = v.rpartition("=")
@@ -116,6 +116,11 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 def run_fit(args: argparse.Namespace) -> int:
     """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, texels)."""
+    import torch
+    from tqdm import tqdm
+
+    from hybridbrdf.acquire.acquisition import acquire
+
     bars = {}
 
     def progress(stage: str, done: int, total: int) -> None:
@@ -141,7 +146,7 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_acquire_parser(sub) -> None:
+def add_parser(sub) -> None:
     """``hbrdf acquire`` and its subcommands (``simulate``, ``fit``)."""
     p = sub.add_parser("acquire", help="SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
                        description="SVBRDF acquisition from photographs (docs/ACQUISITION.md).")
