@@ -17,8 +17,9 @@ cost).
   weights) as a compute shader over ``--pairs`` pairs, 64 invocations per workgroup,
   once as the host allows and once with ``GALLIUM_OVERRIDE_CPU_CAPS=avx`` (Mesa's switch
   that hides AVX-512, so LLVM emits AVX2+FMA code: the figure a machine without AVX-512
-  gets); the network as loops (``--mlp-form loops``, a few hundredths of a million
-  evaluations per second) on a sixteenth of the pairs. Lavapipe is a proxy for a GPU, so each
+  gets); the network as loops (``--mlp-form loops``) on a sixteenth of the pairs (it ran at a
+  few hundredths of a million evaluations per second before the loops form's unroll hints,
+  issue 56; with them, about the unrolled form's rate, docs/CODEGEN.md). Lavapipe is a proxy for a GPU, so each
   shader's SPIR-V instruction count per
   evaluation is printed too (after ``spirv-opt -O``, which inlines everything into
   straight-line code; "fma" counts the fused multiply-adds spirv-opt forms).
@@ -310,7 +311,8 @@ def main() -> int:
         instr, fma = spirv_counts(spv, d)
         os.sched_setaffinity(0, all_cores)
         try:
-            # The loops form runs at a few hundredths of a million per second: a sixteenth of the pairs.
+            # The loops form: a sixteenth of the pairs (a few hundredths of a million per second before
+            # its unroll hints, issue 56; the row stays comparable with the earlier tables).
             return lavapipe_rates(spv, n // 16 if options.get("mlp_form") == "loops" else n, d), instr, fma
         finally:
             os.sched_setaffinity(0, {core})

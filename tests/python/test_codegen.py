@@ -197,8 +197,9 @@ def test_codegen_cli(tmp_path, capsys):
 
 
 def test_mlp_forms(tmp_path):
-    """Unrolled code holds the weights as literals and no weight arrays; loops the reverse;
-    unrolled fp16 prints the half-rounded weights."""
+    """Unrolled code holds the weights as literals and no weight arrays; loops the reverse, with the
+    dialect's unroll hint on its loops (none in C++ and WGSL); unrolled fp16 prints the
+    half-rounded weights."""
     _, model = random_model("neural", latent=12, width=16, depth=2)
     path = tmp_path / "m.safetensors"
     model.save(path)
@@ -209,7 +210,14 @@ def test_mlp_forms(tmp_path):
         assert "HBRDF_W0" not in unrolled and "HBRDF_FRAMES_W" not in unrolled and "h1_15" in unrolled
         assert "HBRDF_W0" in loops and "HBRDF_FRAMES_W" in loops and "h1_15" not in loops
         assert float_literal(abs(w[3, 5])) in unrolled
+        # the loops form's unroll hint (docs/CODEGEN.md): GLSL's macro, HLSL's [unroll], none in C++
+        hints = [h for h in ("HBRDF_UNROLL for (", "[unroll] for (") if h in loops or h in unrolled]
+        assert hints == {"glsl": ["HBRDF_UNROLL for ("], "hlsl": ["[unroll] for ("], "cpp": []}[target]
+        assert not any(h in unrolled for h in hints)
     assert "HBRDF_W0" not in generate(model, "glsl") and "HBRDF_W0" in generate(model, "cpp")
+    assert "[unroll] for (" in generate(model, "slang", mlp_form="loops")
+    wgsl = generate(model, "wgsl", mlp_form="loops")  # WGSL has no loop attribute
+    assert "HBRDF_UNROLL" not in wgsl and "unroll]" not in wgsl
     out = tmp_path / "x.glsl"
     with pytest.raises(SystemExit):  # argparse rejects an unknown form
         codegen_main([str(path), "--target", "glsl", "--mlp-form", "sideways", "-o", str(out)])

@@ -6,6 +6,8 @@ Tolerance: 1e-4 relative where |f| > 1e-6 (lavapipe's exp is ~15 ULP, its
 multiply-adds are fused, and the network's sums and exp() amplify both);
 no NaN or Inf; zeros in the same places."""
 
+import subprocess
+
 import numpy as np
 import pytest
 
@@ -49,12 +51,14 @@ NEURAL = next(c for c in CASES if not spec.ARCHS[c[0]]["analytic"])
 # The network as straight-line code with literal weights (the shader default) and as loops over
 # constant arrays (the C++ default, and the form fp16 uses), both against the library.
 # The loops form runs the paper's depth and activation and material output layers at width 12
-# (issue 56): lavapipe's compile time of constant arrays indexed in loops grows with the square of
-# their size (Slang's all_outputs kernel of a 3-deep hybrid, 2026-11-28: width 8 2 s, 12 10 s,
-# 16 21 s, 32 81 s), and the loops' code paths are the same at any width: width 12 is above the
-# hybrid's 10 inputs, as the paper's 32 is (the first layer 10 -> 12 is not square, so a transposed
-# or mis-strided index reads other weights), and NEURAL's 30 inputs above its width cover the other
-# side. A transposed weight index in the loops form fails these cases.
+# (issue 56). Before the loops carried unroll hints, lavapipe's compile time of constant arrays
+# indexed in loops grew with the square of their size (Slang's all_outputs kernel of a 3-deep
+# hybrid, 2026-11-28: width 8 2 s, 12 10 s, 16 21 s, 32 81 s); with them (docs/CODEGEN.md) the
+# 32x3 takes about 8 s and width 12 under 2 s. Width 12 stays because the loops' code paths are the
+# same at any width: it is above the hybrid's 10 inputs, as the paper's 32 is (the first layer
+# 10 -> 12 is not square, so a transposed or mis-strided index reads other weights), and NEURAL's
+# 30 inputs above its width cover the other side. A transposed weight index in the loops form
+# fails these cases.
 LOOPS_PAPER = ("hybrid", "hardgelu", 12, 3)
 LOOPS_HEADS = ("hybrid", "hardgelu", 12, 2, "material")
 FORMS = [(case, target, "unrolled") for case in CASES for target in ("glsl", "hlsl")] + [
@@ -82,6 +86,29 @@ def test_shader_matches_the_library_under_lavapipe(tmp_path, case, target, mlp_f
         assert np.abs(got - ref).max() < 1e-4 * np.abs(ref).max()
     else:
         assert rel.max() < 1e-4, f"max relative error {rel.max():.3g}"
+
+
+def test_loops_form_carries_unroll_hints(tmp_path):
+    """The loops form's loops reach SPIR-V with LoopControl Unroll: GLSL through
+    GL_EXT_control_flow_attributes (the HBRDF_UNROLL macro), HLSL through [unroll]. Lavapipe follows
+    the hint and folds the constant weights; without it, it compiles and runs a copy of each weight
+    array per use (the neural 16x2's hlsl loops case above: 20 s instead of about 1 s; a minute in
+    Slang; docs/CODEGEN.md). A GLSL shader that defines HBRDF_UNROLL empty before the file gets no hint."""
+    _, model = saved_random_model(tmp_path, "neural", "relu", 8, 1)
+    name = model.materials[1]
+    for target, opt_out in (("glsl", False), ("glsl", True), ("hlsl", False)):
+        (tmp_path / f"model.{target}").write_text(generate(model, target, [name], mlp_form="loops"))
+        kernel = eval_compute_shader("hbrdf_eval", material_constant(name), f"model.{target}", target, n=64)
+        if opt_out:
+            kernel = kernel.replace('#include "model.glsl"', '#define HBRDF_UNROLL\n#include "model.glsl"')
+        src = tmp_path / ("wrap.comp" if target == "glsl" else "wrap.hlsl")
+        src.write_text(kernel)
+        compile_spirv(src, tmp_path / "s.spv", target, include_dir=tmp_path)
+        dis = subprocess.run(["spirv-dis", str(tmp_path / "s.spv")], capture_output=True, text=True, check=True).stdout
+        controls = sorted(line.split()[-1] for line in dis.splitlines() if "OpLoopMerge" in line)
+        # 9 hinted: the copy of the inputs, each layer's neurons and inputs (2 x 2), the copy between
+        # the layers, the frames' three; the latent's copy into the inputs has none.
+        assert controls == (["None"] * 10 if opt_out else ["None"] + ["Unroll"] * 9), (target, opt_out, controls)
 
 
 @pytest.mark.parametrize("target,mlp_form", [("glsl", "unrolled"), ("hlsl", "unrolled"), ("glsl", "loops"),

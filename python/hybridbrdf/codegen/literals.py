@@ -205,16 +205,36 @@ def _c_like_row(name: str, v3: str, v2: str, uint: str, const: str, fn: str, out
             **_c_like(v3, v2, uint, const, fn, out_array, out_float), **rest}
 
 
+# The loops form's unroll hint (docs/CODEGEN.md, "Unroll hints in the loops form"): "unroll" prefixes
+# each counted loop over the network's weights, "unroll_setup" is written once before the weight
+# arrays. HLSL and Slang have [unroll]; GLSL has [[unroll]] only with GL_EXT_control_flow_attributes,
+# hence a macro that is empty where the compiler lacks the extension (or that the including shader
+# has defined itself, e.g. empty to opt out); WGSL has no loop attribute and C++ leaves loops to its
+# vectoriser, so neither gets a hint.
+GLSL_UNROLL_SETUP = """// [[unroll]] on the loops over the weights where the compiler has GL_EXT_control_flow_attributes:
+// unrolled, every index is a constant and the weights fold into the code (docs/CODEGEN.md).
+// Define HBRDF_UNROLL before this file to choose otherwise (empty: no hint).
+#ifndef HBRDF_UNROLL
+#ifdef GL_EXT_control_flow_attributes
+#extension GL_EXT_control_flow_attributes : enable
+#define HBRDF_UNROLL [[unroll]]
+#else
+#define HBRDF_UNROLL
+#endif
+#endif"""
+
 _HLSL = _c_like_row("HLSL (Shader Model 5+, glslang/DXC)", "float3", "float2", "uint", "static const", "", "out ",
                     lambda n: f"out float {n}", array=_brace_array, struct_open=lambda t: "{",
                     struct_close="}", uint_array=lambda n, v: "{" + _hex_list(v) + "}",
-                    weight=lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))")
+                    weight=lambda a, i: f"f16tof32({a}[({i}) >> 1] >> (16u * (uint({i}) & 1u)))",
+                    unroll="[unroll] ", unroll_setup="")
 
 DIALECTS: Dict[str, Dict[str, object]] = {
     "glsl": _c_like_row("GLSL 4.50", "vec3", "vec2", "uint", "const", "", "out ", lambda n: f"out float {n}",
                         array=_glsl_array, struct_open=lambda t: f"{t}(", struct_close=")",
                         uint_array=lambda n, v: f"uint[{n}](" + _hex_list(v) + ")",
-                        weight=lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]"),
+                        weight=lambda a, i: f"unpackHalf2x16({a}[({i}) >> 1])[({i}) & 1]",
+                        unroll="HBRDF_UNROLL ", unroll_setup=GLSL_UNROLL_SETUP),
     "hlsl": _HLSL,
     # Slang reads HLSL: the same text but for fp16 weights, widened without 16-bit types.
     "slang": {**_HLSL, "name": "Slang (slangc)",
@@ -227,6 +247,7 @@ DIALECTS: Dict[str, Dict[str, object]] = {
             "struct_open": lambda t: "{", "struct_close": "}", "uint": "unsigned",
             "uint_array": lambda n, v: "{" + _hex_list(v) + "}",
             "weight": lambda a, i: f"hbrdf_half_to_float({a}[({i}) >> 1] >> (16u * unsigned(({i}) & 1)))",
+            "unroll": "", "unroll_setup": "",
             **_c_like("float3", "float2", "unsigned", "inline constexpr", "inline ", "", lambda n: f"float& {n}")},
     # WGSL (WebGPU): no ?: (select(false, true, cond), both evaluated), no out parameters (a pointer,
     # or an array returned by value), immutable parameters, let/var/const with the type after the
@@ -238,6 +259,7 @@ DIALECTS: Dict[str, Dict[str, object]] = {
              "array": _wgsl_array, "struct_open": lambda t: f"{t}(", "struct_close": ")", "uint": "u32",
              "uint_array": lambda n, v: f"array<u32, {n}>(" + _hex_list(v) + ")",
              "weight": lambda a, i: f"unpack2x16float({a}[({i}) >> 1u])[({i}) & 1]",
+             "unroll": "", "unroll_setup": "",
              "decl": _wgsl_name_type, "let": lambda t: "let " + _wgsl_name_type(t),
              "var": lambda t: "var " + _wgsl_name_type(t), "constant": lambda t: "const " + _wgsl_name_type(t),
              "field": lambda t: _wgsl_name_type(t) + ",", "func": _wgsl_func,
