@@ -10,7 +10,6 @@ run that finished it. Files written before a field existed lack it; readers must
 
 from __future__ import annotations
 
-import torch
 import dataclasses
 from typing import Any, Callable, Dict, Optional
 
@@ -24,6 +23,7 @@ ENVIRONMENT = ("world_size", "torch_threads", "torch_version", "hybridbrdf_versi
 def environment(world_size: int, torch_threads: Optional[int] = None) -> Dict[str, Any]:
     """The :data:`ENVIRONMENT` fields of a fit on ``world_size`` ranks (``torch_threads``: the
     rank's torch.get_num_threads() while it trained; now when not given)."""
+    import torch  # here, not at the top: `hbrdf info` reads ENVIRONMENT and must start without torch
 
     return {"world_size": int(world_size),
             "torch_threads": int(torch.get_num_threads() if torch_threads is None else torch_threads),
