@@ -85,7 +85,7 @@ class Phase:
 #: The schedules compared. "old": the commands of results/rgl54_hybrid_32x2_e09_120k_refit01
 #: (120,000 steps at lr 5e-3, cosine decay, then a 3,000-step refit of (p, z) under loss eps 0.1).
 #: "new" (--recipe fast): the same network and loss at 8x the learning rate, decayed exponentially
-#: to 1/100 of it over 58,000 steps, then the refit under eps 0.05 (docs/FITTING.md, "Fitting in
+#: to 1/100 of it over 58,000 steps, then the refit under eps 0.05 (docs/LOSS.md, "Fitting in
 #: 30 minutes: the learning rate"). "cosine": the fast schedule's first form (cosine decay, refit
 #: eps 0.1; its figures: docs/BENCHMARKS_HISTORY.md), kept for comparison; not run by default.
 #: "heads": today's --recipe fast, the "new" schedule on a 16x2 network with material output layers

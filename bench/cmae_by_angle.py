@@ -6,7 +6,7 @@ on glossy materials a few percent of the pairs, those near the mirror
 configuration, carry most of it. This prints, per material, the cMAE of the
 model and of its analytic part split into theta_h bins (each bin's sum divided
 by the total pair count, so the bins add up to the cMAE) next to the fraction of
-pairs in each bin. It is the diagnostic behind ``--specular`` (docs/FITTING.md).
+pairs in each bin. It is the diagnostic behind ``--specular`` (docs/LOSS.md).
 ``--by theta_i`` bins by the incident elevation instead, ``--metric smape`` splits
 SMAPE the same way (the grazing-angle finding in docs/BENCHMARKS.md).
 

@@ -58,7 +58,7 @@ def main() -> int:
     ap.add_argument("--sparse-init", default="nearest", choices=("nearest", "neutral"),
                     help="where the sparse fit starts each file's (p, z) (FitSettings.sparse_init)")
     ap.add_argument("--sparse-loss-eps", type=float, default=None,
-                    help="loss epsilon of the sparse fit (default: --loss-eps); docs/FITTING.md, 'Re-balancing'")
+                    help="loss epsilon of the sparse fit (default: --loss-eps); docs/ADDING.md, 'Re-balancing'")
     ap.add_argument("--sparse-starts", type=int, default=1,
                     help="starts per file of the sparse fit (FitSettings.sparse_starts; default 1)")
     ap.add_argument("--sparse-lr", type=float, default=FitSettings.lr,

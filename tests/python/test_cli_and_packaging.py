@@ -179,7 +179,7 @@ def test_recipe_paper_sets_the_papers_values_and_flags_still_win():
     ours = parsed()
     assert (ours.recipe, ours.loss_eps, ours.analytic_expectile, ours.specular, ours.weight_decay, ours.steps) == \
         ("hybridbrdf", 0.1, 0.5, 0.1, 0.0, 120_000)
-    # fast: the schedule bench/bench_fit_time.py measured (docs/FITTING.md, "Fitting in 30 minutes").
+    # fast: the schedule bench/bench_fit_time.py measured (docs/LOSS.md, "Fitting in 30 minutes").
     fast = parsed("--recipe", "fast")
     assert (fast.recipe, fast.width, fast.depth, fast.latent, fast.steps, fast.lr, fast.lr_schedule, fast.lr_final,
             fast.loss_eps, fast.analytic_expectile, fast.specular, fast.weight_decay, fast.output_layer) == \

@@ -109,7 +109,7 @@ def test_relative_epsilon_trains():
 def test_analytic_term_epsilon_changes_only_the_analytic_term():
     """FitSettings.analytic_loss_eps: spelling out the default is bit-identical; a much larger
     epsilon makes the analytic term nearly linear and small beside the hybrid term, so it stops
-    steering f_a and the analytic part drifts to a worse fit on both metrics (docs/FITTING.md,
+    steering f_a and the analytic part drifts to a worse fit on both metrics (docs/LOSS.md,
     "The analytic term's epsilon")."""
     src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
     # The paper's symmetric loss on cosine pairs: with the default expectile 0.9 f_a is an upper

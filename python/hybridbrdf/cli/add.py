@@ -18,7 +18,7 @@ def add_parser(sub) -> None:
                                    "With --to BASE: the sparse fit only, BASE's network kept bit-exact, and the model "
                                    "holds BASE's materials followed by the new ones. Inputs are checked before any "
                                    "training; --out is written only when the fit succeeds. Without --recipe or --loss-eps "
-                                   "the loss epsilon is 0.03 (ADD_LOSS_EPS, docs/FITTING.md), not a joint fit's 0.1.",
+                                   "the loss epsilon is 0.03 (ADD_LOSS_EPS, docs/ADDING.md), not a joint fit's 0.1.",
                        epilog=EPILOG)
     p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
     p.add_argument("--to", metavar="BASE", help="model file whose network the new materials share (default: the "

@@ -284,7 +284,7 @@ def _model_with_metrics(module, names: List[str], sources: Sequence[BRDFSource],
     if start_names is not None:
         # What the sparse fit started from and how far that start was off: the frozen network bounds
         # what (p, z) can reach, so a fit that ends near its start says the network, not the
-        # optimiser, is the limit (docs/FITTING.md, "Sparse fitting").
+        # optimiser, is the limit (docs/ADDING.md, "Sparse fitting").
         start_metrics = evaluate(frozen, sources, n_pairs=settings.eval_pairs, names=start_names)
         for info, name, row in zip(model.material_info, start_names, start_metrics):
             info["sparse_start"] = {"material": name, "smape": row["smape"], "cmae": row["cmae"]}

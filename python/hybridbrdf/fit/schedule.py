@@ -1,4 +1,4 @@
-"""The optimiser of a fit and its learning-rate schedule (docs/FITTING.md, "The learning-rate decay").
+"""The optimiser of a fit and its learning-rate schedule (docs/LOSS.md, "The learning-rate decay").
 
 AdamW in two parameter groups: the shared network (``mlp.``, ``frames.``) with the settings'
 weight decay at ``lr * network_lr``, and the per-material parameters (p, z, output layers)

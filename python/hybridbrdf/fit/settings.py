@@ -24,7 +24,7 @@ SPARSE_INITS = ("nearest", "neutral")
 
 #: Learning-rate decays over a fit's steps (FitSettings.lr_schedule): ``cosine`` from lr to 0 (the
 #: paper's), ``exponential`` from lr to lr * lr_final at a constant rate, which spends a larger
-#: share of the steps at small rates (docs/FITTING.md, "The learning-rate decay").
+#: share of the steps at small rates (docs/LOSS.md, "The learning-rate decay").
 LR_SCHEDULES = ("cosine", "exponential")
 
 #: Named sets of defaults (``--recipe``). ``hybridbrdf``, the default, is the field defaults of
@@ -34,7 +34,7 @@ LR_SCHEDULES = ("cosine", "exponential")
 #: steps, 32x3, latent 4) for comparison; ``fast`` fits an RGL-sized collection in under half an
 #: hour on two CPU cores: the default loss at a higher learning rate, decayed exponentially, on a
 #: 16x2 network with material output layers, which needs no (p, z) refit afterwards where one
-#: shared output layer did (docs/FITTING.md, "Fitting in 30 minutes", holds the figures). A flag
+#: shared output layer did (docs/LOSS.md, "Fitting in 30 minutes", holds the figures). A flag
 #: given explicitly overrides its recipe value.
 RECIPES = {
     "hybridbrdf": {},
@@ -53,19 +53,19 @@ ADD_STEPS = 5000
 
 #: Loss epsilon of ``hbrdf add`` (both its sparse fit and its fine-tune) when no recipe or
 #: --loss-eps is given: a loss more relative in dark regions than a joint fit's 0.1. Chosen on 29
-#: materials no prior had seen, on both metrics (docs/FITTING.md, "Never worse than f_a"): the
+#: materials no prior had seen, on both metrics (docs/ADDING.md, "`hbrdf add`'s loss epsilon"): the
 #: prior-minus-five rows beat the released model 5 of 5 with a mean SMAPE below the joint fit's,
 #: which neither 0.1 (SMAPE) nor 0.01 (4 of 5) does.
 ADD_LOSS_EPS = 0.03
 
 #: Steps of ``hbrdf add``'s fine-tune onto the shipped prior (after its ADD_STEPS sparse steps):
-#: the network trained together with the new materials (docs/FITTING.md, "Adding to the prior").
+#: the network trained together with the new materials (docs/ADDING.md, "Adding to the prior").
 FINETUNE_STEPS = 5000
 
 #: ``hbrdf add --refine``'s limit on how far a base material may move: SMAPE of the refined
-#: model against the base's own output on the metric pairs (docs/FITTING.md, "Refining a
+#: model against the base's own output on the metric pairs (docs/ADDING.md, "Refining a
 #: collection"). 0.75: above the largest drift of the measured NBRDF-MERL refine (a dark material,
-#: where SMAPE is most sensitive; its figures are in docs/FITTING.md), so the limit refuses a
+#: where SMAPE is most sensitive; its figures are in docs/ADDING.md), so the limit refuses a
 #: refine that moves a material further than any of those did (SMAPE 2 is a material replaced by
 #: another).
 MAX_DRIFT = 0.75
@@ -226,7 +226,7 @@ class FitSettings:
                                 choices=LR_SCHEDULES)
     #: The exponential decay's last rate as a fraction of ``lr``. 0.01, two decades: from --recipe
     #: fast's rate it spends a large share of the last steps at the rates at which the default
-    #: schedule's hardest highlight converged (docs/FITTING.md, "The learning-rate decay").
+    #: schedule's hardest highlight converged (docs/LOSS.md, "The learning-rate decay").
     lr_final: float = _setting(0.01, "with --lr-schedule exponential: the last step's learning rate as a fraction "
                                "of --lr (default: %(default)s)", "training", "--lr-final", type=LR_FINAL)
     clip: float = _setting(0.01, "gradient-norm clipping (the paper's 0.01)", "training")
@@ -242,35 +242,35 @@ class FitSettings:
     eval_pairs: int = _setting(100_000, "pairs for the metrics stored with the model (default: %(default)s; "
                                "CONVENTIONS uses 1e6)", "training", "--eval-pairs", type=PAIRS)
     #: epsilon of the loss log(eps + cos f); 1 is the paper's log(1 + cos f). Smaller values make the
-    #: loss relative in dark regions (see docs/FITTING.md, "Dark regions").
+    #: loss relative in dark regions (see docs/LOSS.md, "Dark regions").
     loss_eps: float = _setting(0.1, "epsilon of the loss log(eps + cos f); 1 = the paper's log(1 + cos f), smaller "
                                "values weigh relative errors in dark regions (default: %(default)s)", "loss",
                                "--loss-eps", type=POSITIVE)
     #: scale the loss epsilon per material by its mean cos f_ref over the cosine-weighted pool pairs
     #: (eps_m = loss_eps * mean cos f_ref), which makes the loss invariant to a material's brightness.
-    #: See docs/FITTING.md, "Dark materials".
+    #: See docs/LOSS.md, "Dark materials".
     loss_eps_relative: bool = _setting(False, "scale --loss-eps per material by its mean cos f (brightness-invariant "
                                        "loss; for collections with very dark materials)", "loss",
                                        "--loss-eps-relative", action="store_true")
     #: epsilon of the analytic term L(f_ref, f_a) of the loss; None uses ``loss_eps``. Scaled per
     #: material like ``loss_eps`` when ``loss_eps_relative``. An ablation knob: a larger value makes
     #: the analytic term nearly linear and small beside the hybrid term, f_a then drifts and the
-    #: hybrid loses too (measured in docs/FITTING.md, "The analytic term's epsilon").
+    #: hybrid loses too (measured in docs/LOSS.md, "The analytic term's epsilon").
     analytic_loss_eps: Optional[float] = _setting(
         None, "epsilon of the analytic term L(f_ref, f_a) of the loss (default: --loss-eps); an ablation knob: a "
         "larger value lets f_a drift and costs the hybrid too (docs/FITTING.md)", "loss", "--analytic-loss-eps",
         type=POSITIVE, metavar="EPS")
     #: weigh f by cos(theta_i) inside the loss, log(eps + cos f), as the paper does. False fits
     #: log(eps + f): grazing pairs, whose cos f falls below eps, then keep their relative weight
-    #: (docs/FITTING.md, "Grazing angles"); with ``loss_eps_relative`` eps then scales with mean f.
+    #: (docs/LOSS.md, "Grazing angles"); with ``loss_eps_relative`` eps then scales with mean f.
     loss_cos: bool = _setting(True, "fit log(eps + f) instead of the paper's log(eps + cos f), so grazing angles "
-                              "keep their relative weight (docs/FITTING.md, \"Grazing angles\")", "loss",
+                              "keep their relative weight (docs/LOSS.md, \"Grazing angles\")", "loss",
                               "--loss-no-cos", action="store_false")
     #: expectile tau of the analytic term (Newey & Powell 1987, asymmetric least squares): errors
     #: where f_a falls *below* f_ref weigh 2 tau, errors above weigh 2 (1 - tau). 0.5 is the paper's
     #: symmetric loss; tau > 0.5 fits f_a as an upper envelope of the data, which the gate
     #: f_g in (0, 1) can dim where f_a overshoots, instead of a compromise whose peak the
-    #: correction exp(o) must build (docs/FITTING.md, "An upper envelope for the analytic part").
+    #: correction exp(o) must build (docs/LOSS.md, "An upper envelope for the analytic part").
     analytic_expectile: float = _setting(
         0.5, "expectile tau in [0.5, 1) of the analytic loss term: tau > 0.5 weighs f_a below the data more, "
         "fitting an upper envelope the gate can dim, for a hybrid whose f_a is never rendered alone "
@@ -278,7 +278,7 @@ class FitSettings:
         "--analytic-expectile", type=EXPECTILE)
     #: fraction of the training pool drawn around the mirror configuration (half vector from a GGX
     #: distribution of roughness ``specular_alpha``) instead of cosine-weighted; 0 is the paper's
-    #: sampling. See docs/FITTING.md, "Specular pairs".
+    #: sampling. See docs/LOSS.md, "Specular pairs".
     specular: float = _setting(0.1, "fraction of the training pool drawn around the mirror direction instead of "
                                "cosine-weighted; weighs the specular peaks that dominate cMAE (default: %(default)s; "
                                "0 is the paper's sampling)", "loss", "--specular", type=UNIT)
@@ -290,20 +290,20 @@ class FitSettings:
     #: where sparse fitting (``frozen=``) starts each new material's (p, z): "nearest" copies the
     #: frozen model's material whose (p, z) has the lowest training loss on the new material's
     #: pool; "neutral" starts from the joint fit's grey rough dielectric with z ~ 0. See
-    #: docs/FITTING.md, "Sparse fitting".
+    #: docs/ADDING.md, "Sparse fitting".
     sparse_init: str = _setting("nearest", "with --frozen: start each source's (p, z) from MODEL's best-fitting "
                                 "material (nearest) or from the neutral grey rough lobe with z ~ 0 (neutral) "
                                 "(default: %(default)s)", "sparse", "--sparse-init", choices=SPARSE_INITS)
     #: sparse fitting from several starts: the ``sparse_starts`` best-scoring materials of the frozen
     #: model each start one fit of every new material (all in one batch), and the fit with the
-    #: lowest training loss is kept. See docs/FITTING.md, "Sparse fitting".
+    #: lowest training loss is kept. See docs/ADDING.md, "Sparse fitting".
     sparse_starts: int = _setting(1, "with --frozen or hbrdf add (--sparse-init nearest): fit each source from its "
                                   "N best-scoring materials at once and keep the fit with the lowest training loss "
                                   "(costs N times the steps' work) (default: %(default)s)", "sparse",
                                   "--sparse-starts", type=Number(int, 1, 64), metavar="N")
     #: A warm start (``fit(init=...)``, ``hbrdf fit --init``, and the fine-tune of ``hbrdf add``):
     #: MODEL's network, every weight trained; each source starts from MODEL's material of the same
-    #: name, else (sparse_init "nearest") from its best-fitting one. See docs/FITTING.md, "Warm starts".
+    #: name, else (sparse_init "nearest") from its best-fitting one. See docs/ADDING.md, "Warm starts".
     init_from: Optional[str] = _setting(None, "start from MODEL's network (trained further) and, per source, "
                                         "MODEL's material of the same name or else its best-fitting one; "
                                         "'prior' names the shipped prior; the network settings are MODEL's",

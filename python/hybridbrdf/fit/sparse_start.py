@@ -1,4 +1,4 @@
-"""Where a sparse fit starts and which of its starts it keeps (paper Sec. 4.2; docs/FITTING.md,
+"""Where a sparse fit starts and which of its starts it keeps (paper Sec. 4.2; docs/ADDING.md,
 "Sparse fitting"): each new material starts from the (p, z) of the frozen model's material with
 the lowest training loss on it (:func:`start_from_nearest`), optionally from its k best ones at
 once, of which the fit with the lowest training loss is kept (:func:`best_starts`,

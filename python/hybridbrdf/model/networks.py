@@ -336,7 +336,7 @@ class HybridBRDF(nn.Module):
         every pair, so W [d; z; e] + b = (W_d d) + (W_z z + b) [+ W_e e]: a (B x 6) and an
         (M x l) product broadcast-added instead of one (M B x (6 + l)) product of a concatenated
         input. Same function, rounded differently; it spares a joint fit the (M, B, 6 + l) input
-        tensor and, in the backward pass, that tensor's gradient (docs/FITTING.md, "Fitting in 30 minutes")."""
+        tensor and, in the backward pass, that tensor's gradient (docs/LOSS.md, "Fitting in 30 minutes")."""
         first = self.mlp.hidden[0]
         n_dir, l = directions.shape[-1], self.latent_dim
         w_dir, w_z, w_extra = first.weight[:, :n_dir], first.weight[:, n_dir:n_dir + l], first.weight[:, n_dir + l:]

@@ -6,7 +6,7 @@ of RGL, MERL and Nielsen), with the default recipe; it ships inside the package 
 network and each training material's (p, z, head), which sparse fitting scores as starting
 points). ``hbrdf add`` fits a measurement's (p, z, head) on the prior's frozen network, then by
 default fine-tunes the network with it; the written model holds the new materials only
-(docs/FITTING.md, "Adding to the prior" and "The shipped prior").
+(docs/ADDING.md, "Adding to the prior" and "The shipped prior").
 """
 
 from __future__ import annotations
