@@ -2,7 +2,7 @@
 tests/python/fuzz_surfaces.py, counted per outcome. A broken invariant is printed with the
 input that broke it and makes the exit status 1.
 
-    python3 bench/fuzz_scale.py                 # the full run (docs/BENCHMARKS.md, "Hostile input")
+    python3 bench/fuzz_scale.py                 # the full run (docs/CONVENTIONS.md, "Hostile input")
     python3 bench/fuzz_scale.py --scale 0.01    # a quick look
 
 Surfaces and their inputs: model files (byte damage: both loaders must agree), model metadata

@@ -10,7 +10,7 @@ change of f_a, and
 
 from public evaluations only. Prints, per material, the range of f_g, the largest and median f_c,
 and the range of f / f_a: a material whose f_g sits at 1 and f_c near 0 everywhere is left at its
-f_a by the network (a saturated gate passes almost no gradient; docs/BENCHMARKS.md, "Reciprocal by
+f_a by the network (a saturated gate passes almost no gradient; docs/FITTING.md, "Reciprocal by
 construction").
 
     python bench/gate_probe.py MODEL [MATERIAL ...] [--pairs 2000] [--seed 0]

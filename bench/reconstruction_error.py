@@ -2,7 +2,7 @@
 """How far each NBRDF-RGL reconstruction (../shared/data/nbrdf/rgl) is from the raw RGL
 measurement it was fitted to (../shared/data/rgl), in the CONVENTIONS metrics (10^6
 cosine-weighted pairs, seed 7, negatives clamped to 0). Bounds what a network trained on
-the reconstructions alone can know of the raw files (docs/BENCHMARKS.md, "Adding
+the reconstructions alone can know of the raw files (docs/ADDING.md, "Adding
 measurements later").
 
     python bench/reconstruction_error.py [--pairs 1000000]

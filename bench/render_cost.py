@@ -7,7 +7,7 @@ the Python readers.
 
 The sphere's material is each RGL measurement in turn; every render uses the cosine
 sampler with next-event estimation and the same seed, so all renders of a material trace
-the same directions and their difference is mostly the BRDF (docs/BENCHMARKS.md,
+the same directions and their difference is mostly the BRDF (docs/RENDERING.md,
 "Rendering error"). The reference is the raw measurement at the same spp and seed; the
 noise level is the MAE between two reference renders with different seeds. MAE: mean
 over the pixels of the objects and RGB of |image - reference| (linear HDR). Frame time:
