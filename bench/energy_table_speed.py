@@ -31,7 +31,7 @@ import numpy as np
 
 import hybridbrdf as hb
 from hybridbrdf.model import energy
-from hybridbrdf.util import scratch_folder
+from hybridbrdf.files import scratch_folder
 
 
 # ---- the fit before issue 56, verbatim (hybridbrdf 2026-11-27) ------------------------------------

@@ -17,7 +17,7 @@ import numpy as np
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
 from hybridbrdf.limits import check_count, count_argument
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 
 #: Peak bytes per sample of one albedo estimate (directional_albedo: the repeated wo, u, the
 #: sampler's float32 copies and outputs, the float64 weights; 88 measured), with a margin.
@@ -51,7 +51,7 @@ def directional_albedo(params: AnalyticParams, theta_o_deg: float, n: int, strat
 
 
 def _write_png_atomically(fig, path: str) -> None:
-    """The figure as a PNG at ``path``, by :func:`hybridbrdf.util.atomic_write_bytes` (the
+    """The figure as a PNG at ``path``, by :func:`hybridbrdf.files.atomic_write_bytes` (the
     replaced file's mode kept, errors naming ``path``; docs/CONVENTIONS.md, "Writing files")."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)

@@ -1,6 +1,6 @@
 """Two processes writing the same output at once: the result is one of the two
 complete files, never a mix, and no temporary is left behind. Model files and checkpoints go
-through hybridbrdf.util.atomic_write_bytes (a temporary named by pid and 64 random bits, then a
+through hybridbrdf.files.atomic_write_bytes (a temporary named by pid and 64 random bits, then a
 rename); images through the tracer's StagedFile (a temporary named by pid, then a rename)."""
 
 import json
@@ -15,7 +15,7 @@ from test_render import analytic_material, scene
 
 WRITER = """
 import sys
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 path, byte, size, rounds = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 payload = bytes([byte]) * size
 for _ in range(rounds):

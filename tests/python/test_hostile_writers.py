@@ -103,12 +103,12 @@ def test_two_updates_in_place_at_once_both_land(base, tmp_path, command, names):
 
 
 def test_an_update_refuses_in_one_line_when_another_holds_the_file_too_long(base, tmp_path, monkeypatch, capsys):
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom hybridbrdf.util import file_lock\n"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom hybridbrdf.files import file_lock\n"
                                "with file_lock(sys.argv[1]):\n    print('held', flush=True)\n    time.sleep(60)",
                                str(base)], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
-        monkeypatch.setattr("hybridbrdf.util.LOCK_WAIT_SECONDS", 0.3)
+        monkeypatch.setattr("hybridbrdf.files.locks.LOCK_WAIT_SECONDS", 0.3)
         before = base.read_bytes()
         assert cli_main(updates(base, "late")["edit"]) == 1
         line = error_line(capsys)
@@ -147,7 +147,7 @@ def test_a_fresh_fit_refuses_an_existing_checkpoint_unless_resumed_or_forced(tmp
 
 def test_a_second_fit_on_one_checkpoint_is_refused_at_once(tmp_path):
     ck = tmp_path / "ck.pt"
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom hybridbrdf.util import file_lock\n"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom hybridbrdf.files import file_lock\n"
                                "with file_lock(sys.argv[1]):\n    print('held', flush=True)\n    time.sleep(60)",
                                str(ck)], stdout=subprocess.PIPE, text=True)
     try:

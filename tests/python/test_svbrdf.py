@@ -826,7 +826,7 @@ def test_save_is_atomic_and_names_the_folder(tmp_path, monkeypatch):
     """SVBRDF.save: a failure while writing (ENOSPC at an fsync) leaves the old folder as it was,
     no temporary beside it, and one OutputFileError naming the folder; a temporary folder of a
     writer killed outright (a dead pid in its name) is removed by the next save."""
-    import hybridbrdf.util as util
+    import hybridbrdf.files.atomic as util
 
     _, m = saved_random_model(tmp_path, "hybrid")
     SVBRDF(m, [m.materials[0]], (2, 2)).save(tmp_path / "sv")

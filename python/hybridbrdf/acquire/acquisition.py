@@ -23,7 +23,7 @@ from hybridbrdf.errors import InputFileError
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import load_prior
-from hybridbrdf.util import file_lock
+from hybridbrdf.files import file_lock, make_parent_folder
 
 if TYPE_CHECKING:  # annotations only: the fit's modules (PyTorch) load when acquire() runs
     from hybridbrdf.acquire.hybrid_fit import HybridMaps
@@ -73,6 +73,7 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     capture, out = os.path.abspath(os.fspath(capture)), os.path.abspath(os.fspath(out))
     check_count("--size (texels)", int(size[0]) * int(size[1]), BYTES_PER_TEXEL)
     check_output(out, capture)
+    make_parent_folder(out)  # as every command does; its checkpoint and lock live beside it
     ckpt = checkpoint_path(out)
     checkpoint.check_not_another_fits(ckpt, resume, force)
     if resume and not os.path.lexists(ckpt):

@@ -27,7 +27,7 @@ from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
 from hybridbrdf.render.tracer import read_image, write_exr
 from hybridbrdf.sources import SYNTHETIC_PREFIX
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes, make_parent_folder
 
 FORMAT_VERSION = 1
 INDEX_FILE = "capture.json"
@@ -51,12 +51,15 @@ def source_spec(source) -> str:
 
 
 def check_output_folder(folder: str) -> None:
-    """Refuse (one line) a ``folder`` that exists and is not a capture, so nothing is replaced by mistake."""
+    """Refuse (one line) a ``folder`` that exists and is not a capture, so nothing is replaced by
+    mistake, and create the folders on the way to it (docs/CONVENTIONS.md, "Writing files"): a
+    file in the way is refused here, before the photographs are rendered."""
     if os.path.lexists(folder):
         if not os.path.isdir(folder):
             raise InputFileError(folder, "exists and is not a folder")
         if os.listdir(folder) and not os.path.isfile(os.path.join(folder, INDEX_FILE)):
             raise InputFileError(folder, f"is a folder without {INDEX_FILE} (not a capture); refusing to replace it")
+    make_parent_folder(folder)
 
 
 def write_capture(capture: Capture, folder) -> str:

@@ -116,95 +116,123 @@ def load_rig(path) -> Rig:
     return rig_from_dict(data, path)
 
 
-def rig_from_dict(data: Any, path: str = "rig") -> Rig:
-    """Validate a rig document (a dict as JSON gives it); ``path`` names it in errors."""
+class _RigReader:
+    """The checks of one rig document, each failing with a :class:`RigError` that names the file
+    (``path``) and the key."""
 
-    def fail(key: str, problem: str):
-        raise RigError(path, f"{key}: {problem}")
+    def __init__(self, data: Any, path: str):
+        self.data, self.path = data, path
 
-    def keys(obj, where: str, allowed: Sequence[str], required: Sequence[str]):
+    def fail(self, key: str, problem: str):
+        raise RigError(self.path, f"{key}: {problem}")
+
+    def keys(self, obj, where: str, allowed: Sequence[str], required: Sequence[str]):
         if not isinstance(obj, dict):
-            fail(where or "the rig", "must be a JSON object")
+            self.fail(where or "the rig", "must be a JSON object")
         for k in obj:
             if k not in allowed:
-                fail(f"{where}.{k}" if where else k, f"unknown key (known: {', '.join(allowed)})")
+                self.fail(f"{where}.{k}" if where else k, f"unknown key (known: {', '.join(allowed)})")
         for k in required:
             if k not in obj:
-                fail(f"{where}.{k}" if where else k, "missing")
+                self.fail(f"{where}.{k}" if where else k, "missing")
 
-    def number(v, key: str, lo: float = -math.inf, hi: float = math.inf, open_lo: bool = False) -> float:
+    def number(self, v, key: str, lo: float = -math.inf, hi: float = math.inf, open_lo: bool = False) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            fail(key, f"must be a finite number, got {v!r}")
+            self.fail(key, f"must be a finite number, got {v!r}")
         if v < lo or v > hi or (open_lo and v == lo):
-            fail(key, f"must lie in {'(' if open_lo else '['}{lo:g}, {hi:g}], got {v!r}")
+            self.fail(key, f"must lie in {'(' if open_lo else '['}{lo:g}, {hi:g}], got {v!r}")
         return float(v)
 
-    def vector(v, key: str, n: int = 3, lo: float = -math.inf) -> np.ndarray:
+    def vector(self, v, key: str, n: int = 3, lo: float = -math.inf) -> np.ndarray:
         if not isinstance(v, list) or len(v) != n:
-            fail(key, f"must be a list of {n} numbers, got {v!r}")
-        return np.array([number(x, f"{key}[{i}]", lo) for i, x in enumerate(v)], dtype=np.float64)
+            self.fail(key, f"must be a list of {n} numbers, got {v!r}")
+        return np.array([self.number(x, f"{key}[{i}]", lo) for i, x in enumerate(v)], dtype=np.float64)
 
-    def index(v, key: str, count: int) -> int:
+    def index(self, v, key: str, count: int) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < count:
-            fail(key, f"must be an index 0 to {count - 1}, got {v!r}")
+            self.fail(key, f"must be an index 0 to {count - 1}, got {v!r}")
         return v
 
-    def items(name: str, required: bool) -> list:
-        v = data[name]
+    def items(self, name: str, required: bool) -> list:
+        v = self.data[name]
         if not isinstance(v, list):
-            fail(name, "must be a list")
+            self.fail(name, "must be a list")
         if required and not v:
-            fail(name, f"a rig needs at least one {name[:-1]}")
+            self.fail(name, f"a rig needs at least one {name[:-1]}")
         if len(v) > MAX_ITEMS:
-            fail(name, f"{len(v)} entries; at most {MAX_ITEMS}")
+            self.fail(name, f"{len(v)} entries; at most {MAX_ITEMS}")
         return v
 
-    keys(data, "", TOP_KEYS, TOP_KEYS)
-    if data["format_version"] != FORMAT_VERSION:
-        fail("format_version", f"this library reads version {FORMAT_VERSION}, got {data['format_version']!r}")
-    size = data["image_size"]
-    if not isinstance(size, list) or len(size) != 2 or any(isinstance(s, bool) or not isinstance(s, int)
-                                                           or not 1 <= s <= MAX_SIDE for s in size):
-        fail("image_size", f"must be [width, height], whole numbers 1 to {MAX_SIDE}, got {size!r}")
-    extent = vector(data["sample_extent"], "sample_extent", 2)
-    if (extent <= 0).any():
-        fail("sample_extent", f"must be positive, got {extent.tolist()}")
-    cameras = []
-    for i, c in enumerate(items("cameras", True)):
-        where = f"cameras[{i}]"
-        keys(c, where, CAMERA_KEYS, CAMERA_KEYS)
-        cam = Camera(vector(c["position"], f"{where}.position"), vector(c["look_at"], f"{where}.look_at"),
-                     vector(c["up"], f"{where}.up"), number(c["fov_deg"], f"{where}.fov_deg", 0, 179, open_lo=True))
-        if cam.position[2] <= 0:
-            fail(f"{where}.position", f"must lie above the sample plane (z > 0), got {cam.position.tolist()}")
-        forward = cam.look_at - cam.position
-        if np.linalg.norm(forward) < 1e-9:
-            fail(f"{where}.look_at", "equals the position")
-        if np.linalg.norm(np.cross(_unit(forward), cam.up)) < 1e-6:
-            fail(f"{where}.up", "is zero or parallel to the viewing direction")
-        cameras.append(cam)
-    lights = []
-    for i, l in enumerate(items("lights", True)):
-        where = f"lights[{i}]"
-        keys(l, where, LIGHT_KEYS, LIGHT_KEYS)
-        light = Light(vector(l["position"], f"{where}.position"), vector(l["intensity"], f"{where}.intensity", lo=0))
-        if light.position[2] <= 0:
-            fail(f"{where}.position", f"must lie above the sample plane (z > 0), got {light.position.tolist()}")
-        lights.append(light)
-    shots, names = [], set()
-    for i, s in enumerate(items("shots", True)):
-        where = f"shots[{i}]"
-        keys(s, where, SHOT_KEYS, ("camera", "light"))
-        image = s.get("image", photo_name(i))
-        if not isinstance(image, str) or not image or os.path.basename(image) != image or image in (".", "..") \
-                or not image.lower().endswith(".exr"):
-            fail(f"{where}.image", f"must be a plain .exr file name inside the rig's folder, got {image!r}")
-        if image in names:
-            fail(f"{where}.image", f"{image!r} names two shots")
-        names.add(image)
-        shots.append(Shot(index(s["camera"], f"{where}.camera", len(cameras)),
-                          index(s["light"], f"{where}.light", len(lights)), image))
-    return Rig((size[0], size[1]), (float(extent[0]), float(extent[1])), cameras, lights, shots)
+    def header(self):
+        """(image_size, sample_extent) after the top-level keys and the format version."""
+        data = self.data
+        self.keys(data, "", TOP_KEYS, TOP_KEYS)
+        if data["format_version"] != FORMAT_VERSION:
+            self.fail("format_version", f"this library reads version {FORMAT_VERSION}, got {data['format_version']!r}")
+        size = data["image_size"]
+        if not isinstance(size, list) or len(size) != 2 or any(isinstance(s, bool) or not isinstance(s, int)
+                                                               or not 1 <= s <= MAX_SIDE for s in size):
+            self.fail("image_size", f"must be [width, height], whole numbers 1 to {MAX_SIDE}, got {size!r}")
+        extent = self.vector(data["sample_extent"], "sample_extent", 2)
+        if (extent <= 0).any():
+            self.fail("sample_extent", f"must be positive, got {extent.tolist()}")
+        return (size[0], size[1]), (float(extent[0]), float(extent[1]))
+
+    def cameras(self) -> List[Camera]:
+        cameras = []
+        for i, c in enumerate(self.items("cameras", True)):
+            where = f"cameras[{i}]"
+            self.keys(c, where, CAMERA_KEYS, CAMERA_KEYS)
+            cam = Camera(self.vector(c["position"], f"{where}.position"), self.vector(c["look_at"], f"{where}.look_at"),
+                         self.vector(c["up"], f"{where}.up"),
+                         self.number(c["fov_deg"], f"{where}.fov_deg", 0, 179, open_lo=True))
+            if cam.position[2] <= 0:
+                self.fail(f"{where}.position", f"must lie above the sample plane (z > 0), got {cam.position.tolist()}")
+            forward = cam.look_at - cam.position
+            if np.linalg.norm(forward) < 1e-9:
+                self.fail(f"{where}.look_at", "equals the position")
+            if np.linalg.norm(np.cross(_unit(forward), cam.up)) < 1e-6:
+                self.fail(f"{where}.up", "is zero or parallel to the viewing direction")
+            cameras.append(cam)
+        return cameras
+
+    def lights(self) -> List[Light]:
+        lights = []
+        for i, l in enumerate(self.items("lights", True)):
+            where = f"lights[{i}]"
+            self.keys(l, where, LIGHT_KEYS, LIGHT_KEYS)
+            light = Light(self.vector(l["position"], f"{where}.position"),
+                          self.vector(l["intensity"], f"{where}.intensity", lo=0))
+            if light.position[2] <= 0:
+                self.fail(f"{where}.position", f"must lie above the sample plane (z > 0), got {light.position.tolist()}")
+            lights.append(light)
+        return lights
+
+    def shots(self, n_cameras: int, n_lights: int) -> List[Shot]:
+        shots, names = [], set()
+        for i, s in enumerate(self.items("shots", True)):
+            where = f"shots[{i}]"
+            self.keys(s, where, SHOT_KEYS, ("camera", "light"))
+            image = s.get("image", photo_name(i))
+            if not isinstance(image, str) or not image or os.path.basename(image) != image or image in (".", "..") \
+                    or not image.lower().endswith(".exr"):
+                self.fail(f"{where}.image", f"must be a plain .exr file name inside the rig's folder, got {image!r}")
+            if image in names:
+                self.fail(f"{where}.image", f"{image!r} names two shots")
+            names.add(image)
+            shots.append(Shot(self.index(s["camera"], f"{where}.camera", n_cameras),
+                              self.index(s["light"], f"{where}.light", n_lights), image))
+        return shots
+
+
+def rig_from_dict(data: Any, path: str = "rig") -> Rig:
+    """Validate a rig document (a dict as JSON gives it); ``path`` names it in errors."""
+    reader = _RigReader(data, path)
+    size, extent = reader.header()
+    # In the document's order, so that the first bad key is the one reported.
+    cameras = reader.cameras()
+    lights = reader.lights()
+    return Rig(size, extent, cameras, lights, reader.shots(len(cameras), len(lights)))
 
 
 def check_rig(rig: Rig, path: str = "rig") -> Rig:

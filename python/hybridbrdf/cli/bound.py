@@ -9,7 +9,7 @@ from hybridbrdf.fit.settings import positive_int
 from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
 from hybridbrdf.model.file import load_model
-from hybridbrdf.util import check_writable, file_lock
+from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:

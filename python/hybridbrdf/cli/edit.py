@@ -8,7 +8,7 @@ import sys
 
 from hybridbrdf.model.editing import parse_assignments
 from hybridbrdf.model.file import load_model
-from hybridbrdf.util import check_writable, file_lock
+from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:

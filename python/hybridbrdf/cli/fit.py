@@ -11,7 +11,7 @@ from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.settings import positive_int
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import prior_path
-from hybridbrdf.util import check_writable
+from hybridbrdf.files import check_writable
 
 
 def add_parser(sub) -> None:

@@ -7,7 +7,7 @@ import argparse
 from hybridbrdf.cli import FINITE
 from hybridbrdf.cli.edit import add_new_material_flags, describe_new_material
 from hybridbrdf.model.file import load_model
-from hybridbrdf.util import check_writable, file_lock
+from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:

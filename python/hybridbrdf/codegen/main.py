@@ -37,7 +37,7 @@ from hybridbrdf.codegen.scene import load_scene
 from hybridbrdf.errors import InputFileError, one_line_text
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model.file import HybridModel, load_model
-from hybridbrdf.util import atomic_write_bytes, check_writable
+from hybridbrdf.files import atomic_write_bytes, check_writable
 
 TARGETS = ("glsl", "hlsl", "slang", "wgsl", "cpp", "brdfexplorer")
 

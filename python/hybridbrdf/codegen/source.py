@@ -13,7 +13,7 @@ from hybridbrdf.codegen.network import network_layers, unrolled_frames, unrolled
 from hybridbrdf.codegen.scene import NO_DEPTH_LIMIT, Specialisation, specialisation
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.names import names_problem
-from hybridbrdf.util import package_data_dir
+from hybridbrdf.files import package_data_dir
 
 MLP_FORMS = ("auto", "unrolled", "loops")
 

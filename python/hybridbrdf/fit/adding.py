@@ -31,7 +31,7 @@ from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.base import BRDFSource
 from hybridbrdf.sources.model import ModelMaterialSource
 from hybridbrdf.sources.names import material_names
-from hybridbrdf.util import check_writable, file_lock
+from hybridbrdf.files import check_writable, file_lock
 
 SourceLike = Union[str, os.PathLike, BRDFSource]
 

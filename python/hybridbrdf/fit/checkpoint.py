@@ -40,7 +40,7 @@ import torch
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.inputs import check_input_file, read_input_bytes
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 
 #: The header's first words; the version follows, then the checksum.
 MAGIC = b"hybridbrdf checkpoint "

@@ -34,7 +34,7 @@ from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
 from hybridbrdf.limits import check_count
 from hybridbrdf.sources.base import BYTES_PER_PAIR as SOURCE_BYTES_PER_PAIR, BRDFSource
-from hybridbrdf.util import check_writable, file_lock
+from hybridbrdf.files import check_writable, file_lock
 
 from hybridbrdf.evaluate.evaluation import BYTES_PER_PAIR as METRIC_BYTES_PER_PAIR, evaluate
 from hybridbrdf.fit.loop import FitState, run_steps
@@ -85,7 +85,7 @@ def fit(sources: Sequence[BRDFSource], settings: FitSettings, frozen: Optional[H
     values, shapes); otherwise :class:`~hybridbrdf.errors.InputFileError` naming the file.
     An existing ``checkpoint`` is another fit's until shown otherwise: without ``resume`` it is
     refused unless ``force`` (replace it). The fit holds the checkpoint's lock
-    (:func:`hybridbrdf.util.file_lock`) from its first check to its end: a second fit on the same
+    (:func:`hybridbrdf.files.file_lock`) from its first check to its end: a second fit on the same
     checkpoint is refused at once (:class:`~hybridbrdf.errors.OutputFileError` naming the file
     and the pid that holds it).
 

@@ -29,7 +29,7 @@ from hybridbrdf.brdf.analytic import AnalyticParams, sample
 from hybridbrdf.limits import bool_argument, check_count, count_argument, real_argument
 from hybridbrdf.model import energy
 from hybridbrdf.names import names_problem
-from hybridbrdf.util import scratch_folder
+from hybridbrdf.files import scratch_folder
 
 #: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
 #: where Fresnel and masking change fastest.

@@ -41,7 +41,7 @@ import numpy as np
 from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
 from hybridbrdf.limits import check_count, count_argument
-from hybridbrdf.util import scratch_folder
+from hybridbrdf.files import scratch_folder
 
 #: Largest directional albedo the bound leaves (spec.ENERGY_TARGET: 1 less a margin for the estimate).
 TARGET = spec.ENERGY_TARGET

@@ -46,7 +46,7 @@ from hybridbrdf.model import editing
 from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
                                         output_layer)
 from hybridbrdf.model.validate import read_document, validate
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 from hybridbrdf.version import __version__
 
 if TYPE_CHECKING:  # annotations only: PyTorch is imported where a model runs in it
@@ -253,7 +253,7 @@ class HybridModel:
 
     def save(self, path) -> None:
         """Write the model file atomically (temporary file beside it + rename; the replaced
-        file's permissions kept; :func:`hybridbrdf.util.atomic_write_bytes`)."""
+        file's permissions kept; :func:`hybridbrdf.files.atomic_write_bytes`)."""
         atomic_write_bytes(path, self._file_bytes())
         self.path = os.fspath(path)
         self._cpp = None

@@ -50,7 +50,7 @@ import numpy as np
 from hybridbrdf.sources.base import (BRDFFormatError, BRDFSource, check_choice, check_file_size, check_finite_table,
                                      read_file_bytes, source_name, table_array)
 from hybridbrdf.sources.rusinkiewicz import dirs_from_half_diff, half_diff_angles
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 
 #: Table resolution (theta_h, theta_d, phi_d) of every MERL file.
 MERL_DIMS = (90, 90, 180)

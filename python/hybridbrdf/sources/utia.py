@@ -46,7 +46,7 @@ import numpy as np
 
 from hybridbrdf.sources.base import (BRDFSource, check_choice, check_file_size, check_finite_table,
                                      read_file_bytes, source_name, table_array)
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 
 N_THETA = 6
 N_PHI = 48

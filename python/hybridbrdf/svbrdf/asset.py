@@ -27,7 +27,7 @@ from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
 from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
-from hybridbrdf.util import atomic_folder, atomic_write_bytes
+from hybridbrdf.files import atomic_folder, atomic_write_bytes
 
 if TYPE_CHECKING:  # annotations only: PyTorch is imported where a material runs in it
     import torch
@@ -188,7 +188,7 @@ class SVBRDF:
 
     # ---- persistence ---------------------------------------------------------------------
     def save(self, folder, format: str = "png") -> None:
-        """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.util.atomic_folder`):
+        """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.files.atomic_folder`):
         into a temporary folder beside it, then renamed over it; SIGTERM or an error leaves the old
         folder, an OSError names ``folder``. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
         the values) or 'exr' (float32, decoded values stored). An existing ``folder`` is replaced

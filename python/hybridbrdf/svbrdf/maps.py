@@ -2,7 +2,7 @@
 (spec/model.json, ``svbrdf``: ``map_channels``, ``max_side``).
 
 A map is read as stored values in (H, W, 3) float64 (a PNG's bytes / 255, an EXR's floats), its
-size bounded before any pixel is decoded; writing is atomic (:func:`hybridbrdf.util.atomic_write_bytes`).
+size bounded before any pixel is decoded; writing is atomic (:func:`hybridbrdf.files.atomic_write_bytes`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from PIL import Image
 from hybridbrdf import _core, spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file
-from hybridbrdf.util import atomic_write_bytes
+from hybridbrdf.files import atomic_write_bytes
 
 SV = spec.SVBRDF
 MAX_SIDE = SV["max_side"]

@@ -35,7 +35,7 @@ from hybridbrdf.codegen.main import generate
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.sources import expand_sources
-from hybridbrdf.util import atomic_write_bytes, check_writable
+from hybridbrdf.files import atomic_write_bytes, check_writable
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 from hybridbrdf.viewer import lighting as viewer_lighting, measured, textured as viewer_textured, wgsl as viewer_wgsl
 from hybridbrdf.viewer.glsl import DISPLAY_SHADER, fragment_shader

@@ -1,0 +1,122 @@
+"""Locks for updates in place: fcntl.flock on ".<name>.hbrdf-lock" beside the file, held from
+before the read to after the rename, so that two updates of one file are serialised and none is lost."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import sys
+import threading
+import time
+
+from hybridbrdf.errors import OutputFileError
+
+from hybridbrdf.files.names import _TEMP_STEM_CHARS, _named
+
+
+#: How long an update waits for another process's lock on the same file before refusing.
+LOCK_WAIT_SECONDS = 60.0
+
+_held_locks = {}  # lock file path -> [descriptor, depth]: this process's locks (re-entrant)
+_held_guard = threading.Lock()
+
+
+def _lock_name(path: str) -> str:
+    """The lock file of ``path``: ".<name>.hbrdf-lock" in its folder."""
+    folder = os.path.dirname(os.path.abspath(path))
+    return os.path.join(folder, f".{os.path.basename(path)[:_TEMP_STEM_CHARS]}.hbrdf-lock")
+
+
+def _lock_holder(lock: str) -> str:
+    """The pid a lock file records (its holder writes it), for messages."""
+    try:
+        with open(lock, "rb") as fh:
+            pid = fh.read(32).strip()
+    except OSError:
+        pid = b""
+    return f"pid {pid.decode()}" if pid.isdigit() else "another process"
+
+
+def _acquire(path: str, lock: str, wait: float) -> int:
+    """flock ``lock`` exclusively and return its descriptor, waiting up to ``wait`` seconds.
+
+    The lock file is removed by its holder on release; a waiter that then gets the lock of the
+    removed file sees that the name no longer leads to it and tries again, so exactly one
+    process holds the lock of the file the name leads to."""
+    start = time.monotonic()
+    deadline = start + wait
+    told = False
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+        except OSError as exc:
+            raise _named(path, exc) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            if time.monotonic() >= deadline:
+                raise OutputFileError(path, f"is being written by {_lock_holder(lock)} (it holds {lock}); "
+                                            "try again when that process ends") from None
+            if not told and time.monotonic() >= start + 1.0:  # say why a command seems to hang
+                told = True
+                print(f"waiting for {path}: {_lock_holder(lock)} is writing it", file=sys.stderr)
+            time.sleep(0.05)
+            continue
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            with contextlib.suppress(OSError):  # the pid is for messages only (a full disk may refuse it)
+                os.ftruncate(fd, 0)
+                os.write(fd, b"%d\n" % os.getpid())
+            return fd
+        os.close(fd)  # the holder released and removed it before our flock: take the new one
+
+
+def _release_all_locks() -> None:
+    """Release (and remove) every lock this process holds: it is about to end by SIGTERM."""
+    with _held_guard:
+        held = list(_held_locks.items())
+        _held_locks.clear()
+    for lock, entry in held:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(entry[0])
+        entry[0] = None  # the blocks that took it release nothing more
+
+
+@contextlib.contextmanager
+def file_lock(path, wait: float = None):
+    """Hold the advisory lock of the file ``path`` for the block (``fcntl.flock`` on
+    ".<name>.hbrdf-lock" beside it, removed on release; the kernel drops it when the process
+    dies, even by SIGKILL). A read-modify-write of ``path`` inside the block cannot lose another
+    process's update: every hbrdf update in place and every :func:`atomic_write_bytes` rename
+    takes it. Waits up to ``wait`` seconds (default :data:`LOCK_WAIT_SECONDS`) for another
+    process's lock (one line on stderr while it waits), then raises
+    :class:`~hybridbrdf.errors.OutputFileError` naming ``path`` and the holder's pid.
+    Re-entrant within a process."""
+    path = os.fspath(path)
+    lock = _lock_name(path)
+    with _held_guard:
+        held = _held_locks.get(lock)
+        if held is not None:
+            held[1] += 1
+    if held is None:
+        fd = _acquire(path, lock, LOCK_WAIT_SECONDS if wait is None else wait)
+        with _held_guard:
+            held = _held_locks[lock] = [fd, 1]
+    try:
+        yield
+    finally:
+        with _held_guard:
+            held[1] -= 1
+            last = held[1] == 0 and held[0] is not None
+            if last:
+                _held_locks.pop(lock, None)
+        if last:
+            with contextlib.suppress(OSError):
+                os.unlink(lock)  # while still holding it: see _acquire
+            os.close(held[0])
