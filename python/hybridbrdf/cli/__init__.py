@@ -140,6 +140,26 @@ def fit_synopsis() -> str:
     return "\n".join(lines)
 
 
+def add_quiet_flag(parser: argparse.ArgumentParser, shown_while: str) -> None:
+    """The ``--quiet`` flag of a command whose progress bar appears only once a loop runs long
+    (:func:`progress_bar`); ``shown_while`` says which loop ("the tables are fitted")."""
+    parser.add_argument("--quiet", action="store_true",
+                        help=f"no progress bar (shown on stderr while {shown_while}: at once on a terminal, "
+                             "elsewhere after a few seconds)")
+
+
+def layer_masks(values, what: str) -> list:
+    """``--layer`` values ``WHAT=MASK`` as (what, mask) pairs (the last '=' splits: a source may hold
+    one); ``what`` names the left side in the error (hbrdf paint, hbrdf acquire simulate)."""
+    layers = []
+    for v in values or []:
+        name, sep, mask = v.rpartition("=")
+        if not sep or not name or not mask:
+            raise ValueError(f"--layer takes {what}=MASK, got {v!r}")
+        layers.append((name, mask))
+    return layers
+
+
 def _shown(value) -> str:
     """A value from a model file's free-form records (training, metrics, origin) as ``hbrdf
     info`` prints it: floats with 6 significant digits, anything else as one printable line.

@@ -16,6 +16,7 @@ from hybridbrdf.acquire.acquisition import STEPS
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.rig import MAX_ITEMS, MAX_SIDE, load_rig
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
+from hybridbrdf.cli import layer_masks
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.sources import open_source
 
@@ -73,12 +74,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     from hybridbrdf.acquire.simulate import simulate
     from hybridbrdf.fit.paint import read_grey
 
-    layers = []
-    for v in args.layer or []:
-        name, sep, mask = v.rpartition("=")
-        if not sep or not name or not mask:
-            raise ValueError(f"--layer takes SOURCE=MASK, got {v!r}")
-        layers.append((name, mask))
+    layers = layer_masks(args.layer, "SOURCE")
     if args.read_noise and not args.photons:
         raise ValueError("--read-noise needs --photons (the noise model's scale)")
     if len(layers) > 3:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.cli import progress_bar
+from hybridbrdf.cli import add_quiet_flag, progress_bar
 from hybridbrdf.fit.settings import positive_int
 from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
@@ -28,9 +28,7 @@ def add_parser(sub) -> None:
                         f"this machine's memory, {energy.bytes_per_sample() / 1024:.0f} KiB a sample; "
                         "docs/CONVENTIONS.md, \"Counts and memory\")")
     p.add_argument("--verbose", action="store_true", help="list every material, not only the dimmed ones")
-    p.add_argument("--quiet", action="store_true",
-                   help="no progress bar (shown on stderr while the tables are fitted: at once on a terminal, "
-                        "elsewhere after a few seconds)")
+    add_quiet_flag(p, "the tables are fitted")
     p.set_defaults(func=run)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.cli import EPILOG, _open_all, progress_bar
+from hybridbrdf.cli import EPILOG, _open_all, add_quiet_flag, progress_bar
 from hybridbrdf.fit.settings import PAIRS, positive_int
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
@@ -24,9 +24,7 @@ def add_parser(sub) -> None:
                         "at 45 degrees for the reference, the analytic part and the model, and the model's largest "
                         "directional albedo with the outgoing direction where it occurs (above 1: it reflects more "
                         "light than it receives)")
-    p.add_argument("--quiet", action="store_true",
-                   help="no progress bar (shown on stderr while the sources are evaluated: at once on a terminal, "
-                        "elsewhere after a few seconds)")
+    add_quiet_flag(p, "the sources are evaluated")
     p.set_defaults(func=run)
 
 

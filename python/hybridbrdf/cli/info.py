@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf import spec
-from hybridbrdf.cli import _settings_line, _shown, print_beside, progress_bar
+from hybridbrdf.cli import _settings_line, _shown, add_quiet_flag, print_beside, progress_bar
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.editing import albedo_bytes_per_sample
 from hybridbrdf.model.file import HybridModel, load_model
@@ -24,9 +24,7 @@ def add_parser(sub) -> None:
                         "8192; 0: do not estimate it); at most what fits this machine's memory, about "
                         f"{albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR) / 1024:.1f} KiB a sample "
                         "(docs/CONVENTIONS.md, \"Counts and memory\")")
-    p.add_argument("--quiet", action="store_true",
-                   help="no progress bar (shown on stderr while the albedo estimates run: at once on a terminal, "
-                        "elsewhere after a few seconds)")
+    add_quiet_flag(p, "the albedo estimates run")
     p.set_defaults(func=run)
 
 

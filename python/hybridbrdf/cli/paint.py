@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf import spec
+from hybridbrdf.cli import layer_masks
 
 
 def add_parser(sub) -> None:
@@ -48,12 +49,7 @@ def _layer_option(values, flag: str) -> dict:
 def run(args: argparse.Namespace) -> int:
     from hybridbrdf.fit.paint import paint
 
-    layers = []
-    for v in args.layer or []:
-        name, sep, mask = v.rpartition("=")
-        if not sep or not name or not mask:
-            raise ValueError(f"--layer takes MATERIAL_OR_FILE=MASK, got {v!r}")
-        layers.append((name, mask))
+    layers = layer_masks(args.layer, "MATERIAL_OR_FILE")
     size = None
     if args.size:
         w, sep, h = args.size.lower().partition("x")
