@@ -185,6 +185,26 @@ def write_exr(image: np.ndarray, path: str) -> None:
     _core.render_write_exr(np.asarray(image, dtype=np.float32), os.fspath(path))
 
 
+#: The first four bytes of every OpenEXR file (the OpenEXR file layout's magic number 20000630).
+EXR_MAGIC = b"\x76\x2f\x31\x01"
+
+
+def read_exr(path) -> np.ndarray:
+    """Read an OpenEXR file (what :func:`write_exr` writes, or any scanline RGB or RGBA EXR) as
+    (H, W, 3) float32 linear RGB: ``write_exr`` then ``read_exr`` gives back the same floats.
+    Raises :class:`~hybridbrdf.errors.InputFileError` naming ``path`` when it is not an EXR
+    (checked by its magic number, not its name) or cannot be read."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except OSError as exc:
+        raise InputFileError(path, exc.strerror or str(exc)) from None
+    if magic != EXR_MAGIC:
+        raise InputFileError(path, "is not an OpenEXR file (its first bytes are not the EXR magic number)")
+    return read_image(path)
+
+
 def write_png(image: np.ndarray, path: str, exposure: float = 0.0, tonemap: str = "clamp") -> None:
     """Write (H, W, 3) linear RGB as an 8-bit sRGB PNG (atomically)."""
     _core.render_write_png(np.asarray(image, dtype=np.float32), os.fspath(path), exposure, tonemap)
