@@ -6,7 +6,8 @@ base, vch_golden_yellow in a soft disc, the metallic paint ilm_l3_37_metallic in
 top: bench/svbrdf_mixture.py's masks) into OUT/painted with `hbrdf paint`'s Python API, writes
 OUT/textured.json (a textured sphere and a textured tile over an analytic floor, under the sky; the masks
 rolled by a quarter turn so that the disc faces the camera)
-and renders it with the tracer to OUT/textured.exr and the PNG (default docs/figures/textured_scene.png).
+and renders it with the tracer to OUT/textured.exr and the PNG (default OUT/textured_scene.png; pass
+--png docs/figures/textured_scene.png to refresh the docs' figure, which a plain run leaves alone).
 
     python bench/textured_scene.py [--out out/textured_example] [--png docs/figures/textured_scene.png]
         [--spp 64] [--width 320] [--height 200]
@@ -67,11 +68,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", default=str(ROOT / "results" / "rgl54_fast.safetensors"))
     ap.add_argument("--out", default=str(ROOT / "out" / "textured_example"))
-    ap.add_argument("--png", default=str(ROOT / "docs" / "figures" / "textured_scene.png"))
+    ap.add_argument("--png", help="the PNG to write (default: OUT/textured_scene.png)")
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=200)
     args = ap.parse_args()
+    args.png = args.png or os.path.join(args.out, "textured_scene.png")
     os.makedirs(args.out, exist_ok=True)
     paths = write_masks(args.out)
     t0 = time.perf_counter()
