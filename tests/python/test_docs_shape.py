@@ -46,3 +46,10 @@ def test_benchmarks_headline_has_at_most_15_rows_on_defined_machines():
     for row in rows:
         machines = {m.strip().split(" ")[0] for m in row.split(" | ")[-2].split(",")}
         assert machines <= defined, (row[:80], machines - defined)
+
+
+def test_no_page_over_600_lines():
+    # A newcomer's path (README -> ARCHITECTURE -> the page of their task) stays readable; history
+    # goes to BENCHMARKS_HISTORY.md or the topic's own page.
+    long = {p.name: n for p in PAGES if (n := len(p.read_text().splitlines())) > 600}
+    assert not long, long
