@@ -4,10 +4,15 @@ subprocesses dozens of times, and a user's typo should be answered at once.
 
 Each case runs a fresh interpreter: this one has imported torch long ago."""
 
+import pathlib
 import subprocess
 import sys
 
 import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+#: The packages whose __init__ is a public face (docs/ARCHITECTURE.md): every folder but the CLI's.
+FACES = sorted(p.parent.name for p in (ROOT / "python" / "hybridbrdf").glob("*/__init__.py") if p.parent.name != "cli")
 
 NO_TORCH = "assert 'torch' not in sys.modules, sorted(m for m in sys.modules if m.startswith('hybridbrdf'))"
 
@@ -47,3 +52,68 @@ def test_python_m_hybridbrdf_cli_imports_no_torch_for_help():
     assert r.returncode == 0 and "usage: hbrdf" in r.stdout, r.stderr[-2000:]
     imported = [line.rsplit("|", 1)[-1].strip() for line in r.stderr.splitlines() if line.startswith("import time:")]
     assert "hybridbrdf.cli" in imported and not [m for m in imported if m.split(".")[0] == "torch"]
+
+
+def test_every_package_imports_no_torch():
+    """``import hybridbrdf.<package>`` for each package: its names whose modules import torch are lazy,
+    its __all__ is in its dir(), and the Mitsuba plugin (which imports mitsuba) is not loaded."""
+    r = python(f"import importlib, sys\nfor p in {FACES!r}:\n"
+               "    m = importlib.import_module('hybridbrdf.' + p)\n"
+               "    assert set(m.__all__) <= set(dir(m)), (p, set(m.__all__) - set(dir(m)))\n"
+               f"{NO_TORCH}\nassert 'hybridbrdf.render.mitsuba' not in sys.modules and 'mitsuba' not in sys.modules")
+    assert r.returncode == 0, r.stderr
+
+
+def test_every_public_name_resolves_to_its_own_package():
+    """Every name of every face's __all__ resolves (the lazy ones import torch here), to an object
+    of the package's own modules (or of the C++ extension), never to a module."""
+    r = python(f"FACES = {FACES!r}\n" + """
+import importlib, types
+for p in FACES:
+    m = importlib.import_module('hybridbrdf.' + p)
+    for n in m.__all__:
+        v = getattr(m, n)
+        assert not isinstance(v, types.ModuleType), (p, n)
+        home = getattr(v, '__module__', None) or m.__name__  # constants have none
+        assert home.split('.')[:2] == m.__name__.split('.') or home in ('hybridbrdf._core', 'builtins'), (p, n, home)
+import hybridbrdf.render, hybridbrdf.render.tracer, hybridbrdf.brdf.torch_brdf
+from hybridbrdf.render import render, write_exr
+assert render is hybridbrdf.render.tracer.render and write_exr is hybridbrdf.render.tracer.write_exr
+from hybridbrdf.brdf import eval_analytic
+assert eval_analytic is hybridbrdf.brdf.torch_brdf.eval_analytic
+""")
+    assert r.returncode == 0, r.stderr
+
+
+def test_moved_names_raise_import_errors_naming_their_new_home():
+    """The modules of the last layout (hybridbrdf.exports.MOVED_MODULES) and the old names of the
+    packages that were modules (hybridbrdf.render, .codegen, .viewer: their ``_MOVED``) raise an
+    ImportError that names the new home, however they are reached; the new homes exist."""
+    r = python("""
+import importlib, importlib.util, sys
+import hybridbrdf
+from hybridbrdf.exports import MOVED_MODULES
+
+assert MOVED_MODULES['hybridbrdf.mitsuba'] == 'hybridbrdf.render.mitsuba'
+assert MOVED_MODULES['hybridbrdf.model_file'] == 'hybridbrdf.model'
+moved = dict(MOVED_MODULES)
+for p in ('render', 'codegen', 'viewer'):
+    package = importlib.import_module('hybridbrdf.' + p)
+    assert package._MOVED, p
+    moved.update({f'hybridbrdf.{p}.{n}': home for n, home in package._MOVED.items()})
+for old, new in sorted(moved.items()):
+    assert importlib.util.find_spec(new) is not None, (old, new)
+    parent, leaf = old.rsplit('.', 1)
+    attempts = [f'from {parent} import {leaf}', f'import {parent}; {old}']
+    if old in MOVED_MODULES:
+        attempts += [f'import {old}', f'from {old} import x', f'importlib.import_module({old!r})']
+    for code in attempts:
+        try:
+            exec(code)
+        except ImportError as exc:
+            assert f'{old} moved to {new}' in str(exc) and 'CHANGELOG.md' in str(exc), (code, str(exc))
+        else:
+            raise AssertionError(f'{code}: no ImportError')
+        assert old not in sys.modules, old
+""")
+    assert r.returncode == 0, r.stderr

@@ -4,8 +4,9 @@
   a module imports only from its own line or lines below it, function-level imports included.
 - No import circles between modules (a circle hidden by a function-level import counts).
 - One home per name: ``from hybridbrdf.X import name`` only where X defines ``name`` (or ``name``
-  is X's submodule); no module re-exports another's names. The public namespace (``hybridbrdf``
-  itself, ``__init__.py``) is the one documented exception.
+  is X's submodule); no module re-exports another's names. The public faces are the one documented
+  exception: ``hybridbrdf`` itself and each package's ``__init__.py``, whose ``__all__`` lists the
+  names it exports one import deep (``from hybridbrdf.render import render``).
 - The public API and the console scripts are what the README documents.
 
 The import graph is read with ``ast`` from the source tree, so a test fails on the code as written,
@@ -134,6 +135,16 @@ def defined_names(path: pathlib.Path):
     return names
 
 
+def exported_names(path: pathlib.Path):
+    """The ``__all__`` of a package's ``__init__.py`` (its public face), as written; empty for a module."""
+    if path.name != "__init__.py":
+        return set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+            return set(ast.literal_eval(node.value))
+    return set()
+
+
 def test_every_name_is_imported_from_its_home():
     files = [p for folder in ("python", "tests", "bench", "scripts") for p in (ROOT / folder).rglob("*.py")]
     wrong = []
@@ -143,7 +154,7 @@ def test_every_name_is_imported_from_its_home():
                 continue
             home = module_path(module)
             assert home is not None, f"{path.relative_to(ROOT)}:{line}: no module {module}"
-            defined = defined_names(home)
+            defined = defined_names(home) | exported_names(home)
             for n in names:
                 if n not in defined and not module_path(f"{module}.{n}"):
                     wrong.append(f"{path.relative_to(ROOT)}:{line}: {n} is not defined in {module}")
@@ -163,6 +174,27 @@ def test_the_public_namespace():
     assert set(hybridbrdf.__all__) == PUBLIC
     assert all(hasattr(hybridbrdf, n) for n in PUBLIC)
     assert re.fullmatch(r"\d+\.\d+\.\d+", hybridbrdf.__version__)
+
+
+#: The packages under hybridbrdf/ whose ``__init__.py`` is a public face (all but the command line,
+#: whose front door is ``hbrdf`` and ``hybridbrdf.cli.main``).
+FACES = sorted(p.parent for p in PACKAGE.glob("*/__init__.py") if p.parent.name != "cli")
+
+
+@pytest.mark.parametrize("folder", FACES, ids=lambda p: p.name)
+def test_each_package_init_is_its_public_face(folder):
+    """Each package's __init__ exports its own package's public names (``__all__``), none of them
+    the name of one of its submodules: importing ``hybridbrdf.fit.fit`` sets the package's attribute
+    ``fit`` to the module, so a function of that name would be the module after any such import."""
+    init = folder / "__init__.py"
+    name = module_name(init)
+    exported = exported_names(init)
+    assert exported, f"{init.relative_to(ROOT)} has no __all__"
+    submodules = sorted(n for n in exported if module_path(f"{name}.{n}"))
+    assert not submodules, f"{name} exports names of its submodules: {submodules}"
+    others = [f"{init.relative_to(ROOT)}:{line}: {module}" for module, line, _ in imports(init)
+              if not module.startswith(name + ".") and module != "hybridbrdf.exports"]
+    assert not others, "a face imports only its own package's modules:\n" + "\n".join(others)
 
 
 @pytest.mark.parametrize("script", ["hbrdf", "hbrdf-codegen"])
@@ -237,3 +269,5 @@ def test_import_hybridbrdf_imports_no_torch():
 
     heavy = importing_torch()
     assert "hybridbrdf" not in heavy and "hybridbrdf.cli" not in heavy, sorted(heavy)
+    # Every package's public face too: its names whose modules import torch load on first access.
+    assert not heavy & {module_name(folder / "__init__.py") for folder in FACES}, sorted(heavy)

@@ -19,4 +19,26 @@
     mixture = Mixture.painted(open_source("synthetic:plastic"), [open_source("synthetic:gold")], [mask])
     write_capture(simulate(rig, mixture, NoiseModel(photons=1000, read_noise=2), seed=1), "capture")
     acquire("capture", "acquired", size=(128, 128))   # per-texel (p, z) on the shipped prior
+
+Its public names, one import deep: ``from hybridbrdf.acquire import flash_rig, Mixture, NoiseModel,
+write_capture, acquire`` (``Mixture``, ``Capture`` and the capture folder's functions import PyTorch
+on first use). :func:`hybridbrdf.acquire.simulate.simulate` stays in its module: the module shares its
+name, and a package attribute cannot be both.
 """
+
+from hybridbrdf.acquire.acquisition import acquire
+from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.observations import Observations, texel_observations
+from hybridbrdf.acquire.rig import Camera, Light, Rig, RigError, Shot, load_rig, rig_from_dict
+from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
+from hybridbrdf.exports import lazy_names, public_face
+
+#: Public names whose module imports PyTorch, loaded on first access (PEP 562).
+_LAZY = {"Mixture": "hybridbrdf.acquire.mixture", "Capture": "hybridbrdf.acquire.simulate",
+         **lazy_names(["CaptureError", "load_capture", "write_capture"], "hybridbrdf.acquire.capture")}
+
+__all__ = ["Camera", "Capture", "CaptureError", "Light", "Mixture", "NoiseModel", "Observations", "Rig", "RigError",
+           "Shot", "acquire", "flash_rig", "light_stage_rig", "load_capture", "load_rig", "rig_from_dict",
+           "texel_observations", "write_capture"]
+
+__getattr__, __dir__ = public_face(__name__, globals(), _LAZY)

@@ -1,1 +1,22 @@
-"""hbrdf-codegen: GLSL, HLSL, Slang, WGSL, C++ and BRDF Explorer sources from a model file."""
+"""hbrdf-codegen: GLSL, HLSL, Slang, WGSL, C++ and BRDF Explorer sources from a model file.
+
+    from hybridbrdf.codegen import generate, load_scene
+    glsl = generate(hybridbrdf.load_model("model.safetensors"), "glsl", materials=["gold"])
+
+The ``hbrdf-codegen`` command is :func:`hybridbrdf.codegen.main.main` (the module ``main``).
+"""
+
+from hybridbrdf.codegen.literals import DIALECTS
+from hybridbrdf.codegen.main import TARGETS, generate
+from hybridbrdf.codegen.scene import load_scene
+from hybridbrdf.codegen.source import MLP_FORMS
+from hybridbrdf.exports import public_face
+
+#: Names of the old module hybridbrdf.codegen (codegen.py) that its public face does not hold.
+_MOVED = {"NO_DEPTH_LIMIT": "hybridbrdf.codegen.scene", "check_material_selection": "hybridbrdf.codegen.source",
+          "comment_text": "hybridbrdf.codegen.literals", "float_literal": "hybridbrdf.codegen.literals",
+          "material_constant": "hybridbrdf.codegen.literals"}
+
+__all__ = ["DIALECTS", "MLP_FORMS", "TARGETS", "generate", "load_scene"]
+
+__getattr__, __dir__ = public_face(__name__, globals(), moved=_MOVED)

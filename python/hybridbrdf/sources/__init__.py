@@ -25,11 +25,12 @@ import os
 from typing import List
 
 from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
-from hybridbrdf.sources.merl import open_merl
+from hybridbrdf.sources.merl import open_merl, write_merl
+from hybridbrdf.sources.names import material_names, source_material
 from hybridbrdf.sources.nbrdf import open_nbrdf
 from hybridbrdf.sources.rgl import open_rgl
-from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic
-from hybridbrdf.sources.utia import open_utia
+from hybridbrdf.sources.synthetic import SYNTHETIC_MATERIALS, open_synthetic, synthetic_names
+from hybridbrdf.sources.utia import open_utia, write_utia
 
 SYNTHETIC_PREFIX = "synthetic:"
 EXTENSIONS = (".binary", ".bsdf", ".bin", ".h5")
@@ -86,4 +87,5 @@ def expand_sources(specs) -> List[str]:
     return out
 
 
-__all__ = ["BRDFFormatError", "BRDFSource", "SYNTHETIC_PREFIX", "expand_sources", "open_source"]
+__all__ = ["BRDFFormatError", "BRDFSource", "SYNTHETIC_MATERIALS", "SYNTHETIC_PREFIX", "expand_sources",
+           "material_names", "open_source", "source_material", "synthetic_names", "write_merl", "write_utia"]
