@@ -62,6 +62,7 @@ MOVED_MODULES = {
     "hybridbrdf.viewer_lighting": "hybridbrdf.viewer.lighting",
     "hybridbrdf.viewer_sources": "hybridbrdf.viewer.measured",
     "hybridbrdf.viewer_wgsl": "hybridbrdf.viewer.wgsl",
+    "hybridbrdf.util": "hybridbrdf.files",
 }
 
 
