@@ -467,22 +467,26 @@ def test_every_writer_goes_through_the_atomic_write():
 
 
 WRITER = """
-import faulthandler, os, signal, sys
+import faulthandler, signal, sys
 from hybridbrdf.files import atomic_write_bytes
 faulthandler.register(signal.SIGUSR1)  # the test asks for our stack if we do not end
-os.fsync = lambda fd: None  # where a signal lands is the question, not the disk (below)
 data = bytes(range(256)) * (1 << 14)  # 4 MiB: most of the loop's time is spent inside a write
 print("ready", flush=True)
 while True:
     atomic_write_bytes(sys.argv[1], data)
 """
 
-# How long a signalled writer may take to end; a writer that is really stuck (a signal swallowed)
-# shows its stack in the failure. Its fsync is a no-op that still returns into Python, so a signal
-# can land there as anywhere: with real fsyncs, a busy VM disk (the suite's other worker writing
-# checkpoints) once held one fsync for over 240 s, the whole of the old allowance (CI run of
-# 2026-11-28; 80 signalled writers on an idle disk all ended at once).
-WRITER_EXIT_S = 30
+# How long a signalled writer may take to end (its writes fsync, and a busy VM disk can hold one
+# for seconds); a writer that is really stuck shows its stack in the failure.
+WRITER_EXIT_S = 120
+
+
+def _default_sigint():
+    """The writer's SIGINT as a foreground process has it: a test run started in the background
+    (`cmd &` in a script) inherits SIGINT ignored, Python then installs no KeyboardInterrupt
+    handler in the writer, and SIGINT would never stop it (two runs of 2026-11-28 lost 30 and
+    240 s that way, a stall first taken for the disk's)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _wait_or_show_stack(p):
@@ -503,7 +507,7 @@ def test_a_writer_stopped_by_a_signal_leaves_no_temporary(tmp_path, sig):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     for delay in (0.05, 0.21, 0.43):
         p = subprocess.Popen([sys.executable, "-c", WRITER, str(dest)], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, env=env)
+                             stderr=subprocess.PIPE, env=env, preexec_fn=_default_sigint)
         assert p.stdout.readline().strip() == b"ready"
         time.sleep(delay)
         p.send_signal(sig)

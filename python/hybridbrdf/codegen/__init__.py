@@ -7,7 +7,6 @@ The ``hbrdf-codegen`` command is :func:`hybridbrdf.codegen.main.main` (the modul
 """
 
 from hybridbrdf.codegen.literals import DIALECTS
-from hybridbrdf.codegen.main import TARGETS, generate
 from hybridbrdf.codegen.scene import load_scene
 from hybridbrdf.codegen.source import MLP_FORMS
 from hybridbrdf.exports import public_face
@@ -19,4 +18,8 @@ _MOVED = {"NO_DEPTH_LIMIT": "hybridbrdf.codegen.scene", "check_material_selectio
 
 __all__ = ["DIALECTS", "MLP_FORMS", "TARGETS", "generate", "load_scene"]
 
-__getattr__, __dir__ = public_face(__name__, globals(), moved=_MOVED)
+# generate and TARGETS load from the command's module on first use: importing it here would make
+# `python -m hybridbrdf.codegen.main` find its own module already imported (runpy's RuntimeWarning
+# on stderr, where the command's errors are one line).
+__getattr__, __dir__ = public_face(__name__, globals(), lazy={"generate": "hybridbrdf.codegen.main",
+                                                             "TARGETS": "hybridbrdf.codegen.main"}, moved=_MOVED)

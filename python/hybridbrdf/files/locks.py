@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import signal
 import sys
 import threading
 import time
@@ -38,8 +39,54 @@ def _lock_holder(lock: str) -> str:
     return f"pid {pid.decode()}" if pid.isdigit() else "another process"
 
 
-def _acquire(path: str, lock: str, wait: float) -> int:
-    """flock ``lock`` exclusively and return its descriptor, waiting up to ``wait`` seconds.
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM held back by the kernel for the block, delivered (and Python's handler
+    run) when it ends. Around the few statements that take a lock and record it, or forget a lock
+    and remove its file: a signal between the two would leave a lock file that no cleanup knows
+    (a test saw `.out.bin.hbrdf-lock` left by a SIGTERM there). Never around a wait. Main thread
+    only: Python runs signal handlers there, and other threads' masks are theirs."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _try_lock(path: str, lock: str, state: dict):
+    """One attempt at ``lock``: its descriptor, flocked and recorded as held; "busy" when another
+    process holds it; None when its holder removed it under us (try again at once)."""
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+    except OSError as exc:
+        raise _named(path, exc) from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return "busy"
+    try:
+        same = os.path.samestat(os.fstat(fd), os.stat(lock))
+    except FileNotFoundError:
+        same = False
+    if not same:
+        os.close(fd)  # the holder released and removed it before our flock: take the new one
+        return None
+    with contextlib.suppress(OSError):  # the pid is for messages only (a full disk may refuse it)
+        os.ftruncate(fd, 0)
+        os.write(fd, b"%d\n" % os.getpid())
+    with _held_guard:
+        _held_locks[lock] = [fd, 1]
+        state["counted"] = True
+    return fd
+
+
+def _acquire(path: str, lock: str, wait: float, state: dict) -> int:
+    """flock ``lock`` exclusively, record it as held and return its descriptor, waiting up to
+    ``wait`` seconds; ``state["counted"]`` is set with the record (:func:`file_lock`).
 
     The lock file is removed by its holder on release; a waiter that then gets the lock of the
     removed file sees that the name no longer leads to it and tries again, so exactly one
@@ -48,32 +95,19 @@ def _acquire(path: str, lock: str, wait: float) -> int:
     deadline = start + wait
     told = False
     while True:
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
-        except OSError as exc:
-            raise _named(path, exc) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            if time.monotonic() >= deadline:
-                raise OutputFileError(path, f"is being written by {_lock_holder(lock)} (it holds {lock}); "
-                                            "try again when that process ends") from None
-            if not told and time.monotonic() >= start + 1.0:  # say why a command seems to hang
-                told = True
-                print(f"waiting for {path}: {_lock_holder(lock)} is writing it", file=sys.stderr)
-            time.sleep(0.05)
+        with _signals_deferred():
+            fd = _try_lock(path, lock, state)
+        if fd is None:
             continue
-        try:
-            same = os.path.samestat(os.fstat(fd), os.stat(lock))
-        except FileNotFoundError:
-            same = False
-        if same:
-            with contextlib.suppress(OSError):  # the pid is for messages only (a full disk may refuse it)
-                os.ftruncate(fd, 0)
-                os.write(fd, b"%d\n" % os.getpid())
+        if fd != "busy":
             return fd
-        os.close(fd)  # the holder released and removed it before our flock: take the new one
+        if time.monotonic() >= deadline:
+            raise OutputFileError(path, f"is being written by {_lock_holder(lock)} (it holds {lock}); "
+                                        "try again when that process ends") from None
+        if not told and time.monotonic() >= start + 1.0:  # say why a command seems to hang
+            told = True
+            print(f"waiting for {path}: {_lock_holder(lock)} is writing it", file=sys.stderr)
+        time.sleep(0.05)
 
 
 def _release_all_locks() -> None:
@@ -100,23 +134,38 @@ def file_lock(path, wait: float = None):
     Re-entrant within a process."""
     path = os.fspath(path)
     lock = _lock_name(path)
-    with _held_guard:
-        held = _held_locks.get(lock)
-        if held is not None:
-            held[1] += 1
-    if held is None:
-        fd = _acquire(path, lock, LOCK_WAIT_SECONDS if wait is None else wait)
-        with _held_guard:
-            held = _held_locks[lock] = [fd, 1]
+    # ``counted``: this block's share of the lock is recorded, set in the same signal-deferred
+    # statements that record it, so that whatever stops the block releases exactly that share.
+    state = {"counted": False}
     try:
+        with _signals_deferred():
+            with _held_guard:
+                held = _held_locks.get(lock)
+                if held is not None:
+                    held[1] += 1
+                    state["counted"] = True
+        if not state["counted"]:
+            _acquire(path, lock, LOCK_WAIT_SECONDS if wait is None else wait, state)
         yield
     finally:
+        if state["counted"]:
+            _release(lock)
+
+
+def _release(lock: str) -> None:
+    """This block's share of ``lock`` given back; the last share removes the lock file (while
+    still holding it: see :func:`_acquire`) and closes it. Nothing when :func:`_release_all_locks`
+    already released it (SIGTERM)."""
+    with _signals_deferred():
         with _held_guard:
+            held = _held_locks.get(lock)
+            if held is None:
+                return
             held[1] -= 1
             last = held[1] == 0 and held[0] is not None
             if last:
                 _held_locks.pop(lock, None)
         if last:
             with contextlib.suppress(OSError):
-                os.unlink(lock)  # while still holding it: see _acquire
+                os.unlink(lock)
             os.close(held[0])
