@@ -23,7 +23,7 @@ directions), truth = the mixture at the texel centre's weights, fitted = the fit
 texel; per-texel SMAPE and cMAE (hybridbrdf.evaluate.metrics), median and 95th percentile over
 the texels. And a re-render under a novel light and camera (light at 60 deg elevation, camera at
 40 deg elevation on the opposite azimuth: a separated light and view no flash photograph has): the
-truth rendered without noise (acquire.simulate.radiance) against each fit rendered with the same
+truth rendered without noise (acquire.simulation.radiance) against each fit rendered with the same
 pixel geometry, each pixel's texel by nearest; error = mean |L_fit - L_true| / mean L_true over the
 pixels that see the sample and the three channels (a relative MAE). The same error of the truth's
 own per-texel rendering (each pixel at its texel centre's weights) is the floor any per-texel map
@@ -60,7 +60,7 @@ from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import Camera, Light, Rig, Shot, check_rig
 from hybridbrdf.acquire.rigs import flash_rig
-from hybridbrdf.acquire.simulate import radiance, simulate
+from hybridbrdf.acquire.simulation import radiance, simulate
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 from hybridbrdf.model.prior import prior_path

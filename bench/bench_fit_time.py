@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.sources.names import material_names
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape  # noqa: E402
 from hybridbrdf.model.file import HybridModel  # noqa: E402

@@ -28,7 +28,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.settings import parse_mlp
 from hybridbrdf.sources.synthetic import LambertGGXDielectric  # noqa: E402
 from bench_analytic import cpu_name  # noqa: E402

@@ -31,7 +31,7 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.evaluate.evaluation import evaluate
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.sources.names import material_names
 from hybridbrdf.fit.settings import parse_mlp
 

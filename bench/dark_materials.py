@@ -26,7 +26,7 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.fit.pool import TrainingPool
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.settings import parse_mlp
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 import hybridbrdf as hb  # noqa: E402
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from bench_analytic import cpu_name  # noqa: E402
 from bench_fit_time import COMMON, DATA  # noqa: E402
 from rgl_paper_comparison import PAPER  # noqa: E402

@@ -200,7 +200,7 @@ def textured_kernels(model, wi, wo, add):
     from hybridbrdf import _core
     from hybridbrdf.codegen.literals import material_constant
     from hybridbrdf.codegen.main import generate
-    from hybridbrdf.fit.paint import composite
+    from hybridbrdf.fit.painting import composite
     from hybridbrdf.svbrdf.asset import SVBRDF
     from hybridbrdf.svbrdf.maps import read_map
     from shader_kernels import eval_compute_shader, render_shader

@@ -25,7 +25,7 @@ import sys
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.sources import expand_sources, open_source  # noqa: E402
 
 

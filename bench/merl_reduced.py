@@ -28,7 +28,7 @@ import numpy as np
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import ADD_STEPS, FINETUNE_STEPS, FitSettings, parse_mlp
 from hybridbrdf.evaluate.evaluation import evaluate
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -90,7 +90,7 @@ GROUPS = {
         "sample": 70,
     },
     "acquire": {
-        "modules": [f"acquire/{m}.py" for m in ("geometry", "mixture", "observations", "simulate", "texel_rows",
+        "modules": [f"acquire/{m}.py" for m in ("geometry", "mixture", "observations", "simulation", "texel_rows",
                                                  "noise", "exposure", "rig", "rigs", "capture")],
         "tests": ["tests/python/test_acquire_simulate.py", "tests/python/test_acquire_compare.py",
                   "tests/python/test_acquire_references.py",

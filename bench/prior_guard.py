@@ -21,7 +21,7 @@ import time
 
 import hybridbrdf as hb
 from hybridbrdf.fit import guard
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.sources import open_source
 from hybridbrdf.sources.names import source_material

@@ -32,7 +32,7 @@ import sys
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.evaluate.evaluation import evaluate
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.settings import parse_mlp
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -29,7 +29,7 @@ import numpy as np
 import hybridbrdf as hb
 from hybridbrdf import _core
 from hybridbrdf.evaluate.metrics import metric_directions
-from hybridbrdf.fit.paint import composite
+from hybridbrdf.fit.painting import composite
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -34,7 +34,7 @@ import hybridbrdf as hb  # noqa: E402
 from hybridbrdf.codegen.literals import material_constant  # noqa: E402
 from hybridbrdf.codegen.main import generate  # noqa: E402
 from hybridbrdf.evaluate.metrics import metric_directions  # noqa: E402
-from hybridbrdf.fit.paint import composite  # noqa: E402
+from hybridbrdf.fit.painting import composite  # noqa: E402
 from hybridbrdf.svbrdf.asset import SVBRDF  # noqa: E402
 from hybridbrdf.svbrdf.decode import encode, png_channel  # noqa: E402
 

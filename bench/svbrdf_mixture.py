@@ -40,7 +40,7 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf import spec
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
-from hybridbrdf.fit.paint import composite
+from hybridbrdf.fit.painting import composite
 from hybridbrdf.model.networks import energy_bound_scale
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 from hybridbrdf.svbrdf.decode import decode, encode, png_channel

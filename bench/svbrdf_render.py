@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 import hybridbrdf as hb
-from hybridbrdf.fit.paint import paint
+from hybridbrdf.fit import paint
 from hybridbrdf.render.tracer import render, write_png
 from hybridbrdf.svbrdf.asset import load_svbrdf
 from hybridbrdf.viewer.measured import measured_material

@@ -25,7 +25,7 @@ import time
 import numpy as np
 from PIL import Image
 
-from hybridbrdf.fit.paint import paint
+from hybridbrdf.fit import paint
 from hybridbrdf.render.tracer import render
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

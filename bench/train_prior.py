@@ -23,7 +23,7 @@ import time
 
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import FitSettings, parse_mlp
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))

@@ -42,7 +42,7 @@ MOVED_MODULES = {
     "hybridbrdf.fit_loss": "hybridbrdf.fit.loss",
     "hybridbrdf.fit_schedule": "hybridbrdf.fit.schedule",
     "hybridbrdf.fit_settings": "hybridbrdf.fit.settings",
-    "hybridbrdf.fitting": "hybridbrdf.fit.fit",
+    "hybridbrdf.fitting": "hybridbrdf.fit.joint",
     "hybridbrdf.metrics": "hybridbrdf.evaluate.metrics",
     "hybridbrdf.mitsuba": "hybridbrdf.render.mitsuba",
     "hybridbrdf.model_file": "hybridbrdf.model",
@@ -63,6 +63,10 @@ MOVED_MODULES = {
     "hybridbrdf.viewer_sources": "hybridbrdf.viewer.measured",
     "hybridbrdf.viewer_wgsl": "hybridbrdf.viewer.wgsl",
     "hybridbrdf.util": "hybridbrdf.files",
+    # Modules named like their functions, which hid them (the function is the package's name now).
+    "hybridbrdf.fit.fit": "hybridbrdf.fit.joint",
+    "hybridbrdf.fit.paint": "hybridbrdf.fit.painting",
+    "hybridbrdf.acquire.simulate": "hybridbrdf.acquire.simulation",
 }
 
 
@@ -94,11 +98,13 @@ def public_face(package: str, namespace: dict, lazy: Dict[str, str] = None,
     ``lazy`` maps a public name to the module that defines it (imported on first access, then a
     plain global); ``moved`` maps a name the package no longer has to its home (an ImportError
     says where, for ``package.name`` and ``from package import name`` alike); the modules of
-    :data:`MOVED_MODULES` just under ``package`` raise the same way."""
+    :data:`MOVED_MODULES` just under ``package`` raise the same way, unless the package now exports
+    a name so spelled (``hybridbrdf.fit.fit`` is the joint fit; ``import hybridbrdf.fit.fit``, the old
+    module, still raises, through :class:`MovedModuleFinder`)."""
     lazy = dict(lazy or {})
     moved = dict(moved or {})
     moved.update({old.rsplit(".", 1)[1]: new for old, new in MOVED_MODULES.items()
-                  if old.rsplit(".", 1)[0] == package})
+                  if old.rsplit(".", 1)[0] == package and old.rsplit(".", 1)[1] not in lazy})
 
     def __getattr__(name):
         if name in lazy:

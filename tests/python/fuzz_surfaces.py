@@ -343,7 +343,7 @@ def checkpoint_seed(workdir: pathlib.Path):
     """(bytes, state, settings) of a valid checkpoint at step 10 of a tiny fit of synthetic:gold."""
     from hybridbrdf.fit import checkpoint as ckpt
     from hybridbrdf.fit.settings import FitSettings
-    from hybridbrdf.fit.fit import fit
+    from hybridbrdf.fit import fit
     from hybridbrdf.sources import open_source
 
     settings = FitSettings(width=8, depth=1, steps=20, batch=64, pool=256, eval_pairs=200, seed=5)

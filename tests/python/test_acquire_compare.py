@@ -13,7 +13,7 @@ import pytest
 
 import hybridbrdf as hb
 from hybridbrdf.acquire.mixture import Mixture
-from hybridbrdf.acquire.simulate import radiance
+from hybridbrdf.acquire.simulation import radiance
 from hybridbrdf.acquire.geometry import pixel_geometry
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]

@@ -22,7 +22,7 @@ from hybridbrdf.acquire.neural_fit import NeuralMaps
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rigs import flash_rig
-from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.acquire import simulate
 from hybridbrdf.acquire.texel_fit import fit_analytic_texels
 from hybridbrdf.fit.checkpoint import CheckpointError
 from hybridbrdf.model.file import load_model

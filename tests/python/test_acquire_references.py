@@ -20,7 +20,7 @@ from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.observations import Observations, texel_observations
 from hybridbrdf.acquire.rig import RigError, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
-from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.acquire import simulate
 from hybridbrdf.acquire.texel_rows import RowSampler, adam_texels
 
 

@@ -19,7 +19,7 @@ from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import RigError, load_rig, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
-from hybridbrdf.acquire.simulate import simulate
+from hybridbrdf.acquire import simulate
 from hybridbrdf.acquire.texel_fit import fit_analytic_texels
 from hybridbrdf.cli import main
 from hybridbrdf.render.tracer import write_exr

@@ -13,7 +13,7 @@ import hybridbrdf as hb
 from hybridbrdf.fit.adding import merge
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.evaluate.evaluation import evaluate
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.sources import open_source
 
 from helpers import run_cli
@@ -285,7 +285,7 @@ def test_several_starts_keep_the_start_of_lowest_loss(base_file):
 
 def test_several_starts_pick_the_better_fit_when_the_nearest_is_not_it(base_file, monkeypatch):
     """Put the worse start first (row m k + 0): the selection must still keep the other."""
-    import hybridbrdf.fit.fit as fitting
+    import hybridbrdf.fit.joint as fitting
 
     base = hb.load_model(base_file)
     real = fitting.start_from_nearest

@@ -200,7 +200,7 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes_with_the_papers_valu
     introduced with the paper's behaviour as default): such a checkpoint resumes under --recipe
     paper and is refused, naming the setting, under the default recipe."""
     from hybridbrdf.fit import checkpoint as ckpt
-    from hybridbrdf.fit.fit import fit
+    from hybridbrdf.fit import fit
     from hybridbrdf.sources import open_source
 
     path = tmp_path / "ck.pt"

@@ -16,7 +16,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 
 CUDA = torch.cuda.is_available()
 pytestmark = pytest.mark.skipif(not CUDA, reason="no CUDA device visible to torch")

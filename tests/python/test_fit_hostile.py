@@ -21,7 +21,7 @@ from hybridbrdf.fit import checkpoint as ckpt
 from hybridbrdf.cli import build_parser
 from hybridbrdf.cli import main as cli_main
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.model.networks import build_model
 from hybridbrdf.brdf.torch_brdf import eval_analytic, pdf
 from hybridbrdf.files import atomic_write_bytes, remove_stale_temporaries

@@ -9,7 +9,7 @@ import torch
 import hybridbrdf as hb
 from hybridbrdf import spec
 from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.loss import log_cos_loss
 from hybridbrdf.evaluate.metrics import metric_directions, smape
 

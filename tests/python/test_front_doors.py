@@ -101,10 +101,15 @@ for p in ('render', 'codegen', 'viewer'):
     package = importlib.import_module('hybridbrdf.' + p)
     assert package._MOVED, p
     moved.update({f'hybridbrdf.{p}.{n}': home for n, home in package._MOVED.items()})
+# Modules that were named like their function: the name is the function now, the module import raises.
+for old in ('hybridbrdf.fit.fit', 'hybridbrdf.fit.paint', 'hybridbrdf.acquire.simulate'):
+    parent, leaf = old.rsplit('.', 1)
+    assert callable(getattr(importlib.import_module(parent), leaf)) and leaf in sys.modules[parent].__all__, old
 for old, new in sorted(moved.items()):
     assert importlib.util.find_spec(new) is not None, (old, new)
     parent, leaf = old.rsplit('.', 1)
-    attempts = [f'from {parent} import {leaf}', f'import {parent}; {old}']
+    attempts = [] if leaf in getattr(importlib.import_module(parent), '__all__', ()) else \
+        [f'from {parent} import {leaf}', f'import {parent}; {old}']
     if old in MOVED_MODULES:
         attempts += [f'import {old}', f'from {old} import x', f'importlib.import_module({old!r})']
     for code in attempts:

@@ -12,9 +12,9 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf.evaluate.evaluation import evaluate
-from hybridbrdf.fit import fit as fit_module
+from hybridbrdf.fit import joint as fit_module
 from hybridbrdf.fit import guard
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.random import random_model
 from hybridbrdf.sources import open_source

@@ -19,7 +19,7 @@ import hybridbrdf as hb
 from hybridbrdf.cli import main as cli_main
 from hybridbrdf.codegen.main import main as codegen_main
 from hybridbrdf.fit import checkpoint as ckpt
-from hybridbrdf.fit.fit import fit
+from hybridbrdf.fit import fit
 from hybridbrdf.model.random import random_model
 
 from test_fit_hostile import FAST, Tripwire, sources, tiny

@@ -184,8 +184,9 @@ FACES = sorted(p.parent for p in PACKAGE.glob("*/__init__.py") if p.parent.name 
 @pytest.mark.parametrize("folder", FACES, ids=lambda p: p.name)
 def test_each_package_init_is_its_public_face(folder):
     """Each package's __init__ exports its own package's public names (``__all__``), none of them
-    the name of one of its submodules: importing ``hybridbrdf.fit.fit`` sets the package's attribute
-    ``fit`` to the module, so a function of that name would be the module after any such import."""
+    the name of one of its submodules: importing ``hybridbrdf.fit.X`` sets the package's attribute
+    ``X`` to the module, so a function ``X`` would be the module after any such import (hence
+    ``fit/joint.py`` for :func:`hybridbrdf.fit.fit`)."""
     init = folder / "__init__.py"
     name = module_name(init)
     exported = exported_names(init)

@@ -86,7 +86,7 @@ def test_edit_keeps_the_head_and_mix_blends_it(head_model):
 
 def test_a_sparse_fit_gives_new_materials_heads_and_keeps_the_hidden_layers(tmp_path):
     from hybridbrdf.fit.settings import FitSettings
-    from hybridbrdf.fit.fit import fit
+    from hybridbrdf.fit import fit
     from hybridbrdf.sources import open_source
 
     base = fit([open_source("synthetic:plastic"), open_source("synthetic:gold")],

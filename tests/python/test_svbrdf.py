@@ -19,7 +19,7 @@ from hybridbrdf.brdf.torch_brdf import eval_analytic
 from hybridbrdf.errors import OutputFileError
 from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.evaluate.metrics import metric_directions
-from hybridbrdf.fit.paint import composite, paint
+from hybridbrdf.fit.painting import composite, paint
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.random import random_model

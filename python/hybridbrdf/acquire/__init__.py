@@ -5,7 +5,7 @@
 - :mod:`~hybridbrdf.acquire.geometry`: what each pixel sees (uv, wi, wo, distance to the light);
 - :mod:`~hybridbrdf.acquire.mixture`: the ground truth, an exact mixture of measured BRDFs;
 - :mod:`~hybridbrdf.acquire.noise`: the sensor's Poisson-Gaussian noise;
-- :mod:`~hybridbrdf.acquire.simulate`: the photographs; :mod:`~hybridbrdf.acquire.capture`: their folder;
+- :mod:`~hybridbrdf.acquire.simulation`: the photographs (:func:`simulate`); :mod:`~hybridbrdf.acquire.capture`: their folder;
 - :mod:`~hybridbrdf.acquire.observations`: the photographs turned back into BRDF values per texel (a fit's input).
 - :mod:`~hybridbrdf.acquire.exposure`: the pixels a fit may use (NaN pixels, under-exposed photographs);
 - :mod:`~hybridbrdf.acquire.texel_rows`: rows drawn per texel per step, the resumable Adam loop;
@@ -21,9 +21,8 @@
     acquire("capture", "acquired", size=(128, 128))   # per-texel (p, z) on the shipped prior
 
 Its public names, one import deep: ``from hybridbrdf.acquire import flash_rig, Mixture, NoiseModel,
-write_capture, acquire`` (``Mixture``, ``Capture`` and the capture folder's functions import PyTorch
-on first use). :func:`hybridbrdf.acquire.simulate.simulate` stays in its module: the module shares its
-name, and a package attribute cannot be both.
+simulate, write_capture, acquire`` (``Mixture``, ``simulate``, ``Capture`` and the capture folder's
+functions import PyTorch on first use).
 """
 
 from hybridbrdf.acquire.acquisition import acquire
@@ -34,11 +33,11 @@ from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.exports import lazy_names, public_face
 
 #: Public names whose module imports PyTorch, loaded on first access (PEP 562).
-_LAZY = {"Mixture": "hybridbrdf.acquire.mixture", "Capture": "hybridbrdf.acquire.simulate",
+_LAZY = {"Mixture": "hybridbrdf.acquire.mixture", **lazy_names(["Capture", "simulate"], "hybridbrdf.acquire.simulation"),
          **lazy_names(["CaptureError", "load_capture", "write_capture"], "hybridbrdf.acquire.capture")}
 
 __all__ = ["Camera", "Capture", "CaptureError", "Light", "Mixture", "NoiseModel", "Observations", "Rig", "RigError",
            "Shot", "acquire", "flash_rig", "light_stage_rig", "load_capture", "load_rig", "rig_from_dict",
-           "texel_observations", "write_capture"]
+           "simulate", "texel_observations", "write_capture"]
 
 __getattr__, __dir__ = public_face(__name__, globals(), _LAZY)

@@ -22,7 +22,7 @@ from typing import List, Tuple
 import numpy as np
 
 from hybridbrdf.acquire.rig import Rig, load_rig
-from hybridbrdf.acquire.simulate import Capture
+from hybridbrdf.acquire.simulation import Capture
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
 from hybridbrdf.render.tracer import read_image, write_exr

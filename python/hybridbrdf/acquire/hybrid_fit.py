@@ -21,7 +21,7 @@ from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
 from hybridbrdf.brdf.torch_brdf import _normalize
-from hybridbrdf.fit.paint import bound_bright_kd
+from hybridbrdf.fit.painting import bound_bright_kd
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import alpha_from_raw, energy_bound_scale, eta_from_raw, kd_from_raw, raw_from_analytic
 from hybridbrdf.svbrdf.asset import SVBRDF
@@ -76,7 +76,7 @@ class HybridFamily:
 @dataclass
 class HybridMaps:
     """A hybrid fit: ``model`` (the prior, with an edit per layer whose kd map is brighter than its
-    material: :func:`hybridbrdf.fit.paint.bound_bright_kd`), ``layers`` (material names, at most 4),
+    material: :func:`hybridbrdf.fit.painting.bound_bright_kd`), ``layers`` (material names, at most 4),
     ``layer`` (H, W) each texel's layer, per texel ``kd``, ``eta`` (H, W, 3), ``alpha`` (H, W, 2),
     ``z`` (H, W, l) float32, ``counts`` (H, W) observations per texel (0: its cluster's values)."""
     model: HybridModel

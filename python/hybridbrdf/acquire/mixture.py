@@ -13,7 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
-from hybridbrdf.fit.paint import composite
+from hybridbrdf.fit.painting import composite
 from hybridbrdf.sources.base import BRDFSource
 from hybridbrdf.svbrdf.asset import texel_taps
 

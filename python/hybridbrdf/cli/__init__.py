@@ -94,7 +94,7 @@ def settings_from_args(args: argparse.Namespace, sparse: bool = False):
     (``--recipe``, default hybridbrdf: the fields' defaults). ``sparse``: the settings of a
     sparse fit (``hbrdf add``), whose steps default to :data:`~hybridbrdf.fit.settings.ADD_STEPS` and
     (without --recipe) its loss epsilon to :data:`~hybridbrdf.fit.settings.ADD_LOSS_EPS`."""
-    from hybridbrdf.fit.fit import default_device  # PyTorch: asks it for a GPU
+    from hybridbrdf.fit.joint import default_device  # PyTorch: asks it for a GPU
 
     values = {}
     for f in _fit_fields():

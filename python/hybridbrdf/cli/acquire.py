@@ -71,8 +71,8 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from hybridbrdf.acquire.capture import check_output_folder, write_capture
     from hybridbrdf.acquire.mixture import Mixture
-    from hybridbrdf.acquire.simulate import simulate
-    from hybridbrdf.fit.paint import read_grey
+    from hybridbrdf.acquire import simulate
+    from hybridbrdf.fit.painting import read_grey
 
     layers = layer_masks(args.layer, "SOURCE")
     if args.read_noise and not args.photons:

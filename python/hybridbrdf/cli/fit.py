@@ -71,7 +71,7 @@ def _check_out_is_no_source(out: str, sources) -> None:
 
 def _start_models(settings):
     """The models a fit starts from: --frozen's and --init's (None where not given)."""
-    from hybridbrdf.fit.fit import frozen_arch_settings
+    from hybridbrdf.fit.joint import frozen_arch_settings
 
     frozen = load_model(settings.frozen_from) if settings.frozen_from else None
     if frozen is not None and settings.init_from:
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
 def _train(args, settings, sources, frozen, init):
     """fit() on this process's rank: the model and the ranks, on rank 0 (the other ranks end here)."""
     from hybridbrdf.fit import distributed as dd
-    from hybridbrdf.fit.fit import fit
+    from hybridbrdf.fit import fit
 
     log = log_function(args.quiet)
     ranks = dd.join(settings.device)

@@ -10,7 +10,7 @@ from hybridbrdf.limits import check_count
 from hybridbrdf.model.editing import albedo_bytes_per_sample
 from hybridbrdf.model.file import HybridModel, load_model
 
-#: What a fit records besides its settings (hybridbrdf.fit.fit.fit), printed by ``hbrdf info``.
+#: What a fit records besides its settings (hybridbrdf.fit.fit, in fit/joint.py), printed by ``hbrdf info``.
 RECORDED_TIMINGS = ("train_seconds", "train_seconds_from_step", "resumed_at_step", "compile_seconds")
 
 

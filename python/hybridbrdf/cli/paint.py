@@ -47,7 +47,7 @@ def _layer_option(values, flag: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hybridbrdf.fit.paint import paint
+    from hybridbrdf.fit import paint
 
     layers = layer_masks(args.layer, "MATERIAL_OR_FILE")
     size = None

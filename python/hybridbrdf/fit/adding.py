@@ -5,7 +5,7 @@ onto a collection the paper's sparse fitting (Sec. 4.2, the network kept).
     model = hybridbrdf.add(["new_paint.bsdf"], to="collection.safetensors", out="collection+paint.safetensors")
 
 Each new source gets its own analytic parameters p and latent code z, fitted against the
-base model's frozen network (:func:`hybridbrdf.fit.fit.fit` with ``frozen=``); the result is
+base model's frozen network (:func:`hybridbrdf.fit.fit` with ``frozen=``); the result is
 one model file holding the base's materials, unchanged, followed by the new ones. Everything
 that can be refused is refused before any training: the output path, the base model, sources
 that cannot be read, and names that are already in the base or break the contract's name rule.
@@ -22,7 +22,7 @@ import numpy as np
 
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.fit.fit import fit, frozen_arch_settings
+from hybridbrdf.fit.joint import fit, frozen_arch_settings
 from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FINETUNE_STEPS, MAX_DRIFT, STEPS, FitSettings
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.model.prior import prior_path
@@ -109,7 +109,7 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     Onto the shipped prior (``to`` None, :mod:`hybridbrdf.model.prior`), by default a **fine-tune**:
     the sparse fit below gives each source its (p, z) on the prior's frozen network, then
     ``finetune_steps`` (default :data:`~hybridbrdf.fit.settings.FINETUNE_STEPS`) steps train the
-    network together with them (:func:`~hybridbrdf.fit.fit.fit` with ``init=``); the model holds
+    network together with them (:func:`~hybridbrdf.fit.fit` with ``init=``); the model holds
     the new materials with a network of their own. ``keep_network``: stop after the sparse fit
     (the network bit-identical to the prior's, for engines that already ship it).
 

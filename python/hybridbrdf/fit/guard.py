@@ -117,7 +117,7 @@ def apply(model: HybridModel, sources: Sequence, names: List[str], settings, fit
     """``model`` (its records holding each material's metrics against ``sources``, in the order of
     ``names``) with every material worse than its f_a restarted or set to its f_a; returns the
     model (the same object when none is worse). Energy-bound tables and metrics of the changed
-    materials are refitted and re-measured. ``fit``: :func:`hybridbrdf.fit.fit.fit` (which calls
+    materials are refitted and re-measured. ``fit``: :func:`hybridbrdf.fit.fit` (which calls
     this at the end of every fit, so it cannot be imported here)."""
     infos = {m["name"]: m for m in model.material_info}
     worse = [k for k, n in enumerate(names) if is_worse(infos[n].get("metrics", {}), margin=False)]
