@@ -74,6 +74,7 @@ void bind_tabulated(pybind11::module_& m);
 void bind_baselines(pybind11::module_& m);
 
 void bind_render(py::module_& m);  // cpp/bindings/render.cpp
+void bind_ktx2(py::module_& m);    // cpp/bindings/ktx2.cpp
 
 PYBIND11_MODULE(_core, m) {
     m.doc() = "libhybridbrdf bindings: analytic BRDF evaluation and importance sampling (float32).";
@@ -373,4 +374,5 @@ PYBIND11_MODULE(_core, m) {
     bind_tabulated(m);  // after Model, which TabulatedSampler.build_model takes
     bind_baselines(m);
     bind_render(m);     // the path tracer (cpp/bindings/render.cpp)
+    bind_ktx2(m);       // BC decoders and the KTX2 reader (cpp/bindings/ktx2.cpp); after bind_render: its FileError
 }
