@@ -64,7 +64,8 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     return generate_source(model, target, materials, model_path, extra_args, scene, precision, mlp_form, literal_head)
 
 
-def main(argv=None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The ``hbrdf-codegen`` parser (tests/python/test_doc_commands.py parses the documents' command lines with it)."""
     ap = argparse.ArgumentParser(prog="hbrdf-codegen",
                                  description="Generate GLSL, HLSL, Slang, WGSL or C++ code from a model file.")
     ap.add_argument("model", help="model file written by hbrdf fit")
@@ -84,7 +85,11 @@ def main(argv=None) -> int:
                     help="network code: unrolled (weights as literals), loops (weights in constant arrays) or auto "
                          "(default: unrolled for GLSL/HLSL/Slang/WGSL, loops for C++)")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
     try:
         # Before any work: -o naming the model or the scene (by any path) would replace it with code.
         refuse_output_over_input(args.out, [args.model, args.scene], "-o/--out")
