@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Lavapipe throughput of the generated code in each shader dialect, GLSL, HLSL, Slang and WGSL,
 for the released architecture (a hybrid 32x2, one material) and for its analytic part alone
-(``hbrdf_eval_analytic``), on the same direction pairs (docs/CODEGEN.md, "Shader dialects:
+(``hbrdf_eval_analytic``), on the same direction pairs (docs/CODEGEN_MEASURED.md, "Shader dialects:
 Slang and WGSL against GLSL").
 
 Two harnesses, each compared with GLSL inside itself:

@@ -1,6 +1,8 @@
-"""Code generation: a model file becomes self-contained GLSL, HLSL, Slang, WGSL, C++ or BRDF Explorer code.
+"""Code generation: a model file becomes self-contained GLSL, HLSL, Slang, WGSL, C++ or BRDF Explorer code,
+and a textured material's folder the code of its layers with its maps' lookup and decode.
 
     hbrdf-codegen MODEL --target glsl|hlsl|slang|wgsl|cpp|brdfexplorer [--materials a,b | --scene SCENE.json] -o OUT
+    hbrdf-codegen DIR --target glsl|hlsl|slang|wgsl|cpp -o OUT
 
 One Jinja2 template (``codegen/hbrdf.j2``) serves every shader and header target; a small
 dialect table (:data:`DIALECTS`) holds what differs between the languages.
@@ -34,6 +36,7 @@ from hybridbrdf.codegen.brdfexplorer import generate_brdfexplorer
 from hybridbrdf.codegen.literals import DIALECTS
 from hybridbrdf.codegen.source import MLP_FORMS, generate_source
 from hybridbrdf.codegen.scene import load_scene
+from hybridbrdf.codegen.textured import textured_plan
 from hybridbrdf.errors import InputFileError, one_line_text
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.model.file import HybridModel, load_model
@@ -44,7 +47,8 @@ TARGETS = ("glsl", "hlsl", "slang", "wgsl", "cpp", "brdfexplorer")
 
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
              model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
-             precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None) -> str:
+             precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None,
+             textured: Optional[Dict[str, object]] = None) -> str:
     """Source code of ``model`` for ``target`` (one of :data:`TARGETS`), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
     default values; kd, eta, alpha and the latent code become sliders.
@@ -56,19 +60,44 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     With ``precision="fp16"`` the layer weights are rounded to IEEE binary16: unrolled
     code prints the rounded values (exactly), loops store them packed two per 32-bit word.
     ``scene`` is the plan :func:`load_scene` makes of a path-tracer scene: ``{"name", "materials":
-    [{"name", "evaluate"}], "neural_max_depth" (optional), "not_emitted" (optional)}``."""
+    [{"name", "evaluate"}], "neural_max_depth" (optional), "not_emitted" (optional)}``.
+    ``textured`` is the plan :func:`generate_textured` makes of a textured material's folder."""
     if target == "brdfexplorer":
+        if textured is not None:
+            raise ValueError("a BRDF Explorer file shows one uniform material, not a textured one")
         return generate_brdfexplorer(model, materials, model_path, extra_args)
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
-    return generate_source(model, target, materials, model_path, extra_args, scene, precision, mlp_form, literal_head)
+    return generate_source(model, target, materials, model_path, extra_args, scene, precision, mlp_form, literal_head,
+                           textured)
+
+
+def generate_textured(folder, target: str, precision: str = "fp32", mlp_form: str = "auto",
+                      extra_args: str = "") -> str:
+    """Source code for ``target`` (glsl, hlsl, slang, wgsl or cpp) of the textured material in
+    ``folder`` (docs/SVBRDF.md; read by :func:`hybridbrdf.svbrdf.load_svbrdf`, whose one-line errors
+    it raises): its model restricted to exactly the layers' materials, plus the maps' decode
+    constants, ``HbrdfTexel``, ``hbrdf_decode_texel``, the sampler lookups ``hbrdf_texel_grad`` and
+    ``hbrdf_texel_lod`` (not in C++) and ``hbrdf_eval_texel`` / ``hbrdf_pdf_texel`` /
+    ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine")."""
+    if target not in DIALECTS:
+        raise ValueError(f"a textured material's folder generates {', '.join(DIALECTS)} code, not {target!r}")
+    plan = textured_plan(folder)
+    return generate(plan["model"], target, plan["materials"], model_path=plan["folder"], extra_args=extra_args,
+                    precision=precision, mlp_form=mlp_form, textured=plan)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``hbrdf-codegen`` parser (tests/python/test_doc_commands.py parses the documents' command lines with it)."""
     ap = argparse.ArgumentParser(prog="hbrdf-codegen",
-                                 description="Generate GLSL, HLSL, Slang, WGSL or C++ code from a model file.")
-    ap.add_argument("model", help="model file written by hbrdf fit")
+                                 description="Generate GLSL, HLSL, Slang, WGSL or C++ code from a model file, or from "
+                                             "a textured material's folder.")
+    ap.add_argument("model", metavar="MODEL|DIR",
+                    help="model file written by hbrdf fit, or a textured material's folder DIR (hbrdf paint; "
+                         "docs/SVBRDF.md): then the code holds exactly its layers' materials and the lookup of its "
+                         "maps through samplers (hbrdf_texel_grad / hbrdf_texel_lod, hbrdf_eval_texel; C++: "
+                         "hbrdf_decode_texel of filtered stored values); --materials and --scene do not apply "
+                         "(docs/CODEGEN.md, 'A textured material in an engine')")
     ap.add_argument("--target", required=True, choices=TARGETS,
                     help="output language: glsl (GLSL 4.50), hlsl (DXC/glslang), slang (slangc), wgsl (WebGPU; "
                          "hbrdf_sample takes pdf as ptr<function, f32>), cpp (C++17 header), brdfexplorer (Disney "
@@ -93,6 +122,8 @@ def main(argv=None) -> int:
     try:
         # Before any work: -o naming the model or the scene (by any path) would replace it with code.
         refuse_output_over_input(args.out, [args.model, args.scene], "-o/--out")
+        if os.path.isdir(args.model):
+            return _main_textured(args)
         model = load_model(args.model)
         materials = [m for m in args.materials.split(",") if m] if args.materials else None
         if args.scene and materials:
@@ -119,6 +150,25 @@ def main(argv=None) -> int:
         print(f"hbrdf-codegen: error: {one_line_text(str(msg))}", file=sys.stderr)
         return 1
     print(f"wrote {args.out} ({args.target}, {len(materials or model.materials)} materials)")
+    return 0
+
+
+def _main_textured(args) -> int:
+    """``hbrdf-codegen DIR``: the textured material's code (errors reach main's handler)."""
+    folder = args.model
+    for flag, given in (("--materials", args.materials), ("--scene", args.scene)):
+        if given:
+            raise ValueError(f"{folder}: a textured material's folder names its own materials (its layers); "
+                             f"{flag} does not apply")
+    if args.target not in DIALECTS:
+        raise ValueError(f"{folder}: a textured material's folder generates {', '.join(DIALECTS)} code, not "
+                         f"{args.target} (a BRDF Explorer file shows one uniform material)")
+    check_writable(args.out, "generated code")
+    extra = (f" --precision {args.precision}" if args.precision != "fp32" else "") + (
+        f" --mlp-form {args.mlp_form}" if args.mlp_form != "auto" else "")
+    text = generate_textured(folder, args.target, args.precision, args.mlp_form, extra)
+    atomic_write_bytes(args.out, text.encode("utf-8"))
+    print(f"wrote {args.out} ({args.target}, textured material {os.path.basename(os.path.abspath(folder))})")
     return 0
 
 

@@ -11,6 +11,7 @@ from hybridbrdf import _core, spec
 from hybridbrdf.codegen.literals import DIALECTS, comment_text, contract_literals, float_literal, material_constant
 from hybridbrdf.codegen.network import network_layers, unrolled_frames, unrolled_head
 from hybridbrdf.codegen.scene import NO_DEPTH_LIMIT, Specialisation, specialisation
+from hybridbrdf.codegen.textured import textured_code
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.names import names_problem
 from hybridbrdf.files import package_data_dir
@@ -66,10 +67,13 @@ def _material_constants(model: HybridModel, plan: Specialisation, head_in_materi
 
 def generate_source(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
                     model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
-                    precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None) -> str:
+                    precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None,
+                    textured: Optional[Dict[str, Any]] = None) -> str:
     """:func:`hybridbrdf.codegen.main.generate` for the dialects of :data:`DIALECTS` (glsl, hlsl,
     slang, wgsl, cpp). ``literal_head`` (a material's name) writes that material's output layer as literals
-    even without a scene, as BRDF Explorer files do."""
+    even without a scene, as BRDF Explorer files do. ``textured`` (the plan of
+    :func:`hybridbrdf.codegen.textured.textured_plan`) adds its decode, lookup and evaluation
+    (``codegen/textured.j2``); ``materials`` must then be its layers' materials."""
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(DIALECTS)}")
     if precision not in ("fp32", "fp16"):
@@ -103,4 +107,5 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
         pre_exp_max=float_literal(a["pre_exp_max"]),
         frames_unrolled=unrolled_frames(t) if unrolled and predicts_frames else [],
         frames_weight=t["frames.weight"].ravel() if predicts_frames else [],
-        frames_bias=t["frames.bias"] if predicts_frames else [])
+        frames_bias=t["frames.bias"] if predicts_frames else [],
+        tx=textured_code(textured, target) if textured is not None else None)

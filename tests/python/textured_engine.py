@@ -1,0 +1,284 @@
+"""Helpers of tests/python/test_codegen_textured.py: the engine side of a generated textured material
+(docs/CODEGEN.md, "A textured material in an engine"): small textured folders, a fragment shader per
+dialect that declares the maps the generated lookup takes, a WGSL compute kernel that samples the
+maps through real wgpu samplers on lavapipe, and the float64 reference of what a sampler does
+(bilinear filter of the stored values, then the index's decode) written here from docs/SVBRDF.md,
+independently of hybridbrdf.svbrdf."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import numpy as np
+
+from hybridbrdf.svbrdf import SVBRDF
+from hybridbrdf.svbrdf.maps import read_map
+
+from helpers import saved_random_model
+
+#: The folders' texture size: powers of two, so that uv = (i + 0.5 + k / 256) / W is exact in float32
+#: and a sampler's bilinear fraction at it is k / 256, which 8 fraction bits hold exactly.
+W, H = 16, 8
+
+
+def make_folder(tmp: pathlib.Path, kind: str) -> pathlib.Path:
+    """A textured folder of a tiny random model (3 materials, latent 4, material heads, energy tables):
+    ``doc``: 2 layers, a weights map only (the shape of scenes/textured.json's painted folder);
+    ``linear``: 4 layers (one material twice), weights, an sRGB kd map, an eta map and latent maps:
+    every channel either linear or sRGB, so a sampler's filter commutes with the decode;
+    ``all``: 3 layers, weights, an sRGB kd map and an alpha map (T = square: filter and decode do not
+    commute), clamp addressing."""
+    tmp.mkdir(parents=True, exist_ok=True)
+    _, model = saved_random_model(tmp, "hybrid", output_layer="material", energy_bound=True)
+    rng = np.random.default_rng({"doc": 1, "linear": 2, "all": 3}[kind])
+    mats = model.materials
+    # Weights: pure regions, soft ramps and texels whose sum passes 1 (normalised).
+    weights = np.zeros((H, W, 3), np.float32)
+    weights[:, 8:, 0] = 1.0
+    weights[4:, :, 1] = np.linspace(0, 1, W, dtype=np.float32)
+    weights[2, :, :] = rng.uniform(0, 0.7, (W, 3))
+    kd = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
+    if kind == "doc":
+        layers, maps, addressing = mats[:2], [{}, {}], "repeat"
+        weights[..., 1:] = 0
+    elif kind == "linear":
+        layers, addressing = [mats[0], mats[1], mats[2], mats[1]], "repeat"
+        maps = [{"kd": kd}, {"eta": rng.uniform(1.1, 4, (H, W, 3)).astype(np.float32)}, {},
+                {"latent": rng.uniform(-1, 1, (H, W, 4)).astype(np.float32)}]
+    else:
+        layers, addressing = mats[:3], "clamp"
+        weights[..., 2] = 0
+        maps = [{"kd": kd}, {"alpha": rng.uniform(0.05, 0.9, (H, W, 2)).astype(np.float32)}, {}]
+    folder = tmp / "sv"
+    SVBRDF(model, layers, (W, H), weights, maps, addressing).save(folder, format="png")
+    return folder
+
+
+# ---- the reference: what a sampler does, in float64 ----------------------------------------------
+
+
+def _eotf(v):
+    v = np.asarray(v, np.float64)
+    return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+_T = {"linear": lambda v: v, "square": lambda v: v * v, "srgb": _eotf}
+
+
+def sampler_reference(folder: pathlib.Path, uv: np.ndarray, srgb_textures: bool, shift=None):
+    """Per pair the texel values a bilinear sampler at level 0 gives the generated decode, from the
+    stored maps: taps at texel centres ((i + 0.5) / W, v down), repeat or clamp-to-edge, each map's
+    stored values filtered (an sRGB map bound as an sRGB texture: decoded per tap, then filtered),
+    then decoded; weights normalised as docs/SVBRDF.md says. ``shift`` (file, channel, delta) adds delta
+    to that channel's filtered values (before its decode; after the texture unit's for an sRGB texture).
+    Returns the model, the material index per layer and the (weight, kd, eta, alpha, latent) texel
+    values of libhybridbrdf's eval_texels."""
+    import hybridbrdf as hb
+
+    index = json.loads((folder / "svbrdf.json").read_text())
+    model = hb.load_model(folder / index["model"])
+    names = [layer["material"] for layer in index["layers"]]
+    L, n, w, h = len(names), len(uv), *index["size"]
+    repeat = index["addressing"] == "repeat"
+    u, v = (uv[:, 0], uv[:, 1]) if repeat else (np.clip(uv[:, 0], 0, 1), np.clip(uv[:, 1], 0, 1))
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = x - x0, y - y0
+    taps = []
+    for dy, wy in ((0, 1 - fy), (1, fy)):
+        for dx, wx in ((0, 1 - fx), (1, fx)):
+            cx, cy = (x0 + dx).astype(int), (y0 + dy).astype(int)
+            cx, cy = (cx % w, cy % h) if repeat else (np.clip(cx, 0, w - 1), np.clip(cy, 0, h - 1))
+            taps.append((cy, cx, wx * wy))
+    t = model.tensors
+    vals = {"kd": np.repeat(t["materials.kd"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
+            "eta": np.repeat(t["materials.eta"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
+            "alpha": np.repeat(t["materials.alpha"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
+            "latent": np.repeat(t["materials.z"][None, [model.index(m) for m in names]], n, 0).astype(np.float64)}
+    rest = np.zeros((n, 3))
+    for entry in index["maps"]:
+        stored, _ = read_map(folder / entry["file"])
+        for ch, d in enumerate(entry["decode"]):
+            if d is None:
+                continue
+            by_texture = srgb_textures and all(e is None or e["transfer"] == "srgb" for e in entry["decode"])
+            delta = shift[2] if shift is not None and shift[:2] == (entry["file"], ch) else 0.0
+            if d["transfer"] == "srgb" and by_texture:  # the texture unit decodes, then filters
+                filtered = sum(_eotf(stored[r, c, ch]) * a for r, c, a in taps) + delta
+                value = d["offset"] + d["scale"] * filtered
+            else:
+                filtered = np.clip(sum(stored[r, c, ch] * a for r, c, a in taps) + delta, 0, 1)
+                value = d["offset"] + d["scale"] * _T[d["transfer"]](filtered)
+            q, k, comp = entry["quantity"], entry.get("layer"), entry["first"] + ch
+            if q == "weights":
+                rest[:, ch] = value
+            else:
+                vals[q][:, k, comp] = value
+    rest = np.maximum(rest[:, :L - 1], 0)
+    total = rest.sum(axis=1, keepdims=True)
+    rest = np.where(total > 1, rest / np.maximum(total, 1e-30), rest)
+    weight = np.concatenate([np.clip(1 - np.minimum(total, 1), 0, 1), rest], axis=1)
+    mat = np.broadcast_to(np.asarray([model.index(m) for m in names], np.int32), (n, L))
+    return model, np.ascontiguousarray(mat), weight, vals
+
+
+def eval_reference(folder, uv, wi, wo, srgb_textures: bool, shift=None) -> np.ndarray:
+    """libhybridbrdf's f (HybridModel::eval_texel) at the texel values of :func:`sampler_reference`."""
+    model, mat, weight, vals = sampler_reference(folder, uv, srgb_textures, shift)
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    return model._cpp_model().eval_texels(f32(wi), f32(wo), mat, f32(weight), f32(vals["kd"]), f32(vals["eta"]),
+                                          f32(vals["alpha"]), f32(vals["latent"])).astype(np.float64)
+
+
+# ---- WGSL through wgpu's samplers ------------------------------------------------------------------
+
+WGSL_KERNEL = """
+@group(0) @binding(0) var<storage, read> pairs: array<f32>;
+@group(0) @binding(1) var<storage, read_write> out: array<f32>;
+@group(0) @binding(2) var map_sampler: sampler;
+{TEXTURES}
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3u) {{
+    let i = gid.x;
+    if (i >= arrayLength(&pairs) / 8u) {{ return; }}
+    let uv = vec2f(pairs[8u * i], pairs[8u * i + 1u]);
+    let wi = vec3f(pairs[8u * i + 2u], pairs[8u * i + 3u], pairs[8u * i + 4u]);
+    let wo = vec3f(pairs[8u * i + 5u], pairs[8u * i + 6u], pairs[8u * i + 7u]);
+    let f_lod = hbrdf_eval_texel(wi, wo, hbrdf_texel_lod({ARGS}, uv, 0.0));
+    let f_grad = hbrdf_eval_texel(wi, wo, hbrdf_texel_grad({ARGS}, uv, vec2f(0.0), vec2f(0.0)));
+    out[6u * i] = f_lod.x; out[6u * i + 1u] = f_lod.y; out[6u * i + 2u] = f_lod.z;
+    out[6u * i + 3u] = f_grad.x; out[6u * i + 4u] = f_grad.y; out[6u * i + 5u] = f_grad.z;
+}}
+"""
+
+
+PROBE_KERNEL = """
+@group(0) @binding(0) var<storage, read> uvs: array<vec2f>;
+@group(0) @binding(1) var<storage, read_write> out: array<vec4f>;
+@group(0) @binding(2) var s: sampler;
+@group(0) @binding(3) var t: texture_2d<f32>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3u) {
+    if (gid.x < arrayLength(&uvs)) { out[gid.x] = textureSampleLevel(t, s, uvs[gid.x], 0.0); }
+}
+"""
+
+
+def _dispatch(kernel: str, entries, inputs: np.ndarray, out_bytes: int, constants=None) -> np.ndarray:
+    """One compute dispatch of ``kernel`` (``main``, 64 per workgroup) on lavapipe: binding 0 the input
+    floats, 1 the output, then ``entries`` (sampler, textures); returns the output as float32."""
+    import wgpu
+
+    from slang_wgsl_tools import wgpu_device, wgsl_errors
+
+    device = wgpu_device()
+    errors = wgsl_errors(kernel)
+    assert errors is None, errors[-3000:]
+    compute_stage = {"module": device.create_shader_module(code=kernel), "entry_point": "main"}
+    if constants:
+        compute_stage["constants"] = constants
+    pipeline = device.create_compute_pipeline(layout="auto", compute=compute_stage)
+    buf_in = device.create_buffer_with_data(data=np.ascontiguousarray(inputs, np.float32).ravel(),
+                                            usage=wgpu.BufferUsage.STORAGE)
+    buf_out = device.create_buffer(size=out_bytes, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    entries = [{"binding": 0, "resource": {"buffer": buf_in}}, {"binding": 1, "resource": {"buffer": buf_out}}] + entries
+    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=entries)
+    encoder = device.create_command_encoder()
+    compute = encoder.begin_compute_pass()
+    compute.set_pipeline(pipeline)
+    compute.set_bind_group(0, bind)
+    compute.dispatch_workgroups((len(inputs) + 63) // 64, 1, 1)
+    compute.end()
+    device.queue.submit([encoder.finish()])
+    return np.frombuffer(device.queue.read_buffer(buf_out), dtype=np.float32).copy()
+
+
+def _texture(stored_rgb: np.ndarray, format: str):
+    """An (H, W) texture of ``format`` holding 8-bit (H, W, 3) values (alpha 255), its view."""
+    import wgpu
+
+    from slang_wgsl_tools import wgpu_device
+
+    device = wgpu_device()
+    h, w = stored_rgb.shape[:2]
+    rgba = np.concatenate([stored_rgb, np.full((h, w, 1), 255, np.uint8)], axis=2)
+    tex = device.create_texture(size=(w, h, 1), format=format,
+                                usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
+    device.queue.write_texture({"texture": tex}, np.ascontiguousarray(rgba), {"bytes_per_row": 4 * w, "rows_per_image": h},
+                               (w, h, 1))
+    return tex.create_view()
+
+
+def sample_probe(format: str, row: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The red channel lavapipe's linear sampler (clamp, level 0) returns at (u, 0.5) of a one-row
+    texture of ``format`` whose texels' red bytes are ``row``."""
+    from slang_wgsl_tools import wgpu_device
+
+    sampler = wgpu_device().create_sampler(mag_filter="linear", min_filter="linear", mipmap_filter="nearest")
+    rgb = np.zeros((1, len(row), 3), np.uint8)
+    rgb[0, :, 0] = row
+    uv = np.stack([u, np.full_like(u, 0.5)], axis=1)
+    out = _dispatch(PROBE_KERNEL, [{"binding": 2, "resource": sampler}, {"binding": 3, "resource": _texture(rgb, format)}],
+                    uv, 16 * len(u))
+    return out.reshape(-1, 4)[:, 0].astype(np.float64)
+
+
+def map_params(code: str):
+    """The lookup's map parameters, in order, from the generated hbrdf_texel_lod's signature."""
+    import re
+
+    sig = re.search(r"fn hbrdf_texel_lod\((.*?)\)", code).group(1)
+    return re.findall(r"(map_\w+): texture_2d<f32>", sig)
+
+
+def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_textures: bool) -> np.ndarray:
+    """The generated WGSL's hbrdf_texel_lod (level 0) and hbrdf_texel_grad (zero derivatives) with
+    hbrdf_eval_texel, in a compute kernel on lavapipe: the folder's STORED 8-bit maps uploaded as
+    rgba8unorm textures (rgba8unorm-srgb for sRGB maps where ``srgb_textures``; the kernel's
+    HBRDF_SRGB_TEXTURES override set to match), one linear sampler with a nearest mip filter and
+    the index's addressing. Returns (n, 6): f through the lod lookup, then through the grad one."""
+    from slang_wgsl_tools import wgpu_device
+
+    index = json.loads((folder / "svbrdf.json").read_text())
+    by_param = {}
+    for e in index["maps"]:
+        ident = "weights" if e["quantity"] == "weights" else f"layer{e['layer']}_{e['quantity']}" + (
+            str(e["first"] // 3) if e["quantity"] == "latent" else "")
+        by_param["map_" + ident] = e
+    params = map_params(code)
+    textures = "\n".join(f"@group(0) @binding({3 + j}) var {p}: texture_2d<f32>;" for j, p in enumerate(params))
+    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]))
+    address = "repeat" if index["addressing"] == "repeat" else "clamp-to-edge"
+    sampler = wgpu_device().create_sampler(address_mode_u=address, address_mode_v=address, mag_filter="linear",
+                                           min_filter="linear", mipmap_filter="nearest")
+    entries = [{"binding": 2, "resource": sampler}]
+    for j, p in enumerate(params):
+        entry = by_param[p]
+        stored = np.rint(read_map(folder / entry["file"])[0] * 255).astype(np.uint8)
+        srgb = srgb_textures and all(d is None or d["transfer"] == "srgb" for d in entry["decode"])
+        entries.append({"binding": 3 + j, "resource": _texture(stored, "rgba8unorm-srgb" if srgb else "rgba8unorm")})
+    out = _dispatch(kernel, entries, pairs, 4 * 6 * len(pairs), {"HBRDF_SRGB_TEXTURES": 1.0 if srgb_textures else 0.0})
+    return out.reshape(len(pairs), 6)
+
+
+#: Lavapipe's texture unit returns a filtered rgba8unorm value, and an rgba8unorm-srgb value decoded to
+#: linear, as 8-bit values (measured by test_codegen_textured.py::test_lavapipe_filters_to_8_bits): one
+#: step, 1/255, is what a map's filtered value may be off by there.
+STEP = 1.0 / 255
+
+
+def step_tolerance(folder, uv, wi, wo, srgb_textures: bool, f_ref: np.ndarray) -> np.ndarray:
+    """Per pair and channel of f, how far f may move when each map channel's filtered value is off by
+    up to one 8-bit step: the sum over map channels of the larger of |f(value + step) - f| and
+    |f(value - step) - f|, a first-order bound of all of them off at once, with 25% for curvature."""
+    index = json.loads((pathlib.Path(folder) / "svbrdf.json").read_text())
+    total = np.zeros_like(f_ref)
+    for entry in index["maps"]:
+        for ch, d in enumerate(entry["decode"]):
+            if d is None:
+                continue
+            moved = [np.abs(eval_reference(folder, uv, wi, wo, srgb_textures, (entry["file"], ch, s)) - f_ref)
+                     for s in (STEP, -STEP)]
+            total += np.maximum(*moved)
+    return 1.25 * total
