@@ -78,6 +78,13 @@ def test_folder_gives_exactly_its_layers_and_its_maps(folders, tmp_path):
         assert rc == 1 and words in err and len(err.strip().splitlines()) == 1, err
     rc, _, err = _run_codegen([str(folder), "--target", "brdfexplorer", "-o", str(tmp_path / "x.brdf")])
     assert rc == 1 and "one uniform material" in err
+    # -o naming one of the folder's files, by another path too, or inside it: refused, nothing touched.
+    before = {f.name: f.read_bytes() for f in folder.iterdir()}
+    (tmp_path / "link.png").symlink_to(folder / "weights.png")
+    for out in (folder / "svbrdf.json", folder / "weights.png", tmp_path / "link.png", folder / "new.glsl"):
+        rc, _, err = _run_codegen([str(folder), "--target", "glsl", "-o", str(out)])
+        assert rc == 1 and "-o/--out" in err and len(err.strip().splitlines()) == 1, (out, err)
+    assert {f.name: f.read_bytes() for f in folder.iterdir()} == before
     (tmp_path / "bad").mkdir()
     rc, _, err = _run_codegen([str(tmp_path / "bad"), "--target", "glsl", "-o", str(tmp_path / "x.glsl")])
     assert rc == 1 and "svbrdf.json" in err and len(err.strip().splitlines()) == 1, err

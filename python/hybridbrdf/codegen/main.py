@@ -156,6 +156,13 @@ def main(argv=None) -> int:
 def _main_textured(args) -> int:
     """``hbrdf-codegen DIR``: the textured material's code (errors reach main's handler)."""
     folder = args.model
+    # Before any work: -o naming a file of the folder (by any path: its index, model or a map) or
+    # landing inside it would replace an input, or be replaced with the folder when it is re-painted.
+    if os.path.realpath(os.path.dirname(os.path.abspath(args.out))) == os.path.realpath(folder):
+        raise InputFileError(args.out, f"-o/--out is inside the textured material's folder {folder}; write the code "
+                                       "elsewhere (the folder holds its index, model and maps only)")
+    with os.scandir(folder) as entries:
+        refuse_output_over_input(args.out, [e.path for e in entries if e.is_file()], "-o/--out")
     for flag, given in (("--materials", args.materials), ("--scene", args.scene)):
         if given:
             raise ValueError(f"{folder}: a textured material's folder names its own materials (its layers); "
