@@ -8,7 +8,8 @@ input that broke it and makes the exit status 1.
 Surfaces and their inputs: model files (byte damage: both loaders must agree), model metadata
 (JSON edits: both loaders, same words), tensor values (any float32 in any tensor), material
 names (both loaders, then generated GLSL/HLSL/C++ for the accepted ones), measured files (RGL,
-NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), checkpoints
+NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), KTX2 maps
+(structure-aware damage through both readers, tests/python/fuzz_ktx2.py), checkpoints
 (damaged bytes, and edited states re-encoded with a valid checksum), command-line
 flags (every typed flag of every hbrdf command) and directions (float32 bit patterns through the
 library's batched and scalar paths and torch).
@@ -153,6 +154,14 @@ def main(argv=None) -> int:
     run("checkpoint structure", int(5_000 * k),
         lambda i: (ckpt.encode(fs.mutate_checkpoint_state(ck_state, rng)), work / "ck.pt", ck_settings),
         fs.check_checkpoint, counts, failures)
+
+    if hasattr(_core, "render_read_ktx2"):  # KTX2 maps (issue 58): both readers, same levels or same words
+        import fuzz_ktx2
+
+        ktx2_seeds = list(fuzz_ktx2.seed_files().values())
+        run("KTX2 files (both readers)", int(20_000 * k),
+            lambda i: (fuzz_ktx2.mutate_ktx2(ktx2_seeds[i % len(ktx2_seeds)], rng), work / "t.ktx2"),
+            fuzz_ktx2.check_ktx2, counts, failures)
 
     flags = fs.cli_flags()
     values = ["0", "-1", "1", "inf", "-inf", "nan", "1e999", "4294967297", "2147483648", "-0", "1.5", "1e-400",

@@ -251,6 +251,26 @@ def test_forged_hdr_sizes(tmp_path, seed):
     assert fs.check_hdr_file(fs.forged_hdr(np.random.default_rng(seed)), tmp_path / "e.hdr") == fs.REJECTED
 
 
+@pytest.fixture(scope="module")
+def ktx2_seeds():
+    import fuzz_ktx2
+
+    return list(fuzz_ktx2.seed_files().values())
+
+
+@pytest.mark.skipif(not hasattr(_core, "render_read_ktx2"), reason="built without the renderer")
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1))
+def test_ktx2_files_through_both_readers(tmp_path, ktx2_seeds, seed):
+    """Damaged KTX2 maps (fuzz_ktx2.mutate_ktx2): both readers refuse with the same words or read
+    the same levels (seen to fail when the Python reader skipped its typeSize check)."""
+    import fuzz_ktx2
+
+    rng = np.random.default_rng(seed)
+    data = fuzz_ktx2.mutate_ktx2(ktx2_seeds[seed % len(ktx2_seeds)], rng)
+    assert fuzz_ktx2.check_ktx2(data, tmp_path / "t.ktx2") in (fs.VALID, fs.REJECTED)
+
+
 @pytest.mark.parametrize("which", ["model", "scene"])
 @pytest.mark.parametrize("kind", fs.OUTPUT_KINDS)
 @pytest.mark.parametrize("command", ["codegen", "render"])

@@ -4,7 +4,7 @@
 Public names:
 
 - :data:`ENCODERS`: ``{format: {encoder name: encode(rgba) -> bytes}}``, every candidate that is
-  installed; ``rgba`` is uint8 (H, W, 4), H and W any size (edge blocks are padded by the encoder).
+  installed (one not installed raises ImportError naming its package when asked for by name); ``rgba`` is uint8 (H, W, 4), H and W any size (edge blocks are padded by the encoder).
   Formats are ``"bc1"``, ``"bc4"`` (the red channel), ``"bc5"`` (red and green), ``"bc7"``.
 - :data:`DEFAULT_ENCODER`: the encoder :func:`encode_blocks` uses per format.
 - :func:`encode_blocks` ``(rgba, fmt, encoder=None) -> bytes``: the level's blocks, rows of blocks
@@ -22,15 +22,20 @@ bc7enc_rdo's BC7). BC7 is encoded with linear (not perceptual) channel weights: 
 
 from __future__ import annotations
 
+import ctypes
 import importlib
+import importlib.util
 
 import numpy as np
+
+from hybridbrdf import _core
 
 BLOCK_FORMATS = ("bc1", "bc4", "bc5", "bc7")
 CHANNELS = {"bc1": 3, "bc4": 1, "bc5": 2, "bc7": 4}
 BLOCK_BYTES = {"bc1": 8, "bc4": 8, "bc5": 16, "bc7": 16}
-BC7_UBER_LEVEL = 2  # bc7enc's search effort, 0..4: 2 costs ~3x level 0 and gains ~0.3 dB (bench/bc_encoders.py)
-RGBCX_LEVEL = 18    # rgbcx's BC1 effort, 0..18
+BC7_UBER_LEVEL = 2  # bc7enc's search effort, 0..4: 2 gains 0.3-1.0 dB over 0 for 1.4-2.5x its time
+RGBCX_LEVEL = 10    # rgbcx's BC1 effort, 0..18: 10 is 0.5-1.3 dB under 18 at 1/7 of its time
+# (both measured by bench/bc_encoders.py's maps; docs/TEXTURES.md)
 
 
 def _module(name: str):
@@ -76,8 +81,6 @@ def _quicktex(fmt: str):
 
 def _bc7enc(fmt: str):
     def encode(rgba):
-        import ctypes
-
         bc7enc = _module("bc7enc")
         rgba = np.ascontiguousarray(rgba, dtype=np.uint8)
         h, w = rgba.shape[:2]
@@ -113,13 +116,22 @@ def _pad4(rgba: np.ndarray) -> np.ndarray:
     return np.pad(rgba, ((0, ph), (0, pw), (0, 0)), mode="edge") if ph or pw else rgba
 
 
-ENCODERS = {
+def _installed(name: str) -> bool:
+    return importlib.util.find_spec(name) is not None
+
+
+_CANDIDATES = {
     "bc1": {"etcpak": _etcpak("bc1"), "quicktex": _quicktex("bc1"), "bc7enc": _bc7enc("bc1")},
     "bc4": {"etcpak": _etcpak("bc4"), "quicktex": _quicktex("bc4"), "bc7enc": _bc7enc("bc4")},
     "bc5": {"etcpak": _etcpak("bc5"), "quicktex": _quicktex("bc5"), "bc7enc": _bc7enc("bc5")},
     "bc7": {"etcpak": _etcpak("bc7"), "bc7enc": _bc7enc("bc7")},
 }
-DEFAULT_ENCODER = {"bc1": "etcpak", "bc4": "etcpak", "bc5": "etcpak", "bc7": "etcpak"}
+#: The installed candidates (etcpak and quicktex are dependencies; bc7enc-py is the test extra's).
+ENCODERS = {fmt: {name: enc for name, enc in c.items() if _installed(name)} for fmt, c in _CANDIDATES.items()}
+#: Chosen by bench/bc_encoders.py (docs/TEXTURES.md): rgbcx's BC1 (quicktex; etcpak's is 5-10 dB
+#: worse), quicktex's BC4/BC5 (etcpak's is 3-30 dB worse; bc7enc's same quality, 2-300x slower),
+#: bc7enc's BC7 through etcpak (the same blocks as bc7enc-py's, in half the time).
+DEFAULT_ENCODER = {"bc1": "quicktex", "bc4": "quicktex", "bc5": "quicktex", "bc7": "etcpak"}
 
 
 def _as_rgba(texels: np.ndarray, fmt: str) -> np.ndarray:
@@ -140,10 +152,10 @@ def encode_blocks(texels: np.ndarray, fmt: str, encoder: str = None) -> bytes:
     if fmt not in ENCODERS:
         raise ValueError(f"unknown block format {fmt!r} (known: {', '.join(BLOCK_FORMATS)})")
     name = encoder or DEFAULT_ENCODER[fmt]
-    if name not in ENCODERS[fmt]:
-        raise ValueError(f"{fmt}: unknown encoder {name!r} (known: {', '.join(ENCODERS[fmt])})")
+    if name not in _CANDIDATES[fmt]:
+        raise ValueError(f"{fmt}: unknown encoder {name!r} (known: {', '.join(_CANDIDATES[fmt])})")
     h, w = texels.shape[:2]
-    data = ENCODERS[fmt][name](_as_rgba(texels, fmt))
+    data = _CANDIDATES[fmt][name](_as_rgba(texels, fmt))
     expected = ((w + 3) // 4) * ((h + 3) // 4) * BLOCK_BYTES[fmt]
     if len(data) != expected:  # an encoder's contract, checked: never a short level in a file
         raise RuntimeError(f"{fmt} encoder {name} returned {len(data)} bytes for {w} x {h}, expected {expected}")
@@ -152,8 +164,6 @@ def encode_blocks(texels: np.ndarray, fmt: str, encoder: str = None) -> bytes:
 
 def decode_blocks(data: bytes, fmt: str, width: int, height: int) -> np.ndarray:
     """uint8 (height, width, C) from a level's blocks, by libhybridbrdf's decoders."""
-    from hybridbrdf import _core
-
     return _core.bc_decode_level(fmt, data, int(width), int(height))
 
 

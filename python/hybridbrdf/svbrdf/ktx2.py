@@ -35,8 +35,10 @@ from typing import List
 import numpy as np
 
 from hybridbrdf.errors import InputFileError
+from hybridbrdf.files import atomic_write_bytes
 from hybridbrdf.inputs import check_input_file
 from hybridbrdf.svbrdf import bcenc
+from hybridbrdf.version import __version__
 
 IDENTIFIER = bytes([0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A])
 HEADER_BYTES = 80
@@ -238,8 +240,6 @@ def _checked_levels(levels, fmt: Format) -> list:
 
 def ktx2_bytes(levels, vk) -> bytes:
     """The bytes of a KTX2 file holding ``levels`` in format ``vk`` (see :func:`write_ktx2`)."""
-    from hybridbrdf.version import __version__
-
     fmt = FORMATS[vk_format(vk)]
     arrays = _checked_levels(levels, fmt)
     h, w = arrays[0].shape[:2]
@@ -266,8 +266,6 @@ def ktx2_bytes(levels, vk) -> bytes:
 def write_ktx2(path, levels, vk) -> None:
     """Writes ``levels`` (level 0 first) in VkFormat ``vk`` (a value or name) to ``path``,
     atomically (``hybridbrdf.files.atomic_write_bytes``)."""
-    from hybridbrdf.files import atomic_write_bytes
-
     atomic_write_bytes(path, ktx2_bytes(levels, vk))
 
 
