@@ -4,7 +4,7 @@ section's fragment shaders compile as printed (glslang for GLSL and HLSL, slangc
 compiles in every dialect for folders with every kind of map; the C++ decode gives the library's
 texel; and the WGSL lookup RUNS through real wgpu samplers on lavapipe against libhybridbrdf
 (textured_engine.py: the reference and the tolerance, one 8-bit step per map channel, measured here
-as lavapipe's texture precision)."""
+as lavapipe's texture precision); the WGSL fragment shader of the section, drawn."""
 
 from __future__ import annotations
 
@@ -310,3 +310,22 @@ def test_wgsl_lookup_runs_like_the_library(folders, kind, srgb_textures):
         assert (np.abs(f - lib)[sel] / np.abs(lib)[sel]).max() < 1e-4
     if kind == "linear" and srgb_textures:  # each channel linear or decoded before the filter: the reference is the library
         assert (np.abs(ref - lib)[big] / np.abs(lib)[big]).max() < 1e-5
+
+
+def test_documented_wgsl_fragment_shader_draws_the_library(folders):
+    """The section's WGSL fragment shader, as printed after the generated code, drawn by wgpu on
+    lavapipe (a triangle over a viewport of one pixel per texel, uv at the texel centres, the frame
+    from the interpolated normal and glTF tangent, one light): each pixel is the library's
+    SVBRDF.eval(uv, wi, wo) wi.z at its uv, within float rounding."""
+    skip_without_wgpu()
+    shader = dict(re.findall(r"```(?:glsl|hlsl|wgsl)\n// (\S+)\n(.*?)```", _section(), re.S))["textured.wgsl"]
+    folder = folders["doc"]
+    light, eye = np.array([0.3, -0.2, 0.9]), np.array([-0.4, 0.1, 0.8])
+    light, eye = light / np.linalg.norm(light), eye / np.linalg.norm(eye)
+    image = te.draw_wgsl_fragment(generate_textured(folder, "wgsl") + shader, folder / "weights.png", light, eye)
+    rows, cols = np.mgrid[0:te.H, 0:te.W]
+    uv = np.stack([(cols.ravel() + 0.5) / te.W, (rows.ravel() + 0.5) / te.H], axis=1)
+    n = len(uv)
+    lib = load_svbrdf(folder).eval(uv, np.repeat(light[None], n, 0), np.repeat(eye[None], n, 0)) * light[2]
+    assert len(np.unique(lib[:, 0].round(6))) > 10 and lib.min() > 0  # the control: the texels differ
+    assert (np.abs(image.reshape(-1, 3) - lib) / lib).max() < 1e-4

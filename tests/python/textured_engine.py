@@ -282,3 +282,70 @@ def step_tolerance(folder, uv, wi, wo, srgb_textures: bool, f_ref: np.ndarray) -
                      for s in (STEP, -STEP)]
             total += np.maximum(*moved)
     return 1.25 * total
+
+
+# ---- the documented WGSL fragment shader, drawn ------------------------------------------------------
+
+VERTEX_WGSL = """
+struct VertexOut {
+    @builtin(position) position: vec4f,
+    @location(0) uv: vec2f,
+    @location(1) normal: vec3f,
+    @location(2) tangent: vec4f,
+    @location(3) to_eye: vec3f,
+};
+@vertex
+fn vs(@builtin(vertex_index) k: u32) -> VertexOut {
+    // One triangle over the viewport; uv (0, 0) at the top-left corner, v down (framebuffer y down).
+    let p = vec2f(f32((k << 1u) & 2u), f32(k & 2u)) * 2.0 - 1.0;
+    var o: VertexOut;
+    o.position = vec4f(p, 0.0, 1.0);
+    o.uv = vec2f(0.5 * p.x + 0.5, 0.5 - 0.5 * p.y);
+    o.normal = vec3f(0.0, 0.0, 1.0);
+    o.tangent = vec4f(1.0, 0.0, 0.0, 1.0);
+    o.to_eye = vec3f(EYE);
+    return o;
+}
+"""
+
+
+def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye) -> np.ndarray:
+    """``module_code`` (the generated WGSL followed by docs/CODEGEN.md's textured.wgsl, whose fragment
+    entry point is ``main``) drawn over a viewport of the weights map's size on lavapipe: one pixel per
+    texel, uv at the texel centres, the surface frame the identity (normal +z, tangent +x), the light
+    ``light`` with radiance 1, the eye toward ``eye``. The map as rgba8unorm, a linear repeat sampler.
+    Returns the (H, W, 3) float32 radiance."""
+    import wgpu
+
+    from slang_wgsl_tools import wgpu_device, wgsl_errors
+
+    device = wgpu_device()
+    code = module_code + VERTEX_WGSL.replace("EYE", ", ".join(f"{float(x):.9g}" for x in eye))
+    errors = wgsl_errors(code)
+    assert errors is None, errors[-3000:]
+    stored = np.rint(read_map(weights_png)[0] * 255).astype(np.uint8)
+    h, w = stored.shape[:2]
+    module = device.create_shader_module(code=code)
+    pipeline = device.create_render_pipeline(
+        layout="auto", vertex={"module": module, "entry_point": "vs"},
+        primitive={"topology": "triangle-list"},
+        fragment={"module": module, "entry_point": "main", "targets": [{"format": "rgba32float"}]})
+    target = device.create_texture(size=(w, h, 1), format="rgba32float",
+                                   usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)
+    light_buf = device.create_buffer_with_data(data=np.array([*light, 0, 1, 1, 1, 0], np.float32),
+                                               usage=wgpu.BufferUsage.UNIFORM)
+    sampler = device.create_sampler(address_mode_u="repeat", address_mode_v="repeat", mag_filter="linear",
+                                    min_filter="linear", mipmap_filter="nearest")
+    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
+        {"binding": 0, "resource": _texture(stored, "rgba8unorm")}, {"binding": 1, "resource": sampler},
+        {"binding": 2, "resource": {"buffer": light_buf}}])
+    encoder = device.create_command_encoder()
+    draw = encoder.begin_render_pass(color_attachments=[{"view": target.create_view(), "load_op": "clear",
+                                                         "store_op": "store", "clear_value": (0, 0, 0, 0)}])
+    draw.set_pipeline(pipeline)
+    draw.set_bind_group(0, bind)
+    draw.draw(3)
+    draw.end()
+    device.queue.submit([encoder.finish()])
+    pixels = device.queue.read_texture({"texture": target}, {"bytes_per_row": 16 * w, "rows_per_image": h}, (w, h, 1))
+    return np.frombuffer(pixels, np.float32).reshape(h, w, 4)[..., :3].copy()
