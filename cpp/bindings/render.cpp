@@ -406,20 +406,27 @@ void bind_render(py::module_& m) {
              py::arg("folder"))
         .def_property_readonly("size", [](const hbrdf::Svbrdf& sv) { return py::make_tuple(sv.width(), sv.height()); })
         .def_property_readonly("layer_count", &hbrdf::Svbrdf::layer_count)
+        .def_property_readonly("levels", &hbrdf::Svbrdf::level_count)
         .def(
             "eval",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wi, const FloatArray& wo,
-                const std::string& filter, bool analytic, bool batched, const py::object& weights_in) {
+                const std::string& filter, bool analytic, bool batched, const py::object& weights_in, const py::object& lod_in) {
                 const std::optional<FloatArray> weights = optional_rows(weights_in);
                 const py::ssize_t n = uv.ndim() == 2 ? uv.shape(0) : -1;
                 rows(uv, n, 2, "uv"), rows(wi, n, 3, "wi"), rows(wo, n, 3, "wo");
                 if (weights) rows(*weights, n, 3, "weights");
+                std::optional<FloatArray> lod;
+                if (!lod_in.is_none()) {
+                    lod = FloatArray::ensure(lod_in);
+                    if (!*lod || lod->ndim() != 1 || lod->shape(0) != n) throw std::invalid_argument("lod must have shape (N,)");
+                    if (weights || analytic) throw std::invalid_argument("lod reads the weights map: not with weights or analytic");
+                }
                 const hbrdf::TexelFilter flt = filter_of(filter);
                 FloatArray f({n, py::ssize_t(3)});
                 py::gil_scoped_release release;
                 float* o = f.mutable_data();
                 if (batched && !analytic && !weights) {
-                    sv.eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o);
+                    sv.eval_batch(std::size_t(n), uv.data(), wi.data(), wo.data(), flt, o, lod ? lod->data() : nullptr);
                     return f;
                 }
                 hbrdf::Texel tx;
@@ -431,6 +438,8 @@ void bind_render(py::module_& m) {
                     if (weights) {
                         texel_of(sv, uv, weights, i, flt, &tx);
                         v = analytic ? hbrdf::Svbrdf::eval_analytic(tx, a, b) : sv.model().eval_texel(tx.layers, tx.n_layers, a, b);
+                    } else if (lod) {
+                        v = sv.eval(t, flt, lod->data()[i], a, b);
                     } else {
                         v = analytic ? sv.eval_analytic(t, flt, a, b) : sv.eval(t, flt, a, b);
                     }
@@ -439,10 +448,10 @@ void bind_render(py::module_& m) {
                 return f;
             },
             py::arg("uv"), py::arg("wi"), py::arg("wo"), py::arg("filter") = "bilinear", py::arg("analytic") = false,
-            py::arg("batched") = false, py::arg("weights") = py::none(),
+            py::arg("batched") = false, py::arg("weights") = py::none(), py::arg("lod") = py::none(),
             "f at (N, 2) uv through the scalar path (Svbrdf::eval) or, with batched, Svbrdf::eval_batch; with analytic "
             "the f_a mixture; with weights (N, 3), w_1..w_3 per pair instead of the weights map's (the scalar path); "
-            "(N, 3).")
+            "with lod (N,), read trilinearly from the mip chain at that level of detail; (N, 3).")
         .def(
             "sample",
             [=](const hbrdf::Svbrdf& sv, const FloatArray& uv, const FloatArray& wo, const FloatArray& u,

@@ -237,7 +237,7 @@ void Svbrdf::layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const 
     sample_map(layer.latent, model_->latent_dim(), t, mat.latent.data(), latent);
 }
 
-void Svbrdf::texel_at(const Taps& t, Texel* out) const {
+void Svbrdf::texel_at(const Taps& t, Texel* out, bool all_layers) const {
     const int L = int(layers_.size()), l = model_->latent_dim();
     out->n_layers = L;
     double w[spec::kSvbrdfMaxLayers];
@@ -246,7 +246,7 @@ void Svbrdf::texel_at(const Taps& t, Texel* out) const {
         TexelLayer& o = out->layers[k];
         float* latent = out->latent + std::size_t(k) * std::size_t(l);
         o.weight = float(w[k]);
-        if (o.weight > 0.f) layer_at(t, k, &o, latent);  // a layer of weight 0 is not evaluated: not read
+        if (o.weight > 0.f || all_layers) layer_at(t, k, &o, latent);  // a layer of weight 0 is not evaluated: not read
         else o.material = layers_[std::size_t(k)].material, o.latent = latent;
     }
 }
@@ -257,8 +257,76 @@ Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<f
     return model_->eval_texel(t.layers, t.n_layers, wi, wo);
 }
 
+void Svbrdf::set_mips(std::vector<std::shared_ptr<const Svbrdf>> levels) {
+    if (levels.empty()) return mips_.clear();
+    const auto pow2 = [](int n) { return n > 0 && (n & (n - 1)) == 0; };
+    if (!pow2(width_) || !pow2(height_))
+        throw std::invalid_argument("a mip chain needs power-of-two sides, the size is " + std::to_string(width_) + "x" +
+                                    std::to_string(height_));
+    int complete = 0;
+    for (int side = std::max(width_, height_); side > 0; side >>= 1) ++complete;
+    if (int(levels.size()) + 1 != complete)
+        throw std::invalid_argument("a " + std::to_string(width_) + "x" + std::to_string(height_) + " material's mip chain has 1 or " +
+                                    std::to_string(complete) + " levels (down to 1x1), got " + std::to_string(levels.size() + 1));
+    for (std::size_t i = 0; i < levels.size(); ++i) {
+        const Svbrdf* m = levels[i].get();
+        const int L = int(i) + 1;
+        bool same = m && m->model_ == model_ && m->addressing_ == addressing_ && m->layers_.size() == layers_.size() &&
+                    m->width_ == std::max(1, width_ >> L) && m->height_ == std::max(1, height_ >> L) &&
+                    m->weights_.empty() == weights_.empty() && m->mips_.empty();
+        for (std::size_t k = 0; same && k < layers_.size(); ++k) {
+            const SvbrdfLayer &a = layers_[k], &b = m->layers_[k];
+            same = a.material == b.material && a.kd.empty() == b.kd.empty() && a.eta.empty() == b.eta.empty() &&
+                   a.alpha.empty() == b.alpha.empty() && a.latent.empty() == b.latent.empty();
+        }
+        if (!same)
+            throw std::invalid_argument("mip level " + std::to_string(L) + " must hold level 0's model, layers, addressing and maps at " +
+                                        std::to_string(std::max(1, width_ >> L)) + "x" + std::to_string(std::max(1, height_ >> L)) + " texels");
+    }
+    mips_ = std::move(levels);
+}
+
+float Svbrdf::lod(const Vec2<float>& duv_dx, const Vec2<float>& duv_dy) const {
+    const double ax = double(duv_dx.x) * width_, ay = double(duv_dx.y) * height_;
+    const double bx = double(duv_dy.x) * width_, by = double(duv_dy.y) * height_;
+    const double rho2 = std::max(ax * ax + ay * ay, bx * bx + by * by);
+    return float(0.5 * std::log2(std::max(rho2, 1e-300)));
+}
+
+void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* out) const {
+    const int levels = level_count();
+    if (!(lod > 0.f) || levels == 1) return texel(uv, filter, out);
+    const double d = std::min(double(lod), double(levels - 1));
+    const int fine = std::min(int(d), levels - 1);
+    const double t = d - fine;
+    const Svbrdf& a = level(fine);
+    a.texel_at(taps_of(uv, filter, a.width_, a.height_, addressing_), out, true);
+    if (t == 0.0 || fine + 1 >= levels) return;
+    const Svbrdf& b = level(fine + 1);
+    Texel next;
+    b.texel_at(taps_of(uv, filter, b.width_, b.height_, addressing_), &next, true);
+    const auto mix = [t](float x, float y) { return float(double(x) * (1.0 - t) + double(y) * t); };
+    const std::size_t l = std::size_t(model_->latent_dim());
+    for (int k = 0; k < out->n_layers; ++k) {
+        TexelLayer &o = out->layers[k], &n = next.layers[k];
+        o.weight = mix(o.weight, n.weight);
+        for (int c = 0; c < 3; ++c) {
+            o.params.kd[c] = mix(o.params.kd[c], n.params.kd[c]);
+            o.params.eta[c] = mix(o.params.eta[c], n.params.eta[c]);
+        }
+        for (int c = 0; c < 2; ++c) o.params.alpha[c] = mix(o.params.alpha[c], n.params.alpha[c]);
+        for (std::size_t c = 0; c < l; ++c) out->latent[std::size_t(k) * l + c] = mix(out->latent[std::size_t(k) * l + c], next.latent[std::size_t(k) * l + c]);
+    }
+}
+
+Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, float lod, const Vec3<float>& wi, const Vec3<float>& wo) const {
+    Texel t;
+    texel(uv, filter, lod, &t);
+    return model_->eval_texel(t.layers, t.n_layers, wi, wo);
+}
+
 void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
-                        float* f) const {
+                        float* f, const float* lod) const {
     const int L = layer_count();
     const std::size_t l = std::size_t(model_->latent_dim());
     // Per layer, the pairs where it has positive weight, and for a layer with maps its texel values
@@ -293,7 +361,24 @@ void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const f
         run_layer = -1;
     };
     double w[spec::kSvbrdfMaxLayers];
+    if (mips_.empty()) lod = nullptr;
+    Texel trilinear;
     for (std::size_t i = 0; i < n; ++i) {
+        if (lod && lod[i] > 0.f) {  // between two levels: every layer of positive weight, its values
+            close_run(i);
+            texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, lod[i], &trilinear);
+            for (int k = 0; k < L; ++k) {
+                const TexelLayer& tl = trilinear.layers[k];
+                if (!(tl.weight > 0.f)) continue;
+                LayerPairs& lp = lists[k];
+                lp.pair.push_back(std::uint32_t(i));
+                lp.weight.push_back(tl.weight);
+                if (plain_[k]) continue;
+                lp.values.push_back(tl);
+                lp.latent.insert(lp.latent.end(), trilinear.latent + std::size_t(k) * l, trilinear.latent + std::size_t(k + 1) * l);
+            }
+            continue;
+        }
         Taps taps = locate_taps(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, width_, height_, addressing_);
         if (const int k = pure_layer_at(taps); k >= 0 && plain_[k]) {  // one layer alone, its material's values
             if (k != run_layer) close_run(i), run_start = i, run_layer = k;

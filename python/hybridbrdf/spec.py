@@ -175,18 +175,34 @@ MATERIAL_RANGES = [{'tensor': 'kd', 'components': 3, 'min': 0.0, 'max': 1.0},
  {'tensor': 'alpha', 'components': 2, 'min': 0.0001, 'max': 1.0}]
 #: Textured materials: the folder's files, limits, transfers and map quantities (docs/SVBRDF.md).
 SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a folder holding the index file, the '
-         'model file whose network and materials it uses, and texel maps of 3 channels (8-bit PNG or float32 '
-         'OpenEXR). Layer 0 (the base) and up to max_layers - 1 further layers each name a material of the '
-         "model; per texel, f = sum_k w_k f_t(p_k, z_k; material k's output layer and energy table), w_1..3 "
-         "read from the weights map and w_0 = 1 - their sum. A layer's p and z are its material's unless a "
-         'map of the layer gives them. A map channel c decodes a stored value v (the byte / 255 in a PNG, '
-         'the float in an EXR) to offset + scale T(v), T its transfer; the index file states transfer, scale '
-         'and offset of every channel.',
- 'format_version': 1,
+         'model file whose network and materials it uses, and texel maps of 3 channels, optionally with a '
+         'complete mip chain (8-bit PNG or float32 OpenEXR). Layer 0 (the base) and up to max_layers - 1 '
+         'further layers each name a material of the model; per texel, f = sum_k w_k f_t(p_k, z_k; material '
+         "k's output layer and energy table), w_1..3 read from the weights map and w_0 = 1 - their sum. A "
+         "layer's p and z are its material's unless a map of the layer gives them. A map channel c decodes a "
+         'stored value v (the byte / 255 in a PNG, the float in an EXR) to offset + scale T(v), T its '
+         'transfer; the index file states transfer, scale and offset of every channel.',
+ 'format_version': 2,
  'index_file': 'svbrdf.json',
  'model_file': 'model.safetensors',
  'max_layers': 4,
  'max_side': 8192,
+ 'mips': {'_doc': 'format_version 2 adds the index\'s "levels" (1, or the complete chain down to 1x1: '
+                  'floor(log2(max(W, H))) + 1 levels, level L of max(1, W >> L) x max(1, H >> L) texels; W '
+                  'and H powers of two) and each map\'s "mips" (the files of levels 1 .. levels - 1, stored '
+                  "as level 0, decoded by level 0's decode). Version 1 (no chain) stays readable and is "
+                  'written for one level. Docs: docs/SVBRDF.md, Mip chains.',
+          'filters': {'weights': 'mean of the normalised weights over the 2x2 block (exact: f is linear in '
+                                 'the weights)',
+                      'kd': "mean weighted by the layer's weight (exact with p and z otherwise constant: f "
+                            'is linear in kd)',
+                      'alpha': 'per axis the layer-weighted mean of r = sqrt(alpha) (the stored perceptual '
+                               'roughness), squared: nearer the mean of GGX lobes than the mean of alpha or '
+                               'of alpha^2 (docs/SVBRDF.md, Mip chains)',
+                      'eta': 'layer-weighted mean of the values',
+                      'latent': 'layer-weighted mean of the values'},
+          'lod': 'trilinear: the level of detail lod clamped to [0, levels - 1], levels floor(lod) and '
+                 'floor(lod) + 1 each read by the filter, mixed by the fraction (OpenGL 4.6, 8.14)'},
  'max_index_bytes': 1048576,
  'map_channels': 3,
  'addressing': {'repeat': "uv wraps: u and u + 1 are the same texel column (engines' default)",

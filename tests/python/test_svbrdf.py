@@ -315,7 +315,7 @@ CORRUPTIONS = [
     ("no index", lambda f: (f / "svbrdf.json").unlink(), "no such file"),
     ("not JSON", lambda f: (f / "svbrdf.json").write_text("{"), "not valid JSON"),
     ("unknown key", lambda f: _edit_index(f, lambda i: i.update(extra=1)), "unknown keys"),
-    ("future version", lambda f: _edit_index(f, lambda i: i.update(format_version=2)), "format_version 2"),
+    ("future version", lambda f: _edit_index(f, lambda i: i.update(format_version=3)), "format_version 3"),
     ("model outside", lambda f: _edit_index(f, lambda i: i.update(model="../m.safetensors")), "plain file name"),
     ("size too big", lambda f: _edit_index(f, lambda i: i.update(size=[4, 9000])), "size must be"),
     ("size mismatch", lambda f: _edit_index(f, lambda i: i.update(size=[4, 5])), "the index says 4x5"),

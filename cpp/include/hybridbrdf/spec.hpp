@@ -201,7 +201,7 @@ inline constexpr MaterialRange kMaterialRanges[] = {
 };
 
 /// Textured materials (spec/model.json, svbrdf; docs/SVBRDF.md).
-inline constexpr int kSvbrdfFormatVersion = 1;
+inline constexpr int kSvbrdfFormatVersion = 2;
 inline constexpr int kSvbrdfMaxLayers = 4;
 inline constexpr int kSvbrdfMaxSide = 8192;
 inline constexpr int kSvbrdfMapChannels = 3;

@@ -10,6 +10,7 @@
 // difference at edges).
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <vector>
 
@@ -67,13 +68,36 @@ public:
     void texel(const Vec2<float>& uv, TexelFilter filter, const float* weights, Texel* out) const;
     /// f(uv, wi, wo) through HybridModel::eval_texel.
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
+
+    // ---- mip chains (docs/SVBRDF.md, "Mip chains") -------------------------------------------
+    /// Attach levels 1 .. 1x1 of a complete mip chain (each a Svbrdf of the same model, layers,
+    /// addressing and maps at max(1, width >> L) x max(1, height >> L) texels; power-of-two sides).
+    /// Throws std::invalid_argument otherwise. Call before sharing: the chain is read-only after.
+    void set_mips(std::vector<std::shared_ptr<const Svbrdf>> levels);
+    /// 1 (level 0 alone) or the chain's length.
+    int level_count() const { return 1 + int(mips_.size()); }
+    /// Level L of the chain (0: this one).
+    const Svbrdf& level(int L) const { return L <= 0 ? *this : *mips_[std::size_t(std::min(L, level_count() - 1) - 1)]; }
+    /// The isotropic level of detail of a pixel footprint (OpenGL 4.6, 8.14.1): log2 of the longer
+    /// of the uv derivatives along the pixel's x and y, measured in level-0 texels.
+    float lod(const Vec2<float>& duv_dx, const Vec2<float>& duv_dy) const;
+    /// The layers' values at uv and level of detail lod: trilinear, the levels floor(lod) and
+    /// floor(lod) + 1 each read by `filter`, their values mixed by the fraction (in double, as
+    /// Python's SVBRDF.texels); lod clamped to the chain, lod <= 0 or NaN reads level 0. Every
+    /// layer's values are read (a layer of weight 0 on one level may have weight on the other).
+    void texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* out) const;
+    /// f at a level of detail through HybridModel::eval_texel.
+    Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, float lod, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). Pairs on pure texels of
     /// a layer without maps (all filter taps of weight 1 in that layer) are its material: they go to
     /// HybridModel::eval_batch, the uniform material's kernel, in one call per layer. The other
     /// texels' layers of positive weight are sorted by material and evaluated by
     /// HybridModel::eval_batch_layers (per-lane p and latent code), then mixed in layer order: the
     /// batched twin of eval().
-    void eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f) const;
+    /// With `lod` (n floats, or nullptr: level 0), pairs of positive lod are looked up trilinearly
+    /// (texel(uv, filter, lod)) and join the per-layer lists; the others take the path above.
+    void eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f,
+                    const float* lod = nullptr) const;
     /// sum_k w_k f_a(p_k): the analytic part of the texel.
     Vec3<float> eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
                               const Vec3<float>& wo) const;
@@ -107,7 +131,10 @@ private:
     void weights_at(const Taps& t, double* w) const;
     // Layer k's material and filtered values (p; latent_dim() floats into `latent`) under the taps.
     void layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const;
-    void texel_at(const Taps& t, Texel* out) const;
+    // Every layer's values when `all_layers` (the trilinear lookup mixes two levels' values).
+    void texel_at(const Taps& t, Texel* out, bool all_layers = false) const;
+
+    std::vector<std::shared_ptr<const Svbrdf>> mips_;  // levels 1 .. 1x1, or empty
 };
 
 }  // namespace hbrdf

@@ -138,6 +138,43 @@ std::string fmt(double v) {
     return buf;
 }
 
+// Why a width x height material cannot have `levels` mip levels ("" if it can): the words of
+// hybridbrdf.svbrdf.mips.chain_problem.
+std::string chain_problem(int width, int height, int levels) {
+    if (levels == 1) return "";
+    const auto pow2 = [](int n) { return n > 0 && (n & (n - 1)) == 0; };
+    const std::string size = std::to_string(width) + "x" + std::to_string(height);
+    if (!pow2(width) || !pow2(height)) return "a mip chain needs power-of-two sides, the size is " + size;
+    int complete = 0;
+    for (int side = std::max(width, height); side > 0; side >>= 1) ++complete;
+    if (levels != complete)
+        return "a " + size + " material's mip chain has 1 or " + std::to_string(complete) + " levels (down to 1x1), got " +
+               std::to_string(levels);
+    return "";
+}
+
+// One map file's decoded values (texels x used channels), each checked against the quantity's range.
+std::vector<double> decode_map(const std::string& path, int width, int height, const json& decodes, int used, const Quantity& q) {
+    bool eight_bit = false;
+    const std::vector<double> stored = read_map(path, width, height, &eight_bit);
+    const std::size_t texels = std::size_t(width) * std::size_t(height);
+    std::vector<double> values(texels * std::size_t(used));
+    for (int ch = 0; ch < used; ++ch) {
+        const json& d = decodes[std::size_t(ch)];
+        const std::string tr = d["transfer"].get<std::string>();
+        const double scale = d["scale"].get<double>(), offset = d["offset"].get<double>();
+        for (std::size_t t = 0; t < texels; ++t) {
+            const double v = offset + scale * transfer(tr, stored[3 * t + std::size_t(ch)]);
+            if (!(v >= q.min && v <= q.max))
+                throw FileError(path, "texel (" + std::to_string(t % std::size_t(width)) + ", " + std::to_string(t / std::size_t(width)) +
+                                          ") channel " + "RGB"[ch] + " decodes to " + fmt(float(v)) + ", outside " + q.name + "'s range [" +
+                                          fmt(q.min) + ", " + fmt(q.max) + "]");
+            values[t * std::size_t(used) + std::size_t(ch)] = v;
+        }
+    }
+    return values;
+}
+
 }  // namespace
 
 std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
@@ -157,14 +194,17 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         throw FileError(index_path, std::string("textured-material index is not valid JSON (") + e.what() + ")");
     }
     if (!index.is_object()) throw FileError(index_path, "the index must be a JSON object");
-    static const std::set<std::string> keys = {"format_version", "model", "size", "addressing", "layers", "maps"};
+    // Version 1 has no mip chain; version 2 adds the index's "levels" and each map's "mips".
+    const json version = index.contains("format_version") ? index["format_version"] : json();
+    if (!is_int(version) || (version.get<long long>() != 1 && version.get<long long>() != spec::kSvbrdfFormatVersion))
+        throw FileError(index_path, "format_version " + (version.is_null() ? std::string("None") : version.dump()) +
+                                        " is not supported (this library reads 1 and " + std::to_string(spec::kSvbrdfFormatVersion) + ")");
+    std::set<std::string> keys = {"format_version", "model", "size", "addressing", "layers", "maps"};
+    if (version.get<long long>() >= 2) keys.insert("levels");
     for (const auto& item : index.items())
         if (!keys.count(item.key())) throw FileError(index_path, "unknown keys ['" + item.key() + "']");
     for (const std::string& k : keys)
         if (!index.contains(k)) throw FileError(index_path, "missing keys ['" + k + "']");
-    if (!is_int(index["format_version"]) || index["format_version"].get<long long>() != spec::kSvbrdfFormatVersion)
-        throw FileError(index_path, "format_version " + index["format_version"].dump() + " is not supported (this library reads " +
-                                        std::to_string(spec::kSvbrdfFormatVersion) + ")");
     plain_name(index_path, index["model"], "model");
     const std::string model_path = folder + "/" + index["model"].get<std::string>();
     std::shared_ptr<const HybridModel> model;
@@ -180,6 +220,13 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         size[1].get<long long>() < 1 || size[0].get<long long>() > spec::kSvbrdfMaxSide || size[1].get<long long>() > spec::kSvbrdfMaxSide)
         throw FileError(index_path, "size must be [W, H], integers 1 to " + std::to_string(spec::kSvbrdfMaxSide) + ", got " + size.dump());
     const int width = size[0].get<int>(), height = size[1].get<int>();
+    int max_levels = 0;
+    for (int side = spec::kSvbrdfMaxSide; side > 0; side >>= 1) ++max_levels;
+    const json levels_j = index.contains("levels") ? index["levels"] : json(1);
+    if (!is_int(levels_j) || levels_j.get<long long>() < 1 || levels_j.get<long long>() > max_levels)
+        throw FileError(index_path, "levels must be an integer 1 to " + std::to_string(max_levels) + ", got " + levels_j.dump());
+    const int levels = levels_j.get<int>();
+    if (const std::string problem = chain_problem(width, height, levels); !problem.empty()) throw FileError(index_path, problem);
     const json& addressing = index["addressing"];
     if (!addressing.is_string() || (addressing != "repeat" && addressing != "clamp"))
         throw FileError(index_path, "addressing must be one of repeat, clamp, got " + addressing.dump());
@@ -198,17 +245,17 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         layers[k].material = m;
     }
     const int n_layers = int(layers.size()), latent = model->latent_dim();
-    const std::size_t texels = std::size_t(width) * std::size_t(height);
-    std::vector<float> weights;
+    std::vector<std::vector<float>> weights;  // per level
     std::set<std::tuple<std::string, int, int>> seen;
-    std::map<std::pair<int, std::string>, std::map<int, std::vector<double>>> parts;  // (layer, quantity) -> first -> values
+    // (layer, quantity) -> first -> values per level
+    std::map<std::pair<int, std::string>, std::map<int, std::vector<std::vector<double>>>> parts;
     if (!index["maps"].is_array()) throw FileError(index_path, "maps must be a list");
     for (const json& e : index["maps"]) {
-        static const std::set<std::string> map_keys = {"file", "quantity", "layer", "first", "decode"};
+        static const std::set<std::string> map_keys = {"file", "quantity", "layer", "first", "mips", "decode"};
         bool ok = e.is_object() && e.contains("file") && e.contains("quantity") && e.contains("first") && e.contains("decode");
         if (ok)
             for (const auto& item : e.items()) ok = ok && map_keys.count(item.key());
-        if (!ok) throw FileError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", \"decode\"}");
+        if (!ok) throw FileError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", [\"mips\"], \"decode\"}");
         const Quantity* q = e["quantity"].is_string() ? find_quantity(e["quantity"].get<std::string>()) : nullptr;
         if (!q) throw FileError(index_path, "unknown map quantity " + e["quantity"].dump() + " (expected one of weights, kd, eta, alpha, latent)");
         const std::string qn = q->name;
@@ -229,6 +276,11 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         plain_name(index_path, e["file"], "a map's file");
         const std::string file = e["file"].get<std::string>();
         const std::string path = folder + "/" + file;
+        const bool has_mips = e.contains("mips");
+        if (has_mips != (levels > 1) || (has_mips && (!e["mips"].is_array() || int(e["mips"].size()) != levels - 1)))
+            throw FileError(index_path, levels > 1 ? file + ": a material of " + std::to_string(levels) + " levels lists " +
+                                                         std::to_string(levels - 1) + " mip files per map (\"mips\")"
+                                                   : file + ": \"mips\" needs \"levels\" above 1 in the index");
         const json& decodes = e["decode"];
         const int used = std::min(kChannels, c - first);
         if (!decodes.is_array() || int(decodes.size()) != kChannels)
@@ -269,32 +321,35 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         if (!seen.insert({qn, layer, first}).second)
             throw FileError(index_path, "two maps give " + qn + " " + std::to_string(first) + ".." + std::to_string(first + 2) +
                                             (layer < 0 ? "" : " of layer " + std::to_string(layer)));
-        bool eight_bit = false;
-        const std::vector<double> stored = read_map(path, width, height, &eight_bit);
-        std::vector<double> values(texels * std::size_t(used));
-        for (int ch = 0; ch < used; ++ch) {
-            const json& d = decodes[std::size_t(ch)];
-            const std::string tr = d["transfer"].get<std::string>();
-            const double scale = d["scale"].get<double>(), offset = d["offset"].get<double>();
-            for (std::size_t t = 0; t < texels; ++t) {
-                const double v = offset + scale * transfer(tr, stored[3 * t + std::size_t(ch)]);
-                if (!(v >= q->min && v <= q->max))
-                    throw FileError(path, "texel (" + std::to_string(t % std::size_t(width)) + ", " + std::to_string(t / std::size_t(width)) +
-                                              ") channel " + "RGB"[ch] + " decodes to " + fmt(float(v)) + ", outside " + qn + "'s range [" +
-                                              fmt(q->min) + ", " + fmt(q->max) + "]");
-                values[t * std::size_t(used) + std::size_t(ch)] = v;
-            }
+        std::vector<std::string> paths = {path};
+        for (int L = 1; L < levels; ++L) {
+            const json& name = e["mips"][std::size_t(L - 1)];
+            plain_name(index_path, name, "a mip file");
+            const std::string mip = name.get<std::string>();
+            const auto mdot = mip.find_last_of('.');
+            std::string mext = mdot == std::string::npos ? "" : mip.substr(mdot);
+            std::transform(mext.begin(), mext.end(), mext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+            if (mext != ext) throw FileError(index_path, mip + ": a mip level is stored as level 0 is (" + ext + ")");
+            paths.push_back(folder + "/" + mip);
+        }
+        std::vector<std::vector<double>> chain;
+        for (int L = 0; L < levels; ++L) {
+            const int lw = std::max(1, width >> L), lh = std::max(1, height >> L);
+            std::vector<double> values = decode_map(paths[std::size_t(L)], lw, lh, decodes, used, *q);
+            if (qn == "weights")
+                for (std::size_t t = 0; t < std::size_t(lw) * std::size_t(lh); ++t)
+                    for (int ch = n_layers - 1; ch < 3; ++ch)
+                        if (values[t * 3 + std::size_t(ch)] != 0.0)
+                            throw FileError(paths[std::size_t(L)], "weights of layers beyond the last (" + std::to_string(n_layers - 1) + ") must be 0");
+            chain.push_back(std::move(values));
         }
         if (qn == "weights") {
-            for (std::size_t t = 0; t < texels; ++t)
-                for (int ch = n_layers - 1; ch < 3; ++ch)
-                    if (values[t * 3 + std::size_t(ch)] != 0.0)
-                        throw FileError(path, "weights of layers beyond the last (" + std::to_string(n_layers - 1) + ") must be 0");
-            weights.assign(values.begin(), values.end());
+            for (const auto& v : chain) weights.emplace_back(v.begin(), v.end());
         } else {
-            parts[{layer, qn}][first] = std::move(values);
+            parts[{layer, qn}][first] = std::move(chain);
         }
     }
+    std::vector<std::vector<SvbrdfLayer>> level_layers(std::size_t(levels), layers);
     for (auto& [key, pieces] : parts) {
         const auto& [layer, qn] = key;
         const Quantity* q = find_quantity(qn);
@@ -310,21 +365,31 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
             throw FileError(index_path, "layer " + std::to_string(layer) + ": " + qn + " maps must cover components 0.." +
                                             std::to_string(c - 1) + " (maps start at [" + starts + "])");
         }
-        std::vector<float> joined(texels * std::size_t(c));
-        for (const auto& [first, vals] : pieces) {
-            const int used = std::min(kChannels, c - first);
-            for (std::size_t t = 0; t < texels; ++t)
-                for (int ch = 0; ch < used; ++ch)
-                    joined[t * std::size_t(c) + std::size_t(first + ch)] = float(vals[t * std::size_t(used) + std::size_t(ch)]);
+        for (int lv = 0; lv < levels; ++lv) {
+            const std::size_t n = std::size_t(std::max(1, width >> lv)) * std::size_t(std::max(1, height >> lv));
+            std::vector<float> joined(n * std::size_t(c));
+            for (const auto& [first, vals] : pieces) {
+                const int used = std::min(kChannels, c - first);
+                for (std::size_t t = 0; t < n; ++t)
+                    for (int ch = 0; ch < used; ++ch)
+                        joined[t * std::size_t(c) + std::size_t(first + ch)] = float(vals[std::size_t(lv)][t * std::size_t(used) + std::size_t(ch)]);
+            }
+            SvbrdfLayer& L = level_layers[std::size_t(lv)][std::size_t(layer)];
+            (qn == "kd" ? L.kd : qn == "eta" ? L.eta : qn == "alpha" ? L.alpha : L.latent) = std::move(joined);
         }
-        SvbrdfLayer& L = layers[std::size_t(layer)];
-        (qn == "kd" ? L.kd : qn == "eta" ? L.eta : qn == "alpha" ? L.alpha : L.latent) = std::move(joined);
     }
     if (n_layers > 1 && weights.empty())
         throw FileError(index_path, std::to_string(n_layers) + " layers need a weights map");
-    return std::make_shared<const Svbrdf>(model, width, height,
-                                          addressing == "repeat" ? TexelAddressing::Repeat : TexelAddressing::Clamp,
-                                          std::move(layers), std::move(weights));
+    const TexelAddressing addr = addressing == "repeat" ? TexelAddressing::Repeat : TexelAddressing::Clamp;
+    std::vector<std::shared_ptr<const Svbrdf>> mips;
+    for (int lv = 1; lv < levels; ++lv)
+        mips.push_back(std::make_shared<const Svbrdf>(model, std::max(1, width >> lv), std::max(1, height >> lv), addr,
+                                                      std::move(level_layers[std::size_t(lv)]),
+                                                      weights.empty() ? std::vector<float>() : std::move(weights[std::size_t(lv)])));
+    auto sv = std::make_shared<Svbrdf>(model, width, height, addr, std::move(level_layers[0]),
+                                       weights.empty() ? std::vector<float>() : std::move(weights[0]));
+    sv->set_mips(std::move(mips));
+    return sv;
 }
 
 }  // namespace hbrdf::render

@@ -27,6 +27,7 @@ from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
 from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
+from hybridbrdf.svbrdf.mips import build_chain, chain_problem, level_size, lod_levels
 from hybridbrdf.files import atomic_folder, atomic_write_bytes
 
 if TYPE_CHECKING:  # annotations only: PyTorch is imported where a material runs in it
@@ -36,7 +37,9 @@ SV = spec.SVBRDF
 MAX_LAYERS = SV["max_layers"]
 CHANNELS = SV["map_channels"]
 INDEX_KEYS = {"format_version", "model", "size", "addressing", "layers", "maps"}
-MAP_KEYS = {"file", "quantity", "layer", "first", "decode"}
+MAP_KEYS = {"file", "quantity", "layer", "first", "mips", "decode"}
+FORMAT_VERSIONS = (1, SV["format_version"])  # 1: no mip chain; 2 adds "levels" and each map's "mips"
+MAX_LEVELS = SV["max_side"].bit_length()
 LAYER_QUANTITIES = ("kd", "eta", "alpha", "latent")
 #: Bytes per pair of :meth:`SVBRDF.eval` besides the model's evaluation: float64 copies of uv,
 #: wi, wo and four layers' texel values from four bilinear taps (an estimate, not a measurement:
@@ -97,12 +100,13 @@ class SVBRDF:
     """A textured material in memory: ``model`` (a hybrid :class:`HybridModel`), ``layers`` (material
     names, the base first), ``weights`` ((H, W, 3) decoded w_1..3, or None for one layer),
     ``maps`` (per layer, quantity -> decoded (H, W, components) float32), ``size`` (W, H),
-    ``addressing`` ('repeat' or 'clamp'). Build one with :func:`load_svbrdf` or
-    :func:`hybridbrdf.fit.paint.paint`."""
+    ``addressing`` ('repeat' or 'clamp'), ``mips`` (levels 1 .. 1x1 of a mip chain, each
+    (weights, maps) at its size, or empty: :meth:`with_mips` builds them). Build one with
+    :func:`load_svbrdf` or :func:`hybridbrdf.fit.paint.paint`."""
 
     def __init__(self, model: HybridModel, layers: Sequence[str], size, weights: Optional[np.ndarray] = None,
                  maps: Optional[Sequence[Dict[str, np.ndarray]]] = None, addressing: str = "repeat",
-                 path: Optional[str] = None):
+                 path: Optional[str] = None, mips: Sequence = ()):
         if not model.has_analytic:
             raise ValueError("a textured material needs a hybrid model (f_a per texel); this one is "
                              f"'{model.kind}'")
@@ -126,31 +130,82 @@ class SVBRDF:
             c = 3 if name == "weights" else _components(name, model.arch["latent"])
             if arr.shape != (h, w, c):
                 raise ValueError(f"{name} map has shape {arr.shape}, expected {(h, w, c)}")
+        self.mips = [self._checked_level(level, mw, mm) for level, (mw, mm) in enumerate(mips, start=1)]
+        problem = chain_problem(self.size, self.levels)
+        if problem:
+            raise ValueError(problem)
+
+    def _checked_level(self, level: int, weights, maps):
+        """(weights, maps) of mip level ``level`` as float32, shaped as that level and holding the
+        same maps as level 0 (ValueError otherwise)."""
+        w, h = level_size(self.size, level)
+        if (weights is None) != (self.weights is None) or len(maps) != len(self.maps) or any(
+                set(m) != set(m0) for m, m0 in zip(maps, self.maps)):
+            raise ValueError(f"mip level {level} must hold the same maps as level 0")
+        weights = None if weights is None else np.asarray(weights, dtype=np.float32)
+        maps = [{q: np.asarray(a, dtype=np.float32) for q, a in m.items()} for m in maps]
+        for name, arr in [("weights", weights)] + [(q, a) for m in maps for q, a in m.items()]:
+            if arr is not None and arr.shape[:2] != (h, w):
+                raise ValueError(f"mip level {level}: {name} map has shape {arr.shape}, expected {h}x{w} texels")
+        return weights, maps
+
+    @property
+    def levels(self) -> int:
+        """Mip levels: 1 (level 0 alone) or the complete chain down to 1x1."""
+        return 1 + len(self.mips)
+
+    def with_mips(self, alpha_rule: str = "perceptual") -> "SVBRDF":
+        """This material with its complete mip chain (:mod:`hybridbrdf.svbrdf.mips`: weights
+        averaged, kd by the layers' weights, alpha by the mean of sqrt(alpha) (``alpha_rule``:
+        'perceptual', or 'value' / 'mean_square' for comparison), eta and z by value); needs
+        power-of-two sides (ValueError)."""
+        chain = build_chain(self.weights, self.maps, len(self.layers), self.size, alpha_rule)
+        return SVBRDF(self.model, self.layers, self.size, self.weights, self.maps, self.addressing, self.path, chain)
 
     # ---- texel lookup ------------------------------------------------------------------
-    def _taps(self, uv: np.ndarray, filter: str):
-        """[(rows, cols, weights)] of the texels ``uv`` reads (:func:`texel_taps`)."""
-        return texel_taps(uv, self.size, self.addressing, filter)
-
-    def texels(self, uv, filter: str = "bilinear") -> Dict[str, np.ndarray]:
+    def texels(self, uv, filter: str = "bilinear", lod=None) -> Dict[str, np.ndarray]:
         """Per pair the texel's layer values: ``weight`` (N, L), ``kd``, ``eta`` (N, L, 3),
         ``alpha`` (N, L, 2), ``latent`` (N, L, l), float32; decoded values filtered, then the
         weights normalised (w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when above 1). The row
-        count is bounded by memory before anything is converted (hybridbrdf.limits: ValueError)."""
+        count is bounded by memory before anything is converted (hybridbrdf.limits: ValueError).
+        ``lod`` (a number or (N,)): the level of detail, read trilinearly from the mip chain (the
+        two levels around it, each filtered by ``filter``, mixed linearly; clamped to the chain;
+        :func:`hybridbrdf.svbrdf.mips.lod_from_footprint` gives it from uv derivatives); None
+        reads level 0."""
         uv = np.asarray(pair_arguments(("uv",), (uv,), (2,), BYTES_PER_PAIR)[0], dtype=np.float64)  # bounded first
         if not np.isfinite(uv).all():
             raise ValueError("uv must be finite")
+        if lod is None or self.levels == 1:
+            return self._level_texels(uv, filter, 0)
+        fine, t = lod_levels(np.broadcast_to(np.asarray(lod, dtype=np.float64), (len(uv),)), self.levels)
+        out = None
+        for level in np.unique(fine):
+            rows = np.nonzero(fine == level)[0]
+            a = self._level_texels(uv[rows], filter, int(level))
+            if level + 1 < self.levels:
+                b, f = self._level_texels(uv[rows], filter, int(level) + 1), t[rows]
+                a = {key: (a[key] * (1 - f).reshape((-1,) + (1,) * (a[key].ndim - 1))
+                           + b[key] * f.reshape((-1,) + (1,) * (b[key].ndim - 1))).astype(np.float32) for key in a}
+            if out is None:
+                out = {key: np.empty((len(uv),) + v.shape[1:], dtype=np.float32) for key, v in a.items()}
+            for key in a:
+                out[key][rows] = a[key]
+        return out
+
+    def _level_texels(self, uv: np.ndarray, filter: str, level: int) -> Dict[str, np.ndarray]:
+        """:meth:`texels` at one mip level."""
         n, L = len(uv), len(self.layers)
-        taps = self._taps(uv, filter)
+        weights, level_maps = (self.weights, self.maps) if level == 0 else self.mips[level - 1]
+        taps = texel_taps(uv, level_size(self.size, level), self.addressing, filter)
 
         def sample(arr):
             return sum(arr[r, c].astype(np.float64) * t[:, None] for r, c, t in taps)
 
         out = {}
-        if self.weights is None:
+        if weights is None:
             weight = np.ones((n, 1))
         else:
-            rest = sample(self.weights)[:, :L - 1]
+            rest = sample(weights)[:, :L - 1]
             total = rest.sum(axis=1, keepdims=True)
             rest = np.where(total > 1, rest / np.maximum(total, 1e-30), rest)
             weight = np.concatenate([np.clip(1 - rest.sum(axis=1, keepdims=True), 0, 1), rest], axis=1)
@@ -158,7 +213,7 @@ class SVBRDF:
         for q in LAYER_QUANTITIES:
             c = _components(q, self.model.arch["latent"])
             vals = np.empty((n, L, c), dtype=np.float32)
-            for k, (i, maps) in enumerate(zip(self.indices, self.maps)):
+            for k, (i, maps) in enumerate(zip(self.indices, level_maps)):
                 if q in maps:
                     vals[:, k] = sample(maps[q])
                 else:
@@ -168,15 +223,16 @@ class SVBRDF:
         return out
 
     # ---- evaluation ----------------------------------------------------------------------
-    def eval(self, uv, wi, wo, filter: str = "bilinear", dtype: Optional[torch.dtype] = None) -> np.ndarray:
+    def eval(self, uv, wi, wo, filter: str = "bilinear", dtype: Optional[torch.dtype] = None, lod=None) -> np.ndarray:
         """f(uv, wi, wo) (N, 3) float64, no cosine: uv (N, 2) in [0, 1]^2 (wrapping or clamped by
-        ``addressing``), wi and wo (N, 3). By default libhybridbrdf's scalar path
-        (``HybridModel::eval_texel``, the tracer's and the shaders' twin) for a model read from a
-        file; ``dtype`` (torch.float32 / torch.float64) evaluates the PyTorch model instead."""
+        ``addressing``), wi and wo (N, 3), ``lod`` as :meth:`texels` reads it. By default
+        libhybridbrdf's scalar path (``HybridModel::eval_texel``, the tracer's and the shaders'
+        twin) for a model read from a file; ``dtype`` (torch.float32 / torch.float64) evaluates
+        the PyTorch model instead."""
         uv, wi, wo = pair_arguments(("uv", "wi", "wo"), (uv, wi, wo), (2, 3, 3),
                                     BYTES_PER_PAIR + self.model.bytes_per_pair(dtype))
         wi, wo = (np.asarray(a, dtype=np.float64) for a in (wi, wo))
-        t = self.texels(uv, filter)
+        t = self.texels(uv, filter, lod)
         if dtype is None and self.model.path is not None:
             mat = np.broadcast_to(np.asarray(self.indices, dtype=np.int32), t["weight"].shape)
             return self.model._cpp_model().eval_texels(
@@ -204,14 +260,17 @@ class SVBRDF:
         with atomic_folder(folder) as tmp:
             self.model.save_checked(os.path.join(tmp, SV["model_file"]))
             entries = []
+            chain = [(self.weights, self.maps)] + list(self.mips)
             if self.weights is not None:
-                entries.append(_write_quantity(tmp, "weights", None, self.weights, format, len(self.layers)))
-            for k, maps in enumerate(self.maps):
+                entries += _write_quantity(tmp, "weights", None, [w for w, _ in chain], format, len(self.layers))
+            for k in range(len(self.layers)):
                 for q in LAYER_QUANTITIES:
-                    if q in maps:
-                        entries += _write_layer_quantity(tmp, q, k, maps[q], format)
-            index = {"format_version": SV["format_version"], "model": SV["model_file"], "size": list(self.size),
-                     "addressing": self.addressing, "layers": [{"material": m} for m in self.layers], "maps": entries}
+                    if q in self.maps[k]:
+                        entries += _write_quantity(tmp, q, k, [m[k][q] for _, m in chain], format)
+            index = {"format_version": 1 if self.levels == 1 else SV["format_version"], "model": SV["model_file"],
+                     "size": list(self.size), "addressing": self.addressing,
+                     **({} if self.levels == 1 else {"levels": self.levels}),
+                     "layers": [{"material": m} for m in self.layers], "maps": entries}
             atomic_write_bytes(os.path.join(tmp, SV["index_file"]), (json.dumps(index, indent=1) + "\n").encode())
             load_svbrdf(tmp)  # what was written reads back
         self.path = folder
@@ -250,33 +309,38 @@ def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray]
     return f.double().numpy()
 
 
-def _map_name(quantity: str, layer: Optional[int], first: int, format: str) -> str:
+def _map_name(quantity: str, layer: Optional[int], first: int, format: str, level: int = 0) -> str:
     stem = quantity if layer is None else f"layer{layer}_{quantity}" + (str(first // 3) if quantity == "latent" else "")
-    return f"{stem}.{format}"
+    return f"{stem}{f'.mip{level}' if level else ''}.{format}"
 
 
-def _write_quantity(folder, quantity, layer, values, format, n_layers=None, first=0) -> Dict:
-    """Encode (H, W, c <= 3) decoded values into one map file; its index entry."""
-    h, w, c = values.shape
-    decodes = []
-    stored = np.zeros((h, w, CHANNELS), dtype=np.uint8 if format == "png" else np.float32)
-    for ch in range(CHANNELS):
-        if ch >= c or (quantity == "weights" and ch >= n_layers - 1):
-            decodes.append(None if quantity != "weights" else (png_channel("weights") if format == "png" else float_channel()))
-            continue
-        x = values[..., ch].astype(np.float64)
-        d = png_channel(quantity, x.min(), x.max()) if format == "png" else float_channel()
-        decodes.append(d)
-        stored[..., ch] = encode(x, d, bits=8 if format == "png" else 0)
-    name = _map_name(quantity, layer, first, format)
-    write_map(os.path.join(folder, name), stored)
-    return {"file": name, "quantity": quantity, **({} if layer is None else {"layer": layer}), "first": first,
-            "decode": decodes}
-
-
-def _write_layer_quantity(folder, quantity, layer, values, format) -> List[Dict]:
-    return [_write_quantity(folder, quantity, layer, values[..., first:first + CHANNELS], format, first=first)
-            for first in range(0, values.shape[2], CHANNELS)]
+def _write_quantity(folder, quantity, layer, chain, format, n_layers=None) -> List[Dict]:
+    """Encode a quantity's decoded values, (H, W, c) per mip level (level 0 first), into map files
+    of 3 channels each (level 0's decode for every level: a coarser level's values are means of
+    the finer ones, within their range); their index entries."""
+    entries = []
+    for first in range(0, chain[0].shape[2], CHANNELS):
+        c = min(CHANNELS, chain[0].shape[2] - first)
+        decodes = []
+        held = [ch < c and not (quantity == "weights" and ch >= n_layers - 1) for ch in range(CHANNELS)]
+        for ch in range(CHANNELS):
+            if not held[ch]:
+                decodes.append(None if quantity != "weights" else (png_channel("weights") if format == "png" else float_channel()))
+                continue
+            x = chain[0][..., first + ch].astype(np.float64)
+            decodes.append(png_channel(quantity, x.min(), x.max()) if format == "png" else float_channel())
+        names = []
+        for level, values in enumerate(chain):
+            h, w = values.shape[:2]
+            stored = np.zeros((h, w, CHANNELS), dtype=np.uint8 if format == "png" else np.float32)
+            for ch in range(c):
+                if held[ch]:
+                    stored[..., ch] = encode(values[..., first + ch].astype(np.float64), decodes[ch], bits=8 if format == "png" else 0)
+            names.append(_map_name(quantity, layer, first, format, level))
+            write_map(os.path.join(folder, names[-1]), stored)
+        entries.append({"file": names[0], "quantity": quantity, **({} if layer is None else {"layer": layer}),
+                        "first": first, **({"mips": names[1:]} if len(names) > 1 else {}), "decode": decodes})
+    return entries
 
 
 # ---- reading ------------------------------------------------------------------------------
@@ -292,12 +356,14 @@ def load_svbrdf(folder) -> SVBRDF:
     index = loads_json(text, index_path, "textured-material index", SVBRDFError, parse_constant=_no_constant)
     if not isinstance(index, dict):
         raise SVBRDFError(index_path, "the index must be a JSON object")
-    unknown, missing = set(index) - INDEX_KEYS, INDEX_KEYS - set(index)
+    version = index.get("format_version")
+    if version not in FORMAT_VERSIONS or isinstance(version, bool):
+        raise SVBRDFError(index_path, f"format_version {version!r} is not supported "
+                                      f"(this library reads {' and '.join(map(str, FORMAT_VERSIONS))})")
+    keys = INDEX_KEYS | ({"levels"} if version >= 2 else set())
+    unknown, missing = set(index) - keys, keys - set(index)
     if unknown or missing:
         raise SVBRDFError(index_path, f"unknown keys {sorted(unknown)}" if unknown else f"missing keys {sorted(missing)}")
-    if index["format_version"] != SV["format_version"] or isinstance(index["format_version"], bool):
-        raise SVBRDFError(index_path, f"format_version {index['format_version']!r} is not supported "
-                                      f"(this library reads {SV['format_version']})")
     model_path = os.path.join(folder, _plain_name(index_path, index["model"], "model"))
     model = load_model(model_path)
     if not model.has_analytic:
@@ -319,40 +385,52 @@ def load_svbrdf(folder) -> SVBRDF:
             raise SVBRDFError(index_path, f"layer {k}: material '{layer['material']}' is not in {index['model']}")
         names.append(layer["material"])
     w, h = size
+    levels = index.get("levels", 1)
+    if not (isinstance(levels, int) and not isinstance(levels, bool) and 1 <= levels <= MAX_LEVELS):
+        raise SVBRDFError(index_path, f"levels must be an integer 1 to {MAX_LEVELS}, got {levels!r}")
+    problem = chain_problem((w, h), levels)
+    if problem:
+        raise SVBRDFError(index_path, problem)
     latent = model.arch["latent"]
-    weights, maps, seen = None, [{} for _ in names], set()
+    weights, seen = None, set()
     parts: Dict = {}
     if not isinstance(index["maps"], list):
         raise SVBRDFError(index_path, "maps must be a list")
     for entry in index["maps"]:
-        quantity, layer, first, path, values = _read_entry(folder, index_path, entry, len(names), latent, (w, h))
+        quantity, layer, first, path, values = _read_entry(folder, index_path, entry, len(names), latent, (w, h), levels)
         key = (quantity, layer, first)
         if key in seen:
             raise SVBRDFError(index_path, f"two maps give {quantity} {first}..{first + 2}"
                                           + ("" if layer is None else f" of layer {layer}"))
         seen.add(key)
         if quantity == "weights":
-            if values[..., len(names) - 1:].any():
-                raise SVBRDFError(path, f"weights of layers beyond the last ({len(names) - 1}) must be 0")
+            for file, level_values in zip(path, values):
+                if level_values[..., len(names) - 1:].any():
+                    raise SVBRDFError(file, f"weights of layers beyond the last ({len(names) - 1}) must be 0")
             weights = values
         else:
             parts.setdefault((layer, quantity), {})[first] = values
+    maps = [[{} for _ in names] for _ in range(levels)]
     for (layer, quantity), pieces in parts.items():
         c = _components(quantity, latent)
         firsts = sorted(pieces)
         if firsts != list(range(0, c, CHANNELS)):
             raise SVBRDFError(index_path, f"layer {layer}: {quantity} maps must cover components 0..{c - 1} "
                                           f"(maps start at {firsts})")
-        maps[layer][quantity] = np.concatenate([pieces[f] for f in firsts], axis=2)[..., :c].astype(np.float32)
+        for level in range(levels):
+            maps[level][layer][quantity] = np.concatenate([pieces[f][level] for f in firsts], axis=2)[..., :c].astype(np.float32)
     if len(names) > 1 and weights is None:
         raise SVBRDFError(index_path, f"{len(names)} layers need a weights map")
-    return SVBRDF(model, names, (w, h), weights, maps, index["addressing"], path=os.path.abspath(folder))
+    chain = [(None if weights is None else weights[level], maps[level]) for level in range(levels)]
+    return SVBRDF(model, names, (w, h), chain[0][0], chain[0][1], index["addressing"], path=os.path.abspath(folder),
+                  mips=chain[1:])
 
 
-def _read_entry(folder, index_path, entry, n_layers, latent, size):
-    """(quantity, layer, first, path, decoded values (H, W, components in this map)) of one map entry."""
+def _read_entry(folder, index_path, entry, n_layers, latent, size, levels):
+    """(quantity, layer, first, [path per level], [decoded values (H, W, components in this map)
+    per level]) of one map entry."""
     if not isinstance(entry, dict) or not {"file", "quantity", "first", "decode"} <= set(entry) <= MAP_KEYS:
-        raise SVBRDFError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", \"decode\"}")
+        raise SVBRDFError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", [\"mips\"], \"decode\"}")
     quantity = entry["quantity"]
     if quantity not in QUANTITIES:
         raise SVBRDFError(index_path, f"unknown map quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
@@ -367,6 +445,11 @@ def _read_entry(folder, index_path, entry, n_layers, latent, size):
     if not (isinstance(first, int) and not isinstance(first, bool) and 0 <= first < c and first % CHANNELS == 0):
         raise SVBRDFError(index_path, f"{quantity} map: first must be a multiple of {CHANNELS} below {c}, got {first!r}")
     path = os.path.join(folder, _plain_name(index_path, entry["file"], "a map's file"))
+    mips = entry.get("mips", [])
+    if (levels > 1) != ("mips" in entry) or not (isinstance(mips, list) and len(mips) == levels - 1):
+        raise SVBRDFError(index_path, f"{os.path.basename(path)}: a material of {levels} levels lists "
+                                      f"{levels - 1} mip files per map (\"mips\")" if levels > 1 else
+                                      f"{os.path.basename(path)}: \"mips\" needs \"levels\" above 1 in the index")
     bits = map_bits(path)
     decodes = entry["decode"]
     used = min(CHANNELS, c - first)
@@ -380,6 +463,18 @@ def _read_entry(folder, index_path, entry, n_layers, latent, size):
         problem = channel_problem(quantity, d, floating=not bits)
         if problem:
             raise SVBRDFError(index_path, f"{entry['file']} channel {'RGB'[ch]}: {problem}")
+    paths = [path] + [os.path.join(folder, _plain_name(index_path, name, "a mip file")) for name in mips]
+    out = []
+    for level, file in enumerate(paths):
+        if map_bits(file) != bits:
+            raise SVBRDFError(index_path, f"{os.path.basename(file)}: a mip level is stored as level 0 is "
+                                          f"({os.path.splitext(path)[1]})")
+        out.append(_read_level(file, quantity, decodes, used, level_size(size, level)))
+    return quantity, layer, first, paths, out
+
+
+def _read_level(path, quantity, decodes, used, size) -> np.ndarray:
+    """One map file's decoded values (H, W, components; weights padded to 3), checked."""
     check_input_file(path, "texel map", None, SVBRDFError)
     stored, _ = read_map(path)
     if (stored.shape[1], stored.shape[0]) != tuple(size):
@@ -393,4 +488,4 @@ def _read_entry(folder, index_path, entry, n_layers, latent, size):
                                 f"{quantity}'s range [{q['min']:g}, {q['max']:g}]")
     if quantity == "weights":
         values = np.concatenate([values, np.zeros(values.shape[:2] + (3 - used,))], axis=2) if used < 3 else values
-    return quantity, layer, first, path, values.astype(np.float32)
+    return values.astype(np.float32)
