@@ -329,3 +329,25 @@ def test_documented_wgsl_fragment_shader_draws_the_library(folders):
     lib = load_svbrdf(folder).eval(uv, np.repeat(light[None], n, 0), np.repeat(eye[None], n, 0)) * light[2]
     assert len(np.unique(lib[:, 0].round(6))) > 10 and lib.min() > 0  # the control: the texels differ
     assert (np.abs(image.reshape(-1, 3) - lib) / lib).max() < 1e-4
+
+
+def test_wgsl_lookup_reads_the_level_the_sampler_picks(folders, tmp_path):
+    """Mip-agnostic: with the maps uploaded with a mip chain (textured_engine.mip_chain), the lookup at
+    lod 1, and through textureSampleGrad with derivatives of two texels, reads level 1: at level 1's
+    texel centres f is the library's SVBRDF.eval of the folder whose maps are level 1 (float rounding),
+    not what a sampler reads at level 0 there."""
+    skip_without_wgpu()
+    folder = folders["linear"]
+    level1 = load_svbrdf(te.level_folder(folder, tmp_path / "level1", 1))
+    rng = np.random.default_rng(11)
+    n = 1000
+    cells = rng.integers(0, [te.W // 2, te.H // 2], (n, 2))
+    uv = (cells + 0.5) / [te.W // 2, te.H // 2]
+    wi, wo = cosine_directions(rng, n), cosine_directions(rng, n)
+    got = te.run_wgsl_textured(generate_textured(folder, "wgsl"), folder, np.concatenate([uv, wi, wo], 1), False,
+                               levels=2, lod=1)
+    lib1, lib0 = level1.eval(uv, wi, wo), te.eval_reference(folder, uv, wi, wo, False)
+    big = np.abs(lib1) > 1e-6
+    for f in (got[:, :3], got[:, 3:]):
+        assert (np.abs(f - lib1)[big] / np.abs(lib1)[big]).max() < 1e-4
+    assert (np.abs(lib0 - lib1)[big] / np.abs(lib1)[big]).max() > 0.01  # the control: level 0 differs there

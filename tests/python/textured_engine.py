@@ -145,8 +145,8 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {{
     let uv = vec2f(pairs[8u * i], pairs[8u * i + 1u]);
     let wi = vec3f(pairs[8u * i + 2u], pairs[8u * i + 3u], pairs[8u * i + 4u]);
     let wo = vec3f(pairs[8u * i + 5u], pairs[8u * i + 6u], pairs[8u * i + 7u]);
-    let f_lod = hbrdf_eval_texel(wi, wo, hbrdf_texel_lod({ARGS}, uv, 0.0));
-    let f_grad = hbrdf_eval_texel(wi, wo, hbrdf_texel_grad({ARGS}, uv, vec2f(0.0), vec2f(0.0)));
+    let f_lod = hbrdf_eval_texel(wi, wo, hbrdf_texel_lod({ARGS}, uv, {LOD}));
+    let f_grad = hbrdf_eval_texel(wi, wo, hbrdf_texel_grad({ARGS}, uv, {DX}, {DY}));
     out[6u * i] = f_lod.x; out[6u * i + 1u] = f_lod.y; out[6u * i + 2u] = f_lod.z;
     out[6u * i + 3u] = f_grad.x; out[6u * i + 4u] = f_grad.y; out[6u * i + 5u] = f_grad.z;
 }}
@@ -194,19 +194,33 @@ def _dispatch(kernel: str, entries, inputs: np.ndarray, out_bytes: int, constant
     return np.frombuffer(device.queue.read_buffer(buf_out), dtype=np.float32).copy()
 
 
-def _texture(stored_rgb: np.ndarray, format: str):
-    """An (H, W) texture of ``format`` holding 8-bit (H, W, 3) values (alpha 255), its view."""
+def mip_chain(stored: np.ndarray, levels: int):
+    """[level 0, 1, ...] of 8-bit (H, W, 3) values, each level the bottom-right texel of each 2x2 block of
+    the one above: not a filter an engine would use, but any chain does for the lookup (the reference
+    reads the same), and this one differs from what level 0's filter gives at level 1's texel centres,
+    so that a lookup reading the wrong level is seen."""
+    chain = [stored]
+    for _ in range(1, levels):
+        chain.append(np.ascontiguousarray(chain[-1][1::2, 1::2]))
+    return chain
+
+
+def _texture(stored_rgb: np.ndarray, format: str, levels: int = 1):
+    """An (H, W) texture of ``format`` holding 8-bit (H, W, 3) values (alpha 255) and ``levels`` mip
+    levels of them (:func:`mip_chain`), its view."""
     import wgpu
 
     from slang_wgsl_tools import wgpu_device
 
     device = wgpu_device()
     h, w = stored_rgb.shape[:2]
-    rgba = np.concatenate([stored_rgb, np.full((h, w, 1), 255, np.uint8)], axis=2)
-    tex = device.create_texture(size=(w, h, 1), format=format,
+    tex = device.create_texture(size=(w, h, 1), format=format, mip_level_count=levels,
                                 usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
-    device.queue.write_texture({"texture": tex}, np.ascontiguousarray(rgba), {"bytes_per_row": 4 * w, "rows_per_image": h},
-                               (w, h, 1))
+    for level, values in enumerate(mip_chain(stored_rgb, levels)):
+        lh, lw = values.shape[:2]
+        rgba = np.concatenate([values, np.full((lh, lw, 1), 255, np.uint8)], axis=2)
+        device.queue.write_texture({"texture": tex, "mip_level": level}, np.ascontiguousarray(rgba),
+                                   {"bytes_per_row": 4 * lw, "rows_per_image": lh}, (lw, lh, 1))
     return tex.create_view()
 
 
@@ -232,12 +246,14 @@ def map_params(code: str):
     return re.findall(r"(map_\w+): texture_2d<f32>", sig)
 
 
-def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_textures: bool) -> np.ndarray:
-    """The generated WGSL's hbrdf_texel_lod (level 0) and hbrdf_texel_grad (zero derivatives) with
-    hbrdf_eval_texel, in a compute kernel on lavapipe: the folder's STORED 8-bit maps uploaded as
-    rgba8unorm textures (rgba8unorm-srgb for sRGB maps where ``srgb_textures``; the kernel's
-    HBRDF_SRGB_TEXTURES override set to match), one linear sampler with a nearest mip filter and
-    the index's addressing. Returns (n, 6): f through the lod lookup, then through the grad one."""
+def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_textures: bool,
+                      levels: int = 1, lod: int = 0) -> np.ndarray:
+    """The generated WGSL's hbrdf_texel_lod (level ``lod``) and hbrdf_texel_grad (derivatives of 2^lod
+    texels along u and v: the same level) with hbrdf_eval_texel, in a compute kernel on lavapipe: the
+    folder's STORED 8-bit maps uploaded as rgba8unorm textures (rgba8unorm-srgb for sRGB maps where
+    ``srgb_textures``; the kernel's HBRDF_SRGB_TEXTURES override set to match) with ``levels`` mip
+    levels (:func:`mip_chain`), one linear sampler with a nearest mip filter and the index's
+    addressing. Returns (n, 6): f through the lod lookup, then through the grad one."""
     from slang_wgsl_tools import wgpu_device
 
     index = json.loads((folder / "svbrdf.json").read_text())
@@ -248,7 +264,9 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
         by_param["map_" + ident] = e
     params = map_params(code)
     textures = "\n".join(f"@group(0) @binding({3 + j}) var {p}: texture_2d<f32>;" for j, p in enumerate(params))
-    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]))
+    w, h = index["size"]
+    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]), LOD=f"{lod:.1f}",
+                                       DX=f"vec2f({2 ** lod / w!r}, 0.0)", DY=f"vec2f(0.0, {2 ** lod / h!r})")
     address = "repeat" if index["addressing"] == "repeat" else "clamp-to-edge"
     sampler = wgpu_device().create_sampler(address_mode_u=address, address_mode_v=address, mag_filter="linear",
                                            min_filter="linear", mipmap_filter="nearest")
@@ -257,7 +275,7 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
         entry = by_param[p]
         stored = np.rint(read_map(folder / entry["file"])[0] * 255).astype(np.uint8)
         srgb = srgb_textures and all(d is None or d["transfer"] == "srgb" for d in entry["decode"])
-        entries.append({"binding": 3 + j, "resource": _texture(stored, "rgba8unorm-srgb" if srgb else "rgba8unorm")})
+        entries.append({"binding": 3 + j, "resource": _texture(stored, "rgba8unorm-srgb" if srgb else "rgba8unorm", levels)})
     out = _dispatch(kernel, entries, pairs, 4 * 6 * len(pairs), {"HBRDF_SRGB_TEXTURES": 1.0 if srgb_textures else 0.0})
     return out.reshape(len(pairs), 6)
 
@@ -349,3 +367,20 @@ def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye) 
     device.queue.submit([encoder.finish()])
     pixels = device.queue.read_texture({"texture": target}, {"bytes_per_row": 16 * w, "rows_per_image": h}, (w, h, 1))
     return np.frombuffer(pixels, np.float32).reshape(h, w, 4)[..., :3].copy()
+
+
+def level_folder(folder: pathlib.Path, out: pathlib.Path, level: int) -> pathlib.Path:
+    """A copy of the textured ``folder`` whose maps are level ``level`` of :func:`mip_chain` (the index's
+    size halved ``level`` times, decodes unchanged): the material a sampler reads at that level."""
+    import shutil
+
+    from hybridbrdf.svbrdf.maps import write_map
+
+    shutil.copytree(folder, out)
+    index = json.loads((out / "svbrdf.json").read_text())
+    for entry in index["maps"]:
+        stored = np.rint(read_map(folder / entry["file"])[0] * 255).astype(np.uint8)
+        write_map(out / entry["file"], mip_chain(stored, level + 1)[level])
+    index["size"] = [s >> level for s in index["size"]]
+    (out / "svbrdf.json").write_text(json.dumps(index))
+    return out
