@@ -9,8 +9,8 @@ from a height field; value noise): PSNR (8-bit peak), max and mean absolute erro
 steps (1/255), and encode time per megatexel (one thread, best of --repeat).
 
 Part 2 (quantities): with the chosen encoder of each format, each quantity of the material
-(weights RGB, kd sRGB, alpha RG; eta, a latent map and a normal map's xy synthetic: hbrdf paint
-writes no eta or latent maps) stored as BC7, BC1, BC4 (one channel each) or
+(weights RGB, kd sRGB, alpha RG, and eta and latent maps added to layer 1 as
+``with_eta_and_latent`` says: hbrdf paint writes none; a synthetic normal map's xy) stored as BC7, BC1, BC4 (one channel each) or
 BC5 (two channels), max / mean decode error in stored units against the 8-bit PNG the folder holds
 (PNG is lossless: its error is 0), and bytes per texel of each.
 
@@ -90,6 +90,28 @@ def paint_material(size: int, model: str, out: str) -> str:
     if code:
         raise SystemExit(f"hbrdf paint failed ({code})")
     return str(folder / "material")
+
+
+def with_eta_and_latent(folder: str, out: str) -> str:
+    """The painted material with an eta and a latent map on layer 1, which hbrdf paint does not
+    write: eta its material's times a smooth 0.8..1.2 field, the latent code moving from its
+    material's to layer 2's across the stripes mask (what a code map between two fits holds).
+    Saved as PNG by the asset's own encoder (per-channel scale and offset for z)."""
+    import svbrdf_mixture
+
+    from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+
+    sv = load_svbrdf(folder)
+    w, h = sv.size
+    t = sv.model.tensors
+    i1, i2 = sv.indices[1], sv.indices[2]
+    field = 0.8 + 0.4 * value_noise(w, 3, 40)[:h, :w, None]
+    mask = svbrdf_mixture.masks(w)[1][:h, :w, None]
+    maps = [dict(m) for m in sv.maps]
+    maps[1]["eta"] = np.clip(t["materials.eta"][i1] * field, 1.0, 10.0).astype(np.float32)
+    maps[1]["latent"] = (t["materials.z"][i1] + (t["materials.z"][i2] - t["materials.z"][i1]) * mask).astype(np.float32)
+    SVBRDF(sv.model, sv.layers, sv.size, sv.weights, maps, sv.addressing).save(out, format="png")
+    return out
 
 
 def painted_maps(folder: str) -> dict:
@@ -177,11 +199,8 @@ def main() -> int:
     print(f"# bench/bc_encoders.py (size {args.size}, {os.cpu_count()} CPUs, libhybridbrdf {simd_path()})")
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.svbrdf or paint_material(args.size, args.model, tmp)
-        maps = painted_maps(folder)
-        synth = synthetic(args.size)
-        maps["latent (synthetic, 3 of z)"] = synth["value noise"]
-        maps["eta (synthetic, smooth)"] = to8(np.stack([value_noise(args.size, 3, 30 + c) for c in range(3)], -1))
-        maps["normal map xy (synthetic)"] = synth["normal map xy"]
+        maps = painted_maps(with_eta_and_latent(folder, os.path.join(tmp, "with_eta_latent")))
+        maps["normal map xy (synthetic)"] = synthetic(args.size)["normal map xy"]
         print("maps:", ", ".join(f"{k} {v.shape[1]}x{v.shape[0]}x{v.shape[2]}" for k, v in maps.items()))
         contents = {f"painted {k}": v for k, v in maps.items() if "synthetic" not in k}
         contents.update(synthetic(args.size))
