@@ -13,6 +13,8 @@ Public names:
   size in the file is checked against the file's length and the format before anything is
   allocated; a file this reader cannot use raises ``InputFileError`` ("<path>: <problem>", one
   line), with the words of libhybridbrdf's ``render::read_ktx2``.
+- :func:`encode_decode` ``(texels_uint8, vk_format) -> uint8``: what a map stored in an 8-bit or
+  BC format reads back (for benchmarks).
 - :class:`Ktx2` (vk_format, name, width, height, levels, srgb, channels) and :data:`FORMATS`
   (the formats read and written, by VkFormat value: R8G8B8A8_UNORM/SRGB 37/43,
   R16G16B16A16_SFLOAT 97, R32G32B32A32_SFLOAT 109, BC1_RGB_UNORM/SRGB 131/132, BC4_UNORM 139,
@@ -261,6 +263,22 @@ def ktx2_bytes(levels, vk) -> bytes:
     header += struct.pack("<4I2Q", dfd_offset, len(dfd), kvd_offset, len(kvd), 0, 0)
     header += b"".join(struct.pack("<3Q", offset, length, length) for offset, length in index)
     return header + dfd + kvd + data
+
+
+def encode_decode(texels, vk) -> np.ndarray:
+    """What uint8 ``texels`` ((H, W, C) or (H, W), C at most the format's channels) read back
+    after being stored in VkFormat ``vk`` (a value or name) of an 8-bit or BC format: the same
+    array for the RGBA8 formats, the chosen encoder's blocks decoded for the BC ones (the same
+    shape and dtype as given). The benchmarks' entry point (docs/TEXTURES.md)."""
+    fmt = FORMATS[vk_format(vk)]
+    texels = np.asarray(texels)
+    if texels.dtype != np.uint8:
+        raise ValueError(f"texels must be uint8, got {texels.dtype}")
+    if fmt.kind == "unorm8":
+        return texels.copy()
+    if fmt.kind not in bcenc.BLOCK_FORMATS:
+        raise ValueError(f"{fmt.name} stores floats: encode_decode takes an 8-bit or BC format")
+    return bcenc.encode_decode(texels, fmt.kind)
 
 
 def write_ktx2(path, levels, vk) -> None:
