@@ -136,6 +136,9 @@ NOT_RUN = {
     "python bench/render_selective.py --size 256 --spp 32": "a rendering benchmark: a minute",
     "python bench/viewer_load.py --runs 3": "starts chromium three times: a minute",
 }
+NOT_RUN.update({f"hbrdf-codegen out/textured --target {target} -o material.{target}": (
+    "needs the folder scenes/textured.json's paint command writes; test_codegen_textured.py runs these as printed")
+    for target in ("glsl", "hlsl", "slang", "wgsl")})
 NOT_RUN.update({f"python bench/compare_models.py {args}": "fits of every width and depth: hours" for args in [
     f"{RGL} --mlp 32x3,16x3 --threads 1 --out-dir out/compare_rgl",
     "../shared/data/nbrdf/merl --mlp 32x3,16x3 --threads 1 --out-dir out/compare_merl",
