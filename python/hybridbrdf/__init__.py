@@ -6,9 +6,11 @@ Fresnel) is evaluated and sampled by the C++ library (``hybridbrdf._core``);
 Conventions: ``docs/CONVENTIONS.md``.
 
 Each subpackage's ``__init__`` is its public face, one import deep: ``hybridbrdf.render.render``,
-``hybridbrdf.codegen.generate``, ``hybridbrdf.model.edit``, ... (``__all__`` lists them). Names
-whose modules import PyTorch load on first access (``hybridbrdf.add``; PEP 562), so ``import
-hybridbrdf`` imports none. Modules of the layout before the subpackages (``hybridbrdf.mitsuba``,
+``hybridbrdf.codegen.generate``, ``hybridbrdf.model.edit``, ... (``__all__`` lists them). The names
+here load on first access (PEP 562), except the C++ library's constants: ``import hybridbrdf``
+imports neither PyTorch nor NumPy, and so neither does ``hbrdf --help`` (every command line
+imports this package first). ``hybridbrdf.<subpackage>`` imports the subpackage on first access
+too. Modules of the layout before the subpackages (``hybridbrdf.mitsuba``,
 ``hybridbrdf.model_file``, ...) raise an ImportError naming their new home
 (:data:`hybridbrdf.exports.MOVED_MODULES`).
 """
@@ -21,22 +23,32 @@ from hybridbrdf._core import (
     ETA_MIN,
     MIS_MIN_LOBE_PROBABILITY,
 )
+import importlib as _importlib
+import pathlib as _pathlib
+
 from hybridbrdf import _core
 from hybridbrdf._core import __version__ as _core_version
-from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, pdf, sample, simd_path
 from hybridbrdf.errors import InputFileError, ModelFileError
-from hybridbrdf.exports import install_finder as _install_finder, public_face as _public_face
-from hybridbrdf.fit.settings import FitSettings
-from hybridbrdf.model.file import HybridModel, load_model
-from hybridbrdf.model.prior import load_prior, prior_path
-from hybridbrdf.sources import expand_sources, open_source
-from hybridbrdf.sources.base import BRDFFormatError, BRDFSource
-from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.exports import install_finder as _install_finder, lazy_names as _lazy_names
+from hybridbrdf.exports import public_face as _public_face
 from hybridbrdf.version import __version__
 
-#: Public names whose modules import PyTorch, loaded on first access (PEP 562): importing torch
-#: costs seconds, and ``import hybridbrdf`` (every ``hbrdf`` command line, even ``--help``) should not.
-_LAZY = {"add": "hybridbrdf.fit.adding"}
+#: Public names loaded on first access (PEP 562): their modules import NumPy (0.1 s) or PyTorch
+#: (seconds), and ``import hybridbrdf`` (every ``hbrdf`` command line, even ``--help``) should not.
+_LAZY = {
+    **_lazy_names(["AnalyticParams", "analytic_eval", "pdf", "sample", "simd_path"], "hybridbrdf.brdf.analytic"),
+    "FitSettings": "hybridbrdf.fit.settings", "add": "hybridbrdf.fit.adding",
+    **_lazy_names(["HybridModel", "load_model"], "hybridbrdf.model.file"),
+    **_lazy_names(["load_prior", "prior_path"], "hybridbrdf.model.prior"),
+    **_lazy_names(["expand_sources", "open_source"], "hybridbrdf.sources"),
+    **_lazy_names(["BRDFFormatError", "BRDFSource"], "hybridbrdf.sources.base"),
+    **_lazy_names(["SVBRDF", "load_svbrdf"], "hybridbrdf.svbrdf.asset"),
+}
+
+#: This package's modules and subpackages: ``hybridbrdf.<name>`` imports one on first access, as
+#: an ``import hybridbrdf`` that imported them all used to leave them reachable.
+_SUBMODULES = {p.stem for p in _pathlib.Path(__file__).parent.iterdir()
+               if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").is_file()}
 
 # ``import hybridbrdf.mitsuba`` (an old module name) names hybridbrdf.render.mitsuba in its error.
 _install_finder()
@@ -79,4 +91,10 @@ __all__ = [
 
 # ``hybridbrdf.add`` loads on first use; ``hybridbrdf.model_file`` (a moved module) raises an
 # ImportError naming its new home.
-__getattr__, __dir__ = _public_face(__name__, globals(), _LAZY)
+_face_getattr, __dir__ = _public_face(__name__, globals(), _LAZY)
+
+
+def __getattr__(name):
+    if name in _SUBMODULES:
+        return _importlib.import_module(f"{__name__}.{name}")
+    return _face_getattr(name)

@@ -1,6 +1,7 @@
 """Front doors (issue 57): ``import hybridbrdf`` and ``hbrdf --help`` or a mistyped command line
-import no PyTorch. Importing torch costs 2-3 s of CPU; the CLI tests start ``hbrdf`` in
-subprocesses dozens of times, and a user's typo should be answered at once.
+import no PyTorch, and no NumPy either. Importing torch costs 2-3 s of CPU and NumPy 0.1 s; the CLI
+tests start ``hbrdf`` in subprocesses dozens of times, and a user's typo should be answered at once
+(0.3 s at most; the measurements are in CHANGELOG.md: these tests check module sets, not times).
 
 Each case runs a fresh interpreter: this one has imported torch long ago."""
 
@@ -46,12 +47,51 @@ def test_help_and_argument_errors_import_no_torch(argv, code):
     assert ("usage: hbrdf" in r.stdout) if code == 0 else ("error:" in r.stderr)
 
 
+#: Command lines whose parsing needs no NumPy: ``hbrdf --help``, a mistyped command, and the flags of
+#: the commands whose parsers take no default from a NumPy module. (bound, info, demo, view and
+#: acquire show memory sizes or defaults of their modules in their help: NumPy there.)
+NO_NUMPY_ARGV = [["--help"], ["--version"], [], ["nosuchcommand"], ["fit", "--help"], ["fit", "--no-such-flag"],
+                 ["fit", "a", "--out", "m", "--steps", "x"], ["add", "--x"], ["eval", "--x"], ["edit", "--x"],
+                 ["mix", "--x"], ["paint", "--x"], ["render", "scene.json"], ["render", "--help"]]
+
+
+@pytest.mark.parametrize("argv", NO_NUMPY_ARGV, ids=lambda a: " ".join(a) or "nothing")
+def test_help_and_argument_errors_import_no_numpy(argv):
+    """hbrdf's start-up is Python's and argparse's (issue 57: 0.3 s at most): ``import hybridbrdf``
+    loads no NumPy (0.1 s) and the command line builds only the named command's parser."""
+    r = python(f"import sys\nfrom hybridbrdf.cli import main\ntry:\n    main({argv!r})\nexcept SystemExit as exc:\n"
+               f"    assert exc.code in (0, 2), exc.code\nelse:\n    raise AssertionError('no exit')\n"
+               "heavy = sorted(m for m in ('numpy', 'torch', 'PIL', 'jinja2') if m in sys.modules)\n"
+               "assert not heavy, (heavy, sorted(m for m in sys.modules if m.startswith('hybridbrdf')))")
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
+def test_only_the_named_command_is_built_and_help_is_unchanged():
+    """``main`` builds the named command's parser only (the others are placeholders of their name
+    and line): ``hbrdf --help`` and each command's help read as with every parser built."""
+    from hybridbrdf.cli import COMMANDS, build_parser
+
+    full = build_parser()
+    assert build_parser(only="").format_help() == full.format_help()
+    commands = next(a for a in full._actions if a.dest == "command").choices
+    assert list(commands) == list(COMMANDS)
+    for name in COMMANDS:
+        lazy = next(a for a in build_parser(only=name)._actions if a.dest == "command").choices
+        assert lazy[name].format_help() == commands[name].format_help(), name
+
+
+def test_import_hybridbrdf_imports_no_numpy():
+    r = python("import sys, hybridbrdf\nassert 'numpy' not in sys.modules\n"
+               "assert hybridbrdf.load_model and hybridbrdf.brdf.analytic and 'numpy' in sys.modules")
+    assert r.returncode == 0, r.stderr
+
+
 def test_python_m_hybridbrdf_cli_imports_no_torch_for_help():
     r = subprocess.run([sys.executable, "-X", "importtime", "-m", "hybridbrdf.cli", "--help"], capture_output=True,
                        text=True, timeout=120)
     assert r.returncode == 0 and "usage: hbrdf" in r.stdout, r.stderr[-2000:]
     imported = [line.rsplit("|", 1)[-1].strip() for line in r.stderr.splitlines() if line.startswith("import time:")]
-    assert "hybridbrdf.cli" in imported and not [m for m in imported if m.split(".")[0] == "torch"]
+    assert "hybridbrdf.cli" in imported and not [m for m in imported if m.split(".")[0] in ("torch", "numpy")]
 
 
 def test_every_package_imports_no_torch():

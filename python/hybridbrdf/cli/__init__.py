@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
 import math
 import sys
@@ -25,8 +26,25 @@ import sys
 from hybridbrdf import spec
 from hybridbrdf.errors import one_line_text
 from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FitSettings, Number, parse_mlp
-from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.version import __version__
+
+#: The commands in the order ``hbrdf --help`` lists them, each with its line there (its module's
+#: ``add_parser`` uses the same). A command line builds only its own command's parser: the others'
+#: names and lines are all ``--help`` and argparse's choice of command need (:func:`build_parser`).
+COMMANDS = {
+    "fit": "fit one shared network + per-material parameters to BRDF sources",
+    "add": "add BRDF sources to the shipped prior (fine-tuned) or to a model (network kept)",
+    "eval": "per-material SMAPE/cMAE of a model against BRDF sources",
+    "edit": "add an edited copy of a material (new analytic parameters, same latent code)",
+    "mix": "add a blend of two materials (analytic parameters and latent codes)",
+    "bound": "fit energy-bound tables so that no material reflects more light than it receives",
+    "paint": "paint a textured material: layers of materials under grey masks (docs/SVBRDF.md)",
+    "view": "write one self-contained HTML page that shows the materials live (WebGPU or WebGL2)",
+    "info": "describe a model file",
+    "demo": "plot BRDF slices of built-in analytic materials and print their albedo",
+    "render": "render a scene with the Embree path tracer",
+    "acquire": "SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
+}
 
 EPILOG = ("SOURCE: a file (.binary MERL, .bsdf RGL, .bin UTIA, .h5 NBRDF network), a folder, a glob, "
           "or synthetic:NAME (synthetic:all = every built-in material).")
@@ -62,6 +80,8 @@ def print_beside(bar, line: str) -> None:
 
 
 def _open_all(specs):
+    from hybridbrdf.sources import expand_sources, open_source  # NumPy: not for --help
+
     return [open_source(s) for s in expand_sources(specs)]
 
 
@@ -181,18 +201,32 @@ def _settings_line(title: str, recorded: dict, sections, extra=()) -> str:
 
 # ---- the parser and the entry point -----------------------------------------------------------
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``hbrdf`` parser: one subcommand per command module's ``add_parser``."""
-    # Here rather than at the top: each command module imports this package's helpers above.
-    from hybridbrdf.cli import (acquire, add, bound, demo, edit, eval as eval_, fit, info, mix, paint, render,
-                                view)
-
+def build_parser(only: str = None) -> argparse.ArgumentParser:
+    """The ``hbrdf`` parser: one subcommand per command module's ``add_parser`` (:data:`COMMANDS`).
+    With ``only`` (a command's name, or ``""`` for none), every other command is a placeholder of
+    its name and line, and its module is not imported: what :func:`main` builds, so that ``hbrdf
+    --help`` and an argument error import no command's dependencies (NumPy among them)."""
     parser = argparse.ArgumentParser(prog="hbrdf", description="Hybrid neural-microfacet BRDFs.", epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"hybridbrdf {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for command in (fit, add, eval_, edit, mix, bound, paint, view, info, demo, render, acquire):
-        command.add_parser(sub)
+    for name, line in COMMANDS.items():
+        if only is None or name == only:
+            # Here rather than at the top: each command module imports this package's helpers above.
+            importlib.import_module(f"{__name__}.{name}").add_parser(sub)
+        else:
+            sub.add_parser(name, help=line, add_help=False)
     return parser
+
+
+def _command_of(argv) -> str:
+    """The command an ``hbrdf`` command line names ("" when none: ``--help``, ``--version``, a
+    typo); ``hbrdf`` itself has no option that takes a value, so it is the first word that is no option."""
+    for word in argv:
+        if word in ("-h", "--help", "--version"):
+            return ""
+        if not word.startswith("-"):
+            return word if word in COMMANDS else ""
+    return ""
 
 
 def _reported_errors() -> tuple:
@@ -204,8 +238,8 @@ def _reported_errors() -> tuple:
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(only=_command_of(argv)).parse_args(argv)
     try:
         return args.func(args)
     except KeyboardInterrupt as exc:

@@ -16,7 +16,7 @@ from hybridbrdf.acquire.acquisition import STEPS
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.rig import MAX_ITEMS, MAX_SIDE, load_rig
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
-from hybridbrdf.cli import layer_masks
+from hybridbrdf.cli import COMMANDS, layer_masks
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.sources import open_source
 
@@ -144,7 +144,7 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def add_parser(sub) -> None:
     """``hbrdf acquire`` and its subcommands (``simulate``, ``fit``)."""
-    p = sub.add_parser("acquire", help="SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
+    p = sub.add_parser("acquire", help=COMMANDS["acquire"],
                        description="SVBRDF acquisition from photographs (docs/ACQUISITION.md).")
     commands = p.add_subparsers(dest="acquire_command", required=True, metavar="{simulate,fit}")
     s = commands.add_parser(

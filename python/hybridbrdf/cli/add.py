@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 import math
 
-from hybridbrdf.cli import EPILOG, add_fit_flags, log_function, settings_from_args
+from hybridbrdf.cli import COMMANDS, EPILOG, add_fit_flags, log_function, settings_from_args
 from hybridbrdf.fit.settings import Number, positive_int
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("add", help="add BRDF sources to the shipped prior (fine-tuned) or to a model (network kept)",
+    p = sub.add_parser("add", help=COMMANDS["add"],
                        description="Onto the shipped prior (no --to): each source's analytic parameters and latent "
                                    "code are fitted on the prior's frozen network (paper Sec. 4.2), then the network "
                                    "is trained further together with them (--finetune-steps); the model holds the "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.cli import add_quiet_flag, progress_bar
+from hybridbrdf.cli import COMMANDS, add_quiet_flag, progress_bar
 from hybridbrdf.fit.settings import positive_int
 from hybridbrdf.limits import check_count
 from hybridbrdf.model import energy
@@ -13,7 +13,7 @@ from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("bound", help="fit energy-bound tables so that no material reflects more light than it receives",
+    p = sub.add_parser("bound", help=COMMANDS["bound"],
                        description="Fit each material's energy-bound table (docs/ENERGY.md): f = k(wi.z) k(wo.z) f_t "
                                    "with k <= 1 per material, so that every directional albedo is at most 0.99; "
                                    "1 (no change) where it already is. Reciprocity is kept exactly. hbrdf fit, add, "

@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf.demo import BYTES_PER_SAMPLE as DEMO_BYTES_PER_SAMPLE
+from hybridbrdf.cli import COMMANDS
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "demo",
-        help="plot BRDF slices of built-in analytic materials and print their albedo",
+        help=COMMANDS["demo"],
         description="Plot in-plane slices and polar lobes of f_a for a few built-in analytic materials "
         "(C++ library, checked against the float64 PyTorch implementation) and print each material's "
         "directional albedo estimated with every sampling strategy.",

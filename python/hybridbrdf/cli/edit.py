@@ -6,13 +6,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hybridbrdf.model.editing import parse_assignments
-from hybridbrdf.model.file import load_model
+from hybridbrdf.cli import COMMANDS
 from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("edit", help="add an edited copy of a material (new analytic parameters, same latent code)",
+    p = sub.add_parser("edit", help=COMMANDS["edit"],
                        description="Paper Sec. 5.1: change the analytic parameters of a fitted material (diffuse "
                                    "colour kd, index of refraction eta, GGX roughness alpha; two alpha values make "
                                    "it anisotropic) and keep its latent code, so the network's correction follows. "
@@ -38,6 +37,9 @@ def add_new_material_flags(p, kd: str, whose: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hybridbrdf.model.editing import parse_assignments  # NumPy: imported by the command, not by --help
+    from hybridbrdf.model.file import load_model
+
     values = parse_assignments(args.set)
     check_writable(args.out, "model")
     # --out MODEL updates MODEL in place: it is read under the lock, so a concurrent update

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.cli import EPILOG, _open_all, add_quiet_flag, progress_bar
+from hybridbrdf.cli import COMMANDS, EPILOG, _open_all, add_quiet_flag, progress_bar
 from hybridbrdf.fit.settings import PAIRS, positive_int
-from hybridbrdf.limits import check_count
-from hybridbrdf.model.file import load_model
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("eval", help="per-material SMAPE/cMAE of a model against BRDF sources",
+    p = sub.add_parser("eval", help=COMMANDS["eval"],
                        description="Evaluate a model against the sources its materials were fitted to (matched by "
                                    "name): SMAPE and cMAE of the analytic part and of the full model.", epilog=EPILOG)
     p.add_argument("model", help="model file")
@@ -30,6 +28,8 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hybridbrdf.evaluate.evaluation import bytes_per_pair, evaluate, format_extended_table, format_table
+    from hybridbrdf.limits import check_count
+    from hybridbrdf.model.file import load_model
 
     problem = PAIRS.problem(args.pairs)  # the range of fit's --eval-pairs (argparse takes counts up to 1e9)
     if problem:

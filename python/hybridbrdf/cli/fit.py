@@ -6,16 +6,14 @@ import argparse
 import os
 import sys
 
-from hybridbrdf.cli import EPILOG, _open_all, add_fit_flags, log_function, settings_from_args
+from hybridbrdf.cli import COMMANDS, EPILOG, _open_all, add_fit_flags, log_function, settings_from_args
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.fit.settings import positive_int
-from hybridbrdf.model.file import load_model
-from hybridbrdf.model.prior import prior_path
 from hybridbrdf.files import check_writable
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("fit", help="fit one shared network + per-material parameters to BRDF sources",
+    p = sub.add_parser("fit", help=COMMANDS["fit"],
                        description="Jointly fit a collection of BRDFs (paper Sec. 3.3) and write a model file. "
                                    "Prints the per-material metrics table.", epilog=EPILOG)
     p.add_argument("sources", nargs="+", metavar="SOURCE", help="BRDF files, folders, globs or synthetic:NAME")
@@ -71,6 +69,8 @@ def _check_out_is_no_source(out: str, sources) -> None:
 
 def _start_models(settings):
     """The models a fit starts from: --frozen's and --init's (None where not given)."""
+    from hybridbrdf.model.file import load_model  # NumPy: imported by the command, not by --help
+    from hybridbrdf.model.prior import prior_path
     from hybridbrdf.fit.joint import frozen_arch_settings
 
     frozen = load_model(settings.frozen_from) if settings.frozen_from else None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf import spec
-from hybridbrdf.cli import _settings_line, _shown, add_quiet_flag, print_beside, progress_bar
+from hybridbrdf.cli import COMMANDS, _settings_line, _shown, add_quiet_flag, print_beside, progress_bar
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.editing import albedo_bytes_per_sample
 from hybridbrdf.model.file import HybridModel, load_model
@@ -15,7 +15,7 @@ RECORDED_TIMINGS = ("train_seconds", "train_seconds_from_step", "resumed_at_step
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("info", help="describe a model file", description="Print a model file's architecture, "
+    p = sub.add_parser("info", help=COMMANDS["info"], description="Print a model file's architecture, "
                                                                          "training settings and materials.")
     p.add_argument("model", help="model file")
     p.add_argument("--albedo-samples", type=int, default=1 << 11, metavar="N",

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.cli import FINITE
+from hybridbrdf.cli import COMMANDS, FINITE
 from hybridbrdf.cli.edit import add_new_material_flags, describe_new_material
-from hybridbrdf.model.file import load_model
 from hybridbrdf.files import check_writable, file_lock
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("mix", help="add a blend of two materials (analytic parameters and latent codes)",
+    p = sub.add_parser("mix", help=COMMANDS["mix"],
                        description="Paper Sec. 5.1: the linear blend (1 - t) A + t B of two materials' analytic "
                                    "parameters and latent codes, added to MODEL's materials and written to --out; "
                                    "t = 0 and 1 reproduce A and B exactly. Prints the blend's maximum directional "
@@ -25,6 +24,8 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hybridbrdf.model.file import load_model  # NumPy: imported by the command, not by --help
+
     check_writable(args.out, "model")
     with file_lock(args.out):  # as hbrdf edit: an update in place reads MODEL under the lock
         model = load_model(args.model)

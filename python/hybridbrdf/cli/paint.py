@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf import spec
-from hybridbrdf.cli import layer_masks
+from hybridbrdf.cli import COMMANDS, layer_masks
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("paint", help="paint a textured material: layers of materials under grey masks (docs/SVBRDF.md)",
+    p = sub.add_parser("paint", help=COMMANDS["paint"],
                        description="Write a textured material's folder (docs/SVBRDF.md): a base material and up to "
                                    "three layers painted over it by grey masks (the last on top), optional albedo "
                                    "and roughness textures per layer. A layer that names a measured file is added "

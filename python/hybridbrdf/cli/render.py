@@ -7,17 +7,16 @@ import signal
 import sys
 import threading
 
-from hybridbrdf.cli import FINITE
+from hybridbrdf import _core
+from hybridbrdf.cli import COMMANDS, FINITE
 from hybridbrdf.fit.settings import Number
-from hybridbrdf.render.tracer import RenderMaterialError, render
-from hybridbrdf.render.tracer import settings as render_settings
 
 #: --exposure's range in stops: 2^64 scales any radiance float32 holds past its range or below it.
 EXPOSURE_STOPS = 64
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("render", help="render a scene with the Embree path tracer",
+    p = sub.add_parser("render", help=COMMANDS["render"],
                        description="Render a JSON scene (docs/RENDERING.md) with the reference path tracer: "
                                    "linear float32 OpenEXR, optionally a tone-mapped sRGB PNG.")
     p.add_argument("scene", help="scene file (JSON)")
@@ -29,6 +28,13 @@ def add_parser(sub) -> None:
     p.add_argument("--tonemap", choices=("clamp", "aces"), default="clamp", help="PNG tone map (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+
+
+def render_settings():
+    """The library's scene settings as :func:`hybridbrdf.render.tracer.settings` gives them, read from
+    the extension here: the tracer's module imports NumPy, and ``hbrdf render`` with a mistyped flag
+    should not wait for it."""
+    return list(_core.render_settings()) if getattr(_core, "HAVE_RENDERER", False) else []
 
 
 def add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
@@ -49,6 +55,7 @@ def add_render_setting_flags(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hybridbrdf.render.tracer import RenderMaterialError, render  # NumPy: not for --help
 
     # One flag per scene setting (the library's table); None = keep the scene's value.
     overrides = {s["name"]: getattr(args, s["name"]) for s in render_settings()}

@@ -6,11 +6,11 @@ import argparse
 
 from hybridbrdf.fit.settings import positive_int
 from hybridbrdf.viewer import measured as viewer_sources
+from hybridbrdf.cli import COMMANDS
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("view", help="write one self-contained HTML page that shows the materials live "
-                                    "(WebGPU or WebGL2)",
+    p = sub.add_parser("view", help=COMMANDS["view"],
                        description="Write one HTML file, with everything inlined (it opens from disk, without "
                                    "network), that renders each material of MODEL on a sphere with WebGPU where the "
                                    "browser has it, else WebGL2, from the WGSL and GLSL that hbrdf-codegen writes: a "
