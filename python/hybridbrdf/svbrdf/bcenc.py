@@ -3,11 +3,12 @@
 
 Public names:
 
-- :data:`ENCODERS`: ``{format: {encoder name: encode(rgba) -> bytes}}``, every candidate that is
-  installed (one not installed raises ImportError naming its package when asked for by name); ``rgba`` is uint8 (H, W, 4), H and W any size (edge blocks are padded by the encoder).
-  Formats are ``"bc1"``, ``"bc4"`` (the red channel), ``"bc5"`` (red and green), ``"bc7"``.
+- :data:`ENCODERS`: ``{format: {encoder name: encode(rgba) -> bytes}}``, the candidates that are
+  installed (one that is not raises ImportError naming its package when asked for by name);
+  ``rgba`` uint8 (H, W, 4), H and W any size (edge blocks padded by the encoder). Formats are
+  ``"bc1"``, ``"bc4"`` (the red channel), ``"bc5"`` (red and green), ``"bc7"``.
 - :data:`DEFAULT_ENCODER`: the encoder :func:`encode_blocks` uses per format.
-- :func:`encode_blocks` ``(rgba, fmt, encoder=None) -> bytes``: the level's blocks, rows of blocks
+- :func:`encode_blocks` ``(texels, fmt, encoder=None) -> bytes``: the level's blocks, rows of blocks
   from the top, as KTX2 and the GPU lay them out.
 - :func:`decode_blocks` ``(data, fmt, width, height) -> uint8 (H, W, C)``: libhybridbrdf's decoders
   (``hybridbrdf._core.bc_decode_level``), C = 3, 1, 2, 4 for BC1, BC4, BC5, BC7.
@@ -34,7 +35,7 @@ BLOCK_FORMATS = ("bc1", "bc4", "bc5", "bc7")
 CHANNELS = {"bc1": 3, "bc4": 1, "bc5": 2, "bc7": 4}
 BLOCK_BYTES = {"bc1": 8, "bc4": 8, "bc5": 16, "bc7": 16}
 BC7_UBER_LEVEL = 2  # bc7enc's search effort, 0..4: 2 gains 0.3-1.0 dB over 0 for 1.4-2.5x its time
-RGBCX_LEVEL = 10    # rgbcx's BC1 effort, 0..18: 10 is 0.5-1.3 dB under 18 at 1/7 of its time
+RGBCX_LEVEL = 10    # rgbcx's BC1 effort, 0..18: 10 is 0.2-1.3 dB under 18 at 1/7 of its time
 # (both measured by bench/bc_encoders.py's maps; docs/TEXTURES.md)
 
 
