@@ -332,22 +332,28 @@ def test_documented_wgsl_fragment_shader_draws_the_library(folders):
 
 
 def test_wgsl_lookup_reads_the_level_the_sampler_picks(folders, tmp_path):
-    """Mip-agnostic: with the maps uploaded with a mip chain (textured_engine.mip_chain), the lookup at
-    lod 1, and through textureSampleGrad with derivatives of two texels, reads level 1: at level 1's
-    texel centres f is the library's SVBRDF.eval of the folder whose maps are level 1 (float rounding),
+    """Mip-agnostic: a folder saved with its mip chain (format 2, SVBRDF.with_mips) generates the same
+    code but for the header's level count; with its chain's files uploaded as the textures' levels,
+    the lookup at lod 1 and 2, and through textureSampleGrad with derivatives of 2 and 4 texels, reads
+    that level: at the level's texel centres, libhybridbrdf's SVBRDF.eval at that lod (float rounding),
     not what a sampler reads at level 0 there."""
     skip_without_wgpu()
-    folder = folders["linear"]
-    level1 = load_svbrdf(te.level_folder(folder, tmp_path / "level1", 1))
+    mipped = load_svbrdf(folders["linear"]).with_mips()
+    mipped.save(tmp_path / "sv")
+    folder = tmp_path / "sv"
+    plain, code = generate_textured(folders["linear"], "wgsl"), generate_textured(folder, "wgsl")
+    saved = load_svbrdf(folder)
+    assert saved.levels == 5 and code == plain.replace("repeat addressing) ----", "repeat addressing, 5 mip levels) ----")
     rng = np.random.default_rng(11)
     n = 1000
-    cells = rng.integers(0, [te.W // 2, te.H // 2], (n, 2))
-    uv = (cells + 0.5) / [te.W // 2, te.H // 2]
     wi, wo = cosine_directions(rng, n), cosine_directions(rng, n)
-    got = te.run_wgsl_textured(generate_textured(folder, "wgsl"), folder, np.concatenate([uv, wi, wo], 1), False,
-                               levels=2, lod=1)
-    lib1, lib0 = level1.eval(uv, wi, wo), te.eval_reference(folder, uv, wi, wo, False)
-    big = np.abs(lib1) > 1e-6
-    for f in (got[:, :3], got[:, 3:]):
-        assert (np.abs(f - lib1)[big] / np.abs(lib1)[big]).max() < 1e-4
-    assert (np.abs(lib0 - lib1)[big] / np.abs(lib1)[big]).max() > 0.01  # the control: level 0 differs there
+    for lod in (1, 2):
+        size = np.array([te.W >> lod, te.H >> lod])
+        uv = (rng.integers(0, size, (n, 2)) + 0.5) / size
+        got = te.run_wgsl_textured(code, folder, np.concatenate([uv, wi, wo], 1), False, lod=lod)
+        lib = saved.eval(uv, wi, wo, lod=float(lod))  # the saved (8-bit) chain, as the textures hold it
+        big = np.abs(lib) > 1e-6
+        for f in (got[:, :3], got[:, 3:]):
+            assert (np.abs(f - lib)[big] / np.abs(lib)[big]).max() < 1e-4, lod
+        level0 = te.eval_reference(folder, uv, wi, wo, False)
+        assert (np.abs(level0 - lib)[big] / np.abs(lib)[big]).max() > 0.01  # the control: level 0 differs there

@@ -205,9 +205,11 @@ def mip_chain(stored: np.ndarray, levels: int):
     return chain
 
 
-def _texture(stored_rgb: np.ndarray, format: str, levels: int = 1):
+def _texture(stored_rgb, format: str, levels: int = 1):
     """An (H, W) texture of ``format`` holding 8-bit (H, W, 3) values (alpha 255) and ``levels`` mip
-    levels of them (:func:`mip_chain`), its view."""
+    levels of them (:func:`mip_chain`), or ``stored_rgb`` a list of levels (a folder's own chain), its view."""
+    chain = list(stored_rgb) if isinstance(stored_rgb, list) else mip_chain(stored_rgb, levels)
+    stored_rgb, levels = chain[0], len(chain)
     import wgpu
 
     from slang_wgsl_tools import wgpu_device
@@ -216,7 +218,7 @@ def _texture(stored_rgb: np.ndarray, format: str, levels: int = 1):
     h, w = stored_rgb.shape[:2]
     tex = device.create_texture(size=(w, h, 1), format=format, mip_level_count=levels,
                                 usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
-    for level, values in enumerate(mip_chain(stored_rgb, levels)):
+    for level, values in enumerate(chain):
         lh, lw = values.shape[:2]
         rgba = np.concatenate([values, np.full((lh, lw, 1), 255, np.uint8)], axis=2)
         device.queue.write_texture({"texture": tex, "mip_level": level}, np.ascontiguousarray(rgba),
@@ -251,8 +253,8 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
     """The generated WGSL's hbrdf_texel_lod (level ``lod``) and hbrdf_texel_grad (derivatives of 2^lod
     texels along u and v: the same level) with hbrdf_eval_texel, in a compute kernel on lavapipe: the
     folder's STORED 8-bit maps uploaded as rgba8unorm textures (rgba8unorm-srgb for sRGB maps where
-    ``srgb_textures``; the kernel's HBRDF_SRGB_TEXTURES override set to match) with ``levels`` mip
-    levels (:func:`mip_chain`), one linear sampler with a nearest mip filter and the index's
+    ``srgb_textures``; the kernel's HBRDF_SRGB_TEXTURES override set to match) with the folder's own
+    mip chain where its index has one, else ``levels`` levels of :func:`mip_chain`, one linear sampler with a nearest mip filter and the index's
     addressing. Returns (n, 6): f through the lod lookup, then through the grad one."""
     from slang_wgsl_tools import wgpu_device
 
@@ -273,9 +275,11 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
     entries = [{"binding": 2, "resource": sampler}]
     for j, p in enumerate(params):
         entry = by_param[p]
-        stored = np.rint(read_map(folder / entry["file"])[0] * 255).astype(np.uint8)
+        files = [entry["file"]] + list(entry.get("mips", []))  # a format-2 folder's own chain, when it has one
+        stored = [np.rint(read_map(folder / f)[0] * 255).astype(np.uint8) for f in files]
         srgb = srgb_textures and all(d is None or d["transfer"] == "srgb" for d in entry["decode"])
-        entries.append({"binding": 3 + j, "resource": _texture(stored, "rgba8unorm-srgb" if srgb else "rgba8unorm", levels)})
+        chain = stored if len(stored) > 1 else mip_chain(stored[0], levels)
+        entries.append({"binding": 3 + j, "resource": _texture(chain, "rgba8unorm-srgb" if srgb else "rgba8unorm")})
     out = _dispatch(kernel, entries, pairs, 4 * 6 * len(pairs), {"HBRDF_SRGB_TEXTURES": 1.0 if srgb_textures else 0.0})
     return out.reshape(len(pairs), 6)
 
@@ -368,19 +372,3 @@ def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye) 
     pixels = device.queue.read_texture({"texture": target}, {"bytes_per_row": 16 * w, "rows_per_image": h}, (w, h, 1))
     return np.frombuffer(pixels, np.float32).reshape(h, w, 4)[..., :3].copy()
 
-
-def level_folder(folder: pathlib.Path, out: pathlib.Path, level: int) -> pathlib.Path:
-    """A copy of the textured ``folder`` whose maps are level ``level`` of :func:`mip_chain` (the index's
-    size halved ``level`` times, decodes unchanged): the material a sampler reads at that level."""
-    import shutil
-
-    from hybridbrdf.svbrdf.maps import write_map
-
-    shutil.copytree(folder, out)
-    index = json.loads((out / "svbrdf.json").read_text())
-    for entry in index["maps"]:
-        stored = np.rint(read_map(folder / entry["file"])[0] * 255).astype(np.uint8)
-        write_map(out / entry["file"], mip_chain(stored, level + 1)[level])
-    index["size"] = [s >> level for s in index["size"]]
-    (out / "svbrdf.json").write_text(json.dumps(index))
-    return out
