@@ -338,7 +338,7 @@ CORRUPTIONS = [
      "layer must be 0 to 1"),
     ("missing map file", lambda f: (f / "weights.png").unlink(), "no such file"),
     ("map is a folder", lambda f: ((f / "weights.png").unlink(), (f / "weights.png").mkdir()), "is a folder"),
-    ("bad extension", lambda f: _edit_index(f, lambda i: i["maps"][0].update(file="weights.tga")), ".png (8-bit) or .exr"),
+    ("bad extension", lambda f: _edit_index(f, lambda i: i["maps"][0].update(file="weights.tga")), ".exr (float32) or .ktx2, not '.tga'"),
 ]
 
 

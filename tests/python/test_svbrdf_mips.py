@@ -215,3 +215,91 @@ def test_chains_need_power_of_two_sides(model):
     sv = SVBRDF(model, [model.materials[0]], (12, 8), None, [{}])
     with pytest.raises(ValueError, match="power-of-two sides, the size is 12x8"):
         sv.with_mips()
+
+
+# ---- KTX2 maps: the chain in one file per map, GPU block formats (docs/SVBRDF.md, "KTX2 maps") ----
+def _ktx2_folder(model, tmp_path, size=16):
+    rng = np.random.default_rng(12)
+    weights = _weights(rng, size, size, 3)
+    smooth = np.linspace(0, 1, size)
+    maps = [{"kd": np.stack([np.add.outer(smooth, smooth) / 2] * 3, axis=2).astype(np.float32) * 0.8},
+            {"alpha": np.repeat((0.05 + 0.4 * np.outer(smooth, smooth))[..., None], 2, axis=2).astype(np.float32)},
+            {"eta": np.full((size, size, 3), 1.6, np.float32)}]
+    sv = SVBRDF(model, model.materials[:3], (size, size), weights, maps).with_mips()
+    sv.save(tmp_path / "png", format="png")
+    sv.save(tmp_path / "ktx2", format="ktx2")
+    return tmp_path / "png", tmp_path / "ktx2"
+
+
+def test_ktx2_maps_hold_the_chain_in_block_formats_and_both_loaders_agree(model, tmp_path):
+    import texture2ddecoder  # the test extra (scripts/setup.sh): an independent BC decoder
+    from PIL import Image
+
+    from hybridbrdf.svbrdf import bcenc
+    from hybridbrdf.svbrdf.ktx2 import read_ktx2
+
+    png, ktx2 = _ktx2_folder(model, tmp_path)
+    index = json.loads((ktx2 / "svbrdf.json").read_text())
+    formats = {e["file"]: read_ktx2(ktx2 / e["file"]).name for e in index["maps"]}
+    assert formats == {"weights.ktx2": "BC5_UNORM_BLOCK", "layer0_kd.ktx2": "BC7_SRGB_BLOCK",
+                       "layer1_alpha.ktx2": "BC5_UNORM_BLOCK", "layer2_eta.ktx2": "BC7_UNORM_BLOCK"}
+    assert all("mips" not in e for e in index["maps"]) and sorted(p.name for p in ktx2.iterdir()) == sorted(
+        list(formats) + ["model.safetensors", "svbrdf.json"])
+    a, b = load_svbrdf(png), load_svbrdf(ktx2)
+    assert b.levels == a.levels == 5
+    for level, ((wa, ma), (wb, mb)) in enumerate(zip([(a.weights, a.maps)] + a.mips, [(b.weights, b.maps)] + b.mips)):
+        # The weights read back are the BC5 blocks of the PNG level's bytes (the same 8-bit encode),
+        # decoded by texture2ddecoder, an independent decoder: exactly.
+        stored = np.asarray(Image.open(png / (f"weights.mip{level}.png" if level else "weights.png")))[..., :2]
+        h, w = stored.shape[:2]
+        blocks = np.zeros((-(-h // 4) * 4, -(-w // 4) * 4, 2), np.uint8)
+        blocks[:h, :w] = stored
+        blocks[h:, :w], blocks[:, w:] = blocks[h - 1:h, :w], blocks[:, w - 1:w]  # the edge texels repeated into the pad
+        data = bcenc.encode_blocks(blocks, "bc5")
+        ref = np.frombuffer(texture2ddecoder.decode_bc5(data, blocks.shape[1], blocks.shape[0]), np.uint8)
+        ref = ref.reshape(blocks.shape[0], blocks.shape[1], 4)[:h, :w, [2, 1]] / 255.0  # BGRA: R in byte 2, G in 1
+        np.testing.assert_array_equal(wb[..., :2], ref.astype(np.float32))
+        # Smooth gradients: a block's channel holds 8 (BC5) or 4-16 (BC7) levels between its two
+        # endpoints, so the error is a fraction of the block's range (here under 0.1 of alpha or kd).
+        assert np.abs(ma[1]["alpha"] - mb[1]["alpha"]).max() <= 0.04
+        assert np.abs(ma[0]["kd"] - mb[0]["kd"]).max() <= 0.04
+    wi, wo = _directions(400)
+    uv = np.random.default_rng(1).uniform(-0.2, 1.2, (len(wi), 2))
+    lod = np.random.default_rng(2).uniform(-0.5, 4.5, len(wi)).astype(np.float32)
+    ref = b.eval(uv, wi, wo, lod=lod.astype(np.float64), dtype=torch.float64)
+    got = hb._core.Svbrdf(str(ktx2)).eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), "bilinear",
+                                          batched=True, lod=lod)
+    assert np.all(np.abs(got - ref) <= 2e-4 * np.abs(ref).max(axis=1, keepdims=True) + 1e-6)
+
+
+def _rewrite_ktx2(folder, file, levels_of, vk):
+    from hybridbrdf.svbrdf.ktx2 import read_ktx2, vk_format, write_ktx2
+
+    tex = read_ktx2(folder / file)
+    write_ktx2(folder / file, levels_of([lv[..., :3] if lv.shape[2] > 3 else lv for lv in tex.levels]), vk_format(vk))
+
+
+KTX2_CORRUPTIONS = [
+    ("kd in one channel", lambda f: _rewrite_ktx2(f, "layer0_kd.ktx2", lambda lv: [x[..., :1] for x in lv], "BC4_UNORM_BLOCK"),
+     "BC4_UNORM_BLOCK holds 1 channel(s); this kd map needs 3"),
+    ("weights in sRGB", lambda f: _rewrite_ktx2(f, "weights.ktx2", lambda lv: [np.pad(x, ((0, 0), (0, 0), (0, 1))) for x in lv],
+                                                "BC7_SRGB_BLOCK"),
+     "BC7_SRGB_BLOCK is sRGB-encoded (a sampler decodes it), so its transfer must be srgb, not linear"),
+    ("a level short", lambda f: _rewrite_ktx2(f, "layer1_alpha.ktx2", lambda lv: lv[:-1], "BC5_UNORM_BLOCK"),
+     "holds 4 mip level(s); the index says 5"),
+    ("another size", lambda f: _rewrite_ktx2(f, "layer1_alpha.ktx2", lambda lv: lv[1:], "BC5_UNORM_BLOCK"),
+     "map is 8x8; the index says 16x16"),
+    ("mips beside KTX2", lambda f: _edit(f, lambda i: i["maps"][0].update(mips=["a.png"] * 4)), "a KTX2 map holds its own mip levels"),
+    ("truncated KTX2", lambda f: (f / "weights.ktx2").write_bytes((f / "weights.ktx2").read_bytes()[:100]), "truncated"),
+]
+
+
+@pytest.mark.parametrize("name,corrupt,words", KTX2_CORRUPTIONS, ids=[c[0] for c in KTX2_CORRUPTIONS])
+def test_ktx2_maps_the_quantity_cannot_hold_are_refused_by_both_loaders(model, tmp_path, name, corrupt, words):
+    _, folder = _ktx2_folder(model, tmp_path)
+    corrupt(folder)
+    for load in (load_svbrdf, hb._core.Svbrdf):
+        with pytest.raises((hb.InputFileError, ValueError)) as err:
+            load(str(folder))
+        msg = str(err.value)
+        assert words in msg and "\n" not in msg and str(folder) in msg, (load, msg)

@@ -16,6 +16,7 @@
 #include <stb/stb_image.h>
 
 #include "hybridbrdf/render/image.hpp"
+#include "hybridbrdf/render/ktx2.hpp"
 #include "hybridbrdf/spec.hpp"
 #include "hybridbrdf/text.hpp"
 
@@ -154,9 +155,8 @@ std::string chain_problem(int width, int height, int levels) {
 }
 
 // One map file's decoded values (texels x used channels), each checked against the quantity's range.
-std::vector<double> decode_map(const std::string& path, int width, int height, const json& decodes, int used, const Quantity& q) {
-    bool eight_bit = false;
-    const std::vector<double> stored = read_map(path, width, height, &eight_bit);
+std::vector<double> decode_stored(const std::string& path, const std::vector<double>& stored, int width, int height,
+                                  const json& decodes, int used, const Quantity& q) {
     const std::size_t texels = std::size_t(width) * std::size_t(height);
     std::vector<double> values(texels * std::size_t(used));
     for (int ch = 0; ch < used; ++ch) {
@@ -173,6 +173,42 @@ std::vector<double> decode_map(const std::string& path, int width, int height, c
         }
     }
     return values;
+}
+
+// A map file's decoded values (read_map, then decode_stored).
+std::vector<double> decode_map(const std::string& path, int width, int height, const json& decodes, int used, const Quantity& q) {
+    bool eight_bit = false;
+    return decode_stored(path, read_map(path, width, height, &eight_bit), width, height, decodes, used, q);
+}
+
+// Level L of a KTX2 map decoded: its format holds the channels the map uses (a weights map those
+// of its layers; a channel it lacks reads 0, as a sampler returns it), and an sRGB format only
+// channels of the srgb transfer (a sampler decodes them before filtering). The words of
+// hybridbrdf.svbrdf.entries._ktx2_levels.
+std::vector<double> ktx2_values(const Ktx2Texture& tex, int L, const std::string& path, const std::string& index_path,
+                                const std::string& qn, const json& decodes, int used, int n_layers, const Quantity& q) {
+    const int needed = qn == "weights" ? n_layers - 1 : used;
+    if (tex.channels < needed)
+        throw FileError(path, tex.format_name + " holds " + std::to_string(tex.channels) + " channel(s); this " + qn + " map needs " +
+                                  std::to_string(needed));
+    const std::string file = path.substr(path.find_last_of('/') + 1);
+    if (tex.srgb)
+        for (int ch = 0; ch < std::min(used, tex.channels); ++ch) {
+            const json& d = decodes[std::size_t(ch)];
+            if (!d.is_null() && d["transfer"] != "srgb")
+                throw FileError(index_path, file + " channel " + "RGB"[ch] + ": " + tex.format_name + " is sRGB-encoded (a sampler decodes it), "
+                                            "so its transfer must be srgb, not " + d["transfer"].get<std::string>());
+        }
+    const Ktx2Level& level = tex.levels[std::size_t(L)];
+    const std::size_t texels = std::size_t(level.width) * std::size_t(level.height);
+    const int k = std::min(tex.channels, kChannels);
+    std::vector<double> stored(texels * kChannels, 0.0);
+    for (std::size_t t = 0; t < texels; ++t)
+        for (int ch = 0; ch < k; ++ch) {
+            const std::size_t i = t * std::size_t(tex.channels) + std::size_t(ch);
+            stored[t * kChannels + std::size_t(ch)] = tex.is_float ? double(level.floats[i]) : level.bytes[i] / 255.0;
+        }
+    return decode_stored(path, stored, int(level.width), int(level.height), decodes, used, q);
 }
 
 }  // namespace
@@ -276,21 +312,34 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         plain_name(index_path, e["file"], "a map's file");
         const std::string file = e["file"].get<std::string>();
         const std::string path = folder + "/" + file;
+        const auto dot = file.find_last_of('.');
+        std::string ext = dot == std::string::npos ? "" : file.substr(dot);
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+        const bool ktx2 = ext == ".ktx2";  // one file holding the whole chain (svbrdf_io.hpp)
         const bool has_mips = e.contains("mips");
-        if (has_mips != (levels > 1) || (has_mips && (!e["mips"].is_array() || int(e["mips"].size()) != levels - 1)))
+        if (ktx2 && has_mips)
+            throw FileError(index_path, file + ": a KTX2 map holds its own mip levels; \"mips\" lists PNG and EXR levels");
+        if (!ktx2 && (has_mips != (levels > 1) || (has_mips && (!e["mips"].is_array() || int(e["mips"].size()) != levels - 1))))
             throw FileError(index_path, levels > 1 ? file + ": a material of " + std::to_string(levels) + " levels lists " +
                                                          std::to_string(levels - 1) + " mip files per map (\"mips\")"
                                                    : file + ": \"mips\" needs \"levels\" above 1 in the index");
+        Ktx2Texture texture;
+        if (ktx2) {
+            check_input_file(path, "texel map");
+            texture = read_ktx2(path);  // bounded: every size checked against the file before any allocation
+            if (int(texture.width) != width || int(texture.height) != height)
+                throw FileError(path, "map is " + std::to_string(texture.width) + "x" + std::to_string(texture.height) + "; the index says " +
+                                          std::to_string(width) + "x" + std::to_string(height));
+            if (int(texture.levels.size()) != levels)
+                throw FileError(path, "holds " + std::to_string(texture.levels.size()) + " mip level(s); the index says " + std::to_string(levels));
+        }
         const json& decodes = e["decode"];
         const int used = std::min(kChannels, c - first);
         if (!decodes.is_array() || int(decodes.size()) != kChannels)
             throw FileError(index_path, file + ": decode must list " + std::to_string(kChannels) + " channels");
-        const auto dot = file.find_last_of('.');
-        std::string ext = dot == std::string::npos ? "" : file.substr(dot);
-        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
-        if (ext != ".png" && ext != ".exr")
-            throw FileError(path, "texel maps are .png (8-bit) or .exr (float32), not '" + (ext.empty() ? std::string("no extension") : ext) + "'");
-        const bool png = ext == ".png";
+        if (ext != ".png" && ext != ".exr" && ext != ".ktx2")
+            throw FileError(path, "texel maps are .png (8-bit), .exr (float32) or .ktx2, not '" + (ext.empty() ? std::string("no extension") : ext) + "'");
+        const bool png = ktx2 ? !texture.is_float : ext == ".png";  // stored values in [0, 1]: the 8-bit decode's rules
         for (int ch = 0; ch < kChannels; ++ch) {
             const json& d = decodes[std::size_t(ch)];
             const std::string where = file + " channel " + "RGB"[ch] + ": ";
@@ -322,7 +371,7 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
             throw FileError(index_path, "two maps give " + qn + " " + std::to_string(first) + ".." + std::to_string(first + 2) +
                                             (layer < 0 ? "" : " of layer " + std::to_string(layer)));
         std::vector<std::string> paths = {path};
-        for (int L = 1; L < levels; ++L) {
+        for (int L = 1; L < levels && !ktx2; ++L) {
             const json& name = e["mips"][std::size_t(L - 1)];
             plain_name(index_path, name, "a mip file");
             const std::string mip = name.get<std::string>();
@@ -335,12 +384,13 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         std::vector<std::vector<double>> chain;
         for (int L = 0; L < levels; ++L) {
             const int lw = std::max(1, width >> L), lh = std::max(1, height >> L);
-            std::vector<double> values = decode_map(paths[std::size_t(L)], lw, lh, decodes, used, *q);
+            std::vector<double> values = ktx2 ? ktx2_values(texture, L, path, index_path, qn, decodes, used, n_layers, *q)
+                                              : decode_map(paths[std::size_t(L)], lw, lh, decodes, used, *q);
             if (qn == "weights")
                 for (std::size_t t = 0; t < std::size_t(lw) * std::size_t(lh); ++t)
                     for (int ch = n_layers - 1; ch < 3; ++ch)
                         if (values[t * 3 + std::size_t(ch)] != 0.0)
-                            throw FileError(paths[std::size_t(L)], "weights of layers beyond the last (" + std::to_string(n_layers - 1) + ") must be 0");
+                            throw FileError(paths[std::size_t(ktx2 ? 0 : L)], "weights of layers beyond the last (" + std::to_string(n_layers - 1) + ") must be 0");
             chain.push_back(std::move(values));
         }
         if (qn == "weights") {

@@ -22,11 +22,11 @@ import numpy as np
 
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
+from hybridbrdf.inputs import loads_json, read_input_text
 from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
-from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
-from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
+from hybridbrdf.svbrdf.entries import (LAYER_QUANTITIES, SVBRDFError, FORMATS as MAP_FORMATS, components, plain_name, read_entry,
+                                       write_quantity)
 from hybridbrdf.svbrdf.mips import build_chain, chain_problem, level_size, lod_levels
 from hybridbrdf.files import atomic_folder, atomic_write_bytes
 
@@ -37,10 +37,8 @@ SV = spec.SVBRDF
 MAX_LAYERS = SV["max_layers"]
 CHANNELS = SV["map_channels"]
 INDEX_KEYS = {"format_version", "model", "size", "addressing", "layers", "maps"}
-MAP_KEYS = {"file", "quantity", "layer", "first", "mips", "decode"}
 FORMAT_VERSIONS = (1, SV["format_version"])  # 1: no mip chain; 2 adds "levels" and each map's "mips"
 MAX_LEVELS = SV["max_side"].bit_length()
-LAYER_QUANTITIES = ("kd", "eta", "alpha", "latent")
 #: Bytes per pair of :meth:`SVBRDF.eval` besides the model's evaluation: float64 copies of uv,
 #: wi, wo and four layers' texel values from four bilinear taps (an estimate, not a measurement:
 #: 4 layers x 4 taps x 16 float64 values is 2 KiB).
@@ -79,30 +77,13 @@ def texel_taps(uv: np.ndarray, size, addressing: str, filter: str):
     return taps
 
 
-class SVBRDFError(InputFileError):
-    """A textured-material folder, index or map that cannot be used (one line naming the file)."""
-
-
-def _components(quantity: str, latent: int) -> int:
-    c = QUANTITIES[quantity]["components"]
-    return latent if c == "latent" else c
-
-
-def _plain_name(index_path: str, name, what: str) -> str:
-    """A file name inside the folder: no separators, not '.' or '..', not hidden."""
-    if not isinstance(name, str) or not name or os.path.basename(name) != name or name in (".", "..") \
-            or name.startswith(".") or "\\" in name or "\0" in name:
-        raise SVBRDFError(index_path, f"{what} must be a plain file name inside the folder, got {name!r}")
-    return name
-
-
 class SVBRDF:
     """A textured material in memory: ``model`` (a hybrid :class:`HybridModel`), ``layers`` (material
     names, the base first), ``weights`` ((H, W, 3) decoded w_1..3, or None for one layer),
     ``maps`` (per layer, quantity -> decoded (H, W, components) float32), ``size`` (W, H),
     ``addressing`` ('repeat' or 'clamp'), ``mips`` (levels 1 .. 1x1 of a mip chain, each
     (weights, maps) at its size, or empty: :meth:`with_mips` builds them). Build one with
-    :func:`load_svbrdf` or :func:`hybridbrdf.fit.paint.paint`."""
+    :func:`load_svbrdf` or :func:`hybridbrdf.fit.paint`."""
 
     def __init__(self, model: HybridModel, layers: Sequence[str], size, weights: Optional[np.ndarray] = None,
                  maps: Optional[Sequence[Dict[str, np.ndarray]]] = None, addressing: str = "repeat",
@@ -127,7 +108,7 @@ class SVBRDF:
         for name, arr in [("weights", self.weights)] + [(q, a) for m in self.maps for q, a in m.items()]:
             if arr is None:
                 continue
-            c = 3 if name == "weights" else _components(name, model.arch["latent"])
+            c = 3 if name == "weights" else components(name, model.arch["latent"])
             if arr.shape != (h, w, c):
                 raise ValueError(f"{name} map has shape {arr.shape}, expected {(h, w, c)}")
         self.mips = [self._checked_level(level, mw, mm) for level, (mw, mm) in enumerate(mips, start=1)]
@@ -211,7 +192,7 @@ class SVBRDF:
             weight = np.concatenate([np.clip(1 - rest.sum(axis=1, keepdims=True), 0, 1), rest], axis=1)
         out["weight"] = weight.astype(np.float32)
         for q in LAYER_QUANTITIES:
-            c = _components(q, self.model.arch["latent"])
+            c = components(q, self.model.arch["latent"])
             vals = np.empty((n, L, c), dtype=np.float32)
             for k, (i, maps) in enumerate(zip(self.indices, level_maps)):
                 if q in maps:
@@ -247,10 +228,12 @@ class SVBRDF:
         """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.files.atomic_folder`):
         into a temporary folder beside it, then renamed over it; SIGTERM or an error leaves the old
         folder, an OSError names ``folder``. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
-        the values) or 'exr' (float32, decoded values stored). An existing ``folder`` is replaced
+        the values), 'exr' (float32, decoded values stored), each a file per mip level, or 'ktx2'
+        (the 8-bit decode in GPU block formats, one file holding the chain:
+        :data:`hybridbrdf.svbrdf.entries.KTX2_FORMATS`). An existing ``folder`` is replaced
         only when it is a textured material's folder (it holds svbrdf.json) or empty."""
-        if format not in ("png", "exr"):
-            raise ValueError(f"format must be 'png' or 'exr', got {format!r}")
+        if format not in MAP_FORMATS:
+            raise ValueError(f"format must be one of {', '.join(MAP_FORMATS)}, got {format!r}")
         folder = os.path.abspath(os.fspath(folder))
         if os.path.lexists(folder):
             if not os.path.isdir(folder):
@@ -262,11 +245,11 @@ class SVBRDF:
             entries = []
             chain = [(self.weights, self.maps)] + list(self.mips)
             if self.weights is not None:
-                entries += _write_quantity(tmp, "weights", None, [w for w, _ in chain], format, len(self.layers))
+                entries += write_quantity(tmp, "weights", None, [w for w, _ in chain], format, len(self.layers))
             for k in range(len(self.layers)):
                 for q in LAYER_QUANTITIES:
                     if q in self.maps[k]:
-                        entries += _write_quantity(tmp, q, k, [m[k][q] for _, m in chain], format)
+                        entries += write_quantity(tmp, q, k, [m[k][q] for _, m in chain], format)
             index = {"format_version": 1 if self.levels == 1 else SV["format_version"], "model": SV["model_file"],
                      "size": list(self.size), "addressing": self.addressing,
                      **({} if self.levels == 1 else {"levels": self.levels}),
@@ -309,40 +292,6 @@ def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray]
     return f.double().numpy()
 
 
-def _map_name(quantity: str, layer: Optional[int], first: int, format: str, level: int = 0) -> str:
-    stem = quantity if layer is None else f"layer{layer}_{quantity}" + (str(first // 3) if quantity == "latent" else "")
-    return f"{stem}{f'.mip{level}' if level else ''}.{format}"
-
-
-def _write_quantity(folder, quantity, layer, chain, format, n_layers=None) -> List[Dict]:
-    """Encode a quantity's decoded values, (H, W, c) per mip level (level 0 first), into map files
-    of 3 channels each (level 0's decode for every level: a coarser level's values are means of
-    the finer ones, within their range); their index entries."""
-    entries = []
-    for first in range(0, chain[0].shape[2], CHANNELS):
-        c = min(CHANNELS, chain[0].shape[2] - first)
-        decodes = []
-        held = [ch < c and not (quantity == "weights" and ch >= n_layers - 1) for ch in range(CHANNELS)]
-        for ch in range(CHANNELS):
-            if not held[ch]:
-                decodes.append(None if quantity != "weights" else (png_channel("weights") if format == "png" else float_channel()))
-                continue
-            x = chain[0][..., first + ch].astype(np.float64)
-            decodes.append(png_channel(quantity, x.min(), x.max()) if format == "png" else float_channel())
-        names = []
-        for level, values in enumerate(chain):
-            h, w = values.shape[:2]
-            stored = np.zeros((h, w, CHANNELS), dtype=np.uint8 if format == "png" else np.float32)
-            for ch in range(c):
-                if held[ch]:
-                    stored[..., ch] = encode(values[..., first + ch].astype(np.float64), decodes[ch], bits=8 if format == "png" else 0)
-            names.append(_map_name(quantity, layer, first, format, level))
-            write_map(os.path.join(folder, names[-1]), stored)
-        entries.append({"file": names[0], "quantity": quantity, **({} if layer is None else {"layer": layer}),
-                        "first": first, **({"mips": names[1:]} if len(names) > 1 else {}), "decode": decodes})
-    return entries
-
-
 # ---- reading ------------------------------------------------------------------------------
 def load_svbrdf(folder) -> SVBRDF:
     """Read and validate a textured material's folder (docs/SVBRDF.md): the index, the model it
@@ -364,7 +313,7 @@ def load_svbrdf(folder) -> SVBRDF:
     unknown, missing = set(index) - keys, keys - set(index)
     if unknown or missing:
         raise SVBRDFError(index_path, f"unknown keys {sorted(unknown)}" if unknown else f"missing keys {sorted(missing)}")
-    model_path = os.path.join(folder, _plain_name(index_path, index["model"], "model"))
+    model_path = os.path.join(folder, plain_name(index_path, index["model"], "model"))
     model = load_model(model_path)
     if not model.has_analytic:
         raise SVBRDFError(model_path, f"a textured material needs a hybrid model; this one is '{model.kind}'")
@@ -397,7 +346,7 @@ def load_svbrdf(folder) -> SVBRDF:
     if not isinstance(index["maps"], list):
         raise SVBRDFError(index_path, "maps must be a list")
     for entry in index["maps"]:
-        quantity, layer, first, path, values = _read_entry(folder, index_path, entry, len(names), latent, (w, h), levels)
+        quantity, layer, first, path, values = read_entry(folder, index_path, entry, len(names), latent, (w, h), levels)
         key = (quantity, layer, first)
         if key in seen:
             raise SVBRDFError(index_path, f"two maps give {quantity} {first}..{first + 2}"
@@ -412,7 +361,7 @@ def load_svbrdf(folder) -> SVBRDF:
             parts.setdefault((layer, quantity), {})[first] = values
     maps = [[{} for _ in names] for _ in range(levels)]
     for (layer, quantity), pieces in parts.items():
-        c = _components(quantity, latent)
+        c = components(quantity, latent)
         firsts = sorted(pieces)
         if firsts != list(range(0, c, CHANNELS)):
             raise SVBRDFError(index_path, f"layer {layer}: {quantity} maps must cover components 0..{c - 1} "
@@ -426,66 +375,3 @@ def load_svbrdf(folder) -> SVBRDF:
                   mips=chain[1:])
 
 
-def _read_entry(folder, index_path, entry, n_layers, latent, size, levels):
-    """(quantity, layer, first, [path per level], [decoded values (H, W, components in this map)
-    per level]) of one map entry."""
-    if not isinstance(entry, dict) or not {"file", "quantity", "first", "decode"} <= set(entry) <= MAP_KEYS:
-        raise SVBRDFError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", [\"mips\"], \"decode\"}")
-    quantity = entry["quantity"]
-    if quantity not in QUANTITIES:
-        raise SVBRDFError(index_path, f"unknown map quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
-    per_layer = QUANTITIES[quantity]["per_layer"]
-    layer = entry.get("layer")
-    if per_layer != ("layer" in entry):
-        raise SVBRDFError(index_path, f"a {quantity} map {'needs' if per_layer else 'has no'} \"layer\"")
-    if per_layer and not (isinstance(layer, int) and not isinstance(layer, bool) and 0 <= layer < n_layers):
-        raise SVBRDFError(index_path, f"{quantity} map: layer must be 0 to {n_layers - 1}, got {layer!r}")
-    c = 3 if quantity == "weights" else _components(quantity, latent)
-    first = entry["first"]
-    if not (isinstance(first, int) and not isinstance(first, bool) and 0 <= first < c and first % CHANNELS == 0):
-        raise SVBRDFError(index_path, f"{quantity} map: first must be a multiple of {CHANNELS} below {c}, got {first!r}")
-    path = os.path.join(folder, _plain_name(index_path, entry["file"], "a map's file"))
-    mips = entry.get("mips", [])
-    if (levels > 1) != ("mips" in entry) or not (isinstance(mips, list) and len(mips) == levels - 1):
-        raise SVBRDFError(index_path, f"{os.path.basename(path)}: a material of {levels} levels lists "
-                                      f"{levels - 1} mip files per map (\"mips\")" if levels > 1 else
-                                      f"{os.path.basename(path)}: \"mips\" needs \"levels\" above 1 in the index")
-    bits = map_bits(path)
-    decodes = entry["decode"]
-    used = min(CHANNELS, c - first)
-    if not (isinstance(decodes, list) and len(decodes) == CHANNELS):
-        raise SVBRDFError(index_path, f"{entry['file']}: decode must list {CHANNELS} channels")
-    for ch, d in enumerate(decodes):
-        if ch >= used:
-            if d is not None and quantity != "weights":
-                raise SVBRDFError(index_path, f"{entry['file']}: channel {'RGB'[ch]} holds no {quantity} component; its decode must be null")
-            continue
-        problem = channel_problem(quantity, d, floating=not bits)
-        if problem:
-            raise SVBRDFError(index_path, f"{entry['file']} channel {'RGB'[ch]}: {problem}")
-    paths = [path] + [os.path.join(folder, _plain_name(index_path, name, "a mip file")) for name in mips]
-    out = []
-    for level, file in enumerate(paths):
-        if map_bits(file) != bits:
-            raise SVBRDFError(index_path, f"{os.path.basename(file)}: a mip level is stored as level 0 is "
-                                          f"({os.path.splitext(path)[1]})")
-        out.append(_read_level(file, quantity, decodes, used, level_size(size, level)))
-    return quantity, layer, first, paths, out
-
-
-def _read_level(path, quantity, decodes, used, size) -> np.ndarray:
-    """One map file's decoded values (H, W, components; weights padded to 3), checked."""
-    check_input_file(path, "texel map", None, SVBRDFError)
-    stored, _ = read_map(path)
-    if (stored.shape[1], stored.shape[0]) != tuple(size):
-        raise SVBRDFError(path, f"map is {stored.shape[1]}x{stored.shape[0]}; the index says {size[0]}x{size[1]}")
-    values = np.stack([decode(stored[..., ch], decodes[ch]) for ch in range(used)], axis=2)
-    q = QUANTITIES[quantity]
-    bad = ~((values >= q["min"]) & (values <= q["max"]))
-    if bad.any():
-        y, x, ch = np.argwhere(bad)[0]
-        raise SVBRDFError(path, f"texel ({x}, {y}) channel {'RGB'[ch]} decodes to {values[y, x, ch]:g}, outside "
-                                f"{quantity}'s range [{q['min']:g}, {q['max']:g}]")
-    if quantity == "weights":
-        values = np.concatenate([values, np.zeros(values.shape[:2] + (3 - used,))], axis=2) if used < 3 else values
-    return values.astype(np.float32)
