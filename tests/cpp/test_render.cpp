@@ -424,3 +424,36 @@ TEST_CASE("EXR written atomically and read back") {
     CHECK_THROWS_AS(write_exr(img, "/nonexistent-dir/x.exr"), FileError);
     CHECK(!std::ifstream("/nonexistent-dir/x.exr.tmp").good());
 }
+
+TEST_CASE("ray cones: a plane's and a sphere's uv scale and a camera ray's footprint") {
+    // A plane of size 2 facing a camera 5 away: 0.5 uv units per world unit; the centre pixel's cone
+    // is 2 tan(20 deg) / 64 x 5 wide there, facing the ray.
+    Scene scene = load(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "fov_deg": 40, "width": 64, "height": 64},
+        "environment": {"type": "constant", "radiance": 1}, "materials": {"m": {"type": "analytic"}},
+        "objects": [{"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "size": 2, "material": "m"},
+                    {"type": "sphere", "center": [8, 0, -20], "radius": 1.5, "material": "m"}]})");
+    const Ray centre = scene.camera.generate(32.0f, 32.0f);
+    SurfaceHit hit;
+    REQUIRE(scene.intersect(centre.origin, centre.dir, &hit));
+    CHECK(hit.uv_scale_log2 == doctest::Approx(std::log2(0.5)).epsilon(1e-6));
+    const double spread = 2.0 * std::tan(20.0 * 3.14159265358979323846 / 180.0) / 64.0;
+    CHECK(scene.camera.pixel_spread() == doctest::Approx(spread).epsilon(1e-6));
+    CHECK(cone_footprint_log2(float(spread) * hit.t, dot(hit.ng, centre.dir), hit.uv_scale_log2) ==
+          doctest::Approx(std::log2(0.5 * 5.0 * spread)).epsilon(1e-5));
+    // Slanted 60 degrees: the footprint stretches by 1 / cos 60 = 2 along the surface (+1 in log2).
+    CHECK(cone_footprint_log2(1.0f, 0.5f, 0.0f) == doctest::Approx(1.0).epsilon(1e-6));
+    CHECK(cone_footprint_log2(0.0f, 1.0f, 0.0f) == kPointFootprint);
+    CHECK(camera_cone_spread(1.0f, 1) == 1.0f);
+    CHECK(camera_cone_spread(1.0f, 16) == 0.25f);
+    CHECK(camera_cone_spread(1.0f, 4096) == 0.125f);
+    // The sphere's scale against its own uv map measured by the tracer: three hits a few thousandths
+    // apart, their uv triangle's area over their world triangle's, at several latitudes.
+    for (const Vec2<float> at : {Vec2<float>(8.3f, -0.2f), Vec2<float>(7.4f, 0.9f), Vec2<float>(8.6f, 1.3f)}) {
+        const Vec3f target(at.x, at.y, -20.0f), o = centre.origin;
+        SurfaceHit h[3];
+        const Vec3f offsets[3] = {Vec3f(0.0f), Vec3f(2e-3f, 0.0f, 0.0f), Vec3f(0.0f, 2e-3f, 0.0f)};
+        for (int k = 0; k < 3; ++k) REQUIRE(scene.intersect(o, glm::normalize(target + offsets[k] - o), &h[k]));
+        const float measured = triangle_uv_scale_log2(h[0].p, h[1].p, h[2].p, h[0].uv, h[1].uv, h[2].uv);
+        CHECK(h[0].uv_scale_log2 == doctest::Approx(measured).epsilon(2e-3));
+    }
+}

@@ -228,7 +228,7 @@ def test_cli_render_has_a_flag_per_setting(tmp_path):
     assert r.returncode == 0
     for s in hr.settings():
         flag = "--" + s["name"].replace("_", "-")
-        assert (f"{flag}, --no-{s['name']}" if s["type"] == "bool" else flag) in r.stdout, flag
+        assert (f"{flag}, --no-{flag[2:]}" if s["type"] == "bool" else flag) in r.stdout, flag
     path = tmp_path / "s.json"
     path.write_text(json.dumps(scene(analytic_material())))
     r = run_cli("render", str(path), "-o", str(tmp_path / "o.exr"), "--spp", "1", "--max-depth", "0",

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "hybridbrdf/render/progress.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 #include "hybridbrdf/render/rng.hpp"
 
 namespace hbrdf::render {
@@ -41,6 +42,7 @@ struct Path {
 // What one path needs from its material at this bounce.
 struct Shading {
     SurfaceHit hit;
+    float footprint = kPointFootprint;  // log2 of the ray cone's width in uv units here (ray_cone.hpp)
     Vec3f wo;                 // local
     Vec3f wi_light, light_radiance;
     float light_pdf = 0;
@@ -59,7 +61,8 @@ struct Counters {
 // Per-thread renderer: buffers reused from tile to tile.
 class TileRenderer {
 public:
-    TileRenderer(const Scene& scene, const RenderOptions& options) : scene_(scene), opt_(options) {}
+    TileRenderer(const Scene& scene, const RenderOptions& options)
+        : scene_(scene), opt_(options), cone_spread_(camera_cone_spread(scene.camera.pixel_spread(), options.spp)) {}
 
     void render_tile(int x0, int y0, int x1, int y1, Image& image, Counters& counters) {
         const int tw = x1 - x0, th = y1 - y0, n_pixels = tw * th;
@@ -126,6 +129,13 @@ private:
                 const PathRandom rng{opt_.seed, p.pixel, std::uint64_t(p.sample)};
                 s.wo = s.hit.shading.to_local(-p.dir);
                 s.network = use_network(opt_, depth, p.throughput);
+                // Camera rays carry their pixel's cone (width spread x t at the hit: it starts at the
+                // pinhole). Past the first bounce the footprint is a point, level 0: the BSDF lobe
+                // spreads the paths far wider than any cone, and Monte Carlo integration over it
+                // already averages the texels there (docs/RENDERING.md, "Texture footprints").
+                s.footprint = opt_.mip_lod && depth == 0
+                                  ? cone_footprint_log2(cone_spread_ * s.hit.t, dot(s.hit.ng, p.dir), s.hit.uv_scale_log2)
+                                  : kPointFootprint;
                 s.light_ok = s.bsdf_ok = false;
                 s.f_light = s.f_bsdf = Vec3f(0.0f);
                 if (!(s.wo.z > 0.0f)) continue;  // shading normal turned away from the viewer: black
@@ -140,7 +150,7 @@ private:
                     }
                 }
                 const BrdfSample bs = mat.sample_at(s.wo, Vec2<float>(rng.bounce(depth, kDimBsdf0), rng.bounce(depth, kDimBsdf1)),
-                                                    s.hit.uv);
+                                                    s.hit.uv, s.footprint);
                 s.wi_bsdf = bs.wi;
                 s.bsdf_pdf = bs.pdf;
                 s.wi_bsdf_world = s.hit.shading.to_world(bs.wi);
@@ -159,7 +169,7 @@ private:
                 const Shading& s = shading_[k];
                 const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
                 if (s.light_ok) {
-                    const float w = power_heuristic(s.light_pdf, mat.pdf_at(s.wi_light, s.wo, s.hit.uv));
+                    const float w = power_heuristic(s.light_pdf, mat.pdf_at(s.wi_light, s.wo, s.hit.uv, s.footprint));
                     add(p, p.throughput * s.f_light * s.light_radiance * (s.wi_light.z * w / s.light_pdf));
                 }
                 if (!s.bsdf_ok) continue;
@@ -204,21 +214,23 @@ private:
             wi_.clear();
             wo_.clear();
             uv_.clear();
+            footprint_.clear();
             slots_.clear();
-            auto push = [&](const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, Vec3f* slot) {
+            auto push = [&](const Vec3f& wi, const Shading& s, Vec3f* slot) {
                 wi_.insert(wi_.end(), {wi.x, wi.y, wi.z});
-                wo_.insert(wo_.end(), {wo.x, wo.y, wo.z});
-                uv_.insert(uv_.end(), {uv.x, uv.y});
+                wo_.insert(wo_.end(), {s.wo.x, s.wo.y, s.wo.z});
+                uv_.insert(uv_.end(), {s.hit.uv.x, s.hit.uv.y});
+                footprint_.push_back(s.footprint);
                 slots_.push_back(slot);
             };
             for (std::size_t i = bucket_[b]; i < bucket_[b + 1]; ++i) {
                 Shading& s = shading_[order_[i]];
-                if (s.light_ok) push(s.wi_light, s.wo, s.hit.uv, &s.f_light);
-                if (s.bsdf_ok) push(s.wi_bsdf, s.wo, s.hit.uv, &s.f_bsdf);
+                if (s.light_ok) push(s.wi_light, s, &s.f_light);
+                if (s.bsdf_ok) push(s.wi_bsdf, s, &s.f_bsdf);
             }
             if (slots_.empty()) continue;
             f_.resize(wi_.size());
-            mat.eval_at(slots_.size(), uv_.data(), wi_.data(), wo_.data(), f_.data(), mode);
+            mat.eval_at(slots_.size(), uv_.data(), footprint_.data(), wi_.data(), wo_.data(), f_.data(), mode);
             counters.brdf_evals += slots_.size();
             if (mat.uses_network(mode)) counters.network_evals += slots_.size();
             for (std::size_t i = 0; i < slots_.size(); ++i) {
@@ -235,7 +247,8 @@ private:
     std::vector<Path> paths_;
     std::vector<Shading> shading_;
     std::vector<char> hit_;
-    std::vector<float> wi_, wo_, uv_, f_;
+    const float cone_spread_;  // the camera cone's spread per unit distance (ray_cone.hpp)
+    std::vector<float> wi_, wo_, uv_, footprint_, f_;
     std::vector<Vec3f*> slots_;
     std::vector<std::size_t> bucket_, cursor_, order_;  // the counting sort of evaluate()
 };

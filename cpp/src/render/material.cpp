@@ -2,11 +2,21 @@
 #include "hybridbrdf/render/material.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "hybridbrdf/batch.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 
 namespace hbrdf::render {
+
+namespace {
+
+// 0.5 log2(W H) of a textured material's level 0: the texture's share of the ray cones' Delta
+// (ray_cone.hpp), which turns a footprint in uv units into a level of detail in its texels.
+float texels_log2(const Svbrdf& sv) { return float(0.5 * std::log2(double(sv.width()) * double(sv.height()))); }
+
+}  // namespace
 
 void Material::set_sampler(SamplerKind kind, const std::optional<AnalyticParams>& proxy, int tabulated_resolution_deg,
                            CancelFlag cancel) {
@@ -77,7 +87,8 @@ void ModelMaterial::eval(std::size_t n, const float* wi, const float* wo, float*
 
 TexturedMaterial::TexturedMaterial(std::string name, std::shared_ptr<const Svbrdf> svbrdf, TexelFilter filter,
                                    bool analytic_only)
-    : Material(std::move(name)), svbrdf_(std::move(svbrdf)), filter_(filter), analytic_only_(analytic_only) {
+    : Material(std::move(name)), svbrdf_(std::move(svbrdf)), filter_(filter), analytic_only_(analytic_only),
+      texels_log2_(texels_log2(*svbrdf_)) {
     isotropic_ = true;  // every layer isotropic and no alpha map that could make it otherwise
     for (const SvbrdfLayer& l : svbrdf_->layers()) {
         const AnalyticParams& p = svbrdf_->model().materials()[std::size_t(l.material)].params;
@@ -92,29 +103,45 @@ AnalyticParams TexturedMaterial::base_params() const {
 
 void TexturedMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const {
     const std::vector<float> uv(2 * n, 0.0f);
-    eval_at(n, uv.data(), wi, wo, f, mode);
+    eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void TexturedMaterial::eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f,
-                               EvalMode mode) const {
+void TexturedMaterial::texel_at(const Vec2<float>& uv, float footprint, Texel* out) const {
+    // lod <= 0 (magnified, or a point footprint: -inf) and a material without a chain read level 0.
+    svbrdf_->texel(uv, filter_, footprint + texels_log2_, out);
+}
+
+void TexturedMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo,
+                               float* f, EvalMode mode) const {
     const bool analytic = analytic_only_ || mode == EvalMode::Analytic;
-    if (!analytic) return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f);
+    const bool mips = footprint && svbrdf_->level_count() > 1;
+    if (!analytic) {
+        if (!mips) return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f);
+        std::vector<float> lod(n);
+        for (std::size_t i = 0; i < n; ++i) lod[i] = footprint[i] + texels_log2_;
+        return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f, lod.data());
+    }
+    Texel t;
     for (std::size_t i = 0; i < n; ++i) {
-        const Vec2<float> t(uv[2 * i], uv[2 * i + 1]);
+        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), mips ? footprint[i] : kPointFootprint, &t);
         const Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
-        const Vec3f v = svbrdf_->eval_analytic(t, filter_, a, b);
+        const Vec3f v = Svbrdf::eval_analytic(t, a, b);
         f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
     }
 }
 
-BrdfSample TexturedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
+BrdfSample TexturedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    return svbrdf_->sample(uv, filter_, s ? *s : Strategy::Cosine, wo, u);
+    Texel t;
+    texel_at(uv, footprint, &t);
+    return Svbrdf::sample(t, s ? *s : Strategy::Cosine, wo, u);
 }
 
-float TexturedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
+float TexturedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    return svbrdf_->pdf(uv, filter_, s ? *s : Strategy::Cosine, wi, wo);
+    Texel t;
+    texel_at(uv, footprint, &t);
+    return Svbrdf::pdf(t, s ? *s : Strategy::Cosine, wi, wo);
 }
 
 void CallbackMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode) const {
@@ -130,6 +157,11 @@ MeasuredMixtureMaterial::MeasuredMixtureMaterial(std::string name, std::vector<B
         throw std::invalid_argument("a measured mixture needs one source per layer of its weights folder (" +
                                     std::to_string(weights_ ? weights_->layer_count() : 0) + "), got " +
                                     std::to_string(layers_.size()));
+    texels_log2_ = texels_log2(*weights_);
+}
+
+void MeasuredMixtureMaterial::texel_at(const Vec2<float>& uv, float footprint, Texel* out) const {
+    weights_->texel(uv, filter_, footprint + texels_log2_, out);
 }
 
 AnalyticParams MeasuredMixtureMaterial::base_params() const {
@@ -138,16 +170,16 @@ AnalyticParams MeasuredMixtureMaterial::base_params() const {
 
 void MeasuredMixtureMaterial::eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const {
     const std::vector<float> uv(2 * n, 0.0f);
-    eval_at(n, uv.data(), wi, wo, f, mode);
+    eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f,
-                                      EvalMode) const {
+void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi,
+                                      const float* wo, float* f, EvalMode) const {
     const int L = weights_->layer_count();
     std::vector<float> w(n * std::size_t(L));
     Texel t;
     for (std::size_t i = 0; i < n; ++i) {
-        weights_->texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter_, &t);
+        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i] : kPointFootprint, &t);
         for (int k = 0; k < L; ++k) w[i * std::size_t(L) + std::size_t(k)] = t.layers[k].weight;
     }
     std::fill(f, f + 3 * n, 0.0f);
@@ -172,14 +204,19 @@ void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const floa
     }
 }
 
-BrdfSample MeasuredMixtureMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
+BrdfSample MeasuredMixtureMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv,
+                                              float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    return weights_->sample(uv, filter_, s ? *s : Strategy::Cosine, wo, u);
+    Texel t;
+    texel_at(uv, footprint, &t);
+    return Svbrdf::sample(t, s ? *s : Strategy::Cosine, wo, u);
 }
 
-float MeasuredMixtureMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
+float MeasuredMixtureMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    return weights_->pdf(uv, filter_, s ? *s : Strategy::Cosine, wi, wo);
+    Texel t;
+    texel_at(uv, footprint, &t);
+    return Svbrdf::pdf(t, s ? *s : Strategy::Cosine, wi, wo);
 }
 
 }  // namespace hbrdf::render

@@ -273,6 +273,7 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         tangent = Vec3f(-n.z, 0.0f, n.x);  // d p / d phi about +y
         const float phi = std::atan2(n.z, n.x);  // increases along the tangent
         hit->uv = Vec2<float>(phi * (0.5f * kInvPi<float>) + 0.5f, std::acos(std::clamp(n.y, -1.0f, 1.0f)) * kInvPi<float>);
+        hit->uv_scale_log2 = sphere_uv_scale_log2(s.radius, std::sqrt(std::max(0.0f, 1.0f - n.y * n.y)));
     } else {
         const TriangleMesh& m = *meshes_[std::size_t(g.index)];
         const std::uint32_t* tri = &m.indices[3 * std::size_t(rh.hit.primID)];
@@ -283,7 +284,14 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         ns = m.normals.empty() ? ng : normalized(m.normals[tri[0]] * w + m.normals[tri[1]] * u + m.normals[tri[2]] * v);
         if (!(dot(ns, ns) > 0.0f)) ns = ng;
         if (!m.tangents.empty()) tangent = m.tangents[tri[0]] * w + m.tangents[tri[1]] * u + m.tangents[tri[2]] * v;
-        hit->uv = m.uvs.empty() ? Vec2<float>(0.0f) : m.uvs[tri[0]] * w + m.uvs[tri[1]] * u + m.uvs[tri[2]] * v;
+        if (m.uvs.empty()) {
+            hit->uv = Vec2<float>(0.0f);
+            hit->uv_scale_log2 = kPointFootprint;
+        } else {
+            const Vec2<float> &t0 = m.uvs[tri[0]], &t1 = m.uvs[tri[1]], &t2 = m.uvs[tri[2]];
+            hit->uv = t0 * w + t1 * u + t2 * v;
+            hit->uv_scale_log2 = triangle_uv_scale_log2(p0, p1, p2, t0, t1, t2);
+        }
         if (dot(ns, ng) < 0.0f) ns = -ns;  // files whose winding disagrees with their normals
     }
     if (dot(ng, dir) > 0.0f) {  // hit from behind: surfaces are two-sided

@@ -62,6 +62,13 @@ public:
     double distance() const { return distance_; }
     int height() const { return height_; }
 
+    /// The width of one pixel per unit of distance along the view axis, 2 tan(fov / 2) / height:
+    /// a camera ray's cone spreads by this (the ray cones of Akenine-Moller et al., Ray Tracing Gems
+    /// 2019, ch. 20, whose spread angle arctan(2 tan(fov / 2) / height) it is the tangent of), so
+    /// a cone at distance t from the pinhole is this x t wide, the pixel's exact width at the
+    /// image centre on a surface facing the camera.
+    float pixel_spread() const { return 2.0f * tan_half_ / float(height_); }
+
     /// The ray through image point (px, py) in pixel units (px in [0, width),
     /// py in [0, height), y down).
     Ray generate(float px, float py) const {

@@ -81,10 +81,13 @@ public:
     /// local frame of docs/CONVENTIONS.md (+z normal, +x tangent; wi toward the
     /// light, wo toward the viewer), f (n, 3) RGB without the cosine. Thread-safe.
     virtual void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const = 0;
-    /// f at texture coordinates uv (n, 2; SurfaceHit::uv): a textured material reads its maps
-    /// there, the others ignore uv (this default calls eval).
-    virtual void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const {
-        (void)uv;
+    /// f at texture coordinates uv (n, 2; SurfaceHit::uv) and footprints (n floats, or nullptr for
+    /// points: log2 of each hit's ray-cone width in uv units, ray_cone.hpp; kPointFootprint or below
+    /// 0 texels reads level 0): a textured material reads its maps there, at level of detail
+    /// footprint + 0.5 log2(W H) of its mip chain; the others ignore both (this default calls eval).
+    virtual void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+                         EvalMode mode) const {
+        (void)uv, (void)footprint;
         eval(n, wi, wo, f, mode);
     }
 
@@ -116,14 +119,15 @@ public:
     BrdfSample sample(const Vec3f& wo, const Vec2<float>& u) const;
     /// Density with which sample() draws wi given wo.
     float pdf(const Vec3f& wi, const Vec3f& wo) const;
-    /// sample() and pdf() at texture coordinates uv: a textured material draws from its texel's
-    /// layers there; the others ignore uv.
-    virtual BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const {
-        (void)uv;
+    /// sample() and pdf() at texture coordinates uv and footprint (as eval_at's): a textured
+    /// material draws from its texel's layers there, at the footprint's level of detail (the same
+    /// texel eval_at reads); the others ignore both.
+    virtual BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
+        (void)uv, (void)footprint;
         return sample(wo, u);
     }
-    virtual float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const {
-        (void)uv;
+    virtual float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
+        (void)uv, (void)footprint;
         return pdf(wi, wo);
     }
 
@@ -179,7 +183,8 @@ private:
 };
 
 /// A textured material ({"type": "textured", "svbrdf": FOLDER}; docs/SVBRDF.md): per hit, the
-/// texel of its uv, the layers' mixture sum_k w_k f_t (libhybridbrdf's scalar texel path). Its
+/// texel of its uv, the layers' mixture sum_k w_k f_t (libhybridbrdf's scalar texel path); with a
+/// mip chain, the texel at the hit's footprint (trilinear; docs/RENDERING.md, "Texture footprints"). Its
 /// analytic part is sum_k w_k f_a(p_k); it samples the mixture of its layers' f_a samplers with the
 /// scene's strategy (cosine, ggx or mis; the tabulated sampler tabulates one BRDF and is refused).
 class TexturedMaterial final : public Material {
@@ -187,9 +192,10 @@ public:
     TexturedMaterial(std::string name, std::shared_ptr<const Svbrdf> svbrdf, TexelFilter filter, bool analytic_only);
     /// At uv (0, 0) (callers without texture coordinates).
     void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const override;
+    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+                 EvalMode mode) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
     bool has_analytic_part() const override { return !analytic_only_; }
     bool uses_network(EvalMode mode) const override { return !(analytic_only_ || mode == EvalMode::Analytic); }
     bool isotropic() const override { return isotropic_; }
@@ -203,6 +209,9 @@ private:
     std::shared_ptr<const Svbrdf> svbrdf_;
     TexelFilter filter_;
     bool analytic_only_, isotropic_;
+    float texels_log2_;  // 0.5 log2(W H) of level 0: a footprint in uv units becomes a level of detail
+    // The texel at uv and footprint (level 0 without a mip chain or for a point footprint).
+    void texel_at(const Vec2<float>& uv, float footprint, Texel* out) const;
 };
 
 /// A measured reference behind a batched callback ({"type": "measured"}; the
@@ -237,9 +246,12 @@ public:
     void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
     /// Each layer's callback once for the pairs where its weight is positive; negative and
     /// non-finite values become 0 (as CallbackMaterial's), then the weighted sum in layer order.
-    void eval_at(std::size_t n, const float* uv, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv) const override;
+    /// With a mip chain in the folder, the weights at the footprint's level of detail (averaged
+    /// weights: the mean of the footprint's measured mixtures, exact).
+    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+                 EvalMode mode) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
     bool isotropic() const override { return isotropic_; }
     bool spatially_varying() const override { return true; }
     const char* type() const override { return "measured"; }
@@ -251,6 +263,8 @@ private:
     std::shared_ptr<const Svbrdf> weights_;
     TexelFilter filter_;
     bool isotropic_;
+    float texels_log2_;  // 0.5 log2(W H) of the folder's level 0
+    void texel_at(const Vec2<float>& uv, float footprint, Texel* out) const;
 };
 
 }  // namespace hbrdf::render

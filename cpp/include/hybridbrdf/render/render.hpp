@@ -12,6 +12,7 @@
 #include "hybridbrdf/render/material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
 #include "hybridbrdf/render/progress.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 #include "hybridbrdf/render/rng.hpp"
 #include "hybridbrdf/render/scene.hpp"
 #include "hybridbrdf/render/scene_loader.hpp"

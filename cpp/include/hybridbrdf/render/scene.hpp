@@ -26,6 +26,7 @@
 #include "hybridbrdf/render/environment.hpp"
 #include "hybridbrdf/render/material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 #include "hybridbrdf/render/settings.hpp"
 
 // Embree's handles, without its header.
@@ -49,6 +50,9 @@ struct SurfaceHit {
     /// v = theta / pi from the +y pole; meshes their interpolated vertex uvs (0 without); planes
     /// 0 to 1 across (make_plane)
     Vec2<float> uv{0.0f};
+    /// log2 of uv units per world unit here, 0.5 log2(uv area / world area) (ray_cone.hpp): of the
+    /// triangle hit, or of the sphere's uv map at the point; kPointFootprint where uv does not vary
+    float uv_scale_log2 = kPointFootprint;
     int material = -1;
 };
 

@@ -34,6 +34,7 @@ struct RenderSettings {
     int rr_depth = -1;
     std::uint64_t seed = 0;
     int threads = 0;
+    bool mip_lod = true;
 };
 
 /// The member of RenderSettings a setting lives in; the alternative is its type.
@@ -80,6 +81,8 @@ inline constexpr SettingInfo kRenderSettings[] = {
     {"rr_depth", &RenderSettings::rr_depth, -1, kUnbounded, "Russian roulette from this depth on; -1 = never"},
     {"seed", &RenderSettings::seed, 0, kUnbounded, "random seed"},
     {"threads", &RenderSettings::threads, 0, kMaxThreads, "worker threads; 0 = all hardware threads"},
+    {"mip_lod", &RenderSettings::mip_lod, 0, 0,
+     "textured materials read their mip chains at the camera ray's footprint (ray cones); false = level 0 only"},
 };
 
 /// The setting called `name`, or nullptr.
