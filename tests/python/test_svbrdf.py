@@ -23,7 +23,8 @@ from hybridbrdf.fit.painting import composite, paint
 from hybridbrdf.fit.settings import FitSettings
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.random import random_model
-from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.svbrdf.entries import SVBRDFError
 from hybridbrdf.svbrdf.decode import decode, encode, inverse_transfer, png_channel, transfer
 from hybridbrdf.svbrdf.maps import write_map
 

@@ -24,7 +24,8 @@ import shutil
 import numpy as np
 import pytest
 
-from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.svbrdf.entries import SVBRDFError
 from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8, tracer_scene
 from helpers import saved_random_model
 import view_harness

@@ -26,8 +26,12 @@ def add_parser(sub) -> None:
     p.add_argument("--roughness", action="append", metavar="LAYER=ROUGHNESS",
                    help="layer LAYER's GGX alpha = r^2 from a grey roughness texture r (repeatable)")
     p.add_argument("--size", metavar="WxH", help="texels (default: the masks' size; masks and textures must have it)")
-    p.add_argument("--format", choices=("png", "exr"), default="png",
-                   help="maps as 8-bit PNG or float32 OpenEXR (default: %(default)s)")
+    p.add_argument("--format", choices=("png", "exr", "ktx2"), default="png",
+                   help="maps as 8-bit PNG, float32 OpenEXR or KTX2 in GPU block formats (BC4/BC5/BC7; each file "
+                        "holds its mip chain) (default: %(default)s)")
+    p.add_argument("--mips", action="store_true",
+                   help="write the complete mip chain, each quantity filtered as the BRDF asks (docs/SVBRDF.md, "
+                        "Mip chains); the size's sides must be powers of two")
     p.add_argument("--addressing", choices=tuple(spec.SVBRDF["addressing"]), default="repeat",
                    help="how uv outside [0, 1] reads the maps (default: %(default)s)")
     p.add_argument("--out", required=True, help="folder to write (replaced if it is a textured material's folder)")
@@ -58,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
         size = (int(w), int(h))
     sv = paint(args.model, args.base, layers, args.out, size=size, format=args.format, addressing=args.addressing,
                kd=_layer_option(args.kd, "--kd"), roughness=_layer_option(args.roughness, "--roughness"),
-               progress=not args.quiet, log=print)
+               progress=not args.quiet, log=print, mips=args.mips)
     w, h = sv.size
-    print(f"wrote {args.out}: {w}x{h} texels, {len(sv.layers)} layer(s) ({', '.join(sv.layers)}), {args.format} maps")
+    chain = f", {sv.levels} mip levels" if sv.levels > 1 else ""
+    print(f"wrote {args.out}: {w}x{h} texels, {len(sv.layers)} layer(s) ({', '.join(sv.layers)}), {args.format} maps{chain}")
     return 0

@@ -34,6 +34,7 @@ from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.names import material_names
 from hybridbrdf.svbrdf.asset import SVBRDF
+from hybridbrdf.svbrdf.mips import chain_length, chain_problem
 from hybridbrdf.svbrdf.decode import transfer
 from hybridbrdf.svbrdf.maps import MAX_MAP_BYTES, MAX_SIDE, map_bits, read_map
 
@@ -142,15 +143,16 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
           size: Optional[Tuple[int, int]] = None, format: str = "png", addressing: str = "repeat",
           kd: Optional[Dict[int, PathLike]] = None, roughness: Optional[Dict[int, PathLike]] = None,
           settings: Optional[FitSettings] = None, progress: bool = False,
-          log: Callable[[str], None] = lambda msg: None) -> SVBRDF:
+          log: Callable[[str], None] = lambda msg: None, mips: bool = False) -> SVBRDF:
     """Write a textured material's folder ``out`` and return it (:class:`SVBRDF`).
 
     ``base``: a material of ``model`` (or a measured file); ``layers``: up to three
     (material or measured file, mask) pairs painted over it, the last on top; ``size`` (W, H),
     default the first mask's (masks of another size are refused); ``kd`` / ``roughness``: layer
     index (0 the base) -> albedo texture (sRGB PNG or linear EXR) / roughness texture (grey r,
-    alpha = r^2 on both axes), of the same size. ``format``: 'png' (8-bit maps) or 'exr' (float32).
-    ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
+    alpha = r^2 on both axes), of the same size. ``format``: 'png' (8-bit maps), 'exr' (float32) or
+    'ktx2' (GPU block formats, :meth:`SVBRDF.save`); ``mips``: with the complete mip chain
+    (:meth:`SVBRDF.with_mips`; power-of-two sides, checked before any fitting). ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
     Everything is checked before any fitting; ``out`` is replaced only once complete."""
     if len(layers) > spec.SVBRDF["max_layers"] - 1:
         raise ValueError(f"at most {spec.SVBRDF['max_layers'] - 1} layers over the base, got {len(layers)}")
@@ -163,6 +165,8 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     w, h = int(size[0]), int(size[1])
     if not (0 < w <= spec.SVBRDF["max_side"] and 0 < h <= spec.SVBRDF["max_side"]):
         raise ValueError(f"size must be 1 to {spec.SVBRDF['max_side']} texels a side, got {w}x{h}")
+    if mips and chain_problem((w, h), chain_length((w, h))):
+        raise ValueError(chain_problem((w, h), chain_length((w, h))))
     for (_, mask_path), m in zip(layers, masks):
         if m.shape != (h, w):
             raise InputFileError(mask_path, f"mask is {m.shape[1]}x{m.shape[0]}; the textured material is {w}x{h}")
@@ -191,5 +195,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
         weights = np.concatenate([weights, np.zeros((h, w, 3 - weights.shape[2]), np.float32)], axis=2)
     maps = [{label: v for (k2, label), v in textures.items() if k2 == k} for k in range(n_layers)]
     sv = SVBRDF(merged, names, (w, h), weights, maps, addressing)
+    if mips:
+        sv = sv.with_mips()
     sv.save(out, format=format)
     return sv

@@ -5,6 +5,7 @@ lookup and evaluation (docs/SVBRDF.md; spec/model.json, ``svbrdf``).
     f = sv.eval(uv, wi, wo)          # uv (N, 2) in [0, 1]^2, wi and wo (N, 3): (N, 3)
 """
 
-from hybridbrdf.svbrdf.asset import SVBRDF, SVBRDFError, load_svbrdf
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.svbrdf.entries import SVBRDFError
 
 __all__ = ["SVBRDF", "SVBRDFError", "load_svbrdf"]

@@ -241,7 +241,11 @@ class SVBRDF:
             if os.listdir(folder) and not os.path.isfile(os.path.join(folder, SV["index_file"])):
                 raise InputFileError(folder, f"is a folder without {SV['index_file']}; refusing to replace it")
         with atomic_folder(folder) as tmp:
-            self.model.save_checked(os.path.join(tmp, SV["model_file"]))
+            before = self.model.path  # save_checked points the model at its copy, in a folder renamed below
+            try:
+                self.model.save_checked(os.path.join(tmp, SV["model_file"]))
+            finally:
+                self.model.path = before
             entries = []
             chain = [(self.weights, self.maps)] + list(self.mips)
             if self.weights is not None:

@@ -22,6 +22,7 @@ from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file
 from hybridbrdf.svbrdf.decode import QUANTITIES, channel_problem, decode, encode, float_channel, png_channel
+from hybridbrdf.svbrdf.ktx2 import read_ktx2, vk_format, write_ktx2
 from hybridbrdf.svbrdf.maps import map_bits, read_map, write_map
 from hybridbrdf.svbrdf.mips import level_size
 
@@ -86,8 +87,6 @@ def write_quantity(folder, quantity, layer, chain, format, n_layers=None) -> Lis
         entry = {"file": map_name(quantity, layer, first, format), "quantity": quantity,
                  **({} if layer is None else {"layer": layer}), "first": first}
         if format == "ktx2":
-            from hybridbrdf.svbrdf.ktx2 import vk_format, write_ktx2  # the block encoders load with it
-
             n = sum(held)
             srgb = all(d["transfer"] == "srgb" for d, h in zip(decodes, held) if h)
             write_ktx2(os.path.join(folder, entry["file"]), [lv[..., :n] for lv in levels],
@@ -166,8 +165,6 @@ def read_entry(folder, index_path, entry, n_layers, latent, size, levels):
 
 def _read_ktx2_map(path, size, levels):
     """A KTX2 map's texture, its size and level count checked against the index."""
-    from hybridbrdf.svbrdf.ktx2 import read_ktx2
-
     check_input_file(path, "texel map", None, SVBRDFError)
     texture = read_ktx2(path)  # bounded: every size checked against the file before any allocation
     if (texture.width, texture.height) != tuple(size):

@@ -17,7 +17,8 @@ from typing import Any, Dict, List, Tuple
 import numpy as np
 
 from hybridbrdf import spec
-from hybridbrdf.svbrdf.asset import LAYER_QUANTITIES, SVBRDF
+from hybridbrdf.svbrdf.asset import SVBRDF
+from hybridbrdf.svbrdf.entries import LAYER_QUANTITIES
 from hybridbrdf.viewer.measured import png_data_uri
 
 #: The most bytes of decoded maps (float32 RGB planes) one page takes: the page carries them as

@@ -1,0 +1,39 @@
+"""``hbrdf convert``: a textured material's folder with its maps in another format, with or
+without its mip chain (docs/SVBRDF.md, "Mip chains" and "KTX2 maps")."""
+
+from __future__ import annotations
+
+import argparse
+
+from hybridbrdf.cli import COMMANDS
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("convert", help=COMMANDS["convert"],
+                       description="Read a textured material's folder and write it again with its maps as 8-bit PNG, "
+                                   "float32 OpenEXR or KTX2 (GPU block formats: BC4/BC5/BC7, each file holding its "
+                                   "mip chain), with the complete mip chain built from level 0 (--mips) or level 0 "
+                                   "alone (--no-mips); without either, the chain SRC has. The model and layers are copied unchanged. OUT is replaced "
+                                   "only once complete; OUT may be SRC.")
+    p.add_argument("src", metavar="SRC", help="a textured material's folder")
+    p.add_argument("--out", required=True, help="folder to write (replaced if it is a textured material's folder)")
+    p.add_argument("--format", choices=("png", "exr", "ktx2"), required=True, help="the maps' format")
+    chain = p.add_mutually_exclusive_group()
+    chain.add_argument("--mips", action="store_true", default=None,
+                       help="build the complete mip chain from level 0 (power-of-two sides)")
+    chain.add_argument("--no-mips", dest="mips", action="store_false", help="write level 0 alone")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from hybridbrdf.svbrdf import load_svbrdf
+
+    sv = load_svbrdf(args.src)
+    level0 = type(sv)(sv.model, sv.layers, sv.size, sv.weights, sv.maps, sv.addressing, sv.path)
+    # Neither flag: the chain as it is (levels someone authored stay theirs).
+    out = sv if args.mips is None else level0.with_mips() if args.mips else level0
+    out.save(args.out, format=args.format)
+    w, h = out.size
+    chain = f", {out.levels} mip levels" if out.levels > 1 else ""
+    print(f"wrote {args.out}: {w}x{h} texels, {len(out.layers)} layer(s), {args.format} maps{chain}")
+    return 0
