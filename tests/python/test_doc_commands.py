@@ -40,7 +40,7 @@ PLACEHOLDERS = {
     "SOURCE": "synthetic:gold", "MATERIAL": "paper_white_rgb.rgl", "MATERIAL_OR_FILE": "synthetic:gold",
     "A": "paper_white_rgb.rgl", "B": "vch_golden_yellow_rgb.rgl", "NAME": "new_material",
     "MASK": MASK, "MASK.png": MASK, "ALBEDO": MASK, "ALBEDO.png": MASK, "ROUGHNESS": MASK, "R.png": MASK,
-    "DIR": "out/dir", "CAPTURE": "out/capture", "RIG.json": "out/rig.json", "OUT": "out/materials.glsl",
+    "DIR": "out/dir", "SRC": "out/dir", "DIR2": "out/dir2", "CAPTURE": "out/capture", "RIG.json": "out/rig.json", "OUT": "out/materials.glsl",
     "SCENE.json": "scenes/sphere_env.json", "S.json": "scenes/sphere_env.json", "OUT.exr": "out/image.exr",
     "OUT.png": "out/image.png", "MAP.exr": "out/environment.exr", "HOST0:29500": "localhost:29500",
     "N": "2", "K": "0", "EV": "0.5", "EPS": "0.1", "DEVICE": "cpu", "KxV": "2x3", "WxH": "8x8", "D": "0.3", "P": "1000", "E": "2", "S": "0.001",
