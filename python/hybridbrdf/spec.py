@@ -200,7 +200,11 @@ SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a fo
                                'roughness), squared: nearer the mean of GGX lobes than the mean of alpha or '
                                'of alpha^2 (docs/SVBRDF.md, Mip chains)',
                       'eta': 'layer-weighted mean of the values',
-                      'latent': 'layer-weighted mean of the values'},
+                      'latent': 'layer-weighted mean of the values',
+                      'normal': "the mean of the finer unit normals, normalised; the mean's length |n| < 1 "
+                                "widens every layer's alpha at that level: alpha'^2 = alpha^2 + (1 - |n|) / "
+                                '|n| per axis, clamped to alpha_max (Toksvig 2005), |n| that of the mean '
+                                "over the level's whole level-0 footprint"},
           'lod': 'trilinear: the level of detail lod clamped to [0, levels - 1], levels floor(lod) and '
                  'floor(lod) + 1 each read by the filter, mixed by the fraction (OpenGL 4.6, 8.14)'},
  'max_index_bytes': 1048576,
@@ -251,4 +255,17 @@ SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a fo
                            'png': {'transfer': 'linear', 'scale': None, 'offset': None},
                            'doc': "the layer's latent code z, 3 components per map: the map with first = 3 k "
                                   'holds z_3k .. z_3k+2; 8-bit scale and offset are chosen per channel from '
-                                  'the painted values'}}}
+                                  'the painted values'},
+                'normal': {'components': 2,
+                           'per_layer': False,
+                           'min': -1.0,
+                           'max': 1.0,
+                           'png': {'transfer': 'linear', 'scale': 2.0, 'offset': -1.0},
+                           'doc': "the tangent-space shading normal's x and y in R and G, B unused (glTF 2.0 "
+                                  'normalTexture: +x along the tangent t (increasing u), +y along the '
+                                  "bitangent b = n x t, which points towards decreasing v, the image's top, "
+                                  'for a uv map that is not mirrored: OpenGL-style, green up), z = '
+                                  'sqrt(max(0, 1 - x^2 - y^2)); one map for the texel, not per layer. The '
+                                  'shading frame: n_s = normalize(x t + y b + z n), t_s = t made orthogonal '
+                                  'to n_s (Gram-Schmidt), b_s = n_s x t_s; f is 0 when wi or wo is below '
+                                  "n_s's horizon (docs/SVBRDF.md, Normal maps)"}}}

@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from hybridbrdf.svbrdf import load_svbrdf
 
     sv = load_svbrdf(args.src)
-    level0 = type(sv)(sv.model, sv.layers, sv.size, sv.weights, sv.maps, sv.addressing, sv.path)
+    level0 = type(sv)(sv.model, sv.layers, sv.size, sv.weights, sv.maps, sv.addressing, sv.path, normal=sv.normal)
     # Neither flag: the chain as it is (levels someone authored stay theirs).
     out = sv if args.mips is None else level0.with_mips() if args.mips else level0
     out.save(args.out, format=args.format)

@@ -27,7 +27,8 @@ from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.entries import (LAYER_QUANTITIES, SVBRDFError, FORMATS as MAP_FORMATS, components, plain_name, read_entry,
                                        write_quantity)
-from hybridbrdf.svbrdf.mips import build_chain, chain_problem, level_size, lod_levels
+from hybridbrdf.svbrdf.mips import TOKSVIG_DEFAULT, build_chain, chain_problem, level_size, lod_levels
+from hybridbrdf.svbrdf.normals import tangent_normals, to_shading
 from hybridbrdf.files import atomic_folder, atomic_write_bytes
 
 if TYPE_CHECKING:  # annotations only: PyTorch is imported where a material runs in it
@@ -81,13 +82,16 @@ class SVBRDF:
     """A textured material in memory: ``model`` (a hybrid :class:`HybridModel`), ``layers`` (material
     names, the base first), ``weights`` ((H, W, 3) decoded w_1..3, or None for one layer),
     ``maps`` (per layer, quantity -> decoded (H, W, components) float32), ``size`` (W, H),
-    ``addressing`` ('repeat' or 'clamp'), ``mips`` (levels 1 .. 1x1 of a mip chain, each
-    (weights, maps) at its size, or empty: :meth:`with_mips` builds them). Build one with
-    :func:`load_svbrdf` or :func:`hybridbrdf.fit.paint`."""
+    ``addressing`` ('repeat' or 'clamp'), ``normal`` ((H, W, 2) tangent-space x, y of a normal map,
+    one for the texel: :mod:`hybridbrdf.svbrdf.normals`; or None), ``mips`` (levels 1 .. 1x1 of
+    a mip chain, each (weights, maps) or (weights, maps, normal) at its size, or empty:
+    :meth:`with_mips` builds them; kept as ``mips``, (weights, maps) per level, and
+    ``normal_mips``, the normal map per level or empty). Build one with :func:`load_svbrdf` or
+    :func:`hybridbrdf.fit.paint`."""
 
     def __init__(self, model: HybridModel, layers: Sequence[str], size, weights: Optional[np.ndarray] = None,
                  maps: Optional[Sequence[Dict[str, np.ndarray]]] = None, addressing: str = "repeat",
-                 path: Optional[str] = None, mips: Sequence = ()):
+                 path: Optional[str] = None, mips: Sequence = (), normal: Optional[np.ndarray] = None):
         if not model.has_analytic:
             raise ValueError("a textured material needs a hybrid model (f_a per texel); this one is "
                              f"'{model.kind}'")
@@ -105,48 +109,63 @@ class SVBRDF:
         if weights is None and len(self.layers) > 1:
             raise ValueError("a textured material of several layers needs a weights map")
         self.weights = None if weights is None else np.asarray(weights, dtype=np.float32)
-        for name, arr in [("weights", self.weights)] + [(q, a) for m in self.maps for q, a in m.items()]:
+        self.normal = None if normal is None else np.asarray(normal, dtype=np.float32)
+        for name, arr in [("weights", self.weights), ("normal", self.normal)] + [(q, a) for m in self.maps for q, a in m.items()]:
             if arr is None:
                 continue
             c = 3 if name == "weights" else components(name, model.arch["latent"])
             if arr.shape != (h, w, c):
                 raise ValueError(f"{name} map has shape {arr.shape}, expected {(h, w, c)}")
-        self.mips = [self._checked_level(level, mw, mm) for level, (mw, mm) in enumerate(mips, start=1)]
+        checked = [self._checked_level(level, *entry) for level, entry in enumerate(mips, start=1)]
+        self.mips = [(w_l, m_l) for w_l, m_l, _ in checked]
+        self.normal_mips = [n_l for _, _, n_l in checked] if self.normal is not None else []
         problem = chain_problem(self.size, self.levels)
         if problem:
             raise ValueError(problem)
 
-    def _checked_level(self, level: int, weights, maps):
-        """(weights, maps) of mip level ``level`` as float32, shaped as that level and holding the
-        same maps as level 0 (ValueError otherwise)."""
+    def _checked_level(self, level: int, weights, maps, normal=None):
+        """(weights, maps, normal) of mip level ``level`` as float32, shaped as that level and
+        holding the same maps as level 0 (ValueError otherwise)."""
         w, h = level_size(self.size, level)
-        if (weights is None) != (self.weights is None) or len(maps) != len(self.maps) or any(
-                set(m) != set(m0) for m, m0 in zip(maps, self.maps)):
+        if (weights is None) != (self.weights is None) or (normal is None) != (self.normal is None) or len(maps) != len(
+                self.maps) or any(set(m) != set(m0) for m, m0 in zip(maps, self.maps)):
             raise ValueError(f"mip level {level} must hold the same maps as level 0")
         weights = None if weights is None else np.asarray(weights, dtype=np.float32)
+        normal = None if normal is None else np.asarray(normal, dtype=np.float32)
         maps = [{q: np.asarray(a, dtype=np.float32) for q, a in m.items()} for m in maps]
-        for name, arr in [("weights", weights)] + [(q, a) for m in maps for q, a in m.items()]:
+        for name, arr in [("weights", weights), ("normal", normal)] + [(q, a) for m in maps for q, a in m.items()]:
             if arr is not None and arr.shape[:2] != (h, w):
                 raise ValueError(f"mip level {level}: {name} map has shape {arr.shape}, expected {h}x{w} texels")
-        return weights, maps
+        return weights, maps, normal
 
     @property
     def levels(self) -> int:
         """Mip levels: 1 (level 0 alone) or the complete chain down to 1x1."""
         return 1 + len(self.mips)
 
-    def with_mips(self, alpha_rule: str = "perceptual") -> "SVBRDF":
+    def with_mips(self, alpha_rule: str = "perceptual", toksvig: float = TOKSVIG_DEFAULT) -> "SVBRDF":
         """This material with its complete mip chain (:mod:`hybridbrdf.svbrdf.mips`: weights
         averaged, kd by the layers' weights, alpha by the mean of sqrt(alpha) (``alpha_rule``:
-        'perceptual', or 'value' / 'mean_square' for comparison), eta and z by value); needs
-        power-of-two sides (ValueError)."""
-        chain = build_chain(self.weights, self.maps, len(self.layers), self.size, alpha_rule)
-        return SVBRDF(self.model, self.layers, self.size, self.weights, self.maps, self.addressing, self.path, chain)
+        'perceptual', or 'value' / 'mean_square' for comparison), eta and z by value, the normal
+        map's normalised mean widening alpha by ``toksvig`` (1 - |n|) / |n|; a layer without an
+        alpha map then gains one, its material's alpha at level 0); needs power-of-two sides
+        (ValueError)."""
+        maps = [dict(m) for m in self.maps]
+        if self.normal is not None:
+            h, w = self.size[1], self.size[0]
+            for i, m in zip(self.indices, maps):
+                if "alpha" not in m:
+                    own = np.asarray(self.model.tensors["materials.alpha"][i], dtype=np.float32)
+                    m["alpha"] = np.broadcast_to(own, (h, w, 2)).copy()
+        chain = build_chain(self.weights, maps, len(self.layers), self.size, alpha_rule, self.normal, toksvig)
+        return SVBRDF(self.model, self.layers, self.size, self.weights, maps, self.addressing, self.path, chain, self.normal)
 
     # ---- texel lookup ------------------------------------------------------------------
     def texels(self, uv, filter: str = "bilinear", lod=None) -> Dict[str, np.ndarray]:
         """Per pair the texel's layer values: ``weight`` (N, L), ``kd``, ``eta`` (N, L, 3),
-        ``alpha`` (N, L, 2), ``latent`` (N, L, l), float32; decoded values filtered, then the
+        ``alpha`` (N, L, 2), ``latent`` (N, L, l), ``normal`` (N, 3: the unit tangent-space normal,
+        (0, 0, 1) without a normal map; x and y filtered, then z = sqrt(1 - x^2 - y^2) and
+        normalised, as a GPU reconstructs a BC5 map), float32; decoded values filtered, then the
         weights normalised (w_0 = 1 - w_1 - w_2 - w_3, all divided by their sum when above 1). The row
         count is bounded by memory before anything is converted (hybridbrdf.limits: ValueError).
         ``lod`` (a number or (N,)): the level of detail, read trilinearly from the mip chain (the
@@ -157,7 +176,7 @@ class SVBRDF:
         if not np.isfinite(uv).all():
             raise ValueError("uv must be finite")
         if lod is None or self.levels == 1:
-            return self._level_texels(uv, filter, 0)
+            return _unit_normal(self._level_texels(uv, filter, 0))
         fine, t = lod_levels(np.broadcast_to(np.asarray(lod, dtype=np.float64), (len(uv),)), self.levels)
         out = None
         for level in np.unique(fine):
@@ -171,12 +190,13 @@ class SVBRDF:
                 out = {key: np.empty((len(uv),) + v.shape[1:], dtype=np.float32) for key, v in a.items()}
             for key in a:
                 out[key][rows] = a[key]
-        return out
+        return _unit_normal(out)
 
     def _level_texels(self, uv: np.ndarray, filter: str, level: int) -> Dict[str, np.ndarray]:
         """:meth:`texels` at one mip level."""
         n, L = len(uv), len(self.layers)
         weights, level_maps = (self.weights, self.maps) if level == 0 else self.mips[level - 1]
+        normal = self.normal if level == 0 or self.normal is None else self.normal_mips[level - 1]
         taps = texel_taps(uv, level_size(self.size, level), self.addressing, filter)
 
         def sample(arr):
@@ -191,6 +211,7 @@ class SVBRDF:
             rest = np.where(total > 1, rest / np.maximum(total, 1e-30), rest)
             weight = np.concatenate([np.clip(1 - rest.sum(axis=1, keepdims=True), 0, 1), rest], axis=1)
         out["weight"] = weight.astype(np.float32)
+        out["normal"] = (np.zeros((n, 2)) if normal is None else sample(normal)).astype(np.float32)  # x, y: _unit_normal
         for q in LAYER_QUANTITIES:
             c = components(q, self.model.arch["latent"])
             vals = np.empty((n, L, c), dtype=np.float32)
@@ -206,7 +227,9 @@ class SVBRDF:
     # ---- evaluation ----------------------------------------------------------------------
     def eval(self, uv, wi, wo, filter: str = "bilinear", dtype: Optional[torch.dtype] = None, lod=None) -> np.ndarray:
         """f(uv, wi, wo) (N, 3) float64, no cosine: uv (N, 2) in [0, 1]^2 (wrapping or clamped by
-        ``addressing``), wi and wo (N, 3), ``lod`` as :meth:`texels` reads it. By default
+        ``addressing``), wi and wo (N, 3) in the *geometric* frame (t, b, n = x, y, z): with a normal
+        map each texel's layers see them in its shading frame, and f is 0 unless both are above
+        both horizons (:mod:`hybridbrdf.svbrdf.normals`); ``lod`` as :meth:`texels` reads it. By default
         libhybridbrdf's scalar path (``HybridModel::eval_texel``, the tracer's and the shaders'
         twin) for a model read from a file; ``dtype`` (torch.float32 / torch.float64) evaluates
         the PyTorch model instead."""
@@ -214,14 +237,19 @@ class SVBRDF:
                                     BYTES_PER_PAIR + self.model.bytes_per_pair(dtype))
         wi, wo = (np.asarray(a, dtype=np.float64) for a in (wi, wo))
         t = self.texels(uv, filter, lod)
+        visible = None
+        if self.normal is not None:
+            wi, wo, visible = to_shading(t["normal"], wi, wo)
         if dtype is None and self.model.path is not None:
             mat = np.broadcast_to(np.asarray(self.indices, dtype=np.int32), t["weight"].shape)
-            return self.model._cpp_model().eval_texels(
+            f = self.model._cpp_model().eval_texels(
                 wi.astype(np.float32), wo.astype(np.float32), np.ascontiguousarray(mat), t["weight"], t["kd"],
                 t["eta"], t["alpha"], t["latent"]).astype(np.float64)
-        import torch
+        else:
+            import torch
 
-        return _eval_torch(self.model, self.indices, t, wi, wo, dtype or torch.float32)
+            f = _eval_torch(self.model, self.indices, t, wi, wo, dtype or torch.float32)
+        return f if visible is None else np.where(visible[:, None], f, 0.0)
 
     # ---- persistence ---------------------------------------------------------------------
     def save(self, folder, format: str = "png") -> None:
@@ -247,13 +275,16 @@ class SVBRDF:
             finally:
                 self.model.path = before
             entries = []
-            chain = [(self.weights, self.maps)] + list(self.mips)
+            chain = [(self.weights, self.maps, self.normal)] + [
+                (w_l, m_l, self.normal_mips[i] if self.normal is not None else None) for i, (w_l, m_l) in enumerate(self.mips)]
             if self.weights is not None:
-                entries += write_quantity(tmp, "weights", None, [w for w, _ in chain], format, len(self.layers))
+                entries += write_quantity(tmp, "weights", None, [c[0] for c in chain], format, len(self.layers))
+            if self.normal is not None:
+                entries += write_quantity(tmp, "normal", None, [c[2] for c in chain], format)
             for k in range(len(self.layers)):
                 for q in LAYER_QUANTITIES:
                     if q in self.maps[k]:
-                        entries += write_quantity(tmp, q, k, [m[k][q] for _, m in chain], format)
+                        entries += write_quantity(tmp, q, k, [c[1][k][q] for c in chain], format)
             index = {"format_version": 1 if self.levels == 1 else SV["format_version"], "model": SV["model_file"],
                      "size": list(self.size), "addressing": self.addressing,
                      **({} if self.levels == 1 else {"levels": self.levels}),
@@ -262,6 +293,12 @@ class SVBRDF:
             load_svbrdf(tmp)  # what was written reads back
         self.path = folder
         self.model = load_model(os.path.join(folder, SV["model_file"]))  # evaluated by libhybridbrdf from now on
+
+
+def _unit_normal(t: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
+    """:meth:`SVBRDF.texels`' filtered normal x, y made the unit tangent-space normal."""
+    t["normal"] = tangent_normals(t["normal"]).astype(np.float32)
+    return t
 
 
 def _no_constant(name: str):
@@ -297,6 +334,21 @@ def _eval_torch(model: HybridModel, indices: List[int], t: Dict[str, np.ndarray]
 
 
 # ---- reading ------------------------------------------------------------------------------
+def _layer_names(index, index_path, model) -> List[str]:
+    """The index's layers' material names, each checked against the model."""
+    layers = index["layers"]
+    if not (isinstance(layers, list) and 1 <= len(layers) <= MAX_LAYERS):
+        raise SVBRDFError(index_path, f"layers must be a list of 1 to {MAX_LAYERS} layers")
+    names = []
+    for k, layer in enumerate(layers):
+        if not (isinstance(layer, dict) and set(layer) == {"material"} and isinstance(layer["material"], str)):
+            raise SVBRDFError(index_path, f"layer {k} must be {{\"material\": NAME}}")
+        if layer["material"] not in model.materials:
+            raise SVBRDFError(index_path, f"layer {k}: material '{layer['material']}' is not in {index['model']}")
+        names.append(layer["material"])
+    return names
+
+
 def load_svbrdf(folder) -> SVBRDF:
     """Read and validate a textured material's folder (docs/SVBRDF.md): the index, the model it
     names, every map (sizes bounded before reading; values finite and in range). Raises
@@ -327,16 +379,7 @@ def load_svbrdf(folder) -> SVBRDF:
         raise SVBRDFError(index_path, f"size must be [W, H], integers 1 to {SV['max_side']}, got {size!r}")
     if index["addressing"] not in SV["addressing"]:
         raise SVBRDFError(index_path, f"addressing must be one of {', '.join(SV['addressing'])}, got {index['addressing']!r}")
-    layers = index["layers"]
-    if not (isinstance(layers, list) and 1 <= len(layers) <= MAX_LAYERS):
-        raise SVBRDFError(index_path, f"layers must be a list of 1 to {MAX_LAYERS} layers")
-    names = []
-    for k, layer in enumerate(layers):
-        if not (isinstance(layer, dict) and set(layer) == {"material"} and isinstance(layer["material"], str)):
-            raise SVBRDFError(index_path, f"layer {k} must be {{\"material\": NAME}}")
-        if layer["material"] not in model.materials:
-            raise SVBRDFError(index_path, f"layer {k}: material '{layer['material']}' is not in {index['model']}")
-        names.append(layer["material"])
+    names = _layer_names(index, index_path, model)
     w, h = size
     levels = index.get("levels", 1)
     if not (isinstance(levels, int) and not isinstance(levels, bool) and 1 <= levels <= MAX_LEVELS):
@@ -345,7 +388,7 @@ def load_svbrdf(folder) -> SVBRDF:
     if problem:
         raise SVBRDFError(index_path, problem)
     latent = model.arch["latent"]
-    weights, seen = None, set()
+    weights, normal, seen = None, None, set()
     parts: Dict = {}
     if not isinstance(index["maps"], list):
         raise SVBRDFError(index_path, "maps must be a list")
@@ -361,6 +404,8 @@ def load_svbrdf(folder) -> SVBRDF:
                 if level_values[..., len(names) - 1:].any():
                     raise SVBRDFError(file, f"weights of layers beyond the last ({len(names) - 1}) must be 0")
             weights = values
+        elif quantity == "normal":
+            normal = [v[..., :2] for v in values]
         else:
             parts.setdefault((layer, quantity), {})[first] = values
     maps = [[{} for _ in names] for _ in range(levels)]
@@ -374,8 +419,9 @@ def load_svbrdf(folder) -> SVBRDF:
             maps[level][layer][quantity] = np.concatenate([pieces[f][level] for f in firsts], axis=2)[..., :c].astype(np.float32)
     if len(names) > 1 and weights is None:
         raise SVBRDFError(index_path, f"{len(names)} layers need a weights map")
-    chain = [(None if weights is None else weights[level], maps[level]) for level in range(levels)]
+    chain = [(None if weights is None else weights[level], maps[level], None if normal is None else normal[level])
+             for level in range(levels)]
     return SVBRDF(model, names, (w, h), chain[0][0], chain[0][1], index["addressing"], path=os.path.abspath(folder),
-                  mips=chain[1:])
+                  mips=chain[1:], normal=chain[0][2])
 
 

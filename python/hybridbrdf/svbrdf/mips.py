@@ -17,6 +17,16 @@ for the BRDF, each quantity filtered by the rule the BRDF asks of it:
 - **eta** and the latent code **z**: the weighted mean of the values (no rule makes a mean of
   Fresnel curves or of network outputs one texel's; the error this leaves is measured in
   docs/SVBRDF.md).
+- **normal** (one map for the texel, :mod:`hybridbrdf.svbrdf.normals`): the mean of the finer
+  unit normals, normalised. The mean's length |n| < 1 is the spread of normals the level can
+  no longer show, and it widens every layer's alpha there (Toksvig 2005):
+  alpha'^2 = alpha^2 + k (1 - |n|) / |n| per axis, clamped to alpha_max, |n| the length of the
+  mean over the level's whole level-0 footprint (a mean of block means over equal blocks) and
+  alpha the level's alpha before widening (so widening never compounds from level to level).
+  ``toksvig`` k: Toksvig's variance (1 - |n|) / |n| is the per-axis slope variance of a
+  Beckmann-like lobe, whose alpha^2 is twice it (alpha^2 = 2 / (s + 2) for Blinn-Phong exponent
+  s), so k = 2 is Toksvig's factor in alpha units; k = 1 adds the variance as LEAN mapping adds
+  its second moment; k = 0 leaves alpha alone. bench/normal_mips.py measures them.
 
 A layer absent from a block (weight 0 in all its texels) takes the plain mean there: its values
 are never evaluated, and the level stays continuous for the trilinear lookup. Chains need
@@ -34,6 +44,8 @@ from hybridbrdf import spec
 
 SV = spec.SVBRDF
 ALPHA_RULES = ("perceptual", "value", "mean_square")
+#: k of alpha'^2 = alpha^2 + k (1 - |n|) / |n| (the module's docstring; bench/normal_mips.py).
+TOKSVIG_DEFAULT = 2.0
 
 
 def is_power_of_two(n: int) -> bool:
@@ -117,21 +129,47 @@ def next_level(weights: Optional[np.ndarray], maps: Sequence[Dict[str, np.ndarra
 
 
 def build_chain(weights: Optional[np.ndarray], maps: Sequence[Dict[str, np.ndarray]], n_layers: int, size,
-                alpha_rule: str = "perceptual") -> List[Tuple[Optional[np.ndarray], List[Dict[str, np.ndarray]]]]:
-    """Levels 1 .. down to 1x1 of a level-0 (weights, maps), each (weights, maps) in float32.
-    Every level is filtered from the one above it; a mean of block means over equal blocks is the
-    mean over the whole footprint, so level L's weights are the mean over its 2^L x 2^L block."""
+                alpha_rule: str = "perceptual", normal: Optional[np.ndarray] = None,
+                toksvig: float = TOKSVIG_DEFAULT) -> List[Tuple]:
+    """Levels 1 .. down to 1x1 of a level-0 (weights, maps[, normal (H, W, 2)]), each (weights,
+    maps, normal) in float32 (normal None without a normal map). Every level is filtered from the
+    one above it; a mean of block means over equal blocks is the mean over the whole footprint, so
+    level L's weights (and mean normal) are the means over its 2^L x 2^L block. With a normal map,
+    every layer needs an alpha map (the widening varies per texel: :meth:`SVBRDF.with_mips` adds
+    the material's own alpha where a layer has none); ``toksvig`` is k of the module's docstring."""
     problem = chain_problem(size, chain_length(size))
     if problem:
         raise ValueError(problem)
+    if normal is not None and not all("alpha" in m for m in maps):
+        raise ValueError("with a normal map every layer needs an alpha map (its widening varies per texel)")
     levels = []
     w64 = None if weights is None else weights.astype(np.float64)
     m64 = [{q: a.astype(np.float64) for q, a in m.items()} for m in maps]
+    n64 = None if normal is None else tangent_normals(normal)  # unit normals; their means stay unnormalised
     for _ in range(1, chain_length(size)):
         w64, m64 = next_level(w64, m64, n_layers, alpha_rule)
-        levels.append((None if w64 is None else w64.astype(np.float32),
-                       [{q: a.astype(np.float32) for q, a in m.items()} for m in m64]))
+        out_maps = [{q: a.astype(np.float32) for q, a in m.items()} for m in m64]
+        out_normal = None
+        if n64 is not None:
+            n64 = _blocks(n64).mean(axis=2)
+            length = np.linalg.norm(n64, axis=2)
+            unit = n64 / np.maximum(length, 1e-12)[..., None]
+            out_normal = unit[..., :2].astype(np.float32)
+            widen = toksvig * (1 - np.minimum(length, 1.0)) / np.maximum(length, 1e-12)
+            for m, m_out in zip(m64, out_maps):
+                a = m["alpha"]
+                m_out["alpha"] = np.minimum(np.sqrt(a * a + widen[..., None]), spec.ALPHA_MAX).astype(np.float32)
+        levels.append((None if w64 is None else w64.astype(np.float32), out_maps, out_normal))
     return levels
+
+
+def tangent_normals(xy: np.ndarray) -> np.ndarray:
+    """(..., 3) float64 unit tangent-space normals of stored (x, y) (..., 2): z = sqrt(max(0,
+    1 - x^2 - y^2)) (glTF 2.0), then normalised (x^2 + y^2 > 1 leaves a vector longer than 1)."""
+    xy = np.asarray(xy, dtype=np.float64)
+    z = np.sqrt(np.maximum(0.0, 1.0 - np.sum(xy * xy, axis=-1, keepdims=True)))
+    n = np.concatenate([xy, z], axis=-1)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True).clip(1e-300)
 
 
 def lod_levels(lod: np.ndarray, levels: int) -> Tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,183 @@
+"""Normal maps on textured materials (docs/SVBRDF.md, "Normal maps"; hybridbrdf.svbrdf.normals):
+SVBRDF.eval takes geometric-frame directions and shades each texel in its perturbed frame; checked
+against a float64 reference that rotates the directions by hand, for reciprocity and within the
+energy bound in the perturbed frame; the format's round trip and refusals; the mip chain's
+normalised mean and Toksvig widening against values computed by hand."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hybridbrdf.evaluate.metrics import metric_directions
+from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
+from hybridbrdf.svbrdf.entries import SVBRDFError
+from hybridbrdf.svbrdf.normals import shading_frame, to_shading
+
+from helpers import saved_random_model
+
+
+@pytest.fixture(params=[("hybrid", "material", True), ("hybrid-reciprocal", "shared", False)],
+                ids=["heads-bounded", "reciprocal-shared"])
+def model(request, tmp_path):
+    arch, output_layer, bound = request.param
+    return saved_random_model(tmp_path, arch, output_layer=output_layer, energy_bound=bound)[1]
+
+
+def _directions(n=4000, seed=5):
+    wi, wo = metric_directions(n, seed)
+    return np.asarray(wi, np.float64), np.asarray(wo, np.float64)
+
+
+def _constant_normal(xy, h=4, w=4):
+    return np.broadcast_to(np.asarray(xy, np.float32), (h, w, 2)).copy()
+
+
+def _rot_y(theta):  # rotation about the bitangent (y) by theta: +z goes to (sin, 0, cos)
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rot_x(phi):  # rotation about the tangent (x) by -phi: +z goes to (0, sin, cos)
+    c, s = np.cos(phi), np.sin(phi)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+@pytest.mark.parametrize("rotation,xy", [
+    (_rot_y(0.5), (np.sin(0.5), 0.0)),      # tilted towards +u: the shading frame is a rotation about b
+    (_rot_x(-0.4), (0.0, np.sin(0.4))),     # tilted towards +b (the image's top): a rotation about t
+])
+def test_eval_is_the_layer_in_the_frame_rotated_by_hand(model, rotation, xy):
+    """A constant normal map whose normal is a rotation R of +z about one axis: the shading frame is
+    R's columns (Gram-Schmidt leaves t on the rotation's plane), so f(wi, wo) is the plain
+    material at R^T wi, R^T wo, and 0 where either is below either horizon (float64 reference)."""
+    name = model.materials[1]  # the anisotropic one: a wrong tangent shows
+    plain = SVBRDF(model, [name], (4, 4))
+    mapped = SVBRDF(model, [name], (4, 4), normal=_constant_normal(xy))
+    wi, wo = _directions()
+    assert np.allclose(rotation @ [0, 0, 1], [xy[0], xy[1], np.sqrt(1 - xy[0] ** 2 - xy[1] ** 2)])
+    uv = np.full((len(wi), 2), 0.3)
+    wi_s, wo_s = wi @ rotation, wo @ rotation  # rows: R^T w
+    visible = (wi_s[:, 2] > 0) & (wo_s[:, 2] > 0) & (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    assert 0.05 < (~visible).mean() < 0.6  # both sides of the rule are exercised
+    reference = np.where(visible[:, None], plain.eval(uv, np.where(visible[:, None], wi_s, wi),
+                                                      np.where(visible[:, None], wo_s, wo)), 0.0)
+    got = mapped.eval(uv, wi, wo)
+    assert np.abs(got - reference).max() <= 2e-5 * max(1.0, np.abs(reference).max())
+
+
+def test_frame_is_orthonormal_right_handed_and_follows_the_tangent():
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-0.7, 0.7, (500, 2))
+    n = np.concatenate([xy, np.sqrt(np.maximum(0, 1 - (xy ** 2).sum(1, keepdims=True)))], 1)
+    t_s, b_s, n_s = shading_frame(n)
+    m = np.stack([t_s, b_s, n_s], axis=2)
+    assert np.allclose(np.einsum("nij,nik->njk", m, m), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(m), 1.0)
+    assert np.allclose(n_s, n)
+    # Gram-Schmidt: t_s lies in the plane of t and n_s, on t's side (b_s is orthogonal to t)
+    assert (t_s[:, 0] > 0).all() and np.allclose(np.sum(t_s * np.cross([1.0, 0, 0], n_s), axis=1), 0, atol=1e-12)
+    assert np.allclose(b_s[:, 0], 0, atol=1e-12)
+
+
+def test_reciprocal_where_the_layers_are(tmp_path):
+    """A reciprocal model with a varying normal map: f(wi, wo) = f(wo, wi), the same rule for both."""
+    model = saved_random_model(tmp_path, "hybrid-reciprocal", output_layer="shared")[1]
+    rng = np.random.default_rng(2)
+    normal = rng.uniform(-0.6, 0.6, (8, 8, 2)).astype(np.float32)
+    sv = SVBRDF(model, [model.materials[0], model.materials[1]], (8, 8),
+                weights=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32) * [1, 0, 0], normal=normal)
+    wi, wo = _directions(3000, 9)
+    uv = rng.uniform(0, 1, (len(wi), 2))
+    a, b = sv.eval(uv, wi, wo, dtype=__import__("torch").float64), sv.eval(uv, wo, wi, dtype=__import__("torch").float64)
+    assert (a > 0).any(axis=1).mean() > 0.3
+    assert np.abs(a - b).max() <= 1e-9 * max(1.0, np.abs(a).max())
+
+
+def test_white_furnace_in_the_perturbed_frame(model):
+    """Albedo in the shading frame, int f(wi, wo) cos_s(wi) dwi by cosine-weighted Monte Carlo about
+    n_s: never above the layer's own albedo at wo_s with the same samples (the rule only removes
+    lobe), and for the energy-bounded model at most 1 within the estimate's noise."""
+    xy = (0.45, -0.3)
+    n = np.array([xy[0], xy[1], np.sqrt(1 - xy[0] ** 2 - xy[1] ** 2)])
+    t_s, b_s, n_s = (v[0] for v in shading_frame(n[None]))
+    frame = np.stack([t_s, b_s, n_s], axis=1)  # columns: the shading axes in the geometric frame
+    mapped = SVBRDF(model, [model.materials[2]], (2, 2), normal=_constant_normal(xy, 2, 2))
+    plain = SVBRDF(model, [model.materials[2]], (2, 2))
+    rng = np.random.default_rng(4)
+    m = 20000
+    u1, u2 = rng.uniform(size=m), rng.uniform(size=m)
+    local = np.stack([np.sqrt(u1) * np.cos(2 * np.pi * u2), np.sqrt(u1) * np.sin(2 * np.pi * u2), np.sqrt(1 - u1)], 1)
+    wi = local @ frame.T  # to the geometric frame
+    for theta in (0.2, 0.9, 1.3):
+        wo = np.tile([np.sin(theta), 0.0, np.cos(theta)], (m, 1))
+        uv = np.full((m, 2), 0.5)
+        f = mapped.eval(uv, wi, wo).mean(axis=1) * np.pi  # f cos / pdf with pdf = cos / pi
+        wo_s = wo @ frame
+        g = plain.eval(uv, local, wo_s).mean(axis=1) * np.pi
+        assert (f <= g * (1 + 1e-5) + 1e-7).all()  # the layers run in float32: rotated inputs round differently
+        assert (f < g * 0.5).mean() > 0.01 if theta == 1.3 else True  # and the rule does remove lobe at grazing wo
+        if any("energy_bound" in key for key in model.tensors):
+            assert f.mean() <= 1 + 4 * f.std() / np.sqrt(m)
+
+
+@pytest.mark.parametrize("fmt", ["png", "exr", "ktx2"])
+def test_round_trip(model, tmp_path, fmt):
+    u = (np.arange(8) + 0.5) / 8  # a smooth bump field: BC5 holds it to an index step of each block's range
+    normal = np.stack(np.broadcast_arrays(0.5 * np.sin(2 * np.pi * u)[None, :], 0.4 * np.cos(2 * np.pi * u)[:, None]), 2)
+    sv = SVBRDF(model, [model.materials[0]], (8, 8), normal=normal.astype(np.float32)).with_mips()
+    sv.save(tmp_path / "sv", format=fmt)
+    back = load_svbrdf(tmp_path / "sv")
+    tol = 1e-6 if fmt == "exr" else 1.01 / 255 * 2 if fmt == "png" else 0.012  # BC5 of a smooth field: 8-bit endpoints, 3-bit indices
+    assert np.abs(back.normal - sv.normal).max() <= tol
+    assert all(np.abs(a - b).max() <= tol for a, b in zip(back.normal_mips, sv.normal_mips))
+    index = json.loads((tmp_path / "sv" / "svbrdf.json").read_text())
+    entry = next(e for e in index["maps"] if e["quantity"] == "normal")
+    assert "layer" not in entry and entry["decode"][2] is None
+    if fmt != "exr":
+        assert entry["decode"][0] == {"transfer": "linear", "scale": 2.0, "offset": -1.0}
+
+
+def _saved_with_normal(model, tmp_path):
+    normal = _constant_normal((0.2, -0.1))
+    SVBRDF(model, [model.materials[0]], (4, 4), normal=normal).save(tmp_path / "sv", format="png")
+    return tmp_path / "sv", json.loads((tmp_path / "sv" / "svbrdf.json").read_text())
+
+
+@pytest.mark.parametrize("change,words", [
+    (lambda e: e.update(layer=0), 'a normal map has no "layer"'),
+    (lambda e: e["decode"][0].update(scale=3.0), "decodes to [-1, 2], outside normal's range [-1, 1]"),
+    (lambda e: e["decode"].__setitem__(2, {"transfer": "linear", "scale": 2.0, "offset": -1.0}),
+     "channel B holds no normal component; its decode must be null"),
+])
+def test_refusals(model, tmp_path, change, words):
+    folder, index = _saved_with_normal(model, tmp_path)
+    change(next(e for e in index["maps"] if e["quantity"] == "normal"))
+    (folder / "svbrdf.json").write_text(json.dumps(index))
+    with pytest.raises(SVBRDFError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        load_svbrdf(folder)
+
+
+def test_mip_normal_is_the_normalised_mean_and_widens_alpha_by_toksvig(model):
+    """A checkerboard of normals tilted by +-theta about b: level 1 holds +z and |mean n| = cos
+    theta, so every layer's alpha^2 grows by 2 (1 - cos theta) / cos theta (Toksvig's factor in
+    alpha units); a constant normal leaves alpha as the chain without a normal map has it."""
+    theta = 0.3
+    board = np.zeros((4, 4, 2), np.float32)
+    board[..., 0] = np.sin(theta) * np.where((np.add.outer(np.arange(4), np.arange(4)) % 2) == 0, 1, -1)
+    alpha = np.full((4, 4, 2), [0.1, 0.3], np.float32)
+    sv = SVBRDF(model, [model.materials[0]], (4, 4), maps=[{"alpha": alpha}], normal=board).with_mips()
+    (w1, maps1), n1 = sv.mips[0], sv.normal_mips[0]
+    assert np.abs(n1).max() <= 1e-6
+    expected = np.sqrt(np.array([0.1, 0.3]) ** 2 + 2 * (1 - np.cos(theta)) / np.cos(theta))
+    assert np.allclose(maps1[0]["alpha"], expected, rtol=1e-5)
+    flat = SVBRDF(model, [model.materials[0]], (4, 4), maps=[{"alpha": alpha}],
+                  normal=_constant_normal((0.3, 0.2))).with_mips()
+    plain = SVBRDF(model, [model.materials[0]], (4, 4), maps=[{"alpha": alpha}]).with_mips()
+    assert np.allclose(flat.mips[0][1][0]["alpha"], plain.mips[0][1][0]["alpha"], rtol=1e-6)
+    # a layer without an alpha map gains one (its material's alpha), widened the same way
+    bare = SVBRDF(model, [model.materials[0]], (4, 4), normal=board).with_mips()
+    own = np.asarray(model.tensors["materials.alpha"][model.index(model.materials[0])], np.float64)
+    assert np.allclose(bare.mips[0][1][0]["alpha"], np.sqrt(own ** 2 + 2 * (1 - np.cos(theta)) / np.cos(theta)), rtol=1e-5)
