@@ -1,0 +1,175 @@
+#!/usr/bin/env python3
+"""What reading a textured material's maps as GPU block formats with mip chains costs the generated
+shader (issue 58's cost target; docs/SVBRDF.md, "KTX2 maps").
+
+The generated WGSL of a textured folder (`hbrdf-codegen DIR --target wgsl`: `hbrdf_texel_lod` and
+`hbrdf_texel_grad` through real samplers, then `hbrdf_eval_texel`) in one compute kernel under
+lavapipe (wgpu, the CPU adapter with `texture-compression-bc`), the same kernel and pairs over three
+uploads of the same maps: today's single uncompressed level (rgba8unorm; kd rgba8unorm-srgb), the
+uncompressed mip chain, and the chain in the KTX2 block formats `SVBRDF.save(format="ktx2")` writes
+(BC5 weights and alpha, sRGB BC7 kd; the blocks encoded as the writer does). The material:
+`results/rgl54_fast.safetensors`' three bench/svbrdf_mixture.py layers, 512x512, with kd and alpha
+maps (bench/svbrdf_mips.py's noise). Printed: Mpairs/s per upload (median of interleaved runs) and
+the ratio to today's; lavapipe decodes blocks in software, so compare ratios of one run, and on a
+GPU (where a block format reads a quarter of the bytes) run it there.
+
+    python bench/textured_bc_cost.py [--pairs 262144] [--lod 2] [--runs 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "python"))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import hybridbrdf as hb  # noqa: E402
+from hybridbrdf.codegen import generate_textured  # noqa: E402
+from hybridbrdf.evaluate.directions import cosine_directions  # noqa: E402
+from hybridbrdf.fit.painting import composite  # noqa: E402
+from hybridbrdf.svbrdf import SVBRDF, bcenc  # noqa: E402
+from hybridbrdf.svbrdf.maps import read_map  # noqa: E402
+
+from svbrdf_mips import material as noise_maps  # noqa: E402
+from svbrdf_mixture import LAYERS, SIZE, masks  # noqa: E402
+from textured_engine import WGSL_KERNEL, map_params  # noqa: E402
+
+#: WebGPU's names of the block formats entries.KTX2_FORMATS writes.
+BLOCK = {"BC4_UNORM_BLOCK": ("bc4-r-unorm", "bc4"), "BC5_UNORM_BLOCK": ("bc5-rg-unorm", "bc5"),
+         "BC7_UNORM_BLOCK": ("bc7-rgba-unorm", "bc7"), "BC7_SRGB_BLOCK": ("bc7-rgba-unorm-srgb", "bc7")}
+CHANNELS = {"bc4": 1, "bc5": 2, "bc7": 4}
+
+
+def device():
+    import wgpu
+
+    from slang_wgsl_tools import LVP_ICD
+
+    os.environ["VK_DRIVER_FILES"] = LVP_ICD
+    os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.mkdtemp(prefix="hbrdf-xdg-"))
+    from wgpu.backends.wgpu_native.extras import set_instance_extras
+
+    set_instance_extras(backends=["Vulkan"])
+    adapter = next(a for a in wgpu.gpu.enumerate_adapters_sync() if a.info["adapter_type"] == "CPU")
+    return adapter, adapter.request_device_sync(required_features=["texture-compression-bc"])
+
+
+def upload(dev, chain, fmt):
+    """A texture of ``fmt`` holding ``chain`` (levels of 8-bit (H, W, 3)), block-encoded for BC formats."""
+    import wgpu
+
+    h, w = chain[0].shape[:2]
+    tex = dev.create_texture(size=(w, h, 1), format=fmt, mip_level_count=len(chain),
+                             usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
+    for level, values in enumerate(chain):
+        lh, lw = values.shape[:2]
+        if fmt.startswith("bc"):
+            kind = fmt.split("-")[0]
+            texels = np.ascontiguousarray(values[..., :min(3, CHANNELS[kind])])
+            data = bcenc.encode_blocks(texels, kind)
+            bw, bh = -(-lw // 4), -(-lh // 4)
+            dev.queue.write_texture({"texture": tex, "mip_level": level}, data,
+                                    {"bytes_per_row": bw * len(data) // (bw * bh), "rows_per_image": bh},
+                                    (bw * 4, bh * 4, 1))
+        else:
+            rgba = np.concatenate([values, np.full((lh, lw, 1), 255, np.uint8)], axis=2)
+            dev.queue.write_texture({"texture": tex, "mip_level": level}, np.ascontiguousarray(rgba),
+                                    {"bytes_per_row": 4 * lw, "rows_per_image": lh}, (lw, lh, 1))
+    return tex.create_view()
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pairs", type=int, default=1 << 18)
+    ap.add_argument("--lod", type=float, default=2.0, help="the lookups' level of detail (2: 4x minified)")
+    ap.add_argument("--runs", type=int, default=5)
+    args = ap.parse_args()
+    import wgpu
+
+    model = hb.load_model(ROOT / "results" / "rgl54_fast.safetensors")
+    names = [n for n, _ in LAYERS]
+    weights = np.concatenate([composite(masks()), np.zeros((SIZE, SIZE, 1))], axis=2).astype(np.float32)
+    _, maps = noise_maps(model, SIZE, np.random.default_rng(11))
+    layer_maps = [{"kd": maps["kd"][1]}, {"alpha": maps["alpha"][1]}, {}]
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="textured_bc_"))
+    SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "png", format="png")
+    SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "ktx2", format="ktx2")
+    code = generate_textured(tmp / "png", "wgsl")
+    params = map_params(code)
+    index = {e["file"].split(".")[0]: e for e in json.loads((tmp / "png" / "svbrdf.json").read_text())["maps"]}
+    ktx2 = {e["file"].split(".")[0]: e for e in json.loads((tmp / "ktx2" / "svbrdf.json").read_text())["maps"]}
+    from hybridbrdf.svbrdf.ktx2 import read_ktx2
+
+    adapter, dev = device()
+    textures = "\n".join(f"@group(0) @binding({3 + j}) var {p}: texture_2d<f32>;" for j, p in enumerate(params))
+    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]), LOD=f"{args.lod:.1f}",
+                                       DX=f"vec2f({2 ** args.lod / SIZE!r}, 0.0)", DY=f"vec2f(0.0, {2 ** args.lod / SIZE!r})")
+    pipeline = dev.create_compute_pipeline(layout="auto", compute={
+        "module": dev.create_shader_module(code=kernel), "entry_point": "main", "constants": {"HBRDF_SRGB_TEXTURES": 1.0}})
+    rng = np.random.default_rng(3)
+    n = args.pairs
+    pairs = np.concatenate([rng.uniform(0, 1, (n, 2)), cosine_directions(rng, n), cosine_directions(rng, n)], axis=1)
+    buf_in = dev.create_buffer_with_data(data=pairs.astype(np.float32).ravel(), usage=wgpu.BufferUsage.STORAGE)
+    buf_out = dev.create_buffer(size=24 * n, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    sampler = dev.create_sampler(address_mode_u="repeat", address_mode_v="repeat", mag_filter="linear",
+                                 min_filter="linear", mipmap_filter="linear")
+    groups = {}
+    for variant in ("rgba8, one level (today)", "rgba8, mip chain", "KTX2 blocks, mip chain"):
+        views = []
+        for p in params:
+            stem = p[len("map_"):]
+            entry = index[stem]
+            files = [entry["file"]] + (list(entry.get("mips", [])) if "one level" not in variant else [])
+            chain = [np.rint(read_map(tmp / "png" / f)[0] * 255).astype(np.uint8) for f in files]
+            srgb = all(d is None or d["transfer"] == "srgb" for d in entry["decode"])
+            if variant.startswith("KTX2"):
+                fmt = BLOCK[read_ktx2(tmp / "ktx2" / ktx2[stem]["file"]).name][0]
+            else:
+                fmt = "rgba8unorm-srgb" if srgb else "rgba8unorm"
+            views.append(upload(dev, chain, fmt))
+        entries = [{"binding": 0, "resource": {"buffer": buf_in}}, {"binding": 1, "resource": {"buffer": buf_out}},
+                   {"binding": 2, "resource": sampler}] + [{"binding": 3 + j, "resource": v} for j, v in enumerate(views)]
+        groups[variant] = dev.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=entries)
+
+    def run(group):
+        encoder = dev.create_command_encoder()
+        compute = encoder.begin_compute_pass()
+        compute.set_pipeline(pipeline)
+        compute.set_bind_group(0, group)
+        compute.dispatch_workgroups((n + 63) // 64, 1, 1)
+        compute.end()
+        t0 = time.perf_counter()
+        dev.queue.submit([encoder.finish()])
+        out = np.frombuffer(dev.queue.read_buffer(buf_out), np.float32)
+        return time.perf_counter() - t0, out
+
+    times = {v: [] for v in groups}
+    outs = {}
+    for v, g in groups.items():
+        outs[v] = run(g)[1].reshape(n, 6).copy()  # warm: the first dispatch of a bind group
+    for _ in range(args.runs):
+        for v, g in groups.items():
+            times[v].append(run(g)[0])
+    print(f"{adapter.info['device']}; {n} pairs, lod {args.lod}; generated WGSL of a {SIZE}x{SIZE} three-layer folder "
+          f"(weights, sRGB kd, alpha maps; rgl54_fast 16x2); hybridbrdf {hb.__version__}; median of {args.runs} interleaved runs")
+    base = np.median(times["rgba8, one level (today)"])
+    ref = outs["rgba8, mip chain"]
+    for v in groups:
+        t = np.median(times[v])
+        diff = np.abs(outs[v] - ref).max() / np.abs(ref).max()
+        print(f"  {v:28s} {n / t / 1e6:7.2f} Mpairs/s   {t / base:5.2f}x today's time   (f against the rgba8 chain: "
+              f"max {diff:.3g} of max f)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
