@@ -47,12 +47,18 @@ def test_help_and_argument_errors_import_no_torch(argv, code):
     assert ("usage: hbrdf" in r.stdout) if code == 0 else ("error:" in r.stderr)
 
 
-#: Command lines whose parsing needs no NumPy: ``hbrdf --help``, a mistyped command, and the flags of
-#: the commands whose parsers take no default from a NumPy module. (bound, info, demo, view and
-#: acquire show memory sizes or defaults of their modules in their help: NumPy there.)
+#: Command lines whose parsing needs no NumPy: ``hbrdf --help``, a mistyped command, and an argument
+#: error of every command. The memory sizes and defaults that bound, info, demo, view and acquire
+#: state in their help come from plain-Python modules (model/sizes.py, demo/sizes.py,
+#: viewer/sizes.py, acquire/sizes.py; test_sizes_are_what_the_estimates_use below).
 NO_NUMPY_ARGV = [["--help"], ["--version"], [], ["nosuchcommand"], ["fit", "--help"], ["fit", "--no-such-flag"],
                  ["fit", "a", "--out", "m", "--steps", "x"], ["add", "--x"], ["eval", "--x"], ["edit", "--x"],
-                 ["mix", "--x"], ["paint", "--x"], ["render", "scene.json"], ["render", "--help"]]
+                 ["mix", "--x"], ["paint", "--x"], ["render", "scene.json"], ["render", "--help"],
+                 ["bound", "--x"], ["bound", "m", "--out", "o", "--samples", "0"], ["info", "--x"],
+                 ["info", "--albedo-samples", "x", "m"], ["demo", "--x"], ["demo", "--help"], ["view", "--x"],
+                 ["view", "m", "--source-size", "x", "-o", "p.html"], ["acquire", "--x"], ["acquire", "simulate", "--x"],
+                 ["acquire", "simulate", "--flash", "0", "--base", "s", "--out", "d"], ["acquire", "fit", "--x"],
+                 ["acquire", "fit", "c", "--out", "d", "--steps", "0"], ["acquire", "--help"]]
 
 
 @pytest.mark.parametrize("argv", NO_NUMPY_ARGV, ids=lambda a: " ".join(a) or "nothing")
@@ -78,6 +84,36 @@ def test_only_the_named_command_is_built_and_help_is_unchanged():
     for name in COMMANDS:
         lazy = next(a for a in build_parser(only=name)._actions if a.dest == "command").choices
         assert lazy[name].format_help() == commands[name].format_help(), name
+
+
+def test_sizes_are_what_the_estimates_use():
+    """The plain-Python sizes the parsers state are the ones the NumPy code runs with: the energy
+    bound's direction count against the directions it builds, the albedo grid against the one
+    ``albedo_profile`` evaluates, the model's library cost against ``bytes_per_pair``, and the
+    defaults of the functions the commands call."""
+    import inspect
+
+    from hybridbrdf.acquire import sizes as acquire_sizes
+    from hybridbrdf.acquire.acquisition import acquire
+    from hybridbrdf.demo import sizes as demo_sizes
+    from hybridbrdf.demo.slices import run_demo
+    from hybridbrdf.model import energy, load_model, prior_path, sizes
+    from hybridbrdf.viewer import sizes as viewer_sizes
+    from hybridbrdf.viewer.measured import panels
+
+    assert sizes.energy_directions() == len(energy._directions()) == 1024  # docs/CONVENTIONS.md's table
+    assert sizes.energy_bytes_per_sample() == 256 * 1024
+    model = load_model(prior_path())
+    assert model.bytes_per_pair() == sizes.LIBRARY_BYTES_PER_PAIR
+    profile = model.albedo(0, samples=64)
+    assert len(profile["albedo"]) == len(sizes.ALBEDO_THETA_DEG) * len(sizes.ALBEDO_PHI_DEG) == 44
+    assert sorted(set(profile["theta_deg"].tolist())) == list(sizes.ALBEDO_THETA_DEG)
+    assert inspect.signature(energy.tables).parameters["samples"].default == sizes.SAMPLES
+    assert inspect.signature(run_demo).parameters["samples"].default == demo_sizes.SAMPLES
+    assert inspect.signature(acquire).parameters["steps"].default == acquire_sizes.STEPS == 300
+    params = inspect.signature(panels).parameters
+    assert (params["size"].default, params["spp"].default) == (viewer_sizes.DEFAULT_SOURCE_SIZE,
+                                                                 viewer_sizes.DEFAULT_SOURCE_SPP)
 
 
 def test_import_hybridbrdf_imports_no_numpy():

@@ -110,7 +110,7 @@ def test_stated_costs_cover_the_measured_peaks(tmp_path, model):
     code = f"""
 import os, resource, sys, numpy as np, torch
 import hybridbrdf as hb
-from hybridbrdf.model import editing, energy
+from hybridbrdf.model import sizes
 from hybridbrdf.sources import open_source
 m = hb.load_model({str(path)!r})
 src = open_source("synthetic:gold")
@@ -128,7 +128,7 @@ for name, f, k, cost in (
         ("source eval", lambda k: src.eval(wi[:k], wo[:k]), n, hb.sources.base.BYTES_PER_PAIR),
         ("analytic eval", lambda k: hb.analytic_eval(wi[:k], wo[:k], hb.AnalyticParams()), n,
          hb.brdf.analytic.BYTES_PER_PAIR),
-        ("albedo", lambda k: m.albedo(0, samples=k), 20_000, editing.albedo_bytes_per_sample(m.bytes_per_pair()))):
+        ("albedo", lambda k: m.albedo(0, samples=k), 20_000, sizes.albedo_bytes_per_sample(m.bytes_per_pair()))):
     sys.stdout.flush()
     if os.fork() == 0:  # a child per call: its high-water mark starts at the parent's current RSS
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

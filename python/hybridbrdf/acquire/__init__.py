@@ -21,19 +21,20 @@
     acquire("capture", "acquired", size=(128, 128))   # per-texel (p, z) on the shipped prior
 
 Its public names, one import deep: ``from hybridbrdf.acquire import flash_rig, Mixture, NoiseModel,
-simulate, write_capture, acquire`` (``Mixture``, ``simulate``, ``Capture`` and the capture folder's
-functions import PyTorch on first use).
+simulate, write_capture, acquire``, each loaded on first access (``Mixture``, ``simulate``, ``Capture``
+and the capture folder's functions import PyTorch then): ``import hybridbrdf.acquire`` imports no NumPy.
 """
 
-from hybridbrdf.acquire.acquisition import acquire
-from hybridbrdf.acquire.noise import NoiseModel
-from hybridbrdf.acquire.observations import Observations, texel_observations
-from hybridbrdf.acquire.rig import Camera, Light, Rig, RigError, Shot, load_rig, rig_from_dict
-from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.exports import lazy_names, public_face
 
-#: Public names whose module imports PyTorch, loaded on first access (PEP 562).
-_LAZY = {"Mixture": "hybridbrdf.acquire.mixture", **lazy_names(["Capture", "simulate"], "hybridbrdf.acquire.simulation"),
+#: Every public name, loaded on first access (PEP 562): their modules import NumPy (Mixture's,
+#: simulate's and the capture folder's PyTorch), and ``hbrdf acquire``'s parser reads
+#: hybridbrdf.acquire.sizes (plain Python) without it.
+_LAZY = {"acquire": "hybridbrdf.acquire.acquisition", "NoiseModel": "hybridbrdf.acquire.noise",
+         **lazy_names(["Observations", "texel_observations"], "hybridbrdf.acquire.observations"),
+         **lazy_names(["Camera", "Light", "Rig", "RigError", "Shot", "load_rig", "rig_from_dict"], "hybridbrdf.acquire.rig"),
+         **lazy_names(["flash_rig", "light_stage_rig"], "hybridbrdf.acquire.rigs"),
+         "Mixture": "hybridbrdf.acquire.mixture", **lazy_names(["Capture", "simulate"], "hybridbrdf.acquire.simulation"),
          **lazy_names(["CaptureError", "load_capture", "write_capture"], "hybridbrdf.acquire.capture")}
 
 __all__ = ["Camera", "Capture", "CaptureError", "Light", "Mixture", "NoiseModel", "Observations", "Rig", "RigError",

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Callable, Optional, Tuple
 from hybridbrdf import spec
 from hybridbrdf.acquire.exposure import stated_noise_floor, usable_pixels
 from hybridbrdf.acquire.observations import texel_observations
+from hybridbrdf.acquire.sizes import STEPS
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
@@ -29,8 +30,6 @@ if TYPE_CHECKING:  # annotations only: the fit's modules (PyTorch) load when acq
     from hybridbrdf.acquire.hybrid_fit import HybridMaps
     from hybridbrdf.acquire.texel_rows import Progress
 
-#: Steps of the per-texel stage by default (the analytic stage runs half as many).
-STEPS = 300
 #: Peak bytes per texel of the map, an estimate with a margin: the 128x128 run of docs/ACQUISITION.md
 #: peaked at 1.56 GB, about 0.8 GB of it the photographs, observations and libraries, the rest
 #: (about 46 KiB a texel) the 8 rows per texel and their activations through the network with autograd.

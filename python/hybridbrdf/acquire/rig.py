@@ -25,15 +25,13 @@ from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from hybridbrdf.acquire.sizes import MAX_ITEMS, MAX_SIDE
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import loads_json, read_input_text
 
 FORMAT_VERSION = 1
 #: Largest rig file read (a rig of thousands of shots is well under this).
 MAX_RIG_BYTES = 16 << 20
-#: Largest photograph side, and most cameras, lights and shots in one rig.
-MAX_SIDE = 8192
-MAX_ITEMS = 65536
 
 TOP_KEYS = ("format_version", "image_size", "sample_extent", "cameras", "lights", "shots")
 CAMERA_KEYS = ("position", "look_at", "up", "fov_deg")

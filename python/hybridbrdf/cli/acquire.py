@@ -12,13 +12,9 @@ import argparse
 import math
 import os
 
-from hybridbrdf.acquire.acquisition import STEPS
-from hybridbrdf.acquire.noise import NoiseModel
-from hybridbrdf.acquire.rig import MAX_ITEMS, MAX_SIDE, load_rig
-from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
+from hybridbrdf.acquire.sizes import MAX_ITEMS, MAX_SIDE, STEPS
 from hybridbrdf.cli import COMMANDS, layer_masks
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.sources import open_source
 
 
 def _number(lo: float, hi: float = math.inf, open_lo: bool = False):
@@ -69,10 +65,14 @@ def run_simulate(args: argparse.Namespace) -> int:
     the first photograph; the folder written once complete."""
     from tqdm import tqdm
 
+    from hybridbrdf.acquire import simulate
     from hybridbrdf.acquire.capture import check_output_folder, write_capture
     from hybridbrdf.acquire.mixture import Mixture
-    from hybridbrdf.acquire import simulate
+    from hybridbrdf.acquire.noise import NoiseModel
+    from hybridbrdf.acquire.rig import load_rig
+    from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
     from hybridbrdf.fit.painting import read_grey
+    from hybridbrdf.sources import open_source
 
     layers = layer_masks(args.layer, "SOURCE")
     if args.read_noise and not args.photons:

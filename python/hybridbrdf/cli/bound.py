@@ -6,10 +6,7 @@ import argparse
 
 from hybridbrdf.cli import COMMANDS, add_quiet_flag, progress_bar
 from hybridbrdf.fit.settings import positive_int
-from hybridbrdf.limits import check_count
-from hybridbrdf.model import energy
-from hybridbrdf.model.file import load_model
-from hybridbrdf.files import check_writable, file_lock
+from hybridbrdf.model import sizes
 
 
 def add_parser(sub) -> None:
@@ -23,9 +20,9 @@ def add_parser(sub) -> None:
     p.add_argument("--out", required=True, help="model file to write (may be MODEL itself)")
     p.add_argument("--materials", metavar="A,B,...", help="only these materials (default: all); the others keep "
                                                           "their tables (or none: a table of ones)")
-    p.add_argument("--samples", type=positive_int, default=energy.SAMPLES, metavar="N",
+    p.add_argument("--samples", type=positive_int, default=sizes.SAMPLES, metavar="N",
                    help="MIS samples per direction of the albedo estimate (default: %(default)s; at most what fits "
-                        f"this machine's memory, {energy.bytes_per_sample() / 1024:.0f} KiB a sample; "
+                        f"this machine's memory, {sizes.energy_bytes_per_sample() / 1024:.0f} KiB a sample; "
                         "docs/CONVENTIONS.md, \"Counts and memory\")")
     p.add_argument("--verbose", action="store_true", help="list every material, not only the dimmed ones")
     add_quiet_flag(p, "the tables are fitted")
@@ -33,7 +30,12 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_count("--samples", args.samples, energy.bytes_per_sample())
+    from hybridbrdf.files import check_writable, file_lock
+    from hybridbrdf.limits import check_count
+    from hybridbrdf.model import energy
+    from hybridbrdf.model.file import load_model
+
+    check_count("--samples", args.samples, sizes.energy_bytes_per_sample())
     check_writable(args.out, "model")
     with file_lock(args.out):  # --out MODEL: MODEL is read under the lock (docs/CONVENTIONS.md, "Writing files")
         model = load_model(args.model)

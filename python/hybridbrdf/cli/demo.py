@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from hybridbrdf.demo import BYTES_PER_SAMPLE as DEMO_BYTES_PER_SAMPLE
+from hybridbrdf.demo.sizes import BYTES_PER_SAMPLE, SAMPLES
 from hybridbrdf.cli import COMMANDS
 
 
@@ -17,14 +17,14 @@ def add_parser(sub) -> None:
         "directional albedo estimated with every sampling strategy.",
     )
     p.add_argument("--out", default="out/analytic_slices.png", help="PNG file to write (default: %(default)s)")
-    p.add_argument("--samples", type=int, default=200_000, metavar="N",
+    p.add_argument("--samples", type=int, default=SAMPLES, metavar="N",
                    help=f"samples per albedo estimate (default: %(default)s; at most what fits this machine's memory, "
-                        f"{DEMO_BYTES_PER_SAMPLE} bytes a sample; docs/CONVENTIONS.md, \"Counts and memory\")")
+                        f"{BYTES_PER_SAMPLE} bytes a sample; docs/CONVENTIONS.md, \"Counts and memory\")")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from hybridbrdf.demo import run_demo
+    from hybridbrdf.demo.slices import run_demo
 
     run_demo(args.out, samples=args.samples)
     return 0

@@ -6,9 +6,7 @@ import argparse
 
 from hybridbrdf import spec
 from hybridbrdf.cli import COMMANDS, _settings_line, _shown, add_quiet_flag, print_beside, progress_bar
-from hybridbrdf.limits import check_count
-from hybridbrdf.model.editing import albedo_bytes_per_sample
-from hybridbrdf.model.file import HybridModel, load_model
+from hybridbrdf.model.sizes import LIBRARY_BYTES_PER_PAIR, albedo_bytes_per_sample
 
 #: What a fit records besides its settings (hybridbrdf.fit.fit, in fit/joint.py), printed by ``hbrdf info``.
 RECORDED_TIMINGS = ("train_seconds", "train_seconds_from_step", "resumed_at_step", "compile_seconds")
@@ -22,7 +20,7 @@ def add_parser(sub) -> None:
                    help="incident samples per outgoing direction for each material's maximum directional albedo "
                         "(44 outgoing directions; default: %(default)s, about 1%% noise; hbrdf edit and mix use "
                         "8192; 0: do not estimate it); at most what fits this machine's memory, about "
-                        f"{albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR) / 1024:.1f} KiB a sample "
+                        f"{albedo_bytes_per_sample(LIBRARY_BYTES_PER_PAIR) / 1024:.1f} KiB a sample "
                         "(docs/CONVENTIONS.md, \"Counts and memory\")")
     add_quiet_flag(p, "the albedo estimates run")
     p.set_defaults(func=run)
@@ -30,10 +28,12 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hybridbrdf.fit.record import environment_line
+    from hybridbrdf.limits import check_count
+    from hybridbrdf.model.file import load_model
 
     if args.albedo_samples < 0:
         raise ValueError(f"--albedo-samples {args.albedo_samples}: must be >= 0 (0: no albedo)")
-    check_count("--albedo-samples", args.albedo_samples, albedo_bytes_per_sample(HybridModel.LIBRARY_BYTES_PER_PAIR))
+    check_count("--albedo-samples", args.albedo_samples, albedo_bytes_per_sample(LIBRARY_BYTES_PER_PAIR))
     model = load_model(args.model)
     a = model.arch
     written_by = getattr(model, "written_by", None)

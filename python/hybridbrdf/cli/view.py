@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hybridbrdf.fit.settings import positive_int
-from hybridbrdf.viewer import measured as viewer_sources
+from hybridbrdf.viewer.sizes import DEFAULT_SOURCE_SIZE, DEFAULT_SOURCE_SPP
 from hybridbrdf.cli import COMMANDS
 
 
@@ -36,9 +36,9 @@ def add_parser(sub) -> None:
                    help="show the textured material of DIR (written by hbrdf paint; docs/SVBRDF.md) on the sphere, "
                         "its layers mixed per texel by its maps at the path tracer's sphere uv (bilinear), with the "
                         "maps as small images beside it; WebGL2 only (docs/VIEWER.md, 'A textured material')")
-    p.add_argument("--source-size", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SIZE, metavar="N",
+    p.add_argument("--source-size", type=positive_int, default=DEFAULT_SOURCE_SIZE, metavar="N",
                    help="pixels (square) of each SOURCE's measured render, 8 to 1024 (default: %(default)s)")
-    p.add_argument("--source-spp", type=positive_int, default=viewer_sources.DEFAULT_SOURCE_SPP, metavar="N",
+    p.add_argument("--source-spp", type=positive_int, default=DEFAULT_SOURCE_SPP, metavar="N",
                    help="samples per pixel of each SOURCE's measured render (default: %(default)s; about 4 s "
                         "per RGL source on 2 cores)")
     p.set_defaults(func=run)

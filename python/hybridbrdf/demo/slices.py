@@ -1,4 +1,4 @@
-"""``hbrdf demo``: look at the analytic BRDF f_a.
+"""``hbrdf demo``: look at the analytic BRDF f_a (its sizes: :mod:`hybridbrdf.demo.sizes`).
 
 Plots, for a few built-in materials, in-plane slices of f_a(wi, wo) cos(theta_i)
 (computed by the C++ library, with the float64 PyTorch implementation drawn
@@ -16,12 +16,9 @@ import numpy as np
 
 from hybridbrdf._core import STRATEGIES
 from hybridbrdf.brdf.analytic import AnalyticParams, analytic_eval, sample
+from hybridbrdf.demo.sizes import BYTES_PER_SAMPLE, SAMPLES
 from hybridbrdf.limits import check_count, count_argument
 from hybridbrdf.files import atomic_write_bytes
-
-#: Peak bytes per sample of one albedo estimate (directional_albedo: the repeated wo, u, the
-#: sampler's float32 copies and outputs, the float64 weights; 88 measured), with a margin.
-BYTES_PER_SAMPLE = 128
 
 #: Built-in analytic materials (no measured data needed).
 DEMO_MATERIALS: Dict[str, AnalyticParams] = {
@@ -58,7 +55,7 @@ def _write_png_atomically(fig, path: str) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
-def run_demo(out: str, samples: int = 200_000) -> None:
+def run_demo(out: str, samples: int = SAMPLES) -> None:
     """Write the slice plot to ``out`` (PNG) and print the albedo table. ``samples`` (--samples)
     is bounded by memory (:data:`BYTES_PER_SAMPLE`; hybridbrdf.limits), checked first."""
     check_count("--samples", count_argument("--samples", samples), BYTES_PER_SAMPLE)

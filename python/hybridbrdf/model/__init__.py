@@ -3,17 +3,18 @@
     from hybridbrdf.model import load_model, edit, mix
     m = load_model("model.safetensors")          # no PyTorch needed to load, check, edit or write
 
-``random_model`` (a reproducible random model for tests and benchmarks) imports PyTorch on first use.
+Its names load on first access (PEP 562): ``import hybridbrdf.model`` imports no NumPy, so the
+command line's parsers can read :mod:`hybridbrdf.model.sizes`; ``random_model`` (a reproducible
+random model for tests and benchmarks) imports PyTorch on first use.
 """
 
-from hybridbrdf.exports import public_face
-from hybridbrdf.model.editing import albedo_profile, edit, mix
-from hybridbrdf.model.energy import with_bound
-from hybridbrdf.model.file import HybridModel, load_model
-from hybridbrdf.model.prior import load_prior, prior_path
+from hybridbrdf.exports import lazy_names, public_face
 
-#: Public names whose module imports PyTorch, loaded on first access (PEP 562).
-_LAZY = {"random_model": "hybridbrdf.model.random"}
+#: Every public name, loaded on first access (PEP 562): their modules import NumPy (random_model's
+#: PyTorch), and the command line's parsers read hybridbrdf.model.sizes (plain Python) without it.
+_LAZY = {**lazy_names(["albedo_profile", "edit", "mix"], "hybridbrdf.model.editing"),
+         "with_bound": "hybridbrdf.model.energy", **lazy_names(["HybridModel", "load_model"], "hybridbrdf.model.file"),
+         **lazy_names(["load_prior", "prior_path"], "hybridbrdf.model.prior"), "random_model": "hybridbrdf.model.random"}
 
 __all__ = ["HybridModel", "albedo_profile", "edit", "load_model", "load_prior", "mix", "prior_path", "random_model",
            "with_bound"]

@@ -28,15 +28,10 @@ from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
 from hybridbrdf.limits import bool_argument, check_count, count_argument, real_argument
 from hybridbrdf.model import energy
+from hybridbrdf.model.sizes import ALBEDO_PHI_DEG, ALBEDO_THETA_DEG, albedo_bytes_per_sample
 from hybridbrdf.names import names_problem
 from hybridbrdf.files import scratch_folder
 
-#: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
-#: where Fresnel and masking change fastest.
-ALBEDO_THETA_DEG = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0, 88.0)
-#: Outgoing azimuths (degrees): the network sees wi and wo in the local frame, so even an
-#: isotropic material's albedo can depend on phi; anisotropic ones do by design.
-ALBEDO_PHI_DEG = (0.0, 45.0, 90.0, 135.0)
 #: Incident samples per outgoing direction (MIS between the cosine and GGX lobes of the
 #: material's own f_a, stratified): enough that the estimate's relative standard error stays
 #: well inside ALBEDO_TARGET's margin for the shipped prior's materials.
@@ -44,17 +39,6 @@ ALBEDO_SAMPLES = 1 << 13
 #: What ``conserve_energy`` holds the maximum estimated albedo to: 1 less a margin that covers
 #: the estimate's noise (the energy bound's target, spec/model.json).
 ALBEDO_TARGET = spec.ENERGY_TARGET
-#: Peak bytes per incident sample and outgoing direction of an albedo estimate, besides the
-#: model's own evaluation (model.bytes_per_pair): the repeated directions, u, the sampler's
-#: outputs, the contributions (119 bytes measured in all through libhybridbrdf).
-ALBEDO_BYTES_PER_SAMPLE = 96
-
-
-def albedo_bytes_per_sample(pair_bytes: int) -> int:
-    """Peak memory of :func:`albedo_profile` per incident sample (all outgoing directions of
-    the grid) for a model whose evaluation takes ``pair_bytes`` a pair (model.bytes_per_pair()):
-    what ``samples`` is bounded by (hybridbrdf.limits)."""
-    return len(ALBEDO_THETA_DEG) * len(ALBEDO_PHI_DEG) * (ALBEDO_BYTES_PER_SAMPLE + pair_bytes)
 
 
 def _check_name(name) -> None:
@@ -282,5 +266,5 @@ def parse_assignments(items: Sequence[str]) -> Dict[str, Any]:
     return out
 
 
-__all__ = ["ALBEDO_BYTES_PER_SAMPLE", "ALBEDO_SAMPLES", "albedo_bytes_per_sample", "ALBEDO_TARGET", "ALBEDO_THETA_DEG", "ALBEDO_PHI_DEG", "albedo_profile", "edit", "mix",
+__all__ = ["ALBEDO_SAMPLES", "ALBEDO_TARGET", "albedo_profile", "edit", "mix",
            "parse_assignments"]

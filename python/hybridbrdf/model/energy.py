@@ -20,8 +20,8 @@ with k piecewise linear in cos theta over spec.ENERGY_NODES nodes, one table per
   after it (and after every edit and blend), for any architecture.
 
 The table is fitted on a Monte Carlo estimate: for each of ``ELEVATIONS_PER_INTERVAL`` elevations
-per node interval and :data:`AZIMUTHS` azimuths (both albedos, over wi and over wo, unless the
-architecture is reciprocal), the contributions f_t cos / pdf of ``samples`` stratified MIS samples
+per node interval and ``AZIMUTHS`` azimuths (both in :mod:`hybridbrdf.model.sizes`; both albedos,
+over wi and over wo, unless the architecture is reciprocal), the contributions f_t cos / pdf of ``samples`` stratified MIS samples
 of the material's f_a. k starts at 1 where the estimate allows it; damped multiplicative steps
 (k_j <- min(1, k_j sqrt(s_j)), s_j the smallest TARGET / albedo of the directions next to node j)
 raise it where the first pass was too cautious, and a last step k_j <- k_j min(1, s_j) makes
@@ -41,20 +41,14 @@ import numpy as np
 from hybridbrdf import spec
 from hybridbrdf.brdf.analytic import AnalyticParams, sample
 from hybridbrdf.limits import check_count, count_argument
+from hybridbrdf.model.sizes import (AZIMUTHS, ELEVATIONS_PER_INTERVAL, HORIZON_COS, SAMPLES,
+                                    energy_bytes_per_sample)
 from hybridbrdf.files import scratch_folder
 
 #: Largest directional albedo the bound leaves (spec.ENERGY_TARGET: 1 less a margin for the estimate).
 TARGET = spec.ENERGY_TARGET
 #: Table nodes, at cos theta = j / (NODES - 1).
 NODES = spec.ENERGY_NODES
-#: Elevations per node interval at which the albedo is estimated (its ends and between).
-ELEVATIONS_PER_INTERVAL = 4
-#: Azimuths (degrees) of every elevation: the network sees wi and wo in the local frame, so even an
-#: isotropic material's albedo can depend on phi, and not with period 180 degrees. 22.5 degrees
-#: apart: with 45 a kd = 1, eta = 10 edit peaked between two of them 1.5% above the target.
-AZIMUTHS = tuple(22.5 * i for i in range(16))
-#: Samples per direction (stratified, MIS of the material's f_a).
-SAMPLES = 4096
 #: Samples per direction of the first look: a material whose largest estimate stays below
 #: SCREEN_MARGIN TARGET with them keeps a table of ones without the full estimate (most fitted
 #: materials). The first look is noisy where the MIS of f_a samples the correction poorly (one
@@ -62,21 +56,8 @@ SAMPLES = 4096
 #: directions errs upward; bench/energy_bound.py checks the result from outside.
 SCREEN_SAMPLES = 512
 SCREEN_MARGIN = 0.85
-#: Peak bytes per sample and fixed direction of a material's estimate (the repeated directions,
-#: u, the sampler's outputs, both sides' values and contributions: 228 measured, with a margin).
-BYTES_PER_DIRECTION_SAMPLE = 256
-
-
-def bytes_per_sample() -> int:
-    """Peak memory of one material's tables per sample (every fixed direction): what
-    ``samples`` is bounded by (hybridbrdf.limits)."""
-    return len(_directions()) * BYTES_PER_DIRECTION_SAMPLE
 #: Smallest cos theta of the regular elevations: the horizon itself is outside every hemisphere (f = 0 there).
 MIN_COS = 0.004
-#: Elevations closer to the horizon (cos theta; 89.97 to 89.89 degrees), where a network's
-#: correction can still rise (measured: 1.03 at 89.9 degrees for one prior material with a table
-#: fitted without them); they bind the first interval's nodes.
-HORIZON_COS = (0.0005, 0.001, 0.002)
 #: Damped steps after the first pass.
 ITERATIONS = 24
 
@@ -220,10 +201,10 @@ def tables(model, materials: Optional[Sequence] = None, samples: int = SAMPLES, 
 
     Returns ``{"table": (n, NODES) float32, "max_albedo_unbounded": [...], "max_albedo": [...]}``,
     the maxima being the estimates over the directions used (max over RGB). ``samples`` is
-    bounded by memory (:func:`bytes_per_sample`; ValueError naming it). ``progress()`` is called
+    bounded by memory (:func:`~hybridbrdf.model.sizes.energy_bytes_per_sample`; ValueError naming it). ``progress()`` is called
     after each material (``hbrdf bound``'s progress bar)."""
     samples = count_argument("samples", samples)
-    check_count("samples", samples, bytes_per_sample())
+    check_count("samples", samples, energy_bytes_per_sample())
     f_t = unbounded(model)
     idx = [model.index(m) for m in (range(len(model.materials)) if materials is None else materials)]
     out = {"table": np.ones((len(idx), NODES), np.float32), "max_albedo_unbounded": [], "max_albedo": []}
@@ -294,4 +275,4 @@ def with_bound(model, materials: Optional[Sequence] = None, samples: int = SAMPL
                        dict(model.training) if isinstance(model.training, dict) else {})
 
 
-__all__ = ["NODES", "TARGET", "attach", "bytes_per_sample", "fit_table", "fit_table_from_moments", "moments", "on_file", "scale", "stratified_u", "tables", "unbounded", "with_bound"]
+__all__ = ["NODES", "TARGET", "attach", "fit_table", "fit_table_from_moments", "moments", "on_file", "scale", "stratified_u", "tables", "unbounded", "with_bound"]

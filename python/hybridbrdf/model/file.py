@@ -42,7 +42,7 @@ from hybridbrdf import _core, spec
 from hybridbrdf.brdf.analytic import AnalyticParams
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.limits import pair_arguments
-from hybridbrdf.model import editing
+from hybridbrdf.model import editing, sizes
 from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
                                         output_layer)
 from hybridbrdf.model.validate import read_document, validate
@@ -69,10 +69,9 @@ class HybridModel:
     Computed in PyTorch (float32 by default; ``dtype=torch.float64`` for a reference).
     """
 
-    #: Peak bytes per direction pair of :meth:`eval` through libhybridbrdf: float32 copies of the
-    #: directions, the float32 output and its float64 copy (62 measured from float64 views), with
-    #: a margin.
-    LIBRARY_BYTES_PER_PAIR = 96
+    #: Peak bytes per direction pair of :meth:`eval` through libhybridbrdf (its home, plain Python
+    #: for the command line's help: :data:`hybridbrdf.model.sizes.LIBRARY_BYTES_PER_PAIR`).
+    LIBRARY_BYTES_PER_PAIR = sizes.LIBRARY_BYTES_PER_PAIR
 
     def __init__(self, arch: Dict[str, Any], materials: List[Dict[str, Any]], tensors: Dict[str, np.ndarray],
                  training: Optional[Dict[str, Any]] = None, path: Optional[str] = None):

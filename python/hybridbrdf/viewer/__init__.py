@@ -4,11 +4,13 @@
     write_page("model.safetensors", "page.html")
 """
 
-from hybridbrdf.exports import public_face
+from hybridbrdf.exports import lazy_names, public_face
 from hybridbrdf.viewer.glsl import fragment_shader
-from hybridbrdf.viewer.page import MAX_VIEW_WEIGHT_BYTES, ViewError, render_page, write_page
-from hybridbrdf.viewer.scene import tracer_scene
-from hybridbrdf.viewer.textured import TexturedViewError
+
+#: The names whose modules import NumPy (and the renderer, Jinja2, Pillow), loaded on first access
+#: (PEP 562): ``hbrdf view``'s parser reads hybridbrdf.viewer.sizes (plain Python) without them.
+_LAZY = {**lazy_names(["MAX_VIEW_WEIGHT_BYTES", "ViewError", "render_page", "write_page"], "hybridbrdf.viewer.page"),
+         "tracer_scene": "hybridbrdf.viewer.scene", "TexturedViewError": "hybridbrdf.viewer.textured"}
 
 #: Names of the old module hybridbrdf.viewer (viewer.py) that its public face does not hold.
 _MOVED = {"CAMERA": "hybridbrdf.viewer.scene", "DEFAULT_SUN": "hybridbrdf.viewer.scene",
@@ -20,4 +22,4 @@ _MOVED = {"CAMERA": "hybridbrdf.viewer.scene", "DEFAULT_SUN": "hybridbrdf.viewer
 __all__ = ["MAX_VIEW_WEIGHT_BYTES", "TexturedViewError", "ViewError", "fragment_shader", "render_page",
            "tracer_scene", "write_page"]
 
-__getattr__, __dir__ = public_face(__name__, globals(), moved=_MOVED)
+__getattr__, __dir__ = public_face(__name__, globals(), _LAZY, moved=_MOVED)

@@ -42,11 +42,8 @@ from hybridbrdf.render.tracer import open_measured, render
 from hybridbrdf.sources import SYNTHETIC_PREFIX, expand_sources, open_source
 from hybridbrdf.sources.names import format_tag, source_material
 from hybridbrdf.viewer.scene import srgb8, tracer_scene
+from hybridbrdf.viewer.sizes import DEFAULT_SOURCE_SIZE, DEFAULT_SOURCE_SPP
 
-#: Default size (pixels, square) and samples per pixel of the measured render: 1.3-2.5 s per RGL
-#: source on this project's 2-core machine (docs/VIEWER.md).
-DEFAULT_SOURCE_SIZE = 192
-DEFAULT_SOURCE_SPP = 64
 #: Incidence angles of the slices (degrees, phi_i = 0; and phi_i = 90 for anisotropic materials).
 SLICE_THETA_I_DEG = (0.0, 30.0, 60.0)
 #: Outgoing angles of the slices (degrees, signed: > 0 on the mirror side of the plane of incidence).
@@ -254,6 +251,6 @@ def panels(model, model_path: str, sources: Sequence[str], page_scene: Optional[
             "materials": rows}
 
 
-__all__ = ["ANISOTROPY_MIN", "DEFAULT_SOURCE_SIZE", "DEFAULT_SOURCE_SPP", "SLICE_THETA_I_DEG", "SLICE_THETA_O_DEG",
+__all__ = ["ANISOTROPY_MIN", "SLICE_THETA_I_DEG", "SLICE_THETA_O_DEG",
            "anisotropic", "light_text", "measured_material", "measured_scene", "pair_sources", "panels", "png_bytes", "png_data_uri",
            "render_measured", "slice_directions", "slices"]
