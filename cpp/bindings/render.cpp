@@ -437,7 +437,7 @@ void bind_render(py::module_& m) {
                     hbrdf::Vec3<float> v;
                     if (weights) {
                         texel_of(sv, uv, weights, i, flt, &tx);
-                        v = analytic ? hbrdf::Svbrdf::eval_analytic(tx, a, b) : sv.model().eval_texel(tx.layers, tx.n_layers, a, b);
+                        v = analytic ? hbrdf::Svbrdf::eval_analytic(tx, a, b) : sv.eval_texel(tx, a, b);
                     } else if (lod) {
                         v = sv.eval(t, flt, lod->data()[i], a, b);
                     } else {

@@ -180,6 +180,31 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, Texel* out) const 
     texel_at(taps_of(uv, filter, width_, height_, addressing_), out);
 }
 
+void Svbrdf::normal_at(const Taps& t, Texel* out) const {
+    out->has_normal = !normal_.empty();
+    if (!out->has_normal) return;
+    const float none[2] = {0.f, 0.f};
+    float xy[2];
+    sample_map(normal_, 2, t, none, xy);
+    out->normal_xy = Vec2<float>(xy[0], xy[1]);
+}
+
+void Svbrdf::set_normal_map(std::vector<float> xy) {
+    if (xy.size() != std::size_t(width_) * std::size_t(height_) * 2)
+        throw std::invalid_argument("normal map has " + std::to_string(xy.size()) + " values, expected " +
+                                    std::to_string(std::size_t(width_) * std::size_t(height_) * 2));
+    for (float v : xy)
+        if (!std::isfinite(v)) throw std::invalid_argument("normal map is not finite");
+    normal_ = std::move(xy);
+}
+
+Vec3<float> Svbrdf::eval_texel(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo) const {
+    if (!t.has_normal) return model_->eval_texel(t.layers, t.n_layers, wi, wo);
+    const ShadingFrame s = t.frame();
+    if (!above_both_horizons(s, wi, wo)) return Vec3<float>(0.f);
+    return model_->eval_texel(t.layers, t.n_layers, s.to_local(wi), s.to_local(wo));
+}
+
 void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, const float* weights, Texel* out) const {
     const Taps taps = taps_of(uv, filter, width_, height_, addressing_);
     const int L = int(layers_.size()), l = model_->latent_dim();
@@ -192,6 +217,7 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, const float* weigh
         for (int c = 1; c < L; ++c) w[c] /= total;
     w[0] = std::clamp(1.0 - std::min(total, 1.0), 0.0, 1.0);
     out->n_layers = L;
+    normal_at(taps, out);
     for (int k = 0; k < L; ++k) {
         TexelLayer& o = out->layers[k];
         float* latent = out->latent + std::size_t(k) * std::size_t(l);
@@ -240,6 +266,7 @@ void Svbrdf::layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const 
 void Svbrdf::texel_at(const Taps& t, Texel* out, bool all_layers) const {
     const int L = int(layers_.size()), l = model_->latent_dim();
     out->n_layers = L;
+    normal_at(t, out);
     double w[spec::kSvbrdfMaxLayers];
     weights_at(t, w);
     for (int k = 0; k < L; ++k) {
@@ -254,7 +281,7 @@ void Svbrdf::texel_at(const Taps& t, Texel* out, bool all_layers) const {
 Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const {
     Texel t;
     texel(uv, filter, &t);
-    return model_->eval_texel(t.layers, t.n_layers, wi, wo);
+    return eval_texel(t, wi, wo);
 }
 
 void Svbrdf::set_mips(std::vector<std::shared_ptr<const Svbrdf>> levels) {
@@ -273,7 +300,7 @@ void Svbrdf::set_mips(std::vector<std::shared_ptr<const Svbrdf>> levels) {
         const int L = int(i) + 1;
         bool same = m && m->model_ == model_ && m->addressing_ == addressing_ && m->layers_.size() == layers_.size() &&
                     m->width_ == std::max(1, width_ >> L) && m->height_ == std::max(1, height_ >> L) &&
-                    m->weights_.empty() == weights_.empty() && m->mips_.empty();
+                    m->weights_.empty() == weights_.empty() && m->normal_.empty() == normal_.empty() && m->mips_.empty();
         for (std::size_t k = 0; same && k < layers_.size(); ++k) {
             const SvbrdfLayer &a = layers_[k], &b = m->layers_[k];
             same = a.material == b.material && a.kd.empty() == b.kd.empty() && a.eta.empty() == b.eta.empty() &&
@@ -307,6 +334,7 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* 
     b.texel_at(taps_of(uv, filter, b.width_, b.height_, addressing_), &next, true);
     const auto mix = [t](float x, float y) { return float(double(x) * (1.0 - t) + double(y) * t); };
     const std::size_t l = std::size_t(model_->latent_dim());
+    out->normal_xy = Vec2<float>(mix(out->normal_xy.x, next.normal_xy.x), mix(out->normal_xy.y, next.normal_xy.y));
     for (int k = 0; k < out->n_layers; ++k) {
         TexelLayer &o = out->layers[k], &n = next.layers[k];
         o.weight = mix(o.weight, n.weight);
@@ -322,11 +350,50 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* 
 Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, float lod, const Vec3<float>& wi, const Vec3<float>& wo) const {
     Texel t;
     texel(uv, filter, lod, &t);
-    return model_->eval_texel(t.layers, t.n_layers, wi, wo);
+    return eval_texel(t, wi, wo);
+}
+
+Vec2<float> Svbrdf::normal_xy(const Vec2<float>& uv, TexelFilter filter, float lod) const {
+    Texel t;  // only has_normal and normal_xy are written
+    const int levels = level_count();
+    const bool between = lod > 0.f && levels > 1;
+    const double d = between ? std::min(double(lod), double(levels - 1)) : 0.0;
+    const int fine = std::min(int(d), levels - 1);
+    const Svbrdf& a = level(fine);
+    a.normal_at(taps_of(uv, filter, a.width_, a.height_, addressing_), &t);
+    const double frac = d - fine;
+    if (!between || frac == 0.0 || fine + 1 >= levels) return t.normal_xy;
+    const Svbrdf& b = level(fine + 1);
+    Texel u;
+    b.normal_at(taps_of(uv, filter, b.width_, b.height_, addressing_), &u);
+    const auto mix = [frac](float x, float y) { return float(double(x) * (1.0 - frac) + double(y) * frac); };
+    return Vec2<float>(mix(t.normal_xy.x, u.normal_xy.x), mix(t.normal_xy.y, u.normal_xy.y));
 }
 
 void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
                         float* f, const float* lod) const {
+    if (normal_.empty()) return eval_batch_local(n, uv, wi, wo, filter, f, lod);
+    // A normal map: every pair's directions into its texel's shading frame first (the same lookup
+    // and arithmetic as texel() and eval_texel()), then the batched layers; the rule zeroes after.
+    thread_local std::vector<float> rot_i, rot_o;
+    thread_local std::vector<unsigned char> visible;
+    rot_i.resize(3 * n), rot_o.resize(3 * n), visible.resize(n);
+    const bool mips = lod && !mips_.empty();
+    for (std::size_t i = 0; i < n; ++i) {
+        const Vec2<float> xy = normal_xy(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, mips ? lod[i] : 0.f);
+        const ShadingFrame s = shading_frame(tangent_normal(xy.x, xy.y));
+        const Vec3<float> a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
+        visible[i] = above_both_horizons(s, a, b);
+        const Vec3<float> la = s.to_local(a), lb = s.to_local(b);
+        for (int c = 0; c < 3; ++c) rot_i[3 * i + std::size_t(c)] = la[c], rot_o[3 * i + std::size_t(c)] = lb[c];
+    }
+    eval_batch_local(n, uv, rot_i.data(), rot_o.data(), filter, f, lod);
+    for (std::size_t i = 0; i < n; ++i)
+        if (!visible[i]) std::fill(f + 3 * i, f + 3 * i + 3, 0.f);
+}
+
+void Svbrdf::eval_batch_local(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
+                              float* f, const float* lod) const {
     const int L = layer_count();
     const std::size_t l = std::size_t(model_->latent_dim());
     // Per layer, the pairs where it has positive weight, and for a layer with maps its texel values
@@ -436,7 +503,10 @@ void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const f
     }
 }
 
-Vec3<float> Svbrdf::eval_analytic(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo) {
+Vec3<float> Svbrdf::eval_analytic(const Texel& t, const Vec3<float>& wi_g, const Vec3<float>& wo_g) {
+    const ShadingFrame s = t.frame();
+    if (t.has_normal && !above_both_horizons(s, wi_g, wo_g)) return Vec3<float>(0.f);
+    const Vec3<float> wi = t.has_normal ? s.to_local(wi_g) : wi_g, wo = t.has_normal ? s.to_local(wo_g) : wo_g;
     Vec3<float> f(0.f);
     for (int k = 0; k < t.n_layers; ++k)
         if (t.layers[k].weight > 0.f) f = f + AnalyticBrdf(t.layers[k].params).eval(wi, wo) * t.layers[k].weight;
@@ -450,7 +520,17 @@ Vec3<float> Svbrdf::eval_analytic(const Vec2<float>& uv, TexelFilter filter, con
     return eval_analytic(t, wi, wo);
 }
 
-BrdfSample Svbrdf::sample(const Texel& t, Strategy s, const Vec3<float>& wo, const Vec2<float>& u_in) {
+BrdfSample Svbrdf::sample(const Texel& t, Strategy s, const Vec3<float>& wo_g, const Vec2<float>& u_in) {
+    if (t.has_normal) {  // drawn in the shading frame, returned in the geometric one; rotations keep solid angle
+        const ShadingFrame fr = t.frame();
+        Texel flat = t;
+        flat.has_normal = false;
+        BrdfSample b = sample(flat, s, fr.to_local(wo_g), u_in);
+        b.wi = fr.to_world(b.wi);
+        if (!above_both_horizons(fr, b.wi, wo_g)) b.pdf = 0.f;
+        return b;
+    }
+    const Vec3<float>& wo = wo_g;
     Vec2<float> u = clamp_unit_square(u_in);
     int chosen = 0;
     float start = 0.f, chosen_start = 0.f;
@@ -478,7 +558,10 @@ BrdfSample Svbrdf::sample(const Vec2<float>& uv, TexelFilter filter, Strategy s,
     return sample(t, s, wo, u);
 }
 
-float Svbrdf::pdf(const Texel& t, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo) {
+float Svbrdf::pdf(const Texel& t, Strategy s, const Vec3<float>& wi_g, const Vec3<float>& wo_g) {
+    const ShadingFrame fr = t.frame();
+    if (t.has_normal && !above_both_horizons(fr, wi_g, wo_g)) return 0.f;
+    const Vec3<float> wi = t.has_normal ? fr.to_local(wi_g) : wi_g, wo = t.has_normal ? fr.to_local(wo_g) : wo_g;
     float pdf = 0.f;
     for (int k = 0; k < t.n_layers; ++k)
         if (t.layers[k].weight > 0.f) pdf += t.layers[k].weight * hbrdf::pdf(s, AnalyticBrdf(t.layers[k].params), wi, wo);

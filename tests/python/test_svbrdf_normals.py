@@ -181,3 +181,55 @@ def test_mip_normal_is_the_normalised_mean_and_widens_alpha_by_toksvig(model):
     bare = SVBRDF(model, [model.materials[0]], (4, 4), normal=board).with_mips()
     own = np.asarray(model.tensors["materials.alpha"][model.index(model.materials[0])], np.float64)
     assert np.allclose(bare.mips[0][1][0]["alpha"], np.sqrt(own ** 2 + 2 * (1 - np.cos(theta)) / np.cos(theta)), rtol=1e-5)
+
+
+def _bumpy(model, size=16, layers=2):
+    """A two-layer material with a smooth bump field, alpha maps and its mip chain."""
+    rng = np.random.default_rng(6)
+    u = (np.arange(size) + 0.5) / size
+    normal = np.stack(np.broadcast_arrays(0.6 * np.sin(4 * np.pi * u)[None, :], 0.5 * np.cos(2 * np.pi * u)[:, None]), 2)
+    weights = np.zeros((size, size, 3), np.float32)
+    weights[..., 0] = rng.uniform(0, 1, (size, size))
+    names = [model.materials[0], model.materials[1]][:layers]
+    return SVBRDF(model, names, (size, size), weights if layers > 1 else None,
+                  [{"alpha": rng.uniform(0.05, 0.6, (size, size, 2)).astype(np.float32)}, {}][:layers],
+                  normal=normal.astype(np.float32)).with_mips()
+
+
+@pytest.mark.parametrize("fmt", ["exr", "ktx2"])
+def test_libhybridbrdf_shades_in_the_same_frame(model, tmp_path, fmt):
+    """libhybridbrdf's loader and Svbrdf (the tracer's) against Python's SVBRDF.eval on the same
+    folder: scalar and batched paths, level 0 and trilinear lods, and its texel sampler returns
+    geometric-frame directions whose pdf its pdf() recomputes."""
+    import hybridbrdf as hb
+
+    _bumpy(model).save(tmp_path / "sv", format=fmt)
+    sv, lib = load_svbrdf(tmp_path / "sv"), hb._core.Svbrdf(str(tmp_path / "sv"))
+    wi, wo = _directions(3000, 11)
+    rng = np.random.default_rng(7)
+    uv = rng.uniform(0, 1, (len(wi), 2))
+    lod = rng.uniform(-0.5, 4.5, len(wi))
+    want = sv.eval(uv, wi, wo)
+    assert (want == 0).all(axis=1).mean() > 0.05
+    f32 = [np.ascontiguousarray(a, np.float32) for a in (uv, wi, wo)]
+    scale = max(1.0, np.abs(want).max())
+    for batched in (False, True):
+        assert np.abs(lib.eval(*f32, batched=batched) - want).max() <= 2e-4 * scale
+        assert np.abs(lib.eval(*f32, batched=batched, lod=lod.astype(np.float32)) - sv.eval(uv, wi, wo, lod=lod)).max() <= 2e-4 * scale
+    dirs, pdf, again = lib.sample(f32[0], f32[2], rng.uniform(0, 1, (len(wi), 2)).astype(np.float32))
+    ok = pdf > 0
+    assert ok.mean() > 0.5 and np.allclose(pdf[ok], again[ok], rtol=1e-3)
+    assert (dirs[ok, 2] > 0).all()  # in the geometric frame, above its horizon
+
+
+def test_libhybridbrdf_refuses_a_normal_map_as_python_does(model, tmp_path):
+    import hybridbrdf as hb
+
+    folder, index = _saved_with_normal(model, tmp_path)
+    next(e for e in index["maps"] if e["quantity"] == "normal")["layer"] = 0
+    (folder / "svbrdf.json").write_text(json.dumps(index))
+    with pytest.raises(SVBRDFError) as py_err:
+        load_svbrdf(folder)
+    with pytest.raises(Exception) as cpp_err:
+        hb._core.Svbrdf(str(folder))
+    assert str(py_err.value) == str(cpp_err.value)

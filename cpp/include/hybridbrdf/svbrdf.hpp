@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "hybridbrdf/model.hpp"
+#include "hybridbrdf/normal_map.hpp"
 #include "hybridbrdf/sampling.hpp"
 
 namespace hbrdf {
@@ -32,11 +33,16 @@ struct SvbrdfLayer {
     std::vector<float> latent;  ///< latent_dim() components
 };
 
-/// The layers' values at one uv, ready for HybridModel::eval_texel.
+/// The layers' values at one uv, ready for HybridModel::eval_texel, and its normal map's filtered
+/// tangent-space x, y (normal_map.hpp) when the material has one.
 struct Texel {
     int n_layers = 0;
     TexelLayer layers[spec::kSvbrdfMaxLayers];
     float latent[spec::kSvbrdfMaxLayers * spec::kMaxLatent];
+    bool has_normal = false;
+    Vec2<float> normal_xy{0.f, 0.f};
+    /// The shading frame in the geometric frame's coordinates (identity without a normal map).
+    ShadingFrame frame() const { return has_normal ? shading_frame(tangent_normal(normal_xy.x, normal_xy.y)) : ShadingFrame(); }
 };
 
 class Svbrdf {
@@ -66,8 +72,19 @@ public:
     /// weights map, for a renderer that evaluates them itself (the Mitsuba plugin's `weights`
     /// texture): negative and non-finite values count as 0, then the map's normalisation.
     void texel(const Vec2<float>& uv, TexelFilter filter, const float* weights, Texel* out) const;
-    /// f(uv, wi, wo) through HybridModel::eval_texel.
+    /// f(uv, wi, wo) through HybridModel::eval_texel. Every direction argument of this class is in
+    /// the geometric frame (local: t = +x, b = +y, n = +z); with a normal map the layers see them
+    /// in the texel's shading frame, and f is 0 unless both are above both horizons (normal_map.hpp).
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi, const Vec3<float>& wo) const;
+    /// f of a texel already looked up: HybridModel::eval_texel in its shading frame, by the rule.
+    Vec3<float> eval_texel(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo) const;
+
+    // ---- normal maps (docs/SVBRDF.md, "Normal maps") -----------------------------------------
+    /// Attach a normal map: width * height * 2 floats, the tangent-space x, y of each texel (glTF
+    /// 2.0 convention, normal_map.hpp). Throws std::invalid_argument for the wrong length or values
+    /// that are not finite. Call before sharing and before set_mips (every level needs its own).
+    void set_normal_map(std::vector<float> xy);
+    bool has_normal_map() const { return !normal_.empty(); }
 
     // ---- mip chains (docs/SVBRDF.md, "Mip chains") -------------------------------------------
     /// Attach levels 1 .. 1x1 of a complete mip chain (each a Svbrdf of the same model, layers,
@@ -108,7 +125,8 @@ public:
     /// The density sample() draws wi with.
     float pdf(const Vec2<float>& uv, TexelFilter filter, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo) const;
 
-    /// eval_analytic, sample and pdf of a texel already looked up (texel()).
+    /// eval_analytic, sample and pdf of a texel already looked up (texel()), in its shading frame:
+    /// sample draws in it and returns wi in the geometric frame (pdf 0 where the rule zeroes f).
     static Vec3<float> eval_analytic(const Texel& t, const Vec3<float>& wi, const Vec3<float>& wo);
     static BrdfSample sample(const Texel& t, Strategy s, const Vec3<float>& wo, const Vec2<float>& u);
     static float pdf(const Texel& t, Strategy s, const Vec3<float>& wi, const Vec3<float>& wo);
@@ -119,6 +137,7 @@ private:
     TexelAddressing addressing_;
     std::vector<SvbrdfLayer> layers_;
     std::vector<float> weights_;
+    std::vector<float> normal_;  // width * height * 2 tangent-space x, y, or empty
     // Per texel, the layer whose normalised weight is exactly 1 there, or -1 (mixed): a texel whose
     // filter taps are all pure in one layer is that layer alone, with no weights to interpolate.
     std::vector<signed char> pure_layer_;
@@ -131,6 +150,13 @@ private:
     void weights_at(const Taps& t, double* w) const;
     // Layer k's material and filtered values (p; latent_dim() floats into `latent`) under the taps.
     void layer_at(const Taps& t, int k, TexelLayer* o, float* latent) const;
+    // The normal map's filtered x, y under the taps into out (has_normal false without one).
+    void normal_at(const Taps& t, Texel* out) const;
+    // The normal map's x, y at uv and lod (trilinear as texel(uv, filter, lod, out)).
+    Vec2<float> normal_xy(const Vec2<float>& uv, TexelFilter filter, float lod) const;
+    // eval_batch with the directions already in each pair's shading frame (no normal map: the same).
+    void eval_batch_local(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f,
+                          const float* lod) const;
     // Every layer's values when `all_layers` (the trilinear lookup mixes two levels' values).
     void texel_at(const Taps& t, Texel* out, bool all_layers = false) const;
 

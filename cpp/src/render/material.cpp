@@ -89,7 +89,9 @@ TexturedMaterial::TexturedMaterial(std::string name, std::shared_ptr<const Svbrd
                                    bool analytic_only)
     : Material(std::move(name)), svbrdf_(std::move(svbrdf)), filter_(filter), analytic_only_(analytic_only),
       texels_log2_(texels_log2(*svbrdf_)) {
-    isotropic_ = true;  // every layer isotropic and no alpha map that could make it otherwise
+    // every layer isotropic and no alpha map that could make it otherwise; a normal map tilts the
+    // shading frame off the normal, so the tangent matters then too
+    isotropic_ = !svbrdf_->has_normal_map();
     for (const SvbrdfLayer& l : svbrdf_->layers()) {
         const AnalyticParams& p = svbrdf_->model().materials()[std::size_t(l.material)].params;
         isotropic_ = isotropic_ && p.isotropic() && svbrdf_->model().materials()[std::size_t(l.material)].isotropic;

@@ -43,6 +43,7 @@ const Quantity kQuantities[] = {
     {"eta", 3, true, spec::kEtaMin, spec::kEtaMax},
     {"alpha", 2, true, spec::kAlphaMin, spec::kAlphaMax},
     {"latent", -1, true, -1e6, 1e6},
+    {"normal", 2, false, -1.0, 1.0},
 };
 
 const Quantity* find_quantity(const std::string& name) {
@@ -281,7 +282,7 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         layers[k].material = m;
     }
     const int n_layers = int(layers.size()), latent = model->latent_dim();
-    std::vector<std::vector<float>> weights;  // per level
+    std::vector<std::vector<float>> weights, normal;  // per level
     std::set<std::tuple<std::string, int, int>> seen;
     // (layer, quantity) -> first -> values per level
     std::map<std::pair<int, std::string>, std::map<int, std::vector<std::vector<double>>>> parts;
@@ -293,7 +294,7 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
             for (const auto& item : e.items()) ok = ok && map_keys.count(item.key());
         if (!ok) throw FileError(index_path, "each map must be {\"file\", \"quantity\", [\"layer\"], \"first\", [\"mips\"], \"decode\"}");
         const Quantity* q = e["quantity"].is_string() ? find_quantity(e["quantity"].get<std::string>()) : nullptr;
-        if (!q) throw FileError(index_path, "unknown map quantity " + e["quantity"].dump() + " (expected one of weights, kd, eta, alpha, latent)");
+        if (!q) throw FileError(index_path, "unknown map quantity " + e["quantity"].dump() + " (expected one of weights, kd, eta, alpha, latent, normal)");
         const std::string qn = q->name;
         if (q->per_layer != e.contains("layer"))
             throw FileError(index_path, "a " + qn + " map " + (q->per_layer ? "needs" : "has no") + " \"layer\"");
@@ -395,6 +396,8 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         }
         if (qn == "weights") {
             for (const auto& v : chain) weights.emplace_back(v.begin(), v.end());
+        } else if (qn == "normal") {  // x, y per texel (used = 2 channels)
+            for (const auto& v : chain) normal.emplace_back(v.begin(), v.end());
         } else {
             parts[{layer, qn}][first] = std::move(chain);
         }
@@ -432,12 +435,16 @@ std::shared_ptr<const Svbrdf> load_svbrdf(const std::string& folder_in) {
         throw FileError(index_path, std::to_string(n_layers) + " layers need a weights map");
     const TexelAddressing addr = addressing == "repeat" ? TexelAddressing::Repeat : TexelAddressing::Clamp;
     std::vector<std::shared_ptr<const Svbrdf>> mips;
-    for (int lv = 1; lv < levels; ++lv)
-        mips.push_back(std::make_shared<const Svbrdf>(model, std::max(1, width >> lv), std::max(1, height >> lv), addr,
-                                                      std::move(level_layers[std::size_t(lv)]),
-                                                      weights.empty() ? std::vector<float>() : std::move(weights[std::size_t(lv)])));
+    for (int lv = 1; lv < levels; ++lv) {
+        auto level = std::make_shared<Svbrdf>(model, std::max(1, width >> lv), std::max(1, height >> lv), addr,
+                                              std::move(level_layers[std::size_t(lv)]),
+                                              weights.empty() ? std::vector<float>() : std::move(weights[std::size_t(lv)]));
+        if (!normal.empty()) level->set_normal_map(std::move(normal[std::size_t(lv)]));
+        mips.push_back(std::move(level));
+    }
     auto sv = std::make_shared<Svbrdf>(model, width, height, addr, std::move(level_layers[0]),
                                        weights.empty() ? std::vector<float>() : std::move(weights[0]));
+    if (!normal.empty()) sv->set_normal_map(std::move(normal[0]));
     sv->set_mips(std::move(mips));
     return sv;
 }
