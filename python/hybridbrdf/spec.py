@@ -203,7 +203,8 @@ SVBRDF = {'_doc': 'A textured (spatially varying) material, docs/SVBRDF.md: a fo
                       'latent': 'layer-weighted mean of the values',
                       'normal': "the mean of the finer unit normals, normalised; the mean's length |n| < 1 "
                                 "widens every layer's alpha at that level: alpha'^2 = alpha^2 + (1 - |n|) / "
-                                '|n| per axis, clamped to alpha_max (Toksvig 2005), |n| that of the mean '
+                                "|n| per axis (Toksvig 2005's variance added as LEAN mapping adds its second "
+                                'moment; bench/normal_mips.py), clamped to alpha_max, |n| that of the mean '
                                 "over the level's whole level-0 footprint"},
           'lod': 'trilinear: the level of detail lod clamped to [0, levels - 1], levels floor(lod) and '
                  'floor(lod) + 1 each read by the filter, mixed by the fraction (OpenGL 4.6, 8.14)'},

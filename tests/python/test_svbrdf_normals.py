@@ -162,8 +162,8 @@ def test_refusals(model, tmp_path, change, words):
 
 def test_mip_normal_is_the_normalised_mean_and_widens_alpha_by_toksvig(model):
     """A checkerboard of normals tilted by +-theta about b: level 1 holds +z and |mean n| = cos
-    theta, so every layer's alpha^2 grows by 2 (1 - cos theta) / cos theta (Toksvig's factor in
-    alpha units); a constant normal leaves alpha as the chain without a normal map has it."""
+    theta, so every layer's alpha^2 grows by (1 - cos theta) / cos theta (Toksvig's variance,
+    mips.TOKSVIG_DEFAULT); a constant normal leaves alpha as the chain without a normal map has it."""
     theta = 0.3
     board = np.zeros((4, 4, 2), np.float32)
     board[..., 0] = np.sin(theta) * np.where((np.add.outer(np.arange(4), np.arange(4)) % 2) == 0, 1, -1)
@@ -171,7 +171,7 @@ def test_mip_normal_is_the_normalised_mean_and_widens_alpha_by_toksvig(model):
     sv = SVBRDF(model, [model.materials[0]], (4, 4), maps=[{"alpha": alpha}], normal=board).with_mips()
     (w1, maps1), n1 = sv.mips[0], sv.normal_mips[0]
     assert np.abs(n1).max() <= 1e-6
-    expected = np.sqrt(np.array([0.1, 0.3]) ** 2 + 2 * (1 - np.cos(theta)) / np.cos(theta))
+    expected = np.sqrt(np.array([0.1, 0.3]) ** 2 + (1 - np.cos(theta)) / np.cos(theta))
     assert np.allclose(maps1[0]["alpha"], expected, rtol=1e-5)
     flat = SVBRDF(model, [model.materials[0]], (4, 4), maps=[{"alpha": alpha}],
                   normal=_constant_normal((0.3, 0.2))).with_mips()
@@ -180,7 +180,7 @@ def test_mip_normal_is_the_normalised_mean_and_widens_alpha_by_toksvig(model):
     # a layer without an alpha map gains one (its material's alpha), widened the same way
     bare = SVBRDF(model, [model.materials[0]], (4, 4), normal=board).with_mips()
     own = np.asarray(model.tensors["materials.alpha"][model.index(model.materials[0])], np.float64)
-    assert np.allclose(bare.mips[0][1][0]["alpha"], np.sqrt(own ** 2 + 2 * (1 - np.cos(theta)) / np.cos(theta)), rtol=1e-5)
+    assert np.allclose(bare.mips[0][1][0]["alpha"], np.sqrt(own ** 2 + (1 - np.cos(theta)) / np.cos(theta)), rtol=1e-5)
 
 
 def _bumpy(model, size=16, layers=2):
