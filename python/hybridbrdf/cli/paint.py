@@ -25,6 +25,9 @@ def add_parser(sub) -> None:
                         "brighter than the layer's material gives the layer an energy-bounded edit, MATERIAL.kdmapLAYER")
     p.add_argument("--roughness", action="append", metavar="LAYER=ROUGHNESS",
                    help="layer LAYER's GGX alpha = r^2 from a grey roughness texture r (repeatable)")
+    p.add_argument("--normal", metavar="NORMALMAP",
+                   help="a tangent-space normal map for the texel, all layers (glTF 2.0 style: 8-bit RGB PNG, R and G "
+                        "the normal's x and y as (v + 1) / 2, green up; z reconstructed; docs/SVBRDF.md, Normal maps)")
     p.add_argument("--size", metavar="WxH", help="texels (default: the masks' size; masks and textures must have it)")
     p.add_argument("--format", choices=("png", "exr", "ktx2"), default="png",
                    help="maps as 8-bit PNG, float32 OpenEXR or KTX2 in GPU block formats (BC4/BC5/BC7; each file "
@@ -62,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
         size = (int(w), int(h))
     sv = paint(args.model, args.base, layers, args.out, size=size, format=args.format, addressing=args.addressing,
                kd=_layer_option(args.kd, "--kd"), roughness=_layer_option(args.roughness, "--roughness"),
-               progress=not args.quiet, log=print, mips=args.mips)
+               progress=not args.quiet, log=print, mips=args.mips, normal=args.normal)
     w, h = sv.size
-    chain = f", {sv.levels} mip levels" if sv.levels > 1 else ""
+    chain = (f", {sv.levels} mip levels" if sv.levels > 1 else "") + (", a normal map" if sv.normal is not None else "")
     print(f"wrote {args.out}: {w}x{h} texels, {len(sv.layers)} layer(s) ({', '.join(sv.layers)}), {args.format} maps{chain}")
     return 0

@@ -35,6 +35,7 @@ from hybridbrdf.sources import expand_sources, open_source
 from hybridbrdf.sources.names import material_names
 from hybridbrdf.svbrdf.asset import SVBRDF
 from hybridbrdf.svbrdf.mips import chain_length, chain_problem
+from hybridbrdf.svbrdf.normals import read_normal_map
 from hybridbrdf.svbrdf.decode import transfer
 from hybridbrdf.svbrdf.maps import MAX_MAP_BYTES, MAX_SIDE, map_bits, read_map
 
@@ -143,7 +144,8 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
           size: Optional[Tuple[int, int]] = None, format: str = "png", addressing: str = "repeat",
           kd: Optional[Dict[int, PathLike]] = None, roughness: Optional[Dict[int, PathLike]] = None,
           settings: Optional[FitSettings] = None, progress: bool = False,
-          log: Callable[[str], None] = lambda msg: None, mips: bool = False) -> SVBRDF:
+          log: Callable[[str], None] = lambda msg: None, mips: bool = False,
+          normal: Optional[PathLike] = None) -> SVBRDF:
     """Write a textured material's folder ``out`` and return it (:class:`SVBRDF`).
 
     ``base``: a material of ``model`` (or a measured file); ``layers``: up to three
@@ -152,7 +154,8 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     index (0 the base) -> albedo texture (sRGB PNG or linear EXR) / roughness texture (grey r,
     alpha = r^2 on both axes), of the same size. ``format``: 'png' (8-bit maps), 'exr' (float32) or
     'ktx2' (GPU block formats, :meth:`SVBRDF.save`); ``mips``: with the complete mip chain
-    (:meth:`SVBRDF.with_mips`; power-of-two sides, checked before any fitting). ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
+    (:meth:`SVBRDF.with_mips`; power-of-two sides, checked before any fitting). ``normal``: a
+    glTF-style 8-bit RGB PNG normal map of the same size (:func:`hybridbrdf.svbrdf.normals.read_normal_map`). ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
     Everything is checked before any fitting; ``out`` is replaced only once complete."""
     if len(layers) > spec.SVBRDF["max_layers"] - 1:
         raise ValueError(f"at most {spec.SVBRDF['max_layers'] - 1} layers over the base, got {len(layers)}")
@@ -185,6 +188,9 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
             if values.shape[:2] != (h, w):
                 raise InputFileError(path, f"texture is {values.shape[1]}x{values.shape[0]}; the textured material is {w}x{h}")
             textures[(int(k), label)] = values.astype(np.float32)
+    normal_xy = None if normal is None else read_normal_map(normal)
+    if normal_xy is not None and normal_xy.shape[:2] != (h, w):
+        raise InputFileError(normal, f"normal map is {normal_xy.shape[1]}x{normal_xy.shape[0]}; the textured material is {w}x{h}")
     names = [base] + [name for name, _ in layers]
     if len(set(names)) != len(names):
         raise ValueError("a material appears in two layers; paint it once with the union of its masks")
@@ -194,7 +200,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     if weights is not None and weights.shape[2] < 3:
         weights = np.concatenate([weights, np.zeros((h, w, 3 - weights.shape[2]), np.float32)], axis=2)
     maps = [{label: v for (k2, label), v in textures.items() if k2 == k} for k in range(n_layers)]
-    sv = SVBRDF(merged, names, (w, h), weights, maps, addressing)
+    sv = SVBRDF(merged, names, (w, h), weights, maps, addressing, normal=normal_xy)
     if mips:
         sv = sv.with_mips()
     sv.save(out, format=format)

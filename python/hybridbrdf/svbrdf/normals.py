@@ -29,9 +29,21 @@ from typing import Tuple
 
 import numpy as np
 
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.svbrdf.maps import map_bits, read_map
 from hybridbrdf.svbrdf.mips import tangent_normals
 
-__all__ = ["tangent_normals", "shading_frame", "to_shading"]
+__all__ = ["tangent_normals", "shading_frame", "to_shading", "read_normal_map"]
+
+
+def read_normal_map(path) -> np.ndarray:
+    """(H, W, 2) float32 tangent-space x, y of a glTF-style normal map: an 8-bit RGB PNG whose R and
+    G hold (x + 1) / 2 and (y + 1) / 2 (B, z, is reconstructed, not read), green up as glTF's.
+    One-line InputFileError naming the file for anything else (an EXR, RGBA, 16 bits)."""
+    if map_bits(path) != 8:
+        raise InputFileError(path, "a normal map is an 8-bit RGB PNG (glTF 2.0 style: R, G = (x + 1) / 2, (y + 1) / 2)")
+    stored, _ = read_map(path)
+    return (stored[..., :2] * 2.0 - 1.0).astype(np.float32)
 
 
 def shading_frame(normal: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
