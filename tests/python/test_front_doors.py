@@ -58,7 +58,7 @@ NO_NUMPY_ARGV = [["--help"], ["--version"], [], ["nosuchcommand"], ["fit", "--he
                  ["info", "--albedo-samples", "x", "m"], ["demo", "--x"], ["demo", "--help"], ["view", "--x"],
                  ["view", "m", "--source-size", "x", "-o", "p.html"], ["acquire", "--x"], ["acquire", "simulate", "--x"],
                  ["acquire", "simulate", "--flash", "0", "--base", "s", "--out", "d"], ["acquire", "fit", "--x"],
-                 ["acquire", "fit", "c", "--out", "d", "--steps", "0"], ["acquire", "--help"]]
+                 ["acquire", "fit", "c", "--out", "d", "--steps", "0"], ["acquire", "--help"], ["convert", "--x"]]
 
 
 @pytest.mark.parametrize("argv", NO_NUMPY_ARGV, ids=lambda a: " ".join(a) or "nothing")
