@@ -312,6 +312,15 @@ def _write_png(path, arr, mode):
     Image.fromarray(arr, mode).save(path)
 
 
+def _add_normal(folder, file="normal.png", value=128, **entry):
+    """A normal map (issue 58, item 3) added to the folder: the file of constant ``value`` (bytes for
+    a PNG, a float for an EXR) and its entry, changed by ``entry``."""
+    write_map(folder / file, np.full((4, 4, 3), value, np.uint8 if file.endswith(".png") else np.float32))
+    d = {"transfer": "linear", "scale": 2.0, "offset": -1.0} if file.endswith(".png") else {"transfer": "linear", "scale": 1.0, "offset": 0.0}
+    _edit_index(folder, lambda i: i["maps"].append({"file": file, "quantity": "normal", "first": 0,
+                                                    "decode": [dict(d), dict(d), None], **entry}))
+
+
 CORRUPTIONS = [
     ("no index", lambda f: (f / "svbrdf.json").unlink(), "no such file"),
     ("not JSON", lambda f: (f / "svbrdf.json").write_text("{"), "not valid JSON"),
@@ -340,6 +349,12 @@ CORRUPTIONS = [
     ("missing map file", lambda f: (f / "weights.png").unlink(), "no such file"),
     ("map is a folder", lambda f: ((f / "weights.png").unlink(), (f / "weights.png").mkdir()), "is a folder"),
     ("bad extension", lambda f: _edit_index(f, lambda i: i["maps"][0].update(file="weights.tga")), ".exr (float32) or .ktx2, not '.tga'"),
+    ("normal map of a layer", lambda f: _add_normal(f, layer=0), 'a normal map has no "layer"'),
+    ("normal decode out of range", lambda f: _add_normal(f, decode=[{"transfer": "linear", "scale": 2.0, "offset": 0.0}] * 2 + [None]),
+     "decodes to [0, 2], outside normal's range [-1, 1]"),
+    ("normal texel out of range", lambda f: _add_normal(f, "normal.exr", 1.5), "decodes to 1.5, outside normal's range [-1, 1]"),
+    ("normal's third channel", lambda f: _add_normal(f, decode=[{"transfer": "linear", "scale": 2.0, "offset": -1.0}] * 3),
+     "channel B holds no normal component; its decode must be null"),
 ]
 
 
