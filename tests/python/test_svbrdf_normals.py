@@ -258,3 +258,31 @@ def test_hbrdf_paint_normal(tmp_path):
                 "--out", str(tmp_path / "sv2"))
     assert r.returncode != 0 and "small.png: normal map is 8x2; the textured material is 8x4" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "sv2").exists()
+
+
+def test_tracer_shades_in_the_normal_maps_frame(tmp_path):
+    """The tracer's textured material (eval, sample and pdf at each hit): a flat normal map (x = y
+    = 0, EXR so exactly +z) renders as no normal map, bit for bit within float rounding; a tilted
+    one changes most lit pixels (fails when the tracer's material ignores the map)."""
+    import hybridbrdf as hb
+    import hybridbrdf.render.tracer  # noqa: F401
+
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material")
+    SVBRDF(m, [m.materials[1]], (4, 4)).save(tmp_path / "plain", format="exr")
+    SVBRDF(m, [m.materials[1]], (4, 4), normal=_constant_normal((0.0, 0.0))).save(tmp_path / "flat", format="exr")
+    SVBRDF(m, [m.materials[1]], (4, 4), normal=_constant_normal((0.5, 0.3))).save(tmp_path / "tilted", format="exr")
+
+    def render(folder, spp=1):
+        scene = {"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0], "fov_deg": 35, "width": 20, "height": 20},
+                 "environment": {"type": "sky", "resolution": [64, 32]},
+                 "materials": {"m": {"type": "textured", "svbrdf": str(tmp_path / folder)}},
+                 "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}],
+                 "spp": spp, "max_depth": 1, "threads": 1}
+        return hb.render.tracer.render(scene, quiet=True)[0]
+
+    plain, flat, tilted = render("plain"), render("flat"), render("tilted")
+    lit = np.abs(plain).max(axis=2) > 1e-4
+    assert lit.sum() > 100
+    np.testing.assert_allclose(flat, plain, rtol=2e-4, atol=1e-6)
+    changed = np.abs(tilted - plain).max(axis=2) > 1e-2 * np.abs(plain).max(axis=2)
+    assert changed[lit].mean() > 0.5
