@@ -286,3 +286,16 @@ def test_tracer_shades_in_the_normal_maps_frame(tmp_path):
     np.testing.assert_allclose(flat, plain, rtol=2e-4, atol=1e-6)
     changed = np.abs(tilted - plain).max(axis=2) > 1e-2 * np.abs(plain).max(axis=2)
     assert changed[lit].mean() > 0.5
+
+
+def test_codegen_and_viewer_refuse_a_normal_map_in_one_line(tmp_path):
+    """Not yet read there (docs/SVBRDF.md, "Not yet"): refused, not emitted or shown without it."""
+    path, m = saved_random_model(tmp_path, "hybrid")
+    SVBRDF(m, [m.materials[0]], (4, 4), normal=_constant_normal((0.2, 0.1))).save(tmp_path / "sv", format="png")
+    from hybridbrdf.codegen.textured import textured_plan
+    from hybridbrdf.viewer.textured import TexturedViewError, page_textured
+
+    with pytest.raises(SVBRDFError, match="has a normal map, which the generated code does not read yet"):
+        textured_plan(tmp_path / "sv")
+    with pytest.raises(TexturedViewError, match="has a normal map, which the viewer does not read yet"):
+        page_textured(load_svbrdf(tmp_path / "sv"), str(tmp_path / "sv"), 8)

@@ -67,6 +67,10 @@ def textured_plan(folder) -> Dict[str, Any]:
     SVBRDFError / ModelFileError for a folder it refuses."""
     sv = load_svbrdf(folder)
     index_path = os.path.join(os.fspath(folder), SV["index_file"])
+    if sv.normal is not None:  # refused rather than emitted without it (docs/SVBRDF.md, "Not yet")
+        from hybridbrdf.svbrdf.entries import SVBRDFError
+
+        raise SVBRDFError(index_path, "has a normal map, which the generated code does not read yet")
     with open(index_path, "rb") as f:  # the loader has just read and checked it (bounded, valid)
         index = json.loads(f.read().decode("utf-8"))
     n_layers, latent = len(sv.layers), sv.model.arch["latent"]

@@ -120,6 +120,8 @@ def page_textured(sv: SVBRDF, folder: str, n_pack: int) -> Dict[str, Any]:
     if n_pack > MAX_LAYER_PACK:
         raise TexturedViewError(f"{folder}: {n_pack} floats per layer (latent code and output layer) is more than "
                                 f"the page's uniforms hold for 4 layers ({MAX_LAYER_PACK})")
+    if sv.normal is not None:  # refused rather than shown without it (docs/SVBRDF.md, "Not yet")
+        raise TexturedViewError(f"{folder}: has a normal map, which the viewer does not read yet")
     planes, index = _planes(sv)
     n_bytes = 4 * sum(p.size for p in planes)
     if n_bytes > MAX_VIEW_MAP_BYTES:
