@@ -24,8 +24,8 @@ import torch
 
 from hybridbrdf.brdf.torch_brdf import eval_analytic
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
-from hybridbrdf.svbrdf.mips import build_chain
-from hybridbrdf.svbrdf.normals import shading_frame, tangent_normals
+from hybridbrdf.svbrdf.mips import build_chain, tangent_normals
+from hybridbrdf.svbrdf.normals import shading_frame
 
 
 def bump_normals(size: int, rng, amplitude: float = 0.35) -> np.ndarray:

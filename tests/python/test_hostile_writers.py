@@ -50,9 +50,8 @@ def error_line(capsys) -> str:
 UPDATER = """
 import os, sys, time
 import hybridbrdf.cli as cli
-import hybridbrdf.cli.edit as edit
-import hybridbrdf.cli.mix as mix
 import hybridbrdf.fit.adding as adding
+import hybridbrdf.model.file as file
 role, marks, argv = sys.argv[1], sys.argv[2], sys.argv[3:]
 mark = lambda name: os.path.join(marks, name)
 def wait_for(name):
@@ -68,8 +67,7 @@ def slow(load):
             time.sleep(1.0)
         return model
     return load_model
-edit.load_model = slow(edit.load_model)
-mix.load_model = slow(mix.load_model)
+file.load_model = slow(file.load_model)  # hbrdf edit and mix import it when they run (their --help needs no NumPy)
 adding.load_model = slow(adding.load_model)
 if role == "second":
     wait_for("first-read")

@@ -19,6 +19,7 @@ from typing import Any, Dict, List
 from hybridbrdf import spec
 from hybridbrdf.codegen.literals import float_literal, material_constant
 from hybridbrdf.svbrdf import load_svbrdf
+from hybridbrdf.svbrdf.entries import SVBRDFError
 
 SV = spec.SVBRDF
 #: Per-layer quantities in the order their maps are passed to the lookup (after the weights map).
@@ -68,8 +69,6 @@ def textured_plan(folder) -> Dict[str, Any]:
     sv = load_svbrdf(folder)
     index_path = os.path.join(os.fspath(folder), SV["index_file"])
     if sv.normal is not None:  # refused rather than emitted without it (docs/SVBRDF.md, "Not yet")
-        from hybridbrdf.svbrdf.entries import SVBRDFError
-
         raise SVBRDFError(index_path, "has a normal map, which the generated code does not read yet")
     with open(index_path, "rb") as f:  # the loader has just read and checked it (bounded, valid)
         index = json.loads(f.read().decode("utf-8"))

@@ -27,8 +27,8 @@ from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.entries import (LAYER_QUANTITIES, SVBRDFError, FORMATS as MAP_FORMATS, components, plain_name, read_entry,
                                        write_quantity)
-from hybridbrdf.svbrdf.mips import TOKSVIG_DEFAULT, build_chain, chain_problem, level_size, lod_levels
-from hybridbrdf.svbrdf.normals import tangent_normals, to_shading
+from hybridbrdf.svbrdf.mips import TOKSVIG_DEFAULT, build_chain, chain_problem, level_size, lod_levels, tangent_normals
+from hybridbrdf.svbrdf.normals import to_shading
 from hybridbrdf.files import atomic_folder, atomic_write_bytes
 
 if TYPE_CHECKING:  # annotations only: PyTorch is imported where a material runs in it
