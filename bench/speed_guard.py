@@ -20,7 +20,7 @@ for gives: tests/python/test_speed_guard.py rebuilds the library with the struct
 regression that once stopped f_a's loop vectorising, and runs the guard with HBRDF_SIMD=baseline
 (the library's process-wide cap: every kernel the baseline one); both must fail.
 
-    python bench/speed_guard.py [--pairs N] [--source DIR] [--build DIR] [--json out.json]
+    python bench/speed_guard.py [--pairs N] [--source DIR] [--build DIR | --library FILE] [--json out.json]
     python bench/speed_guard.py --timed [--runs K]     # the timed ratios: benchmark figures, no floors
 """
 
@@ -259,6 +259,10 @@ def main() -> int:
     ap.add_argument("--source", type=pathlib.Path, default=ROOT,
                     help="the C++ source tree (CMakeLists.txt, cpp/) to build and measure (default: this checkout)")
     ap.add_argument("--build", type=pathlib.Path, help="its Release build folder (default: SOURCE/build)")
+    ap.add_argument("--library", type=pathlib.Path,
+                    help="measure this prebuilt libhybridbrdf.a (compiled from SOURCE's headers) instead of "
+                         "building one; tests/python/test_speed_guard.py passes a copy of build/'s with the "
+                         "kernels' translation units recompiled from a patched SOURCE")
     ap.add_argument("--timed", action="store_true",
                     help="time the kernels on one pinned core instead and print the timed ratios (benchmark "
                          "figures of this CPU; no floors)")
@@ -269,8 +273,12 @@ def main() -> int:
     pairs = args.pairs or (1 << 18 if args.timed else 4096)
     if pairs < 1024 or args.rounds < 1 or args.runs < 1:
         ap.error("--pairs must be >= 1024, --rounds and --runs >= 1")
+    if args.library and args.build:
+        ap.error("--library replaces --build: give one of them")
+    if args.library and not args.library.is_file():
+        ap.error(f"--library {args.library}: no such file")
     source = args.source.resolve()
-    library = build_library(source, (args.build or source / "build").resolve())
+    library = args.library.resolve() if args.library else build_library(source, (args.build or source / "build").resolve())
     with tempfile.TemporaryDirectory(prefix="hbrdf_speed_guard_") as tmp:
         exe = build_driver(pathlib.Path(tmp), source, library)
         if args.timed:
