@@ -9,6 +9,7 @@ if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
 
 apt_packages=(
   build-essential cmake ninja-build pkg-config
+  ccache                           # compiles shared by the build trees (CMakeLists.txt, HBRDF_CCACHE)
   libglm-dev                       # vector math in libhybridbrdf
   libembree-dev                    # Embree 3: the reference path tracer
   glslang-tools spirv-tools        # shader validation
@@ -32,12 +33,12 @@ fi
 
 PY=${PYTHON:-python3}
 # torch first, pinned: an unpinned torch would pull a multi-GB CUDA build. The
-# package itself only declares a range, which this satisfies.
-if ! "$PY" -c 'import torch, sys; sys.exit(torch.__version__.split("+")[0] != "2.13.0")' 2>/dev/null; then
+# package itself only declares a range, which this satisfies. (Read from its metadata: importing
+# torch to ask would cost seconds of every run.)
+if ! "$PY" -c 'import importlib.metadata as m, sys; sys.exit(m.version("torch").split("+")[0] != "2.13.0")' 2>/dev/null; then
   echo "setup: installing torch==2.13.0 (CPU)"
   "$PY" -m pip install -q "torch==2.13.0"
 fi
-"$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12"
 # slangc for the Slang target's tests (tests/python/slang_wgsl_tools.py): the slangtorch wheel ships
 # it; --no-deps because its own requirements (torch, ninja, hatchling) serve its PyTorch extension
 # builder, which is not used. (wgpu, for the WGSL target's tests, is among the test extras.)
@@ -45,8 +46,17 @@ if ! "$PY" -c 'import importlib.metadata as m, sys; sys.exit(m.version("slangtor
   echo "setup: installing slangtorch==1.3.22 (for slangc, without its dependencies)"
   "$PY" -m pip install -q --no-deps "slangtorch==1.3.22"
 fi
-echo "setup: building and installing hybridbrdf"
-# No build isolation: reuses build-py/ for incremental rebuilds and the
-# scikit-build-core/pybind11 installed just above.
-"$PY" -m pip install -q --no-build-isolation ".[test]"
+# The package: nothing to do when the installed hybridbrdf was built from exactly this tree's sources
+# and toolchain (the hash its build recorded in the wheel, scripts/source_hash.py) and every
+# requirement of hybridbrdf[test] and of the build is installed. A change of any source the wheel is
+# built from reinstalls (tests/python/test_setup_skip.py).
+if check=$("$PY" scripts/source_hash.py --check 2>&1); then
+  echo "setup: skipping pip install: ${check#source hash: }"
+else
+  echo "setup: building and installing hybridbrdf: ${check#source hash: }"
+  "$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12"
+  # No build isolation: reuses build-py/ for incremental rebuilds and the
+  # scikit-build-core/pybind11 installed just above.
+  "$PY" -m pip install -q --no-build-isolation ".[test]"
+fi
 echo "setup: done ($("$PY" -c 'import hybridbrdf as h; print("hybridbrdf", h.__version__, "simd", h.simd_path())'))"

@@ -27,8 +27,27 @@ if [ "${HBRDF_TEST_SETUP:-1}" = 0 ]; then STAGES=${STAGES//setup/}; fi
 
 stage_setup() { bash scripts/setup.sh; }
 
+# Configures build tree $1 with the rest as cmake's arguments. A new tree gets Ninja when it is
+# installed (scripts/setup.sh installs it: it schedules both cores across targets) and, unless $CXX
+# names one, the C++ compiler Python's sysconfig names, which scikit-build-core builds the wheel with
+# (g++ here, where CMake alone picks c++): ccache keys on the compiler's name too, so only then do
+# build/'s library objects come from build-py/'s compiles (CMakeLists.txt, HBRDF_CCACHE). A tree
+# configured before keeps its generator and compiler (cmake refuses to switch them).
+configure() {
+  local dir=$1 args=() cxx
+  shift
+  if [ ! -f "$dir/CMakeCache.txt" ]; then
+    if command -v ninja > /dev/null; then args+=(-G Ninja); fi
+    cxx=$("$PY" -c 'import sysconfig; print((sysconfig.get_config_var("CXX") or "").split(" -")[0])' 2>/dev/null)
+    if [ -z "${CXX:-}" ] && [[ -n "$cxx" && "$cxx" != *" "* ]] && command -v "$cxx" > /dev/null; then
+      args+=(-DCMAKE_CXX_COMPILER="$cxx")
+    fi
+  fi
+  cmake -S . -B "$dir" "${args[@]}" "$@" > /dev/null
+}
+
 stage_build() {
-  cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null && cmake --build build -j "$JOBS" > /dev/null
+  configure build -DCMAKE_BUILD_TYPE=Release && cmake --build build -j "$JOBS" > /dev/null
 }
 
 stage_ctest() {
@@ -42,8 +61,8 @@ stage_guard() { "$PY" bench/speed_guard.py; }
 stage_sanitizers() {
   # -O1 -g1: the optimisation level ASan's documentation recommends, with line tables for its stack
   # traces; it builds in half of -O2 -g's time (61 s against 130 s on 2 cores, one-off, 2026-11-27).
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    -DHBRDF_SANITIZE=address,undefined > /dev/null || return
+  configure build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
+    -DHBRDF_SANITIZE=address,undefined || return
   cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
   # Guard against a silently unsanitised build (a flag typo would pass everything).
   # (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
