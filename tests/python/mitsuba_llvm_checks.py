@@ -1,13 +1,22 @@
 #!/usr/bin/env python3
-"""The Mitsuba plugin in llvm_ad_rgb, run by test_mitsuba_plugin.py in its own process (a process
-holds one Mitsuba variant): Mitsuba's chi-square test of the plugin's samplers and a render
-comparison with hbrdf render. Writes its figures as JSON; the test asserts on them.
+"""The Mitsuba plugin in llvm_ad_rgb, run once per test module by test_mitsuba_plugin.py in its
+own process (a process holds one Mitsuba variant): Mitsuba's chi-square test of the plugin's
+samplers, a render comparison with hbrdf render, and the Mitsuba renders of the module's other
+render comparisons (RENDERS.json: a list of {"name", "bsdf", "size", "spp"}; each written as
+OUT_DIR/NAME.npy, the images of seeds 1 and 2 stacked), which the tests compare with hbrdf render
+themselves. Writes its figures as OUT_DIR/llvm.json; the tests assert on them.
 
-    python tests/python/mitsuba_llvm_checks.py MODEL ENV.exr OUT.json
+    python tests/python/mitsuba_llvm_checks.py MODEL ENV.exr OUT_DIR [RENDERS.json]
+
+Why llvm_ad_rgb for every render: a query there is one library call per wavefront, so a 48 x 48,
+32 spp render takes a fraction of a second; in scalar_rgb every sample is a Python call (about
+12 s of CPU per render). The path integrator and the plugin class are the same code in both
+variants; what differs (one lane's conversions) the scalar query tests cover.
 """
 
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -34,7 +43,8 @@ CASES = [("satin_gold_rgb", "mis", 30.0), ("satin_gold_rgb", "mis", 75.0), ("sat
 
 
 def main() -> int:
-    model, env, out = sys.argv[1:4]
+    model, env, out_dir = sys.argv[1:4]
+    jobs = json.load(open(sys.argv[4])) if len(sys.argv) > 4 else []
     hbmi.register()
     chi2 = []
     alpha = 1.0 - (1.0 - 0.01) ** (1.0 / len(CASES))  # Sidak: 1% for the whole set
@@ -58,7 +68,11 @@ def main() -> int:
     z, _, _ = agreement(mits[0], mits[1], ours[0], ours[1], mask)
     res = {"variant": mi.variant(), "llvm": list(dr.detail.llvm_version()), "chi2": chi2,
            "render": {"tiles": int(len(z)), "max_abs_z": float(np.abs(z).max()), "mean_z": float(z.mean())}}
-    with open(out, "w") as fh:
+    for job in jobs:
+        images = [np.array(mi.render(mi.load_dict(mitsuba_scene(mi, env, job["bsdf"], job["size"], job["spp"])),
+                                     seed=s)) for s in (1, 2)]
+        np.save(os.path.join(out_dir, job["name"] + ".npy"), np.stack(images))
+    with open(os.path.join(out_dir, "llvm.json"), "w") as fh:
         json.dump(res, fh, indent=1)
     print(json.dumps(res, indent=1))
     return 0

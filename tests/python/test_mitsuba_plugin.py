@@ -1,7 +1,9 @@
 """The Mitsuba 3 plugin (hybridbrdf.render.mitsuba): its queries against libhybridbrdf under the two
-projects' conventions, Mitsuba's own chi-square test of its sampler and renders that agree with
-hbrdf render within Monte Carlo noise, in scalar_rgb here and in llvm_ad_rgb in a subprocess
-(tests/python/mitsuba_llvm_checks.py: a process holds one Mitsuba variant at a time)."""
+projects' conventions in scalar_rgb, Mitsuba's own chi-square test of its sampler and renders that
+agree with hbrdf render within Monte Carlo noise, in llvm_ad_rgb, all of them from one subprocess
+per module (tests/python/mitsuba_llvm_checks.py: a process holds one Mitsuba variant at a time; a
+scalar_rgb render makes one Python call per sample, about 12 s of CPU per 48 x 48, 32 spp image,
+where llvm_ad_rgb makes one per wavefront, a fraction of a second)."""
 
 import json
 import os
@@ -60,6 +62,32 @@ def llvm_env():
     return env
 
 
+#: The render comparisons of this module: name -> (material, evaluate) of the edited model, or
+#: "textured" (the folder of the textured_folder fixture). Each is rendered by Mitsuba in the
+#: llvm_ad_rgb process of the llvm_checks fixture, by hbrdf render in the test.
+RENDER_SIZE, RENDER_SPP = 48, 32
+RENDERS = {f"{GLOSSY}-full": (GLOSSY, "full"), "aniso-full": ("aniso", "full"),
+           "aniso-analytic": ("aniso", "analytic"), "textured": None}
+
+
+@pytest.fixture(scope="module")
+def llvm_checks(edited_model, env_file, textured_folder, tmp_path_factory):
+    """One llvm_ad_rgb process for the module: its chi-square tests and render comparison
+    (llvm.json) and Mitsuba's two-seed renders of RENDERS (NAME.npy). Returns (result, folder)."""
+    out = tmp_path_factory.mktemp("llvm")
+    jobs = []
+    for name, case in RENDERS.items():
+        bsdf = ({"type": "hbrdf", "svbrdf": textured_folder} if case is None else
+                {"type": "hbrdf", "filename": str(edited_model.path), "material": case[0], "evaluate": case[1]})
+        jobs.append({"name": name, "bsdf": bsdf, "size": RENDER_SIZE, "spp": RENDER_SPP})
+    (out / "renders.json").write_text(json.dumps(jobs))
+    r = subprocess.run([sys.executable, os.path.join(HERE, "mitsuba_llvm_checks.py"), str(edited_model.path),
+                        env_file, str(out), str(out / "renders.json")], capture_output=True, text=True,
+                       cwd=out, env=llvm_env())  # chi2 may write its data there
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return json.loads((out / "llvm.json").read_text()), out
+
+
 def plugin(model, material, **extra):
     hbmi.register()
     return mi.load_dict(dict({"type": "hbrdf", "filename": str(model.path), "material": material}, **extra))
@@ -67,7 +95,9 @@ def plugin(model, material, **extra):
 
 def test_queries_follow_the_libraries_conventions(edited_model):
     """Mitsuba's si.wi is hybridbrdf's wo (toward the viewer), its wo our wi (toward the light);
-    eval carries cos(theta_light); sample's weight is f cos / pdf of the material's MIS sampler."""
+    eval (and eval_pdf) carries cos(theta_light); sample's weight is f cos / pdf of the material's
+    MIS sampler; an inactive lane gets nothing. In scalar_rgb, one lane per query: the plugin's
+    conversions that the llvm_ad_rgb renders (wavefronts) do not run."""
     b = plugin(edited_model, "aniso")
     params = edited_model.analytic_params("aniso")
     rng = np.random.default_rng(4)
@@ -83,6 +113,10 @@ def test_queries_follow_the_libraries_conventions(edited_model):
         np.testing.assert_allclose(np.array(b.eval(ctx, si, mi.Vector3f(*light))), want, rtol=1e-5)
         want_pdf = hb.pdf(light[None], view[None], params)[0]
         assert float(b.pdf(ctx, si, mi.Vector3f(*light))) == pytest.approx(want_pdf, rel=1e-5)
+        # eval_pdf: what Mitsuba's integrators call for emitter samples
+        value, density = b.eval_pdf(ctx, si, mi.Vector3f(*light))
+        np.testing.assert_allclose(np.array(value), want, rtol=1e-5)
+        assert float(density) == pytest.approx(want_pdf, rel=1e-5)
         u = rng.random(2)
         bs, weight = b.sample(ctx, si, 0.5, mi.Point2f(*u))
         wi, pdf, _ = hb.sample(view[None], u[None], params)
@@ -90,6 +124,14 @@ def test_queries_follow_the_libraries_conventions(edited_model):
         assert float(bs.pdf) == pytest.approx(pdf[0], rel=1e-5)
         f = edited_model.eval(wi, view[None], "aniso")[0]
         np.testing.assert_allclose(np.array(weight), f * max(wi[0, 2], 0) / pdf[0], rtol=1e-4, atol=1e-7)
+    # an inactive lane: nothing, in every query
+    si.wi = mi.Vector3f(0.0, 0.6, 0.8)
+    assert float(np.max(np.array(b.eval(ctx, si, mi.Vector3f(0, 0, 1), False)))) == 0.0
+    assert float(b.pdf(ctx, si, mi.Vector3f(0, 0, 1), False)) == 0.0
+    value, density = b.eval_pdf(ctx, si, mi.Vector3f(0, 0, 1), False)
+    assert float(np.max(np.array(value))) == 0.0 and float(density) == 0.0
+    _, weight = b.sample(ctx, si, 0.5, mi.Point2f(0.3, 0.3), False)
+    assert float(np.max(np.array(weight))) == 0.0
     # below the horizon: nothing, in every query
     si = mi.SurfaceInteraction3f()
     si.wi = mi.Vector3f(0.0, 0.6, -0.8)
@@ -109,19 +151,10 @@ def test_bad_properties_give_clear_errors(edited_model):
         mi.load_dict({"type": "hbrdf", "material": "aniso"})
 
 
-@pytest.mark.parametrize("material, evaluate", [(GLOSSY, "full"), ("aniso", "full"), ("aniso", "analytic")])
-def test_a_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, material, evaluate):
-    """The sphere under the environment map (direct lighting: a convex object sees only the sky),
-    48x48 pixels, 32 spp per render, two seeds per renderer. Statistic: per 8x8 tile and channel,
-    z = (mean_Mitsuba - mean_hbrdf) / sigma, sigma from each pixel's two seeds; with ~30 tiles x 3
-    channels, |z| < 4.5 everywhere fails by chance with probability < 1e-3, while a convention error
-    (a swapped wi/wo, a mirrored frame, a lost cosine) moves tiles by tens of sigma."""
-    size, spp = 48, 32
-    bsdf = {"type": "hbrdf", "filename": str(edited_model.path), "material": material, "evaluate": evaluate}
-    hbmi.register()
-    mits = [np.array(mi.render(mi.load_dict(mitsuba_scene(mi, env_file, bsdf, size, spp)), seed=s)) for s in (1, 2)]
-    scene = hbrdf_scene(env_file, str(edited_model.path), material, size, spp, 0)
-    scene["materials"]["m"]["evaluate"] = evaluate
+def assert_renders_agree(mitsuba_images, scene):
+    """Mitsuba's two seeds against hbrdf render's two seeds of the same scene (mitsuba_scenes.py):
+    |z| < 4.5 on every tile and channel, and the sun's highlight in both."""
+    mits = list(mitsuba_images)
     ours = [render(dict(scene, seed=s))[0] for s in (1, 2)]
     mask = render(dict(scene, spp=1), max_depth=0)[0].sum(-1) == 0  # the sphere's pixels
     z, m_tiles, o_tiles = agreement(mits[0], mits[1], ours[0], ours[1], mask)
@@ -131,16 +164,25 @@ def test_a_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, mater
     assert m_tiles.max() > 2 * np.median(m_tiles)
 
 
-def test_llvm_variant_chi_square_and_render(edited_model, env_file, tmp_path):
+@pytest.mark.parametrize("material, evaluate", [(GLOSSY, "full"), ("aniso", "full"), ("aniso", "analytic")])
+def test_a_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, llvm_checks, material, evaluate):
+    """The sphere under the environment map (direct lighting: a convex object sees only the sky),
+    48x48 pixels, 32 spp per render, two seeds per renderer, Mitsuba in llvm_ad_rgb. Statistic: per
+    8x8 tile and channel, z = (mean_Mitsuba - mean_hbrdf) / sigma, sigma from each pixel's two seeds;
+    with ~30 tiles x 3 channels, |z| < 4.5 everywhere fails by chance with probability < 1e-3, while
+    a convention error (a swapped wi/wo, a mirrored frame, a lost cosine) moves tiles by tens of sigma."""
+    _, out = llvm_checks
+    scene = hbrdf_scene(env_file, str(edited_model.path), material, RENDER_SIZE, RENDER_SPP, 0)
+    scene["materials"]["m"]["evaluate"] = evaluate
+    assert_renders_agree(np.load(out / f"{material}-{evaluate}.npy"), scene)
+
+
+def test_llvm_variant_chi_square_and_render(llvm_checks):
     """Mitsuba's chi-square test (mitsuba.chi2, 1e6 samples, 101 x 202 bins, the pdf integrated on
     8 x 8 points per bin, significance 0.01 for the whole set of cases, Sidak-corrected) for the
     plugin's samplers in llvm_ad_rgb,
     and the render comparison there at 64x64, 64 spp."""
-    out = tmp_path / "llvm.json"
-    r = subprocess.run([sys.executable, os.path.join(HERE, "mitsuba_llvm_checks.py"), str(edited_model.path),
-                        env_file, str(out)], capture_output=True, text=True, cwd=tmp_path, env=llvm_env())  # chi2 may write its data there
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    res = json.loads(out.read_text())
+    res, _ = llvm_checks
     assert res["variant"] == "llvm_ad_rgb"
     assert len(res["chi2"]) >= 6
     for case in res["chi2"]:
@@ -253,18 +295,10 @@ def test_weights_as_a_mitsuba_texture(edited_model, tmp_path, filt):
                       "weights": {"type": "rgb", "value": [0.3, 0, 0]}})
 
 
-def test_a_textured_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, textured_folder):
+def test_a_textured_mitsuba_render_agrees_with_hbrdf_render(edited_model, env_file, llvm_checks, textured_folder):
     """As test_a_mitsuba_render_agrees_with_hbrdf_render, for the textured material (the mixture
     sampled by the plugin through libhybridbrdf's texel sampler, evaluated per texel)."""
-    size, spp = 48, 32
-    hbmi.register()
-    bsdf = {"type": "hbrdf", "svbrdf": textured_folder}
-    mits = [np.array(mi.render(mi.load_dict(mitsuba_scene(mi, env_file, bsdf, size, spp)), seed=s)) for s in (1, 2)]
-    scene = hbrdf_scene(env_file, str(edited_model.path), GLOSSY, size, spp, 0)
+    _, out = llvm_checks
+    scene = hbrdf_scene(env_file, str(edited_model.path), GLOSSY, RENDER_SIZE, RENDER_SPP, 0)
     scene["materials"]["m"] = {"type": "textured", "svbrdf": textured_folder}
-    ours = [render(dict(scene, seed=s))[0] for s in (1, 2)]
-    mask = render(dict(scene, spp=1), max_depth=0)[0].sum(-1) == 0
-    z, m_tiles, o_tiles = agreement(mits[0], mits[1], ours[0], ours[1], mask)
-    assert len(z) >= 20
-    assert np.abs(z).max() < 4.5, (np.abs(z).max(), m_tiles[np.abs(z).max(axis=1).argmax()])
-    assert m_tiles.max() > 2 * np.median(m_tiles)
+    assert_renders_agree(np.load(out / "textured.npy"), scene)
