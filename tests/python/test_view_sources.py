@@ -212,7 +212,9 @@ def test_out_over_a_source_of_a_folder_refused(synthetic_model, tmp_path, capsys
 
 @pytest.fixture(scope="module")
 def plastic_dom(synthetic_page):
-    title, status, dom, console = open_page(synthetic_page, f"material=plastic&analytic=1&size={S}&readback=1")
+    # spp=1: the tests read the plots, the image beside the sphere and the scene the page prints (whose
+    # sample count the test that renders it sets), not the sphere's converged picture
+    title, status, dom, console = open_page(synthetic_page, f"material=plastic&analytic=1&size={S}&readback=1&spp=1")
     return title, status, dom, [c for c in console if "GPU stall due to ReadPixels" not in c]
 
 
@@ -272,10 +274,10 @@ def test_measured_plastic_matches_the_page_scene_of_its_fa(synthetic_page, plast
 
 
 def test_anisotropic_two_rows_and_no_source_hidden(synthetic_page):
-    title, status, dom, console = open_page(synthetic_page, f"material=brushed_aluminium&size={S}&readback=1")
+    title, status, dom, console = open_page(synthetic_page, f"material=brushed_aluminium&size={S}&readback=1&spp=1")
     assert title == "hbrdf view: ok", (title, status)
     assert plot_pixels(dom).shape == (26 + 2 * 230, 900, 3)
-    title, status, dom, console = open_page(synthetic_page, f"material=gold&size={S}")
+    title, status, dom, console = open_page(synthetic_page, "material=gold&size=16")  # its frame at 16 x 16
     assert (title, console) == ("hbrdf view: ok", []), (title, console)
     assert hidden(dom, "figure", "measured") and hidden(dom, "div", "slices")
 
@@ -297,7 +299,7 @@ def test_hostile_source_path_is_text(synthetic_model, tmp_path):
     assert r.returncode == 0, r.stderr
     html = out.read_text(encoding="utf-8")
     assert html.count("<script") == 2 and html.lower().count("</script") == 2 and "\u2028" not in html
-    title, status, dom, console = open_page(out, "material=gold")
+    title, status, dom, console = open_page(out, "material=gold&size=16")  # its frame at 16 x 16: the test reads text
     assert (title, console) == ("hbrdf view: ok", []), (title, status, console)
     assert dom.count("<img") == 1 and "<b>" not in dom and "pwned" not in title
     caption = unescape(re.search(r'<figcaption id="measured_caption">(.*?)</figcaption>', dom, re.S).group(1))

@@ -24,7 +24,9 @@ tracer's noise; even independent, MAD(gpu, gl) ~ E|n_gpu - n_gl| ~ 0.7 E|n_t|, b
 1.4 E|n_t|, so MAD(gpu, gl) <= MAD(t0, t1) + 1 holds (the 1 for the two 8-bit roundings). The
 backends draw the same random numbers, so in practice they agree far closer (measured: 0, the
 same bytes, on SwiftShader). The sun alone is one exact evaluation per pixel in both: at most 1
-(8-bit rounding) at every interior pixel."""
+(8-bit rounding) at every interior pixel.
+
+Sizes as test_view's docstring says: the map's comparisons at ENV_SIZE (48 x 48), the sun's at SIZE."""
 
 import os
 import pathlib
@@ -39,7 +41,7 @@ from hybridbrdf.viewer.scene import tracer_scene
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.model.file import load_model
 import view_harness
-from test_view import (CHROMIUM_FLAGS, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
+from test_view import (CHROMIUM_FLAGS, ENV_SIZE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
                        interior_mask, mad, needs_renderer, page, page_state, read_state, tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
 
@@ -101,10 +103,10 @@ def samples_line(dom):
     return re.search(r'<div id="samples">(.*?)</div>', dom, re.S).group(1)
 
 
-def webgpu_state(page, hash_):
-    """As test_view.page_state for the WebGPU backend: (canvas (SIZE, SIZE, 3) uint8 top row first,
+def webgpu_state(page, hash_, size=SIZE):
+    """As test_view.page_state for the WebGPU backend: (canvas (size, size, 3) uint8 top row first,
     the scene the page shows for the tracer, its hbrdf edit line); asserts a clean load by WebGPU."""
-    title, status, dom, console = open_page_devtools(page, f"backend=webgpu&readback=1&size={SIZE}&" + hash_)
+    title, status, dom, console = open_page_devtools(page, f"backend=webgpu&readback=1&size={size}&" + hash_)
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console
     assert samples_line(dom).endswith("samples per pixel (WebGPU)"), samples_line(dom)
@@ -120,12 +122,13 @@ def webgpu_state(page, hash_):
 def test_webgpu_matches_tracer_under_the_environment(webgpu, page, material, analytic, rotation):
     """(1) WebGPU's Monte Carlo under the map (256 samples per pixel) against the tracer's 64 (bound
     in the module docstring); the map turns the same way (the opposite turn is far off)."""
-    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256")
-    assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=256,
-                                        rotation=rotation)
+    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256",
+                                 ENV_SIZE)
+    assert scene == tracer_scene(MODEL, material, width=ENV_SIZE, height=ENV_SIZE, analytic=analytic, spp=256,
+                                 rotation=rotation)
     diff, noise = assert_matches_tracer(img, scene, max_noise=6.0)
-    mirrored = tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, rotation=-rotation)
-    assert mad(img, tracer_pixels(mirrored), interior_mask()) > noise + 4.0
+    mirrored = tracer_scene(MODEL, material, width=ENV_SIZE, height=ENV_SIZE, analytic=analytic, rotation=-rotation)
+    assert mad(img, tracer_pixels(mirrored), interior_mask(ENV_SIZE)) > noise + 4.0
 
 
 @needs_renderer
@@ -146,10 +149,10 @@ def test_webgpu_and_webgl2_agree(webgpu, page):
     """(3) The same page and state drawn by both backends (WebGL2 as test_view opens it): under the
     map within the tracer's two-seed noise + 1 (module docstring); the sun alone within 1 at every
     interior pixel (the same float32 expression, rounded to 8 bits)."""
-    mask = interior_mask()
+    mask = interior_mask(ENV_SIZE)
     state = "material=cc_ibiza_sunset_rgb.rgl&rotation=25&spp=256"
-    gpu, scene, _ = webgpu_state(page, state)
-    gl, gl_scene, _ = page_state(page, state)
+    gpu, scene, _ = webgpu_state(page, state, ENV_SIZE)
+    gl, gl_scene, _ = page_state(page, state, ENV_SIZE)
     assert gl_scene == scene
     t0, t1 = tracer_pixels(scene, seed=0), tracer_pixels(scene, seed=1)
     noise = mad(t0, t1, mask)
@@ -160,6 +163,7 @@ def test_webgpu_and_webgl2_agree(webgpu, page):
     # numbers from another pixel (rows counted from the top) is 0.26 off, the tracer's noise 1.9.
     assert diff <= 0.1, diff
     sun = "material=cc_ibiza_sunset_rgb.rgl&light=sun&sun_el=30&sun_az=-60&alpha=0.05,0.4"
+    mask = interior_mask(SIZE)
     gpu = webgpu_state(page, sun)[0].astype(np.int32)
     gl = page_state(page, sun)[0].astype(np.int32)
     assert np.abs(gpu - gl)[mask].max() <= 1, np.abs(gpu - gl)[mask].max()
@@ -217,7 +221,7 @@ def test_without_webgpu(page):
     title, status, dom, console = open_page_devtools(page, "backend=webgpu", flags=NO_WEBGPU_FLAGS)
     line = "backend=webgpu: this browser gives no WebGPU device (navigator.gpu.requestAdapter() gave no adapter)."
     assert (unescape(status), title) == (line, "hbrdf view: error: " + line), (title, status)
-    title, status, dom, console = open_page_devtools(page, "", flags=NO_WEBGPU_FLAGS)
+    title, status, dom, console = open_page_devtools(page, "size=16", flags=NO_WEBGPU_FLAGS)  # its frame at 16 x 16
     assert (title, status.strip()) == ("hbrdf view: ok", "")
     assert samples_line(dom).endswith("samples per pixel (WebGL2)"), samples_line(dom)
     assert all('"No available adapters."' in c for c in console), console
