@@ -314,23 +314,23 @@ def test_hostile_text_cannot_inject(tmp_path):
     html = out.read_text(encoding="utf-8")
     assert html.count("<script") == 2 and html.lower().count("</script") == 2
     assert "\u2028" not in html and "\u2029" not in html
-    # size=16: the page's frame after its title drawn at 16 x 16 (the test reads its text, not its picture)
-    title, status, dom, console = open_page(out, "size=16")
-    assert title == "hbrdf view: ok" and console == [], (title, status, console)
-    assert "pwned" not in title
-    assert dom.count("<script") == 2 and "<img" not in dom and "<b>" not in dom
+    # size=16: the page's frame after its title drawn at 16 x 16 (the test reads its text, not its picture).
+    # An origin, shown for its material, reads back as the text it is (all: the training line): the
+    # first material's on the page as opened (the default material), the fourth's chosen in the URL.
+    for i, chosen in ((0, ""), (3, f"&material={model.materials[3]}")):
+        title, status, dom, console = open_page(out, "size=16" + chosen)
+        assert title == "hbrdf view: ok" and console == [], (title, status, console)
+        assert "pwned" not in title
+        assert dom.count("<script") == 2 and "<img" not in dom and "<b>" not in dom
+        info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
+        shown = info.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
+        assert shown.startswith("origin: " + HOSTILE[i]), (HOSTILE[i], shown)  # exactly: the DOM over DevTools keeps CR
     # the hbrdf edit line quotes the hostile path for a POSIX shell
     title, status, dom, console = open_page(out, f"size=16&material={model.materials[0]}&kd=0.5")
     cmd = re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1)
     cmd = cmd.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
     assert shlex.split(cmd) == ["hbrdf", "edit", str(hostile_path), model.materials[0], "--set", "kd=0.5,0.5,0.5", "--as",
                                 model.materials[0] + "_edit", "--out", str(hostile_path)], cmd
-    for i in (0, 3):  # an origin, shown for its material, reads back as the text it is (all: the training line)
-        title, status, dom, console = open_page(out, f"size=16&material={model.materials[i]}")
-        assert title == "hbrdf view: ok" and console == [], (title, console)
-        info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
-        shown = info.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
-        assert shown.startswith("origin: " + HOSTILE[i]), (HOSTILE[i], shown)  # exactly: the DOM over DevTools keeps CR
 
 
 def _error_line(capsys, *argv):
