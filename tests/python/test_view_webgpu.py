@@ -41,8 +41,8 @@ from hybridbrdf.viewer.scene import tracer_scene
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.model.file import load_model
 import view_harness
-from test_view import (CHROMIUM_FLAGS, ENV_SIZE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer, chromium,
-                       interior_mask, mad, needs_renderer, page, page_state, read_state, tracer_pixels,
+from test_view import (CHROMIUM_FLAGS, ENV_SIZE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE, assert_matches_tracer,
+                       chromium, interior_mask, mad, needs_renderer, page, page_state, read_state, tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
 
 #: Headless chromium with WebGPU on SwiftShader (module docstring). No virtual time: the page's
