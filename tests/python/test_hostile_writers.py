@@ -50,7 +50,6 @@ def error_line(capsys) -> str:
 UPDATER = """
 import os, sys, time
 import hybridbrdf.cli as cli
-import hybridbrdf.fit.adding as adding
 import hybridbrdf.model.file as file
 role, marks, argv = sys.argv[1], sys.argv[2], sys.argv[3:]
 mark = lambda name: os.path.join(marks, name)
@@ -68,7 +67,9 @@ def slow(load):
         return model
     return load_model
 file.load_model = slow(file.load_model)  # hbrdf edit and mix import it when they run (their --help needs no NumPy)
-adding.load_model = slow(adding.load_model)
+if argv[0] == "add":  # the adding module imports PyTorch, which edit and mix do without (3 s a process)
+    import hybridbrdf.fit.adding as adding
+    adding.load_model = slow(adding.load_model)
 if role == "second":
     wait_for("first-read")
     open(mark("second-started"), "w").close()
