@@ -105,9 +105,8 @@ def unescape(text):
     return text.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
 
 
-def page_state(page, hash_, size=SIZE):
-    """(canvas as (size, size, 3) uint8 top row first, the scene the page shows for the tracer,
-    its hbrdf edit line); asserts a clean load."""
+def page_dom(page, hash_, size=SIZE):
+    """The DOM of the page opened with readback=1 at size x size; asserts a clean load."""
     title, status, dom, console = open_page(page, f"readback=1&size={size}&" + hash_)
     if any("CONTEXT_LOST_WEBGL" in line for line in console):
         # SwiftShader's WebGL context lost under the shared browser's load (seen once in two clean-
@@ -120,7 +119,13 @@ def page_state(page, hash_, size=SIZE):
     # page without readback=1 must log nothing at all (test_page_is_self_contained_and_logs_nothing).
     console = [line for line in console if "GPU stall due to ReadPixels" not in line]
     assert console == [], console
-    return read_state(dom)
+    return dom
+
+
+def page_state(page, hash_, size=SIZE):
+    """(canvas as (size, size, 3) uint8 top row first, the scene the page shows for the tracer,
+    its hbrdf edit line); asserts a clean load."""
+    return read_state(page_dom(page, hash_, size))
 
 
 def read_state(dom):

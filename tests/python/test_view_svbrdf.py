@@ -16,6 +16,10 @@ References, none of them the page's code:
   random numbers and float32 operations, so the same bytes (bound: mean 0.05, max 1);
 - a material of two regions (the weights map's left and right halves) shows each region as the page
   of that region's material does, pixel for pixel where the pixel's whole footprint reads pure texels.
+
+The four-layer material's page in the sun is built and opened once per module and model kind (the
+``four_layer`` fixture) and read by the tests that compare or inspect that state: against
+libhybridbrdf (at the tracer's 96 x 96), against the tracer (full), its maps beside the sphere.
 """
 
 import json
@@ -29,16 +33,41 @@ from hybridbrdf.svbrdf.entries import SVBRDFError
 from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8, tracer_scene
 from helpers import saved_random_model
 import view_harness
-from test_view import SIZE as TRACER_SIZE, assert_matches_tracer, needs_renderer, open_page, page_state, read_state
+from test_view import (SIZE as TRACER_SIZE, assert_matches_tracer, needs_renderer, open_page, page_dom, page_state,
+                       read_state)
 
 SIZE = 48
+#: The random models' kinds: (output layer, energy bound) of helpers.saved_random_model's "hybrid".
+KINDS = {"shared": ("shared", False), "heads-bounded": ("material", True)}
+#: The sun of the four-layer material's page (the `four_layer` fixture).
+SUN = "light=sun&sun_el=40&sun_az=130"
 
 
-@pytest.fixture(params=[("shared", False), ("material", True)], ids=["shared", "heads-bounded"])
+@pytest.fixture(params=list(KINDS))
 def model(request, tmp_path):
-    output_layer, bound = request.param
+    output_layer, bound = KINDS[request.param]
     path, m = saved_random_model(tmp_path, "hybrid", output_layer=output_layer, energy_bound=bound)
     return m
+
+
+@pytest.fixture(scope="module")
+def four_layer(tmp_path_factory):
+    """The page of _four_layer_material on a random model of each kind (KINDS), built and opened once
+    per module in the sun at TRACER_SIZE with readback (a clean load): the tests that read it share
+    the load (SwiftShader compiles a textured page's shader in seconds). kind -> (model, textured
+    material, its folder, the page, its DOM)."""
+    built = {}
+
+    def get(kind):
+        if kind not in built:
+            d = tmp_path_factory.mktemp("four_layer")
+            output_layer, bound = KINDS[kind]
+            path, m = saved_random_model(d, "hybrid", output_layer=output_layer, energy_bound=bound)
+            sv = _four_layer_material(m, d / "sv")
+            page = _view(d, d / "sv")
+            built[kind] = (m, sv, d / "sv", page, page_dom(page, f"analytic=0&{SUN}", TRACER_SIZE))
+        return built[kind]
+    return get
 
 
 def _view(tmp_path, folder, *extra):
@@ -118,34 +147,33 @@ def _four_layer_material(model, folder):
     return load_svbrdf(folder)
 
 
-def test_page_is_libhybridbrdf_under_the_sun(model, tmp_path):
-    sv = _four_layer_material(model, tmp_path / "sv")
-    page = _view(tmp_path, tmp_path / "sv")
-    el, az = 40.0, 130.0
-    got = _pixels(page, f"light=sun&sun_el={el}&sun_az={az}")
-    want, shown = sun_reference(sv, SIZE, el, az)
-    assert shown.sum() > 0.4 * SIZE * SIZE * np.pi / 4 * 0.25  # a good part of the sphere is compared
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_page_is_libhybridbrdf_under_the_sun(four_layer, kind):
+    _, sv, _, _, dom = four_layer(kind)
+    el, az = 40.0, 130.0  # SUN
+    got = read_state(dom)[0].astype(np.int32)
+    size = len(got)
+    want, shown = sun_reference(sv, size, el, az)
+    assert shown.sum() > 0.4 * size * size * np.pi / 4 * 0.25  # a good part of the sphere is compared
     diff = np.abs(got - want)[shown]
     assert want[shown].mean() > 20, "the reference is not dark"
     print(f"page against libhybridbrdf: mean {diff.mean():.4f}, max {diff.max()} over {shown.sum()} pixels")
     assert diff.mean() <= 0.05 and diff.max() <= 2, (diff.mean(), diff.max())
-    flipped, _ = sun_reference(sv, SIZE, el, az, flip_v=True)
+    flipped, _ = sun_reference(sv, size, el, az, flip_v=True)
     assert np.abs(got - flipped)[shown].mean() > 1, "the comparison cannot tell v down from v up"
 
 
 @needs_renderer
 @pytest.mark.parametrize("analytic", [False, True], ids=["full", "analytic"])
-def test_page_matches_tracer_of_the_scene_it_prints(tmp_path, analytic):
+def test_page_matches_tracer_of_the_scene_it_prints(four_layer, analytic):
     """The scene the page prints (a textured material, bilinear) is tracer_scene's, and the path tracer's
     render of it is the page's picture within test_view.py's bound (two tracer seeds' difference + 1),
     the full model and the layers' f_a alone (``analytic=1``, the tracer's "evaluate": "analytic")."""
-    path, m = saved_random_model(tmp_path, "hybrid")
-    _four_layer_material(m, tmp_path / "sv")
-    page = _view(tmp_path, tmp_path / "sv")
-    img, scene, _ = page_state(page, f"analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
-    assert scene == tracer_scene(str(tmp_path / "sv" / "model.safetensors"), m.materials[0], width=TRACER_SIZE,
+    m, _, folder, page, dom = four_layer("shared")
+    img, scene, _ = page_state(page, f"analytic=1&{SUN}") if analytic else read_state(dom)
+    assert scene == tracer_scene(str(folder / "model.safetensors"), m.materials[0], width=TRACER_SIZE,
                                  height=TRACER_SIZE, analytic=analytic, spp=64, light="sun", elevation=40, azimuth=130,
-                                 svbrdf=str(tmp_path / "sv"))
+                                 svbrdf=str(folder))
     assert_matches_tracer(img, scene)
 
 
@@ -202,12 +230,8 @@ def test_two_regions_show_each_material(model, tmp_path):
         assert np.abs(got - want)[~pure & corners[0][1]].mean() > 1, "the other region differs"
 
 
-def test_maps_shown_beside_the_sphere_and_webgpu_refused(tmp_path):
-    path, m = saved_random_model(tmp_path, "hybrid")
-    _four_layer_material(m, tmp_path / "sv")
-    page = _view(tmp_path, tmp_path / "sv")
-    title, status, dom, console = open_page(page, "readback=1&size=16&light=sun")
-    assert title == "hbrdf view: ok" and console == [], (title, status, console)
+def test_maps_shown_beside_the_sphere_and_webgpu_refused(four_layer):
+    _, _, _, page, dom = four_layer("shared")  # loaded clean in the sun (page_dom)
     # the weights and one image per map file (kd, alpha, eta, two latent maps): data URIs with captions
     assert dom.count('<img src="data:image/png;base64,') == 6
     assert "layer 3 (" in dom and "latent z_0..z_2" in dom and "weights" in dom
