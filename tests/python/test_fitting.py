@@ -158,8 +158,26 @@ def test_loss_without_cos_fits_grazing_angles_better():
 
 
 @pytest.fixture(scope="module")
-def fitted():
-    return fit(sources(), quick(steps=1500), progress=False)
+def fitted(tmp_path_factory):
+    """The 1,500-step fit the next tests read (11 s of CPU), made once per test run. Under
+    pytest-xdist these tests land on both workers and each would fit it again: the first worker
+    writes it into the folder the run's workers share (fresh for every run, so no earlier run's
+    model is read) under a name keyed by the settings and sources, the other reads that file,
+    and both use the file's model, the same bytes either way."""
+    import fcntl
+    import hashlib
+    import os
+
+    settings, srcs = quick(steps=1500), sources()
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return fit(srcs, settings, progress=False)
+    key = hashlib.sha256(repr((settings, [(s.name, s.params, s.retro) for s in srcs])).encode()).hexdigest()[:16]
+    path = tmp_path_factory.getbasetemp().parent / f"test_fitting-fitted-{key}.safetensors"
+    with open(f"{path}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not path.exists():
+            fit(srcs, settings, progress=False).save(path)
+    return hb.load_model(path)
 
 
 def test_fit_improves_and_the_network_helps_where_ggx_cannot(fitted):
