@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Runs every test. Each stage runs even when an earlier one failed, so that one run shows all
 # that is wrong; the run ends with one summary line per stage and exits 1 if any failed.
-#   setup       scripts/setup.sh (idempotent; HBRDF_TEST_SETUP=0 skips it)
-#   build       the Release build (libhybridbrdf, tools, C++ tests, renderer)
+#   setup       scripts/setup.sh (idempotent; its pip install only when the installed package was not
+#               built from this tree, scripts/source_hash.py; HBRDF_TEST_SETUP=0 skips the stage)
+#   build       the Release build (libhybridbrdf, tools, C++ tests, renderer; Ninja, and ccache when
+#               installed, which hands it the objects setup's wheel build compiled alike)
 #   ctest       the C++ unit tests and the installed-package consumer
 #   guard       the speed guard: each kernel's instructions per evaluation under callgrind,
 #               as ratios against floors (bench/speed_guard.py; fails when a kernel stops vectorising)
@@ -61,6 +63,9 @@ stage_guard() { "$PY" bench/speed_guard.py; }
 stage_sanitizers() {
   # -O1 -g1: the optimisation level ASan's documentation recommends, with line tables for its stack
   # traces; it builds in half of -O2 -g's time (61 s against 130 s on 2 cores, one-off, 2026-11-27).
+  # -O0 builds these two targets in 190 s of CPU against -O1's 324, but the sanitized tests then run
+  # 3.5x longer (cpp_unit_tests 50 s of CPU against 14; the tabulated shard 45 s at -O1), which eats
+  # the saving on 2 cores (Ninja, X1 under load, 2026-11-29; docs/CONVENTIONS.md, "Testing").
   configure build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
     -DHBRDF_SANITIZE=address,undefined || return
   cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
