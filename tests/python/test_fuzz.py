@@ -112,6 +112,21 @@ def test_material_names(tmp_path, seed_model, name):
     fs.check_material_name(name, seed_model["hybrid"], tmp_path / "m.safetensors")
 
 
+def test_the_codegen_template_cache_reads_an_edited_template(tmp_path):
+    """The names above go through ~120 generate() calls, which share one compiled template
+    (codegen/source.py's environment per folder); a template edited since is compiled again."""
+    import os
+
+    from hybridbrdf.codegen.source import _environment
+
+    (tmp_path / "t.j2").write_text("one {{ x }}")
+    assert _environment(str(tmp_path)).get_template("t.j2").render(x=1) == "one 1"
+    (tmp_path / "t.j2").write_text("two {{ x }}")
+    later = os.stat(tmp_path / "t.j2").st_mtime + 2  # an edit whole seconds later, as an editor's save is
+    os.utime(tmp_path / "t.j2", (later, later))
+    assert _environment(str(tmp_path)).get_template("t.j2").render(x=1) == "two 1"
+
+
 # ---- scenes ------------------------------------------------------------------------------------
 
 SCENE = json.loads((ROOT / "scenes" / "sphere_env.json").read_text())
