@@ -7,6 +7,7 @@ where llvm_ad_rgb makes one per wavefront, a fraction of a second)."""
 
 import json
 import os
+import pathlib
 import subprocess
 import sys
 
@@ -70,22 +71,72 @@ RENDERS = {f"{GLOSSY}-full": (GLOSSY, "full"), "aniso-full": ("aniso", "full"),
            "aniso-analytic": ("aniso", "analytic"), "textured": None}
 
 
+def _content_key(text: str, *paths) -> str:
+    """A SHA-256 prefix of ``text`` and the bytes of ``paths`` (files, or folders: every file in
+    them by name)."""
+    import hashlib
+
+    h = hashlib.sha256(text.encode())
+    for path in map(pathlib.Path, paths):
+        for f in sorted(path.rglob("*")) if path.is_dir() else [path]:
+            if f.is_file():
+                h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
 @pytest.fixture(scope="module")
 def llvm_checks(edited_model, env_file, textured_folder, tmp_path_factory):
     """One llvm_ad_rgb process for the module: its chi-square tests and render comparison
-    (llvm.json) and Mitsuba's two-seed renders of RENDERS (NAME.npy). Returns (result, folder)."""
-    out = tmp_path_factory.mktemp("llvm")
+    (llvm.json) and Mitsuba's two-seed renders of RENDERS (NAME.npy). Returns (result, folder).
+    Under pytest-xdist these tests land on both workers: the first runs the process into the
+    folder the run's workers share (fresh for every run, so no earlier run's images are read),
+    under a name keyed by the bytes of every input (model, environment map, textured folder, the
+    jobs, the scripts), and the other reads it."""
+    import fcntl
+
     jobs = []
     for name, case in RENDERS.items():
         bsdf = ({"type": "hbrdf", "svbrdf": textured_folder} if case is None else
                 {"type": "hbrdf", "filename": str(edited_model.path), "material": case[0], "evaluate": case[1]})
         jobs.append({"name": name, "bsdf": bsdf, "size": RENDER_SIZE, "spp": RENDER_SPP})
-    (out / "renders.json").write_text(json.dumps(jobs))
-    r = subprocess.run([sys.executable, os.path.join(HERE, "mitsuba_llvm_checks.py"), str(edited_model.path),
-                        env_file, str(out), str(out / "renders.json")], capture_output=True, text=True,
-                       cwd=out, env=llvm_env())  # chi2 may write its data there
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    script = os.path.join(HERE, "mitsuba_llvm_checks.py")
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        out = tmp_path_factory.mktemp("llvm")
+    else:
+        cases = json.dumps([(j["name"], j["size"], j["spp"], j["bsdf"].get("material"), j["bsdf"].get("evaluate"))
+                            for j in jobs])
+        key = _content_key(cases, edited_model.path, env_file, textured_folder, script,
+                           os.path.join(HERE, "mitsuba_scenes.py"), hbmi.__file__)
+        out = tmp_path_factory.getbasetemp().parent / f"test_mitsuba_plugin-llvm-{key}"
+    lock = open(f"{out}.lock", "w")
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not (out / "llvm.json").exists():
+            out.mkdir(exist_ok=True)
+            (out / "renders.json").write_text(json.dumps(jobs))
+            r = subprocess.run([sys.executable, script, str(edited_model.path), env_file, str(out), str(out / "renders.json")],
+                               capture_output=True, text=True, cwd=out, env=llvm_env())  # chi2 may write its data there
+            assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     return json.loads((out / "llvm.json").read_text()), out
+
+
+def test_the_shared_llvm_results_are_keyed_by_every_input(tmp_path):
+    """llvm_checks' key changes with the cases and with any byte of any input file, one in a folder
+    included (a changed model, map or script is rendered again, never read from another worker's run)."""
+    (tmp_path / "folder").mkdir()
+    files = [tmp_path / "model", tmp_path / "script.py", tmp_path / "folder" / "weights.exr"]
+    for f in files:
+        f.write_bytes(b"abc")
+    inputs = (files[0], files[1], tmp_path / "folder")
+    key = _content_key("cases", *inputs)
+    assert key == _content_key("cases", *inputs)
+    assert key != _content_key("other cases", *inputs)
+    for f in files:
+        f.write_bytes(b"abd")
+        assert _content_key("cases", *inputs) != key, f
+        f.write_bytes(b"abc")
+    (tmp_path / "folder" / "more.exr").write_bytes(b"")
+    assert _content_key("cases", *inputs) != key
 
 
 def plugin(model, material, **extra):
