@@ -66,8 +66,11 @@ stage_sanitizers() {
   # -O0 builds these two targets in 190 s of CPU against -O1's 324, but the sanitized tests then run
   # 3.5x longer (cpp_unit_tests 50 s of CPU against 14; the tabulated shard 45 s at -O1), which eats
   # the saving on 2 cores (Ninja, X1 under load, 2026-11-29; docs/CONVENTIONS.md, "Testing").
+  # Without ccache: nothing else compiles these objects (and another clone's paths differ), so on a
+  # fresh clone every compile would be a miss, paying ccache's preprocessor pass on top (the stage
+  # took 521 s of CPU through a cold ccache against 391 s without, one run each under load).
   configure build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    -DHBRDF_SANITIZE=address,undefined || return
+    -DHBRDF_SANITIZE=address,undefined -DHBRDF_CCACHE=OFF || return
   cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
   # Guard against a silently unsanitised build (a flag typo would pass everything).
   # (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)
