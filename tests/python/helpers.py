@@ -7,6 +7,8 @@ textbook oracle beside this file (textbook_reference.py): the benchmarks use the
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
 import os
 import pathlib
@@ -247,3 +249,15 @@ def run_on_lavapipe(spv: pathlib.Path, inputs: np.ndarray, out_floats: int = 3) 
     assert r.returncode == 0, r.stderr[-3000:]
     assert "llvmpipe" in r.stdout
     return np.fromfile(work / "out.bin", dtype=np.float32).reshape(n, out_floats)
+
+
+@contextlib.contextmanager
+def run_shared_path(tmp_path_factory, name: str):
+    """A path that every pytest-xdist worker of this run shares (in the folder above each worker's
+    own temporary folder: fresh for every run, so nothing of an earlier run is read), held under an
+    exclusive lock for the body: the first worker makes what the path names, the others find it
+    made. ``name`` must be keyed by everything the made thing depends on."""
+    path = tmp_path_factory.getbasetemp().parent / name
+    with open(f"{path}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        yield path

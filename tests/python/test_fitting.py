@@ -13,7 +13,7 @@ from hybridbrdf.fit import fit
 from hybridbrdf.fit.loss import log_cos_loss
 from hybridbrdf.evaluate.metrics import metric_directions, smape
 
-from helpers import AnalyticTestSource
+from helpers import AnalyticTestSource, run_shared_path
 
 P_PLAIN = hb.AnalyticParams(kd=[0.4, 0.3, 0.2], eta=1.6, alpha=0.25)
 P_RETRO = hb.AnalyticParams(kd=[0.1, 0.5, 0.2], eta=2.0, alpha=(0.15, 0.35))
@@ -164,7 +164,6 @@ def fitted(tmp_path_factory):
     writes it into the folder the run's workers share (fresh for every run, so no earlier run's
     model is read) under a name keyed by the settings and sources, the other reads that file,
     and both use the file's model, the same bytes either way."""
-    import fcntl
     import hashlib
     import os
 
@@ -172,9 +171,7 @@ def fitted(tmp_path_factory):
     if "PYTEST_XDIST_WORKER" not in os.environ:
         return fit(srcs, settings, progress=False)
     key = hashlib.sha256(repr((settings, [(s.name, s.params, s.retro) for s in srcs])).encode()).hexdigest()[:16]
-    path = tmp_path_factory.getbasetemp().parent / f"test_fitting-fitted-{key}.safetensors"
-    with open(f"{path}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+    with run_shared_path(tmp_path_factory, f"test_fitting-fitted-{key}.safetensors") as path:
         if not path.exists():
             fit(srcs, settings, progress=False).save(path)
     return hb.load_model(path)

@@ -5,6 +5,7 @@ per module (tests/python/mitsuba_llvm_checks.py: a process holds one Mitsuba var
 scalar_rgb render makes one Python call per sample, about 12 s of CPU per 48 x 48, 32 spp image,
 where llvm_ad_rgb makes one per wavefront, a fraction of a second)."""
 
+import contextlib
 import json
 import os
 import pathlib
@@ -22,6 +23,7 @@ mi.set_variant("scalar_rgb")
 import hybridbrdf.render.mitsuba as hbmi  # noqa: E402
 
 from mitsuba_scenes import agreement, environment_map, hbrdf_scene, mitsuba_scene  # noqa: E402
+from helpers import run_shared_path  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 GLOSSY = "satin_gold_rgb"
@@ -92,7 +94,6 @@ def llvm_checks(edited_model, env_file, textured_folder, tmp_path_factory):
     folder the run's workers share (fresh for every run, so no earlier run's images are read),
     under a name keyed by the bytes of every input (model, environment map, textured folder, the
     jobs, the scripts), and the other reads it."""
-    import fcntl
 
     jobs = []
     for name, case in RENDERS.items():
@@ -101,16 +102,14 @@ def llvm_checks(edited_model, env_file, textured_folder, tmp_path_factory):
         jobs.append({"name": name, "bsdf": bsdf, "size": RENDER_SIZE, "spp": RENDER_SPP})
     script = os.path.join(HERE, "mitsuba_llvm_checks.py")
     if "PYTEST_XDIST_WORKER" not in os.environ:
-        out = tmp_path_factory.mktemp("llvm")
+        shared = contextlib.nullcontext(tmp_path_factory.mktemp("llvm"))
     else:
         cases = json.dumps([(j["name"], j["size"], j["spp"], j["bsdf"].get("material"), j["bsdf"].get("evaluate"))
                             for j in jobs])
         key = _content_key(cases, edited_model.path, env_file, textured_folder, script,
                            os.path.join(HERE, "mitsuba_scenes.py"), hbmi.__file__)
-        out = tmp_path_factory.getbasetemp().parent / f"test_mitsuba_plugin-llvm-{key}"
-    lock = open(f"{out}.lock", "w")
-    with lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        shared = run_shared_path(tmp_path_factory, f"test_mitsuba_plugin-llvm-{key}")
+    with shared as out:
         if not (out / "llvm.json").exists():
             out.mkdir(exist_ok=True)
             (out / "renders.json").write_text(json.dumps(jobs))
