@@ -246,6 +246,18 @@ void Scene::add_sphere(const Sphere& sphere, int material) {
     geometries_.push_back({true, int(spheres_.size()) - 1, material});
 }
 
+int Scene::mesh_material(std::size_t i) const {
+    for (const Geometry& g : geometries_)
+        if (!g.is_sphere && std::size_t(g.index) == i) return g.material;
+    throw std::out_of_range("Scene::mesh_material: no mesh " + std::to_string(i));
+}
+
+int Scene::sphere_material(std::size_t i) const {
+    for (const Geometry& g : geometries_)
+        if (g.is_sphere && std::size_t(g.index) == i) return g.material;
+    throw std::out_of_range("Scene::sphere_material: no sphere " + std::to_string(i));
+}
+
 void Scene::commit() {
     rtcCommitScene(scene_);
     check_device(device_, "commit");

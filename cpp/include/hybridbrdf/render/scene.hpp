@@ -24,6 +24,7 @@
 
 #include "hybridbrdf/render/camera.hpp"
 #include "hybridbrdf/render/environment.hpp"
+#include "hybridbrdf/render/light.hpp"
 #include "hybridbrdf/render/material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
 #include "hybridbrdf/render/ray_cone.hpp"
@@ -87,6 +88,8 @@ public:
 
     std::vector<std::unique_ptr<Material>> materials;
     EnvironmentLight environment;
+    /// Point and directional lights (light.hpp), reached by next-event estimation only.
+    DeltaLights lights;
     PinholeCamera camera;
     /// The settings the scene was saved with (settings.hpp). render() takes
     /// them as RenderOptions, so that callers can override any of them; the
@@ -95,6 +98,13 @@ public:
 
     std::size_t mesh_count() const { return meshes_.size(); }
     std::size_t sphere_count() const { return spheres_.size(); }
+    /// The geometry as added (world space), for tools that draw the same scene another way (the
+    /// raster frame, issue 59): mesh i and its material, sphere i and its material, in the order
+    /// add_mesh / add_sphere were called.
+    const TriangleMesh& mesh(std::size_t i) const { return *meshes_.at(i); }
+    int mesh_material(std::size_t i) const;
+    const Sphere& sphere(std::size_t i) const { return *spheres_.at(i); }
+    int sphere_material(std::size_t i) const;
 
 private:
     struct Geometry {
