@@ -61,6 +61,15 @@ public:
     /// coordinates (limits.hpp, check_extent). 1 for a default-constructed camera.
     double distance() const { return distance_; }
     int height() const { return height_; }
+    /// The pinhole and its orthonormal basis (forward = toward look_at, right, up = right x
+    /// forward), and tan(fov / 2): generate() maps pixel (px, py) to the direction
+    /// forward + right sx + up sy. For tools that project the scene instead of tracing it
+    /// (the raster frame, issue 59: hbrdf_raster's projection matrix).
+    const Vec3f& position() const { return position_; }
+    const Vec3f& forward() const { return forward_; }
+    const Vec3f& right() const { return right_; }
+    const Vec3f& up() const { return up_; }
+    float tan_half_fov() const { return tan_half_; }
 
     /// The width of one pixel per unit of distance along the view axis, 2 tan(fov / 2) / height:
     /// a camera ray's cone spreads by this (the ray cones of Akenine-Moller et al., Ray Tracing Gems
