@@ -1,0 +1,77 @@
+// hbrdf_raster — the Vulkan device: instance (with the Khronos validation layer on request), a
+// graphics queue, buffers and images in the memory types they need, one-shot submissions.
+// What a headless renderer needs and nothing else: no surface, no swapchain.
+#pragma once
+
+#include <vulkan/vulkan.h>
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+
+namespace hbrdf::raster {
+
+/// Throws std::runtime_error "<what> failed (VkResult N)" unless r is VK_SUCCESS.
+void check(VkResult r, const char* what);
+
+struct Buffer {
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkDeviceSize size = 0;
+};
+
+struct Image {
+    VkImage image = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VkImageView view = VK_NULL_HANDLE;
+};
+
+/// One logical device with one graphics queue. A discrete GPU is preferred over other devices
+/// (a GPU machine may also list lavapipe). Destroys everything it made in its destructor.
+class Device {
+public:
+    explicit Device(bool validation);
+    ~Device();
+    Device(const Device&) = delete;
+    Device& operator=(const Device&) = delete;
+
+    VkDevice handle() const { return device_; }
+    const VkPhysicalDeviceProperties& properties() const { return props_; }
+    /// Bits of the queue's timestamps (0: none).
+    uint32_t timestamp_bits() const { return timestamp_bits_; }
+    /// Messages of warning or error severity the validation layer reported so far.
+    int validation_messages() const;
+
+    /// A buffer in the first memory type having all of `want` (host-visible staging buffers:
+    /// coherent too; device buffers: device-local, else any type the buffer accepts).
+    Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags want) const;
+    /// A device-local buffer holding `bytes`, copied through a staging buffer.
+    Buffer upload(const void* bytes, std::size_t size, VkBufferUsageFlags usage) const;
+    /// A 2D device-local image of one mip level with a view of `aspect`.
+    Image make_image(uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage,
+                     VkImageAspectFlags aspect) const;
+    void destroy(Buffer& b) const;
+    void destroy(Image& i) const;
+
+    /// A primary command buffer from the device's pool, begun for recording.
+    VkCommandBuffer begin_commands() const;
+    /// Ends (if `end`) and submits `cmd`, then waits for the queue to finish it.
+    void submit_and_wait(VkCommandBuffer cmd, bool end = true) const;
+    void free_commands(VkCommandBuffer cmd) const;
+
+private:
+    uint32_t memory_type(uint32_t allowed, VkMemoryPropertyFlags want, bool strict) const;
+
+    VkInstance instance_ = VK_NULL_HANDLE;
+    VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+    VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+    VkPhysicalDeviceProperties props_{};
+    VkPhysicalDeviceMemoryProperties memory_{};
+    VkDevice device_ = VK_NULL_HANDLE;
+    VkQueue queue_ = VK_NULL_HANDLE;
+    VkCommandPool pool_ = VK_NULL_HANDLE;
+    VkFence fence_ = VK_NULL_HANDLE;
+    uint32_t family_ = 0, timestamp_bits_ = 0;
+};
+
+}  // namespace hbrdf::raster

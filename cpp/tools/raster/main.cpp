@@ -1,0 +1,191 @@
+// hbrdf_raster — draws a tracer scene the way an engine does: a headless Vulkan graphics pipeline
+// (vertex + fragment SPIR-V given on the command line; the fragment stage includes the generated
+// GLSL of the scene's materials, glsl/raster.frag), one draw per object, the scene's point and
+// directional lights summed per pixel. NO SHADOWS: every light reaches every surface that faces it
+// (the tracer's "shadows": 0). One sample at each pixel centre, no environment light: the picture of
+// the tracer's deterministic direct-light mode (max_depth 1, pixel_jitter 0, a black environment).
+//
+//   hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]...
+//                [--sphere-segments 512] [--validation] [--repeat R]
+//
+// The scene is read by the tracer's own loader (hybridbrdf_render). --model-material names, in
+// order, the scene materials the fragment shader evaluates as constants of the generated code
+// (cases 1, 2, ...); the others draw as f_a with their parameters (case 0). Spheres are tessellated
+// (frame_scene.hpp); "sphere_gap" prints how far inside the sphere its flat triangles reach.
+// --validation enables the Khronos validation layer: any warning or error fails the run (status 3).
+// --repeat R draws R more frames and prints the best time (host clock around submit + wait,
+// "best_ms"; where the queue has timestamps, the render pass on the device's clock, "best_gpu_ms").
+// Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "device.hpp"
+#include "frame_scene.hpp"
+#include "hybridbrdf/render/scene_loader.hpp"
+#include "pipeline.hpp"
+#include "readback.hpp"
+
+namespace {
+
+using namespace hbrdf;
+using namespace hbrdf::raster;
+
+struct Args {
+    std::string scene, vert, frag, out, png;
+    std::vector<std::string> model_materials;
+    int sphere_segments = 512, repeat = 0;
+    bool validation = false;
+};
+
+const char* kUsage =
+    "usage: hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]... "
+    "[--sphere-segments 512] [--validation] [--repeat R]";
+
+int parse_int(const char* flag, const char* text, int lo, int hi) {
+    char* end = nullptr;
+    const long v = std::strtol(text, &end, 10);
+    if (!*text || *end || v < lo || v > hi)
+        throw std::invalid_argument(std::string(flag) + ": expected an integer in [" + std::to_string(lo) + ", " +
+                                    std::to_string(hi) + "], got '" + text + "'");
+    return int(v);
+}
+
+Args parse(int argc, char** argv) {
+    Args a;
+    std::vector<std::string> positional;
+    for (int i = 1; i < argc; ++i) {
+        const std::string s = argv[i];
+        const bool has_value = i + 1 < argc;
+        if (s == "--validation") a.validation = true;
+        else if (s == "--out" && has_value) a.out = argv[++i];
+        else if (s == "--png" && has_value) a.png = argv[++i];
+        else if (s == "--model-material" && has_value) a.model_materials.push_back(argv[++i]);
+        else if (s == "--sphere-segments" && has_value) a.sphere_segments = parse_int("--sphere-segments", argv[++i], 8, 8192);
+        else if (s == "--repeat" && has_value) a.repeat = parse_int("--repeat", argv[++i], 0, 100000);
+        else if (s.rfind("--", 0) == 0) throw std::invalid_argument("unknown or incomplete argument " + s + "\n" + kUsage);
+        else positional.push_back(s);
+    }
+    if (positional.size() != 3 || a.out.empty()) throw std::invalid_argument(kUsage);
+    a.scene = positional[0], a.vert = positional[1], a.frag = positional[2];
+    return a;
+}
+
+std::vector<char> read_spirv(const std::string& path) {
+    render::check_input_file(path, "SPIR-V file");
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!in.eof() && !in) throw render::FileError(path, "cannot read");
+    if (bytes.empty() || bytes.size() % 4) throw render::FileError(path, "not SPIR-V: its size is not a positive multiple of 4");
+    return bytes;
+}
+
+// Records the frame: the render pass and one draw per object, between two timestamps.
+void record_frame(VkCommandBuffer cmd, const FramePipeline& pipe, const FrameScene& fs, VkBuffer vertices,
+                  VkBuffer indices, VkQueryPool queries) {
+    if (queries) {
+        vkCmdResetQueryPool(cmd, queries, 0, 2);
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+    }
+    pipe.begin(cmd);
+    const VkDeviceSize zero = 0;
+    vkCmdBindVertexBuffers(cmd, 0, 1, &vertices, &zero);
+    vkCmdBindIndexBuffer(cmd, indices, 0, VK_INDEX_TYPE_UINT32);
+    for (const Draw& d : fs.draws) {
+        const DrawConstants pc{d.material};
+        vkCmdPushConstants(cmd, pipe.layout(), VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof pc, &pc);
+        vkCmdDrawIndexed(cmd, d.index_count, 1, d.first_index, d.vertex_offset, 0);
+    }
+    pipe.end(cmd);
+    if (queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
+}
+
+int run(int argc, char** argv) {
+    const Args a = parse(argc, argv);
+    const std::vector<char> vert = read_spirv(a.vert), frag = read_spirv(a.frag);
+    render::check_output_path(a.out);
+    if (!a.png.empty()) render::check_output_path(a.png);
+    const render::Scene scene = render::load_scene(a.scene);
+    const FrameScene fs = build_frame_scene(scene, a.model_materials, a.sphere_segments);
+    if (fs.indices.empty()) throw std::invalid_argument(a.scene + ": nothing to draw");
+    const auto width = uint32_t(scene.camera.width()), height = uint32_t(scene.camera.height());
+
+    Device device(a.validation);
+    Buffer vertices = device.upload(fs.vertices.data(), fs.vertices.size() * sizeof(Vertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+    Buffer indices = device.upload(fs.indices.data(), fs.indices.size() * 4, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+    Buffer camera = device.upload(fs.camera, sizeof fs.camera, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
+    Buffer materials = device.upload(fs.materials.data(), fs.materials.size() * sizeof(GpuMaterial),
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    Buffer lights = device.upload(fs.lights.data(), fs.lights.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    int status = 0;
+    {
+        FramePipeline pipe(device, width, height, vert, frag);
+        pipe.bind_buffers(camera, materials, lights);
+        VkQueryPool queries = VK_NULL_HANDLE;
+        if (device.timestamp_bits()) {
+            VkQueryPoolCreateInfo qpi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+            qpi.queryType = VK_QUERY_TYPE_TIMESTAMP;
+            qpi.queryCount = 2;
+            check(vkCreateQueryPool(device.handle(), &qpi, nullptr, &queries), "vkCreateQueryPool");
+        }
+        VkCommandBuffer cmd = device.begin_commands();
+        record_frame(cmd, pipe, fs, vertices.buffer, indices.buffer, queries);
+        const uint64_t mask = device.timestamp_bits() < 64 ? (uint64_t(1) << device.timestamp_bits()) - 1 : ~uint64_t(0);
+        double best_ms = 1e30;
+        std::vector<double> gpu_ms;
+        for (int r = 0; r <= a.repeat; ++r) {
+            const auto t0 = std::chrono::steady_clock::now();
+            device.submit_and_wait(cmd, false);
+            const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+            if (r == 0 && a.repeat > 0) continue;  // the first frame warms up when repeating
+            best_ms = std::min(best_ms, ms);
+            uint64_t ticks[2];
+            if (queries && vkGetQueryPoolResults(device.handle(), queries, 0, 2, sizeof ticks, ticks, sizeof ticks[0],
+                                                 VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
+                gpu_ms.push_back(double((ticks[1] - ticks[0]) & mask) * device.properties().limits.timestampPeriod * 1e-6);
+        }
+        device.free_commands(cmd);
+        const render::Image image = read_color(device, pipe.color_image(), width, height);
+        if (queries) vkDestroyQueryPool(device.handle(), queries, nullptr);
+        std::printf("device %s\nsize %u %u\ntriangles %zu\ndraws %zu\nsphere_gap %.3g\nbest_ms %.4f\n",
+                    device.properties().deviceName, width, height, fs.indices.size() / 3, fs.draws.size(),
+                    fs.max_sphere_gap, best_ms);
+        if (!gpu_ms.empty()) {
+            std::sort(gpu_ms.begin(), gpu_ms.end());
+            std::printf("best_gpu_ms %.4f\nmedian_gpu_ms %.4f\n", gpu_ms.front(), gpu_ms[gpu_ms.size() / 2]);
+        }
+        if (device.validation_messages()) {
+            std::fprintf(stderr, "hbrdf_raster: %d validation message(s)\n", device.validation_messages());
+            status = 3;
+        } else {  // both outputs staged, then both committed: a failure leaves neither half-written
+            render::StagedFile exr = render::stage_exr(image, a.out);
+            if (!a.png.empty()) {
+                render::StagedFile png = render::stage_png(image, a.png);
+                exr.commit();
+                png.commit();
+            } else {
+                exr.commit();
+            }
+        }
+    }
+    for (Buffer* b : {&vertices, &indices, &camera, &materials, &lights}) device.destroy(*b);
+    return status;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "hbrdf_raster: %s\n", hbrdf::one_line_text(e.what()).c_str());
+        return 1;
+    }
+}
