@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <mutex>
 #include <stdexcept>
@@ -52,6 +53,15 @@ struct Shading {
     bool bsdf_ok = false;
     bool network = false;
     Vec3f f_light{0.0f}, f_bsdf{0.0f};
+    std::size_t delta_begin = 0, delta_end = 0;  // this path's unoccluded delta-light samples in deltas_
+};
+
+// A point or directional light seen from a hit (light.hpp): it adds f(wo, wi) * scale, where scale
+// is I cos(theta_i) / d^2 for a point light and E cos(theta_i) for a directional one.
+struct DeltaSample {
+    Vec3f wi;     // local
+    Vec3f scale;
+    Vec3f f{0.0f};
 };
 
 struct Counters {
@@ -78,7 +88,9 @@ public:
                     for (int lx = 0; lx < tw; ++lx) {
                         const std::uint64_t pixel = std::uint64_t(y0 + ly) * std::uint64_t(image.width) + std::uint64_t(x0 + lx);
                         const PathRandom rng{opt_.seed, pixel, std::uint64_t(s)};
-                        const Ray ray = scene_.camera.generate(float(x0 + lx) + rng.camera(0), float(y0 + ly) + rng.camera(1));
+                        // A box filter over the pixel; pixel_jitter 0: its centre (a raster frame's sample).
+                        const float jx = opt_.pixel_jitter ? rng.camera(0) : 0.5f, jy = opt_.pixel_jitter ? rng.camera(1) : 0.5f;
+                        const Ray ray = scene_.camera.generate(float(x0 + lx) + jx, float(y0 + ly) + jy);
                         paths_.push_back(Path{ray.origin, ray.dir, Vec3f(1.0f), 0.0f, ly * tw + lx, s, pixel});
                     }
             trace_wave(counters);
@@ -103,6 +115,10 @@ private:
 
     void trace_wave(Counters& counters) {
         const EnvironmentLight& env = scene_.environment;
+        // A black environment (radiance 0: "no environment", a scene lit by delta lights alone) is
+        // neither looked up nor sampled, and the last bounce's BSDF sample, which could only find
+        // it, is not drawn.
+        const bool env_black = !(env.brightest() > 0.0f);
         for (int depth = 0; !paths_.empty(); ++depth) {
             // 1. Extension rays. Escaped paths see the environment: weight 1 for
             // camera rays and without NEE, else the MIS weight of BSDF sampling.
@@ -115,16 +131,20 @@ private:
                     hit_[k] = 1;
                     continue;
                 }
+                if (env_black) continue;
                 const float w = (depth == 0 || !opt_.nee) ? 1.0f : power_heuristic(p.prev_pdf, env.pdf(p.dir));
                 add(p, p.throughput * env.eval(p.dir) * w);
             }
             if (depth >= opt_.max_depth) break;
 
             // 2. Light and BSDF directions; shadow rays.
+            deltas_.clear();
+            const bool last_useless = env_black && depth + 1 >= opt_.max_depth;
             for (std::size_t k = 0; k < paths_.size(); ++k) {
                 if (!hit_[k]) continue;
                 const Path& p = paths_[k];
                 Shading& s = shading_[k];
+                s.delta_begin = s.delta_end = deltas_.size();
                 const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
                 const PathRandom rng{opt_.seed, p.pixel, std::uint64_t(p.sample)};
                 s.wo = s.hit.shading.to_local(-p.dir);
@@ -139,7 +159,8 @@ private:
                 s.light_ok = s.bsdf_ok = false;
                 s.f_light = s.f_bsdf = Vec3f(0.0f);
                 if (!(s.wo.z > 0.0f)) continue;  // shading normal turned away from the viewer: black
-                if (opt_.nee) {
+                sample_delta_lights(s, counters);
+                if (opt_.nee && !env_black) {
                     const LightSample ls = env.sample(Vec2<float>(rng.bounce(depth, kDimLight0), rng.bounce(depth, kDimLight1)));
                     s.wi_light = s.hit.shading.to_local(ls.wi);
                     s.light_pdf = ls.pdf;
@@ -149,6 +170,7 @@ private:
                         s.light_ok = !scene_.occluded(Scene::offset_origin(s.hit, ls.wi), ls.wi);
                     }
                 }
+                if (last_useless) continue;
                 const BrdfSample bs = mat.sample_at(s.wo, Vec2<float>(rng.bounce(depth, kDimBsdf0), rng.bounce(depth, kDimBsdf1)),
                                                     s.hit.uv, s.footprint);
                 s.wi_bsdf = bs.wi;
@@ -168,6 +190,8 @@ private:
                 Path p = paths_[k];
                 const Shading& s = shading_[k];
                 const Material& mat = *scene_.materials[std::size_t(s.hit.material)];
+                // Delta lights: no MIS weight, BSDF sampling never finds them.
+                for (std::size_t j = s.delta_begin; j < s.delta_end; ++j) add(p, p.throughput * deltas_[j].f * deltas_[j].scale);
                 if (s.light_ok) {
                     const float w = power_heuristic(s.light_pdf, mat.pdf_at(s.wi_light, s.wo, s.hit.uv, s.footprint));
                     add(p, p.throughput * s.f_light * s.light_radiance * (s.wi_light.z * w / s.light_pdf));
@@ -188,6 +212,38 @@ private:
             }
             paths_.resize(alive);
         }
+    }
+
+    // Next-event estimation toward every point and directional light: a direction above both the
+    // shading and the geometric horizon (the side the ray arrived on: surfaces are two-sided), a
+    // shadow ray unless `shadows` is off, and the light's delta-distribution factor. Appends the
+    // unoccluded ones to deltas_ as s's range.
+    void sample_delta_lights(Shading& s, Counters& counters) {
+        const DeltaLights& lights = scene_.lights;
+        auto visible = [&](const Vec3f& wi_world, float t_max) {
+            ++counters.shadow_rays;
+            return !scene_.occluded(Scene::offset_origin(s.hit, wi_world), wi_world, t_max);
+        };
+        auto above = [&](const Vec3f& wi_world, const Vec3f& wi) { return wi.z > 0.0f && dot(s.hit.ng, wi_world) > 0.0f; };
+        for (const PointLight& light : lights.points) {
+            const Vec3f to = light.position - s.hit.p;
+            const float d2 = dot(to, to);
+            if (!(d2 > 0.0f) || !(max_component(light.intensity) > 0.0f)) continue;
+            const float d = std::sqrt(d2);
+            const Vec3f wi_world = to / d;
+            const Vec3f wi = s.hit.shading.to_local(wi_world);
+            if (!above(wi_world, wi)) continue;
+            // Stop short of the light: the offset origin moved by ~1e-5 d at most.
+            if (opt_.shadows && !visible(wi_world, d * (1.0f - 1e-4f))) continue;
+            deltas_.push_back(DeltaSample{wi, light.intensity * (wi.z / d2)});
+        }
+        for (const DirectionalLight& light : lights.directionals) {
+            const Vec3f wi = s.hit.shading.to_local(light.direction);
+            if (!(max_component(light.irradiance) > 0.0f) || !above(light.direction, wi)) continue;
+            if (opt_.shadows && !visible(light.direction, 1e30f)) continue;
+            deltas_.push_back(DeltaSample{wi, light.irradiance * wi.z});
+        }
+        s.delta_end = deltas_.size();
     }
 
     // Batched evaluation. A counting sort of the hit paths by (material, mode)
@@ -225,6 +281,7 @@ private:
             };
             for (std::size_t i = bucket_[b]; i < bucket_[b + 1]; ++i) {
                 Shading& s = shading_[order_[i]];
+                for (std::size_t j = s.delta_begin; j < s.delta_end; ++j) push(deltas_[j].wi, s, &deltas_[j].f);
                 if (s.light_ok) push(s.wi_light, s, &s.f_light);
                 if (s.bsdf_ok) push(s.wi_bsdf, s, &s.f_bsdf);
             }
@@ -250,6 +307,7 @@ private:
     const float cone_spread_;  // the camera cone's spread per unit distance (ray_cone.hpp)
     std::vector<float> wi_, wo_, uv_, footprint_, f_;
     std::vector<Vec3f*> slots_;
+    std::vector<DeltaSample> deltas_;  // this bounce's delta-light samples, each path's a range
     std::vector<std::size_t> bucket_, cursor_, order_;  // the counting sort of evaluate()
 };
 
@@ -306,8 +364,14 @@ std::string film_problem(const Image& image, const Scene& scene) {
     std::string problem = "the rendered image holds " + std::to_string(bad) + " values that are not finite (the first at pixel (" +
                           std::to_string(first % w) + ", " + std::to_string(first / w) +
                           ")): the light along its paths overflows float32";
-    // The environment is the scene's only light; name its brightness, the usual culprit.
-    problem += " (the environment's brightest radiance is " + format_number(scene.environment.brightest()) + ")";
+    // Name the lights' brightness, the usual culprit.
+    problem += " (the environment's brightest radiance is " + format_number(scene.environment.brightest());
+    float brightest_delta = 0.0f;
+    for (const PointLight& l : scene.lights.points) brightest_delta = std::max(brightest_delta, max_component(l.intensity));
+    for (const DirectionalLight& l : scene.lights.directionals) brightest_delta = std::max(brightest_delta, max_component(l.irradiance));
+    if (!scene.lights.empty())
+        problem += ", the brightest point or directional light's " + format_number(brightest_delta);
+    problem += ")";
     return problem;
 }
 

@@ -35,6 +35,8 @@ struct RenderSettings {
     std::uint64_t seed = 0;
     int threads = 0;
     bool mip_lod = true;
+    bool shadows = true;
+    bool pixel_jitter = true;
 };
 
 /// The member of RenderSettings a setting lives in; the alternative is its type.
@@ -83,6 +85,10 @@ inline constexpr SettingInfo kRenderSettings[] = {
     {"threads", &RenderSettings::threads, 0, kMaxThreads, "worker threads; 0 = all hardware threads"},
     {"mip_lod", &RenderSettings::mip_lod, 0, 0,
      "textured materials read their mip chains at the camera ray's footprint (ray cones); false = level 0 only"},
+    {"shadows", &RenderSettings::shadows, 0, 0,
+     "point and directional lights cast shadows; false = their shadow rays are skipped (a raster frame's lighting)"},
+    {"pixel_jitter", &RenderSettings::pixel_jitter, 0, 0,
+     "camera rays jitter over the pixel (a box filter); false = every ray through the pixel centre"},
 };
 
 /// The setting called `name`, or nullptr.
