@@ -39,6 +39,7 @@ COMMANDS = {
     "mix": "add a blend of two materials (analytic parameters and latent codes)",
     "bound": "fit energy-bound tables so that no material reflects more light than it receives",
     "paint": "paint a textured material: layers of materials under grey masks (docs/SVBRDF.md)",
+    "export": "write a glTF 2.0 asset: a fitted metallic-roughness fallback and the hybrid material itself (docs/GLTF.md)",
     "convert": "rewrite a textured material's maps: PNG, EXR or KTX2 block formats, with or without mip chain",
     "view": "write one self-contained HTML page that shows the materials live (WebGPU or WebGL2)",
     "info": "describe a model file",
