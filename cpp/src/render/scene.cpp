@@ -186,6 +186,7 @@ Scene& Scene::operator=(Scene&& o) noexcept {
         std::swap(committed_, o.committed_);
         std::swap(materials, o.materials);
         std::swap(environment, o.environment);
+        std::swap(lights, o.lights);
         std::swap(camera, o.camera);
         std::swap(settings, o.settings);
     }
