@@ -13,6 +13,7 @@ import struct
 from typing import List, Optional, Tuple
 
 from hybridbrdf.errors import InputFileError
+from hybridbrdf.inputs import check_input_file, read_input_bytes
 
 GLB_MAGIC = 0x46546C67
 GLB_VERSION = 2
@@ -30,6 +31,14 @@ MAX_DATA_URI_CHARS = 16 << 20
 #: Images: each side at most 16384 texels, at most 2^26 texels in all (256 MiB as RGBA8).
 MAX_IMAGE_SIDE = 16384
 MAX_IMAGE_TEXELS = 1 << 26
+
+
+def read_bounded(path, what: str, limit: int, error=InputFileError) -> bytes:
+    """The bytes of the regular file ``path`` of at most ``limit`` bytes, read with its own size
+    as the bound (Python's buffered ``read(n)`` allocates n bytes before reading: a 1 GiB bound
+    would allocate 1 GiB for a file of a few bytes)."""
+    size = check_input_file(path, what, limit, error)
+    return read_input_bytes(path, what, size, error)
 
 
 class GltfError(InputFileError):

@@ -23,10 +23,10 @@ from typing import Dict, List, Optional, Tuple
 from hybridbrdf import spec
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.files import atomic_folder, scratch_folder
-from hybridbrdf.gltf.glb import MAX_FILE_BYTES, GltfError
+from hybridbrdf.gltf.glb import MAX_FILE_BYTES, GltfError, read_bounded
 from hybridbrdf.gltf.reader import read_gltf
 from hybridbrdf.gltf.writer import EXTENSION, EXTENSION_VERSION
-from hybridbrdf.inputs import check_input_file, read_input_bytes
+from hybridbrdf.inputs import check_input_file
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.asset import SVBRDF, load_svbrdf
 
@@ -57,7 +57,7 @@ def model_payload(path) -> Tuple[bytes, HybridModel]:
     exactly these bytes; the model returned reads a scratch copy that is gone after the call, so
     it evaluates through PyTorch or a later save, not libhybridbrdf)."""
     limit = 8 + spec.MAX_DATA_BYTES + (100 << 20)
-    data = read_input_bytes(path, "model file", limit)
+    data = read_bounded(path, "model file", limit)
     with scratch_folder() as tmp:
         copy = os.path.join(tmp, MODEL_FILE)
         with open(copy, "wb") as fh:
@@ -80,7 +80,7 @@ def folder_payload(folder) -> List[Tuple[str, bytes]]:
         raise InputFileError(folder, f"{len(names)} files, more than the {MAX_FILES} a textured material carries")
     files, total = [], 0
     for n in names:
-        data = read_input_bytes(os.path.join(folder, n), "textured material file", MAX_FILE_BYTES)
+        data = read_bounded(os.path.join(folder, n), "textured material file", MAX_FILE_BYTES)
         total += len(data)
         if total > MAX_FILE_BYTES:
             raise InputFileError(folder, f"files of more than {MAX_FILE_BYTES} bytes in all")

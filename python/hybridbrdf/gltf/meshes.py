@@ -20,7 +20,7 @@ import os
 import numpy as np
 
 from hybridbrdf.errors import InputFileError
-from hybridbrdf.inputs import read_input_text
+from hybridbrdf.gltf.glb import read_bounded
 
 #: The largest OBJ file read: 256 MiB.
 MAX_OBJ_BYTES = 256 << 20
@@ -92,7 +92,10 @@ def _obj_index(token: str, n: int, path: str, line_no: int) -> int:
 
 
 def _parse_obj(path: str):
-    text = read_input_text(path, "OBJ file", MAX_OBJ_BYTES)
+    try:
+        text = read_bounded(path, "OBJ file", MAX_OBJ_BYTES).decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(path, f"the OBJ file is not UTF-8 text (byte {exc.start})") from None
     lists = {"v": [], "vt": [], "vn": []}
     corners = []  # (position, uv or -1, normal or -1) per triangle corner
     for line_no, line in enumerate(text.splitlines(), 1):

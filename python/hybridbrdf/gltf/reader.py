@@ -18,9 +18,9 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from hybridbrdf.gltf.glb import MAX_FILE_BYTES, GltfError, split_glb
+from hybridbrdf.gltf.glb import MAX_FILE_BYTES, GltfError, read_bounded, split_glb
 from hybridbrdf.gltf.resources import image_size, read_uri
-from hybridbrdf.inputs import loads_json, read_input_bytes
+from hybridbrdf.inputs import loads_json
 from hybridbrdf.limits import check_count
 
 COMPONENTS = {5120: ("b", 1), 5121: ("B", 1), 5122: ("<h", 2), 5123: ("<H", 2), 5125: ("<I", 4), 5126: ("<f", 4)}
@@ -103,7 +103,7 @@ class _Checker:
 
 def _load_document(path: str):
     """(JSON document, BIN chunk or None) of the file at ``path``."""
-    data = read_input_bytes(path, "glTF file", MAX_FILE_BYTES, GltfError)
+    data = read_bounded(path, "glTF file", MAX_FILE_BYTES, GltfError)
     binary = None
     if data[:4] == b"glTF":
         text, binary = split_glb(data, path)

@@ -20,8 +20,8 @@ import re
 import struct
 import urllib.parse
 
-from hybridbrdf.gltf.glb import MAX_DATA_URI_CHARS, MAX_FILE_BYTES, MAX_IMAGE_SIDE, MAX_IMAGE_TEXELS, GltfError
-from hybridbrdf.inputs import read_input_bytes
+from hybridbrdf.gltf.glb import (MAX_DATA_URI_CHARS, MAX_FILE_BYTES, MAX_IMAGE_SIDE, MAX_IMAGE_TEXELS, GltfError,
+                                 read_bounded)
 
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
 _DATA = re.compile(r"^data:([^;,]*)(;base64)?,", re.IGNORECASE)
@@ -48,7 +48,7 @@ def read_uri(uri, asset_path: str, pointer: str) -> bytes:
     if os.path.commonpath([folder, target]) != folder:
         raise GltfError(asset_path, f"{uri[:60]!r} leaves the asset's folder", pointer)
     try:
-        return read_input_bytes(target, "glTF resource", MAX_FILE_BYTES)
+        return read_bounded(target, "glTF resource", MAX_FILE_BYTES)
     except GltfError:
         raise
     except Exception as exc:  # InputFileError of the resource: reported at the asset's JSON path
