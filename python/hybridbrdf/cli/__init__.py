@@ -1,5 +1,5 @@
 """The ``hbrdf`` command line: ``fit``, ``add``, ``edit``, ``mix``, ``eval``, ``view``, ``info``, ``demo``, ``render``,
-``paint``, ``bound``, ``acquire``.
+``raster``, ``paint``, ``bound``, ``acquire``.
 
 ``hbrdf <command> --help`` documents every flag. The fit flags, their help and defaults are
 generated from :class:`hybridbrdf.fit.settings.FitSettings` (:func:`add_fit_flags`), and so is the
@@ -45,6 +45,7 @@ COMMANDS = {
     "info": "describe a model file",
     "demo": "plot BRDF slices of built-in analytic materials and print their albedo",
     "render": "render a scene with the Embree path tracer",
+    "raster": "draw a scene with a Vulkan raster pipeline and the generated GLSL (docs/RASTER.md)",
     "acquire": "SVBRDF acquisition from photographs: simulated captures (docs/ACQUISITION.md)",
 }
 

@@ -1,0 +1,121 @@
+"""The raster frame's shaders for one scene: the generated GLSL of its model materials inside the
+frame template (``codegen/raster.frag.j2``, ``codegen/raster.vert.j2``), compiled to SPIR-V by
+glslangValidator and checked by spirv-val.
+
+Which code: the scene's materials of type "model" evaluated in full (``"evaluate": "full"`` and a
+``neural_max_depth`` other than 0) are each a case of the fragment shader's switch, a constant of the
+code generated from their model file (one file per scene: the generated files of two models define
+the same names). Every other material the frame draws ("analytic", or a model material evaluated
+as f_a) is case 0: f_a of the parameters the tool reads from the scene, through the generated
+``hbrdf_eval_analytic``. A scene without full model materials takes that code from its model
+file, or from the shipped prior (no network runs).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+from dataclasses import dataclass
+from typing import List
+
+import jinja2
+
+from hybridbrdf import _core
+from hybridbrdf.codegen import generate
+from hybridbrdf.codegen.literals import material_constant
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.files.package_data import package_data_dir
+from hybridbrdf.inputs import same_file
+from hybridbrdf.model.file import load_model
+from hybridbrdf.model.prior import prior_path
+from hybridbrdf.render.tracer import load_scene_dict
+
+
+@dataclass
+class FramePlan:
+    """What the fragment shader holds: ``model_file`` the model its code comes from; ``emitted`` the
+    model materials generated (in order); ``cases`` the scene materials of cases 1, 2, ... (the
+    tool's ``--model-material`` order) and ``case_constants`` their constants; ``carrier`` the
+    constant whose struct case 0 fills with f_a parameters."""
+    model_file: str
+    emitted: List[str]
+    cases: List[str]
+    case_constants: List[str]
+    carrier: str
+
+
+def frame_plan(scene: str) -> FramePlan:
+    """The plan of scene file ``scene``, read by the tracer's own reader (same errors:
+    ``<scene>: <where>: <problem>``). Raises InputFileError for scenes the frame cannot draw with
+    one generated file (full model materials of two model files, the neural baseline)."""
+    data, base_dir, origin = load_scene_dict(scene)
+    decl = _core.read_scene_decl(json.dumps(data), base_dir, origin)
+    settings = decl["settings"]
+    networked = settings["neural_max_depth"] != 0  # 0: the tracer renders f_a everywhere
+    full = [m for m in decl["model_materials"] if networked and m["evaluate"] == "full"]
+    for m in full[1:]:
+        if not same_file(m["file"], full[0]["file"]):
+            raise InputFileError(origin, f"{m['where']}: the raster frame draws the full model materials of one "
+                                         f"model file; {full[0]['where']} uses {full[0]['file']}, this one {m['file']}")
+    files = [m["file"] for m in full] or [m["file"] for m in decl["model_materials"]] or [prior_path()]
+    model = load_model(files[0])
+    if not model.has_analytic:
+        raise InputFileError(origin, f"{files[0]}: the raster frame draws hybrid models (f_a in every material); "
+                                     "this one is the neural baseline")
+    emitted = list(dict.fromkeys(m["material"] for m in full))
+    for m in full:
+        if m["material"] not in model.materials:
+            raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {files[0]}")
+    if not emitted:
+        emitted = [model.materials[0]]
+    return FramePlan(model_file=os.fspath(files[0]), emitted=emitted, cases=[m["name"] for m in full],
+                     case_constants=[material_constant(m["material"]) for m in full],
+                     carrier=material_constant(emitted[0]))
+
+
+def _templates() -> jinja2.Environment:
+    folder = package_data_dir("codegen", "raster.frag.j2")
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(folder)), undefined=jinja2.StrictUndefined,
+                              keep_trailing_newline=True)
+
+
+def write_frame_sources(plan: FramePlan, folder: pathlib.Path) -> tuple:
+    """Writes ``model.glsl`` (the generated code), ``frame.vert`` and ``frame.frag`` into ``folder``;
+    returns the two shader paths."""
+    model = load_model(plan.model_file)
+    (folder / "model.glsl").write_text(generate(model, "glsl", materials=plan.emitted, model_path=plan.model_file))
+    env = _templates()
+    vert, frag = folder / "frame.vert", folder / "frame.frag"
+    vert.write_text(env.get_template("raster.vert.j2").render())
+    frag.write_text(env.get_template("raster.frag.j2").render(model_file="model.glsl", carrier=plan.carrier,
+                                                              cases=plan.case_constants))
+    return vert, frag
+
+
+def compile_stage(source: pathlib.Path, spirv: pathlib.Path) -> None:
+    """GLSL to SPIR-V for Vulkan 1.1 (glslangValidator), then spirv-val; RuntimeError naming the
+    source and the tools' first complaint when either refuses, or when a tool is missing."""
+    for tool in ("glslangValidator", "spirv-val"):
+        if shutil.which(tool) is None:
+            raise RuntimeError(f"{tool} not found: the raster frame compiles its shaders with it "
+                               "(Debian: glslang-tools, spirv-tools)")
+    r = subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", str(source), "-o", str(spirv)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        errors = [line for line in r.stdout.splitlines() if "ERROR" in line] or r.stdout.splitlines()[-1:]
+        raise RuntimeError(f"{source}: glslangValidator: {errors[0] if errors else r.returncode}")
+    r = subprocess.run(["spirv-val", "--target-env", "vulkan1.1", str(spirv)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{spirv}: spirv-val: {(r.stderr or r.stdout).strip().splitlines()[0]}")
+
+
+def build_frame_shaders(plan: FramePlan, folder: pathlib.Path) -> tuple:
+    """The plan's sources written into ``folder`` and compiled: (vert.spv, frag.spv)."""
+    vert, frag = write_frame_sources(plan, folder)
+    spirv = folder / "vert.spv", folder / "frag.spv"
+    compile_stage(vert, spirv[0])
+    compile_stage(frag, spirv[1])
+    return spirv
