@@ -16,7 +16,7 @@ from hybridbrdf.evaluate.evaluation import evaluate
 from hybridbrdf.fit import fit
 from hybridbrdf.sources import open_source
 
-from helpers import run_cli
+from helpers import run_cli_here
 
 # 40 steps: no test here reads how well a tiny fit converged, only what adding does with it (rows
 # kept bit for bit, the network frozen or moved, refusals, records); the fine-tune's gain over
@@ -77,10 +77,10 @@ def test_bad_input_fails_before_training_and_leaves_out_alone(base_file, tmp_pat
     if case == "name taken":
         sources, words = ["synthetic:gold"], "gold: material 'gold' is already in"
     elif case == "constant taken":
-        clash = tmp_path / "GOLD.binary"
-        from hybridbrdf.sources.merl import write_merl
+        clash = tmp_path / "GOLD.bin"  # UTIA's grid: 52 k values (MERL's 1.5 M cost 4 s; any format names it)
+        from hybridbrdf.sources.utia import write_utia
 
-        write_merl(clash, open_source("synthetic:gold"))
+        write_utia(clash, open_source("synthetic:gold"))
         sources, words = [str(clash)], "materials 'gold' and 'GOLD' would share the shader constant HBRDF_MATERIAL_GOLD"
     elif case == "base not a model":
         to = tmp_path / "base.safetensors"
@@ -94,7 +94,7 @@ def test_bad_input_fails_before_training_and_leaves_out_alone(base_file, tmp_pat
         target = tmp_path
         words = f"{tmp_path}: is a folder"
     t0 = time.perf_counter()
-    r = run_cli("add", *sources, "--to", str(to), "--out", str(target), "--steps", "100000")
+    r = run_cli_here("add", *sources, "--to", str(to), "--out", str(target), "--steps", "100000")
     assert r.returncode == 1, r.stdout + r.stderr
     err = r.stderr.strip()
     assert err.count("\n") == 0 and words in err, err
@@ -106,7 +106,7 @@ def test_bad_input_fails_before_training_and_leaves_out_alone(base_file, tmp_pat
 def test_out_may_be_the_base_itself(base_file, tmp_path):
     path = tmp_path / "collection.safetensors"
     path.write_bytes(base_file.read_bytes())
-    r = run_cli("add", "synthetic:velvet", "--to", str(path), "--out", str(path), "--steps", "5", "--batch", "256",
+    r = run_cli_here("add", "synthetic:velvet", "--to", str(path), "--out", str(path), "--steps", "5", "--batch", "256",
                 "--pool", "2048", "--eval-pairs", "2000", "--quiet")
     assert r.returncode == 0, r.stderr
     assert "added 1 material(s)" in r.stdout and "(3 materials)" in r.stdout
@@ -115,7 +115,7 @@ def test_out_may_be_the_base_itself(base_file, tmp_path):
 
 
 def test_add_takes_only_the_settings_that_apply():
-    r = run_cli("add", "--help")
+    r = run_cli_here("add", "--help")
     assert r.returncode == 0
     for flag in ("--steps", "--lr", "--loss-eps", "--specular", "--sparse-init", "--to", "--out"):
         assert flag in r.stdout
@@ -180,13 +180,13 @@ def test_add_on_the_prior_fine_tunes_its_network_and_leaves_the_prior_file_alone
     assert t_row["cmae"] < s_row["cmae"], (t_row, s_row)
     assert tuned.material_info[0]["sparse_fit"]["metrics"]["cmae"] == pytest.approx(
         sparse.material_info[0]["metrics"]["cmae"], rel=1e-6)  # the start it records is the sparse fit's
-    r = run_cli("info", str(tmp_path / "tuned.safetensors"))
+    r = run_cli_here("info", str(tmp_path / "tuned.safetensors"))
     assert r.returncode == 0 and "added by fine-tuning the network of prior" in r.stdout, r.stdout
 
 
 def test_fine_tune_flags_belong_to_the_prior(base_file, tmp_path):
     out = tmp_path / "x.safetensors"
-    r = run_cli("add", "synthetic:velvet", "--to", str(base_file), "--keep-network", "--out", str(out))
+    r = run_cli_here("add", "synthetic:velvet", "--to", str(base_file), "--keep-network", "--out", str(out))
     assert r.returncode == 1 and "--keep-network and --finetune-steps are for adding to the shipped prior" in r.stderr
     assert not out.exists()
 
@@ -211,7 +211,7 @@ def test_warm_start_copies_materials_by_name_and_starts_the_rest_from_the_neares
 
 
 def test_warm_start_and_frozen_are_exclusive(base_file, tmp_path):
-    r = run_cli("fit", "synthetic:velvet", "--frozen", str(base_file), "--init", str(base_file),
+    r = run_cli_here("fit", "synthetic:velvet", "--frozen", str(base_file), "--init", str(base_file),
                 "--out", str(tmp_path / "x.safetensors"))
     assert r.returncode == 1 and "give one of them" in r.stderr, r.stderr
 
@@ -343,7 +343,7 @@ def test_refine_at_a_vanishing_rate_leaves_the_base_where_it_was(base_file):
 def test_refine_above_max_drift_writes_nothing_and_names_the_material(base_file, tmp_path):
     out = tmp_path / "out.safetensors"
     out.write_bytes(b"previous file")
-    r = run_cli("add", "synthetic:velvet", "--to", str(base_file), "--refine", "--max-drift", "1e-9",
+    r = run_cli_here("add", "synthetic:velvet", "--to", str(base_file), "--refine", "--max-drift", "1e-9",
                 "--steps", "5", "--finetune-steps", "5", "--batch", "256", "--pool", "2048", "--eval-pairs", "2000",
                 "--out", str(out), "--quiet")
     assert r.returncode == 1, r.stdout + r.stderr
@@ -352,7 +352,7 @@ def test_refine_above_max_drift_writes_nothing_and_names_the_material(base_file,
     assert out.read_bytes() == b"previous file"
     for argv, words in ((["--refine"], "--refine refines the network of --to BASE"),
                         (["--max-drift", "0.1"], "--max-drift applies to --refine only")):
-        r = run_cli("add", "synthetic:velvet", *argv, "--out", str(out))
+        r = run_cli_here("add", "synthetic:velvet", *argv, "--out", str(out))
         assert r.returncode == 1 and words in r.stderr, r.stderr
 
 
