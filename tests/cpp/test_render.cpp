@@ -288,7 +288,7 @@ TEST_CASE("scene errors name the file and the problem") {
     CHECK(message(R"({"objects": []})") == "bad.json: missing key 'camera'");
     const std::string cam = R"("camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]})";
     CHECK(message("{" + cam + R"(, "objects": [{"type": "cube", "material": "x"}]})") ==
-          "bad.json: objects[0].type: unknown object type 'cube'; expected sphere, plane or mesh");
+          "bad.json: objects[0].type: unknown object type 'cube'; expected sphere, plane, mesh or gltf");
     CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "radius": "big", "material": "x"}]})") ==
           "bad.json: objects[0].radius: expected a number, got string");
     CHECK(message("{" + cam + R"(, "objects": [{"type": "sphere", "material": "x"}]})") ==

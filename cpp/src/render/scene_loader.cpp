@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cfloat>
 #include <climits>
@@ -489,9 +490,80 @@ private:
                     r_.fail(w + ".transform", "moves vertex " + std::to_string(v) + " beyond the float range");
             }
             add_geometry(w, [&] { scene.add_mesh(std::move(mesh), material_of(o, w, scene)); });
+        } else if (type == "gltf") {
+            read_gltf_object(o, w, scene);
         } else {
-            r_.fail(w + ".type", "unknown object type '" + type + "'; expected sphere, plane or mesh");
+            r_.fail(w + ".type", "unknown object type '" + type + "'; expected sphere, plane, mesh or gltf");
         }
+    }
+
+    // {"type": "gltf", "file", "transform", "bind": {glTF material name: scene material name |
+    // "MODEL#MATERIAL" | textured folder}}: every triangle of the asset, its node transforms applied,
+    // then the object's transform; each part with its glTF material as an f_a, or the bound one.
+    void read_gltf_object(const json& o, const std::string& w, Scene& scene) {
+        r_.check_keys(o, w, {"type", "file", "transform", "bind"});
+        const std::string file = r_.resolve(r_.string(r_.require(o, w, "file"), w + ".file"));
+        detail::GltfAsset asset;
+        try {
+            asset = detail::read_gltf(file);
+        } catch (const FileError& e) {
+            r_.fail(w + ".file", e.what());
+        }
+        const json none = json::object();
+        const json& bind = o.contains("bind") ? o.at("bind") : none;
+        if (!bind.is_object()) r_.fail(w + ".bind", "expected an object mapping glTF material names to materials");
+        for (const auto& item : bind.items()) {
+            const bool known = std::any_of(asset.materials.begin(), asset.materials.end(),
+                                           [&](const detail::GltfFa& m) { return m.name == item.key(); });
+            if (!known) r_.fail(w + ".bind." + item.key(), "the asset has no material named '" + item.key() + "'" + gltf_names(asset));
+        }
+        std::map<int, int> material_of_part;  // glTF material index (-1: default) -> scene material
+        auto scene_material = [&](int g) {
+            if (const auto it = material_of_part.find(g); it != material_of_part.end()) return it->second;
+            detail::GltfFa fa;
+            if (g >= 0) fa = asset.materials[std::size_t(g)];
+            else fa = detail::gltf_material_to_fa(r_, none, w);  // glTF's default material
+            const std::string label = w + ":" + (g < 0 ? std::string("default") : fa.name.empty() ? "#" + std::to_string(g) : fa.name);
+            int index;
+            if (g >= 0 && !fa.name.empty() && bind.contains(fa.name)) index = bound_material(bind.at(fa.name), w + ".bind." + fa.name, label, scene);
+            else {
+                proxies_.push_back(fa.params);
+                index = scene.add_material(std::make_unique<AnalyticMaterial>(label, fa.params));
+            }
+            return material_of_part[g] = index;
+        };
+        std::optional<Transform> xf;
+        if (o.contains("transform")) xf = read_transform(o.at("transform"), w + ".transform");
+        for (detail::GltfPart& part : asset.parts) {
+            const int g = part.material;
+            const bool bound = g >= 0 && bind.contains(asset.materials[std::size_t(g)].name);
+            // The tangent turns by anisotropyRotation where the glTF material renders as itself.
+            if (g >= 0 && !bound) detail::rotate_tangents(part.mesh, asset.materials[std::size_t(g)].rotation);
+            if (xf) {
+                transform_mesh(part.mesh, *xf);
+                if (const std::int64_t v = first_nonfinite_vertex(part.mesh); v >= 0)
+                    r_.fail(w + ".transform", "moves vertex " + std::to_string(v) + " beyond the float range");
+            }
+            const int material = scene_material(g);
+            add_geometry(w, [&] { scene.add_mesh(std::move(part.mesh), material); });
+        }
+    }
+
+    // A bind's target: a scene material's name, "MODEL_FILE#MATERIAL", or a textured folder.
+    int bound_material(const json& target, const std::string& w, const std::string& label, Scene& scene) {
+        const std::string t = r_.string(target, w);
+        if (const auto it = named_.find(t); it != named_.end()) return it->second;
+        const auto hash = t.rfind('#');
+        const json m = hash != std::string::npos ? json{{"type", "model"}, {"file", t.substr(0, hash)}, {"material", t.substr(hash + 1)}}
+                                                 : json{{"type", "textured"}, {"svbrdf", t}};
+        return scene.add_material(read_material(m, w, label));
+    }
+
+    static std::string gltf_names(const detail::GltfAsset& asset) {
+        std::string names;
+        for (const detail::GltfFa& m : asset.materials)
+            if (!m.name.empty()) names += (names.empty() ? "" : ", ") + ("'" + m.name + "'");
+        return names.empty() ? " (its materials have no names)" : " (it has " + names + ")";
     }
 
     // Scene::add_* refuses geometry Embree cannot use (non-finite vertices,
@@ -580,6 +652,21 @@ SceneDecl read_scene_decl(const std::string& json_text, const std::string& base_
     for (std::size_t i = 0; i < objects.size(); ++i) {
         const std::string w = "objects[" + std::to_string(i) + "]";
         if (!objects[i].is_object()) r.fail(w, "expected an object");
+        if (objects[i].contains("type") && objects[i].at("type") == "gltf") {
+            // The asset's own materials are f_a (known once the file is read); its binds name scene
+            // materials, "MODEL#MATERIAL" or textured folders.
+            const json& bind = objects[i].contains("bind") ? objects[i].at("bind") : json::object();
+            if (!bind.is_object()) r.fail(w + ".bind", "expected an object mapping glTF material names to materials");
+            for (const auto& item : bind.items()) {
+                const std::string wb = w + ".bind." + item.key(), t = r.string(item.value(), wb);
+                if (named.count(t)) continue;
+                const auto hash = t.rfind('#');
+                if (hash != std::string::npos)
+                    declare(json{{"type", "model"}, {"file", t.substr(0, hash)}, {"material", t.substr(hash + 1)}}, wb, wb);
+                else declare(json{{"type", "textured"}, {"svbrdf", t}}, wb, wb);
+            }
+            continue;
+        }
         const json& m = r.require(objects[i], w, "material");
         if (!m.is_string()) declare(m, w + ".material", w);
         else if (!named.count(m.get<std::string>()))

@@ -162,12 +162,46 @@ private:
 }  // namespace hbrdf::render::detail
 
 // ---- the loader's parts that live in files of their own ---------------------------------------
+#include "hybridbrdf/params.hpp"
 #include "hybridbrdf/render/light.hpp"
+#include "hybridbrdf/render/mesh.hpp"
 
 namespace hbrdf::render::detail {
 
 /// The scene's top-level "lights" array (light.hpp; lights.cpp), every value checked with
 /// `r`'s one-line errors ("lights[1].intensity[2]: must be >= 0, got -1").
 DeltaLights read_lights(const SceneReader& r, const json& lights);
+
+/// A glTF material as f_a (gltf_scene.cpp; the mapping of docs/RENDERING.md, "glTF objects").
+struct GltfFa {
+    std::string name;        ///< the glTF material's name ("" when it has none)
+    AnalyticParams params;
+    float rotation = 0.0f;   ///< KHR_materials_anisotropy's anisotropyRotation, radians
+};
+
+/// The triangles of one glTF material, node transforms applied (world = the asset's root space).
+struct GltfPart {
+    TriangleMesh mesh;
+    int material = -1;  ///< index into GltfAsset::materials; -1 = glTF's default material
+};
+
+struct GltfAsset {
+    std::vector<GltfFa> materials;  ///< in the asset's order
+    std::vector<GltfPart> parts;
+};
+
+/// A glTF asset larger than this is refused before it is read (it is held in memory twice).
+inline constexpr std::uint64_t kMaxGltfBytes = std::uint64_t(1) << 30;
+
+/// The glTF material `m` (JSON, at `w` for errors) mapped onto f_a.
+GltfFa gltf_material_to_fa(const SceneReader& r, const json& m, const std::string& w);
+
+/// Reads a .gltf or .glb file, bounded before assimp sees it. Throws FileError "<path>: <JSON
+/// path>: <problem>" (one line).
+GltfAsset read_gltf(const std::string& path);
+
+/// Turns `mesh`'s tangents by `angle` about their vertex normals, toward n x t. False (the mesh
+/// unchanged) when it has no tangents or no vertex normals.
+bool rotate_tangents(TriangleMesh& mesh, float angle);
 
 }  // namespace hbrdf::render::detail
