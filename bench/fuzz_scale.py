@@ -9,7 +9,8 @@ Surfaces and their inputs: model files (byte damage: both loaders must agree), m
 (JSON edits: both loaders, same words), tensor values (any float32 in any tensor), material
 names (both loaders, then generated GLSL/HLSL/C++ for the accepted ones), measured files (RGL,
 NBRDF, MERL and UTIA readers on damaged files), scenes (the tracer's scene reader), KTX2 maps
-(structure-aware damage through both readers, tests/python/fuzz_ktx2.py), checkpoints
+(structure-aware damage through both readers, tests/python/fuzz_ktx2.py), glTF assets (structure-aware
+damage through the bounded reader, tests/python/fuzz_gltf.py), checkpoints
 (damaged bytes, and edited states re-encoded with a valid checksum), command-line
 flags (every typed flag of every hbrdf command) and directions (float32 bit patterns through the
 library's batched and scalar paths and torch).
@@ -162,6 +163,13 @@ def main(argv=None) -> int:
         run("KTX2 files (both readers)", int(20_000 * k),
             lambda i: (fuzz_ktx2.mutate_ktx2(ktx2_seeds[i % len(ktx2_seeds)], rng), work / "t.ktx2"),
             fuzz_ktx2.check_ktx2, counts, failures)
+
+    import fuzz_gltf  # glTF assets (issue 59): the bounded reader refuses in one line or reads every part
+
+    gltf_seeds = list(fuzz_gltf.seed_assets().values())
+    run("glTF assets (bounded reader)", int(20_000 * k),
+        lambda i: (fuzz_gltf.mutate_gltf(gltf_seeds[i % 2], rng), work / ("t.glb" if i % 2 == 0 else "t.gltf")),
+        fuzz_gltf.check_gltf, counts, failures)
 
     flags = fs.cli_flags()
     values = ["0", "-1", "1", "inf", "-inf", "nan", "1e999", "4294967297", "2147483648", "-0", "1.5", "1e-400",

@@ -33,6 +33,9 @@ EXTREMES = [-1, 0, 1, 2, 3, 4, 5, 12, 255, 256, 4095, 4096, 2**31 - 1, 2**32, 2*
 ODD_VALUES = [None, True, 1.5, "0", [], {}, "../x.bin", "http://example.com/x.bin", "data:;base64,AAAA",
               "data:application/octet-stream;base64,!!", "/etc/passwd", "%2e%2e/x.bin", float("nan")]
 ARRAYS = ("accessors", "buffers", "bufferViews", "images", "meshes", "nodes", "textures", "materials")
+#: How often each array is damaged: the ones whose sizes bound an allocation most.
+ARRAY_WEIGHTS = np.array([4, 2, 3, 2, 2, 1, 1, 1]) / 16
+SIZE_FIELDS = ("count", "byteLength", "byteOffset", "byteStride", "componentType", "type")
 
 
 def _png(w: int = 4, h: int = 4) -> bytes:
@@ -70,17 +73,22 @@ def _pack(doc: dict, binary, glb: bool) -> bytes:
 def _json_damage(doc: dict, rng: np.random.Generator) -> None:
     """One field of one object of a top-level array set to an extreme, a neighbour, another type,
     or removed; or an index list entry pointed elsewhere."""
-    key = ARRAYS[int(rng.integers(0, len(ARRAYS)))]
+    key = ARRAYS[int(rng.choice(len(ARRAYS), p=ARRAY_WEIGHTS))]
     items = doc.get(key) or []
     if not items:
         return
     obj = items[int(rng.integers(0, len(items)))]
     if key == "meshes":
-        obj = obj["primitives"][0]
-        if rng.random() < 0.5:
-            obj = obj["attributes"]
+        prims = obj.get("primitives") if isinstance(obj, dict) else None
+        obj = prims[0] if isinstance(prims, list) and prims else obj
+        if rng.random() < 0.5 and isinstance(obj, dict):
+            obj = obj.get("attributes")
+    if not isinstance(obj, dict):  # an earlier damage replaced it
+        return
     fields = sorted(obj) + ["byteStride", "byteOffset", "sparse", "uri", "bufferView", "children"]
-    name = fields[int(rng.integers(0, len(fields)))]
+    sizes = [f for f in SIZE_FIELDS if f in obj]
+    pool = sizes if sizes and rng.random() < 0.5 else fields  # half the time a size a bound depends on
+    name = pool[int(rng.integers(0, len(pool)))]
     old = obj.get(name)
     choice = int(rng.integers(0, 4))
     if choice == 0:

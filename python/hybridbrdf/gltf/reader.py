@@ -105,11 +105,12 @@ def _load_document(path: str):
     """(JSON document, BIN chunk or None) of the file at ``path``."""
     data = read_bounded(path, "glTF file", MAX_FILE_BYTES, GltfError)
     binary = None
-    if data[:4] == b"glTF":
+    glb = data[:4] == b"glTF" or path.lower().endswith(".glb")  # a .glb with another magic is refused as such
+    if glb:
         text, binary = split_glb(data, path)
     else:
         text = data
-    what = "GLB JSON chunk" if binary is not None or data[:4] == b"glTF" else "glTF JSON"
+    what = "GLB JSON chunk" if glb else "glTF JSON"
 
     def no_constant(name):
         raise ValueError(f"{name} is not a JSON number")
@@ -178,7 +179,7 @@ def _check_accessor(c: _Checker, i: int, acc: dict, buffers: List[bytes]) -> np.
     if ctype not in COMPONENTS:
         c.fail(f"{p}/componentType", f"{ctype} is not one of {', '.join(map(str, COMPONENTS))}")
     kind = acc.get("type")
-    if kind not in TYPES:
+    if not isinstance(kind, str) or kind not in TYPES:
         c.fail(f"{p}/type", f"{str(kind)[:20]!r} is not one of {', '.join(TYPES)}")
     count = c.integer(acc, "count", p, lo=1)
     if "sparse" in acc:
