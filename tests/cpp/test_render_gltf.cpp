@@ -282,6 +282,23 @@ TEST_CASE("glTF: a .gltf with its buffer in a file beside it, and data: URIs") {
     CHECK(p.kd.x == 0.0f);
     CHECK(p.eta.x == 10.0f);
     CHECK(p.alpha.x == 1.0f);
+    // The same buffer as a data: URI (base64), read into the same vertices.
+    static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string b64;
+    for (std::size_t i = 0; i < bin.size(); i += 3) {
+        std::uint32_t v = std::uint32_t(std::uint8_t(bin[i])) << 16;
+        if (i + 1 < bin.size()) v |= std::uint32_t(std::uint8_t(bin[i + 1])) << 8;
+        if (i + 2 < bin.size()) v |= std::uint32_t(std::uint8_t(bin[i + 2]));
+        const std::size_t present = std::min<std::size_t>(3, bin.size() - i);  // bytes in this group: 1 to 3
+        for (std::size_t k = 0; k < 4; ++k) b64 += k <= present ? kAlphabet[(v >> (18 - 6 * k)) & 63] : '=';
+    }
+    doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + b64;
+    const Scene d = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("data.gltf", doc.dump()) + R"("})"));
+    REQUIRE(d.mesh_count() == 1);
+    CHECK(d.mesh(0).positions == s.mesh(0).positions);
+    doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + b64.substr(0, 40);
+    CHECK(load_error(scene_with(R"({"type": "gltf", "file": ")" + write_file("short.gltf", doc.dump()) + R"("})"))
+              .find("buffers[0].uri: the data: URI holds 30 bytes, fewer than byteLength = 152") != std::string::npos);
 }
 
 TEST_CASE("glTF: malformed assets are refused with one line naming the file and the problem") {
