@@ -223,3 +223,22 @@ def test_command_line_and_refusals(tmp_path):
     with pytest.raises((ValueError, RuntimeError), match="nowhere|textured"):
         hybridbrdf.raster.draw_frame(scene, tmp_path / "b.exr", lavapipe=True, tool=TOOL)
     assert not (tmp_path / "b.exr").exists()
+
+
+def test_validation_layer_reports(tmp_path):
+    """--validation is live: a fragment shader reading a binding the pipeline lacks is refused with
+    the layer's message, before anything is drawn (status 3), while the shaders as generated pass."""
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(scene_dict(FLOOR)))
+    hybridbrdf.raster.draw_frame(scene, tmp_path / "a.exr", validation=True, lavapipe=True, tool=TOOL,
+                                 sphere_segments=16, keep_shaders=tmp_path)
+    frag = (tmp_path / "frame.frag").read_text()
+    frag = frag.replace("void main() {", "layout(set = 0, binding = 3) uniform Extra { vec4 a; } extra;\nvoid main() {")
+    frag = frag.replace("o_radiance = vec4(radiance, 1.0);", "o_radiance = vec4(radiance, 1.0) + extra.a;")
+    (tmp_path / "bad.frag").write_text(frag)
+    hybridbrdf.raster.shaders.compile_stage(tmp_path / "bad.frag", tmp_path / "bad.spv")
+    r = subprocess.run([str(TOOL), str(scene), str(tmp_path / "vert.spv"), str(tmp_path / "bad.spv"), "--out",
+                        str(tmp_path / "b.exr"), "--validation"], capture_output=True, text=True,
+                       env=dict(os.environ, VK_DRIVER_FILES=LVP_ICD))
+    assert r.returncode == 3 and "Binding 3" in r.stderr, r.stderr[-2000:]
+    assert not (tmp_path / "b.exr").exists()

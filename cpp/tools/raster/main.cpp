@@ -17,6 +17,8 @@
 // "best_ms"; where the queue has timestamps, the render pass on the device's clock, "best_gpu_ms";
 // and the process's CPU time per frame, "best_cpu_ms": on lavapipe, whose threads are this
 // process's, the work a frame costs whatever else the machine runs).
+// The SPIR-V is trusted past its header: a driver may crash on a malformed module, so run spirv-val
+// first (hbrdf raster does, after glslangValidator).
 // Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
 #include <algorithm>
 #include <chrono>
@@ -85,7 +87,10 @@ std::vector<char> read_spirv(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (!in.eof() && !in) throw render::FileError(path, "cannot read");
-    if (bytes.empty() || bytes.size() % 4) throw render::FileError(path, "not SPIR-V: its size is not a positive multiple of 4");
+    if (bytes.size() < 20 || bytes.size() % 4) throw render::FileError(path, "not SPIR-V: its size is not a multiple of 4 of at least 20 bytes");
+    uint32_t magic;
+    std::memcpy(&magic, bytes.data(), 4);
+    if (magic != 0x07230203u) throw render::FileError(path, "not SPIR-V: no SPIR-V magic number");
     return bytes;
 }
 
@@ -138,6 +143,10 @@ int run(int argc, char** argv) {
     {
         FramePipeline pipe(device, width, height, vert, frag);
         pipe.bind_buffers(camera, materials, lights);
+        if (device.validation_messages()) {  // a pipeline the layer refused may crash a driver when drawn
+            std::fprintf(stderr, "hbrdf_raster: %d validation message(s) before drawing\n", device.validation_messages());
+            return 3;
+        }
         VkQueryPool queries = VK_NULL_HANDLE;
         if (device.timestamp_bits()) {
             VkQueryPoolCreateInfo qpi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};

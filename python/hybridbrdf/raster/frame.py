@@ -86,6 +86,8 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
             args += ["--model-material", name]
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:
-        lines = [line for line in r.stderr.splitlines() if line.strip()]
-        raise RuntimeError(lines[-1] if lines else f"hbrdf_raster failed with status {r.returncode}")
+        # The tool's own line; the validation layer's messages (multi-line dumps) come before it.
+        lines = [line for line in r.stderr.splitlines() if line.startswith("hbrdf_raster:")]
+        status = f"killed by signal {-r.returncode}" if r.returncode < 0 else f"failed with status {r.returncode}"
+        raise RuntimeError(lines[-1] if lines else f"hbrdf_raster: {status}")
     return _parse_report(r.stdout)
