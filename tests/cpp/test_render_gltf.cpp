@@ -265,6 +265,22 @@ TEST_CASE("glTF: the metallic-roughness mapping onto f_a (computed in double fro
     CHECK(rotated);
 }
 
+TEST_CASE("glTF: the asset's TANGENTs are used; without them, tangents follow the uvs") {
+    auto [doc, bin] = document({plane_quad()}, {-1});
+    // The uvs' u runs along +x; the file's tangents say +z (a different, still orthogonal frame).
+    const std::vector<float> tangents = {0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1};
+    doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", append(bin, tangents)}, {"byteLength", 64}});
+    doc["accessors"].push_back({{"bufferView", doc["bufferViews"].size() - 1}, {"componentType", 5126}, {"count", 4}, {"type", "VEC4"}});
+    doc["buffers"][0]["byteLength"] = bin.size();
+    doc["nodes"] = {{{"mesh", 0}}};
+    doc["scenes"] = {{{"nodes", {0}}}};
+    const Scene from_uvs = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("uvt.glb", glb_bytes(doc, bin)) + R"("})"));
+    doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = doc["accessors"].size() - 1;
+    const Scene given = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("tangents.glb", glb_bytes(doc, bin)) + R"("})"));
+    for (const auto& t : from_uvs.mesh(0).tangents) CHECK((std::fabs(t.x - 1) < 1e-6 && std::fabs(t.z) < 1e-6));
+    for (const auto& t : given.mesh(0).tangents) CHECK((std::fabs(t.z - 1) < 1e-6 && std::fabs(t.x) < 1e-6));
+}
+
 TEST_CASE("glTF: a .gltf with its buffer in a file beside it, and data: URIs") {
     auto [doc, bin] = document({plane_quad()}, {-1});
     doc["nodes"] = {{{"mesh", 0}}};
