@@ -234,7 +234,10 @@ void check_views_and_accessors(const SceneReader& r, const Asset& a, const std::
         const std::int64_t v = index_of(r, a, acc, w, "bufferView", "bufferViews", false);
         if (v < 0 || count == 0) continue;
         const std::uint64_t element = std::uint64_t(kComponents.at(type)) * std::uint64_t(kBytes.at(ctype));
-        const std::uint64_t stride = std::max(element, count_of(r, views[std::size_t(v)], "bufferViews[" + std::to_string(v) + "]", "byteStride", false));
+        const std::string wv = "bufferViews[" + std::to_string(v) + "]";
+        const std::uint64_t byte_stride = count_of(r, views[std::size_t(v)], wv, "byteStride", false);
+        if (byte_stride > 252) r.fail(wv + ".byteStride", "must be <= 252, got " + std::to_string(byte_stride));  // glTF's bound
+        const std::uint64_t stride = std::max(element, byte_stride);
         const std::uint64_t end = count_of(r, acc, w, "byteOffset", false) + (count - 1) * stride + element;
         if (end > view_lengths[std::size_t(v)])
             r.fail(w, std::to_string(count) + " elements of " + std::to_string(element) + " bytes (stride " + std::to_string(stride) +

@@ -220,9 +220,17 @@ private:
     // unoccluded ones to deltas_ as s's range.
     void sample_delta_lights(Shading& s, Counters& counters) {
         const DeltaLights& lights = scene_.lights;
-        auto visible = [&](const Vec3f& wi_world, float t_max) {
+        auto visible_at_infinity = [&](const Vec3f& wi_world) {
             ++counters.shadow_rays;
-            return !scene_.occluded(Scene::offset_origin(s.hit, wi_world), wi_world, t_max);
+            return !scene_.occluded(Scene::offset_origin(s.hit, wi_world), wi_world);
+        };
+        // From the offset origin (it moves by 2e-5 (1 + |p|), which far from the world's origin can
+        // exceed a nearby light's distance), stopping just short of the light.
+        auto visible_point = [&](const Vec3f& wi_world, const Vec3f& light) {
+            ++counters.shadow_rays;
+            const Vec3f origin = Scene::offset_origin(s.hit, wi_world), to = light - origin;
+            const float dist = std::sqrt(dot(to, to));
+            return !(dist > 0.0f) || !scene_.occluded(origin, to / dist, dist * (1.0f - 1e-4f));
         };
         auto above = [&](const Vec3f& wi_world, const Vec3f& wi) { return wi.z > 0.0f && dot(s.hit.ng, wi_world) > 0.0f; };
         for (const PointLight& light : lights.points) {
@@ -233,14 +241,13 @@ private:
             const Vec3f wi_world = to / d;
             const Vec3f wi = s.hit.shading.to_local(wi_world);
             if (!above(wi_world, wi)) continue;
-            // Stop short of the light: the offset origin moved by ~1e-5 d at most.
-            if (opt_.shadows && !visible(wi_world, d * (1.0f - 1e-4f))) continue;
+            if (opt_.shadows && !visible_point(wi_world, light.position)) continue;
             deltas_.push_back(DeltaSample{wi, light.intensity * (wi.z / d2)});
         }
         for (const DirectionalLight& light : lights.directionals) {
             const Vec3f wi = s.hit.shading.to_local(light.direction);
             if (!(max_component(light.irradiance) > 0.0f) || !above(light.direction, wi)) continue;
-            if (opt_.shadows && !visible(light.direction, 1e30f)) continue;
+            if (opt_.shadows && !visible_at_infinity(light.direction)) continue;
             deltas_.push_back(DeltaSample{wi, light.irradiance * wi.z});
         }
         s.delta_end = deltas_.size();
