@@ -20,14 +20,15 @@ from helpers import run_cli_here
 
 # 40 steps: no test here reads how well a tiny fit converged, only what adding does with it (rows
 # kept bit for bit, the network frozen or moved, refusals, records); the fine-tune's gain over
-# its sparse start sets its own steps.
-TINY = dict(steps=40, batch=256, pool=2048, eval_pairs=2000)
+# its sparse start sets its own steps. The additions skip the energy bound (its tables are
+# test_energy_bound.py's; 0.5-1.3 s a fit); the base has tables, which a merge keeps bit for bit.
+TINY = dict(steps=40, batch=256, pool=2048, eval_pairs=2000, energy_bound=False)
 
 
 @pytest.fixture(scope="module")
 def base_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("add") / "base.safetensors"
-    settings = FitSettings(width=8, depth=1, latent=2, **TINY)
+    settings = FitSettings(width=8, depth=1, latent=2, **dict(TINY, energy_bound=True))
     fit([open_source("synthetic:gold"), open_source("synthetic:plastic")], settings, progress=False,
         log=lambda m: None).save(path)
     return path
@@ -196,7 +197,8 @@ def test_warm_start_copies_materials_by_name_and_starts_the_rest_from_the_neares
     learning rate the fitted model is M's, row for row; a source M lacks gets M's best-fitting material."""
     base = hb.load_model(base_file)
     logs = []
-    settings = FitSettings(**{**TINY, "steps": 2, "lr": 1e-12}, init_from=str(base_file))
+    # With the bound, as the base has: its tables are among the rows compared.
+    settings = FitSettings(**{**TINY, "steps": 2, "lr": 1e-12, "energy_bound": True}, init_from=str(base_file))
     warm = fit([open_source("synthetic:plastic"), open_source("synthetic:velvet")], settings, init=base,
                progress=False, log=logs.append)
     assert warm.materials == ["plastic", "velvet"]
@@ -275,8 +277,9 @@ def test_several_starts_keep_the_start_of_lowest_loss(base_file):
     logs = []
     twin = _ModelMaterial(base, "plastic")
     for starts in (1, 2):
-        model = fit([twin], FitSettings(frozen_from=str(base_file), sparse_starts=starts, **dict(TINY, steps=1, lr=1e-9)),
-                    frozen=base, progress=False, log=logs.append)
+        settings = FitSettings(frozen_from=str(base_file), sparse_starts=starts,
+                               **dict(TINY, steps=1, lr=1e-9, energy_bound=True))  # the base's tables compared too
+        model = fit([twin], settings, frozen=base, progress=False, log=logs.append)
         assert model.materials == ["twin"] and model.material_info[0]["sparse_start"]["material"] == "plastic"
         for key, value in base.tensors.items():
             if key.startswith("materials."):
@@ -370,8 +373,8 @@ def test_a_fine_tuned_model_goes_through_every_consumer_like_a_fitted_one(base_f
 
     monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
     path = tmp_path / "tuned.safetensors"
-    hb.add(["synthetic:velvet", "synthetic:rough_clay"], out=path, settings=FitSettings(**TINY), progress=False,
-           finetune_steps=20)
+    hb.add(["synthetic:velvet", "synthetic:rough_clay"], out=path, settings=FitSettings(**dict(TINY, energy_bound=True)),
+           progress=False, finetune_steps=20)  # bounded, as a fit is by default
     model = hb.load_model(path)
     rng = np.random.default_rng(5)
     wi = cosine_directions(rng, 2000).astype(np.float32)
