@@ -159,13 +159,13 @@ Buffer Device::upload(const void* bytes, std::size_t size, VkBufferUsageFlags us
 }
 
 Image Device::make_image(uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage,
-                         VkImageAspectFlags aspect) const {
+                         VkImageAspectFlags aspect, uint32_t levels) const {
     Image im;
     VkImageCreateInfo ici{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
     ici.imageType = VK_IMAGE_TYPE_2D;
     ici.format = format;
     ici.extent = {width, height, 1};
-    ici.mipLevels = 1;
+    ici.mipLevels = levels;
     ici.arrayLayers = 1;
     ici.samples = VK_SAMPLE_COUNT_1_BIT;
     ici.tiling = VK_IMAGE_TILING_OPTIMAL;
@@ -183,7 +183,7 @@ Image Device::make_image(uint32_t width, uint32_t height, VkFormat format, VkIma
     vci.image = im.image;
     vci.viewType = VK_IMAGE_VIEW_TYPE_2D;
     vci.format = format;
-    vci.subresourceRange = {aspect, 0, 1, 0, 1};
+    vci.subresourceRange = {aspect, 0, levels, 0, 1};
     check(vkCreateImageView(device_, &vci, nullptr, &im.view), "vkCreateImageView");
     return im;
 }

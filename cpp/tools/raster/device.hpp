@@ -47,9 +47,9 @@ public:
     Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags want) const;
     /// A device-local buffer holding `bytes`, copied through a staging buffer.
     Buffer upload(const void* bytes, std::size_t size, VkBufferUsageFlags usage) const;
-    /// A 2D device-local image of one mip level with a view of `aspect`.
+    /// A 2D device-local image of `levels` mip levels with a view of `aspect` over all of them.
     Image make_image(uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage,
-                     VkImageAspectFlags aspect) const;
+                     VkImageAspectFlags aspect, uint32_t levels = 1) const;
     void destroy(Buffer& b) const;
     void destroy(Image& i) const;
 

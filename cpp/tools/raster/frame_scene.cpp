@@ -123,6 +123,8 @@ GpuMaterial material_entry(const render::Material& m, const std::vector<std::str
     const auto listed = std::find(model_materials.begin(), model_materials.end(), m.name());
     const int model_case = listed == model_materials.end() ? -1 : int(listed - model_materials.begin()) + 1;
     if (const auto* a = dynamic_cast<const render::AnalyticMaterial*>(&m)) return analytic_entry(a->params(), 0);
+    if (const auto* t = dynamic_cast<const render::TexturedMaterial*>(&m); t && model_case > 0)
+        return analytic_entry(t->base_params(), model_case);  // the shader reads its maps
     if (const auto* model = dynamic_cast<const render::ModelMaterial*>(&m)) {
         const std::optional<AnalyticParams> p = model->analytic_params();
         if (model_case > 0) return analytic_entry(p.value_or(AnalyticParams{}), model_case);
@@ -174,7 +176,8 @@ FrameScene build_frame_scene(const render::Scene& scene, const std::vector<std::
         if (out.materials.at(std::size_t(material)).kind[0] < 0)
             throw std::invalid_argument("material '" + scene.materials[std::size_t(material)]->name() + "' (" +
                                         scene.materials[std::size_t(material)]->type() +
-                                        "): the raster frame draws analytic and model materials only");
+                                        "): the raster frame draws analytic, model and textured materials only (a textured one as a "
+                                        "--model-material, its maps given as --texture)");
         Draw d;
         d.first_index = uint32_t(out.indices.size());
         d.material = material;

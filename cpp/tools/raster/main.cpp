@@ -6,11 +6,12 @@
 // the tracer's deterministic direct-light mode (max_depth 1, pixel_jitter 0, a black environment).
 //
 //   hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]...
-//                [--sphere-segments 512] [--validation] [--repeat R]
+//                [--texture MAP.hbtx]... [--sphere-segments 512] [--validation] [--repeat R]
 //
 // The scene is read by the tracer's own loader (hybridbrdf_render). --model-material names, in
 // order, the scene materials the fragment shader evaluates as constants of the generated code
-// (cases 1, 2, ...); the others draw as f_a with their parameters (case 0). Spheres are tessellated
+// (cases 1, 2, ...); the others draw as f_a with their parameters (case 0). --texture names, in
+// binding order (3, 4, ...), the maps of a textured material (textures.hpp). Spheres are tessellated
 // (frame_scene.hpp); "sphere_gap" prints how far inside the sphere its flat triangles reach.
 // --validation enables the Khronos validation layer: any warning or error fails the run (status 3).
 // --repeat R draws R more frames and prints the best time (host clock around submit + wait,
@@ -36,6 +37,7 @@
 #include "hybridbrdf/render/scene_loader.hpp"
 #include "pipeline.hpp"
 #include "readback.hpp"
+#include "textures.hpp"
 
 namespace {
 
@@ -44,14 +46,14 @@ using namespace hbrdf::raster;
 
 struct Args {
     std::string scene, vert, frag, out, png;
-    std::vector<std::string> model_materials;
+    std::vector<std::string> model_materials, textures;
     int sphere_segments = 512, repeat = 0;
     bool validation = false;
 };
 
 const char* kUsage =
     "usage: hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]... "
-    "[--sphere-segments 512] [--validation] [--repeat R]";
+    "[--texture MAP.hbtx]... [--sphere-segments 512] [--validation] [--repeat R]";
 
 int parse_int(const char* flag, const char* text, int lo, int hi) {
     char* end = nullptr;
@@ -72,6 +74,7 @@ Args parse(int argc, char** argv) {
         else if (s == "--out" && has_value) a.out = argv[++i];
         else if (s == "--png" && has_value) a.png = argv[++i];
         else if (s == "--model-material" && has_value) a.model_materials.push_back(argv[++i]);
+        else if (s == "--texture" && has_value) a.textures.push_back(argv[++i]);
         else if (s == "--sphere-segments" && has_value) a.sphere_segments = parse_int("--sphere-segments", argv[++i], 8, 8192);
         else if (s == "--repeat" && has_value) a.repeat = parse_int("--repeat", argv[++i], 0, 100000);
         else if (s.rfind("--", 0) == 0) throw std::invalid_argument("unknown or incomplete argument " + s + "\n" + kUsage);
@@ -141,10 +144,13 @@ int run(int argc, char** argv) {
     Buffer lights = device.upload(fs.lights.data(), fs.lights.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
     int status = 0;
     {
-        FramePipeline pipe(device, width, height, vert, frag);
-        pipe.bind_buffers(camera, materials, lights);
+        std::vector<Texture> textures;
+        for (const std::string& path : a.textures) textures.push_back(load_texture(device, path));
+        FramePipeline pipe(device, width, height, vert, frag, uint32_t(textures.size()));
+        pipe.bind_buffers(camera, materials, lights, textures);
         if (device.validation_messages()) {  // a pipeline the layer refused may crash a driver when drawn
             std::fprintf(stderr, "hbrdf_raster: %d validation message(s) before drawing\n", device.validation_messages());
+            for (Texture& t : textures) destroy(device, t);
             return 3;
         }
         VkQueryPool queries = VK_NULL_HANDLE;
@@ -176,6 +182,7 @@ int run(int argc, char** argv) {
         device.free_commands(cmd);
         const render::Image image = read_color(device, pipe.color_image(), width, height);
         if (queries) vkDestroyQueryPool(device.handle(), queries, nullptr);
+        for (Texture& t : textures) destroy(device, t);
         std::printf("device %s\nsize %u %u\ntriangles %zu\ndraws %zu\nsphere_gap %.3g\nbest_ms %.4f\nbest_cpu_ms %.4f\n",
                     device.properties().deviceName, width, height, fs.indices.size() / 3, fs.draws.size(),
                     fs.max_sphere_gap, best_ms, best_cpu_ms);

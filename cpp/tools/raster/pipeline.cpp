@@ -1,7 +1,10 @@
 // hbrdf_raster — the frame's graphics pipeline (pipeline.hpp).
 #include "pipeline.hpp"
 
+#include <algorithm>
 #include <cstddef>
+#include <stdexcept>
+#include <string>
 
 #include "frame_scene.hpp"
 
@@ -131,8 +134,9 @@ VkPipeline make_pipeline(VkDevice dev, VkRenderPass pass, VkPipelineLayout layou
 }  // namespace
 
 FramePipeline::FramePipeline(const Device& device, uint32_t width, uint32_t height,
-                             const std::vector<char>& vertex_spirv, const std::vector<char>& fragment_spirv)
-    : device_(device), width_(width), height_(height) {
+                             const std::vector<char>& vertex_spirv, const std::vector<char>& fragment_spirv,
+                             uint32_t textures)
+    : device_(device), width_(width), height_(height), textures_(textures) {
     const VkDevice dev = device.handle();
     color_ = device.make_image(width, height, kColorFormat,
                                VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -150,21 +154,24 @@ FramePipeline::FramePipeline(const Device& device, uint32_t width, uint32_t heig
     fbi.layers = 1;
     check(vkCreateFramebuffer(dev, &fbi, nullptr, &framebuffer_), "vkCreateFramebuffer");
 
-    VkDescriptorSetLayoutBinding b[3] = {};
-    for (uint32_t i = 0; i < 3; ++i) {
+    std::vector<VkDescriptorSetLayoutBinding> b(3 + textures);
+    for (uint32_t i = 0; i < 3 + textures; ++i) {
         b[i].binding = i;
-        b[i].descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        b[i].descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
+                              : i < 3 ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
+                                      : VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
         b[i].descriptorCount = 1;
         b[i].stageFlags = i == 0 ? VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT : VK_SHADER_STAGE_FRAGMENT_BIT;
     }
     VkDescriptorSetLayoutCreateInfo dsl{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    dsl.bindingCount = 3;
-    dsl.pBindings = b;
+    dsl.bindingCount = uint32_t(b.size());
+    dsl.pBindings = b.data();
     check(vkCreateDescriptorSetLayout(dev, &dsl, nullptr, &set_layout_), "vkCreateDescriptorSetLayout");
-    const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1}, {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2}};
+    const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1}, {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2},
+                                           {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, std::max(textures, 1u)}};
     VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     dpi.maxSets = 1;
-    dpi.poolSizeCount = 2;
+    dpi.poolSizeCount = 3;
     dpi.pPoolSizes = sizes;
     check(vkCreateDescriptorPool(dev, &dpi, nullptr, &pool_), "vkCreateDescriptorPool");
     VkDescriptorSetAllocateInfo dsa{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
@@ -201,7 +208,11 @@ FramePipeline::~FramePipeline() {
     device_.destroy(depth_);
 }
 
-void FramePipeline::bind_buffers(const Buffer& camera, const Buffer& materials, const Buffer& lights) {
+void FramePipeline::bind_buffers(const Buffer& camera, const Buffer& materials, const Buffer& lights,
+                                 const std::vector<Texture>& textures) {
+    if (textures.size() != textures_)
+        throw std::invalid_argument("the pipeline was built for " + std::to_string(textures_) + " textures, not " +
+                                    std::to_string(textures.size()));
     const VkDescriptorBufferInfo infos[3] = {
         {camera.buffer, 0, VK_WHOLE_SIZE}, {materials.buffer, 0, VK_WHOLE_SIZE}, {lights.buffer, 0, VK_WHOLE_SIZE}};
     VkWriteDescriptorSet writes[3] = {};
@@ -214,6 +225,16 @@ void FramePipeline::bind_buffers(const Buffer& camera, const Buffer& materials, 
         writes[i].pBufferInfo = &infos[i];
     }
     vkUpdateDescriptorSets(device_.handle(), 3, writes, 0, nullptr);
+    for (uint32_t i = 0; i < textures_; ++i) {
+        const VkDescriptorImageInfo info{textures[i].sampler, textures[i].image.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+        VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        w.dstSet = set_;
+        w.dstBinding = 3 + i;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+        w.pImageInfo = &info;
+        vkUpdateDescriptorSets(device_.handle(), 1, &w, 0, nullptr);
+    }
 }
 
 void FramePipeline::begin(VkCommandBuffer cmd) const {

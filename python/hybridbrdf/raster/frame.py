@@ -17,6 +17,7 @@ from typing import Dict, Optional, Union
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.raster.shaders import build_frame_shaders, frame_plan
 from hybridbrdf.raster.sizes import LAVAPIPE_ICD, SPHERE_SEGMENTS
+from hybridbrdf.raster.textures import write_textures
 
 PathLike = Union[str, os.PathLike]
 
@@ -84,6 +85,9 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
         args += ["--validation"] if validation else []
         for name in plan.cases:
             args += ["--model-material", name]
+        if plan.textured is not None:
+            for path in write_textures(plan.textured, {"maps": plan.maps, "addressing": plan.addressing}, folder):
+                args += ["--texture", str(path)]
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:
         # The tool's own line; the validation layer's messages (multi-line dumps) come before it.

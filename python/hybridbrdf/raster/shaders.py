@@ -8,7 +8,9 @@ code generated from their model file (one file per scene: the generated files of
 the same names). Every other material the frame draws ("analytic", or a model material evaluated
 as f_a) is case 0: f_a of the parameters the tool reads from the scene, through the generated
 ``hbrdf_eval_analytic``. A scene without full model materials takes that code from its model
-file, or from the shipped prior (no network runs).
+file, or from the shipped prior (no network runs). A scene with a textured material (one folder,
+beside analytic materials only) takes the folder's code (``hbrdf-codegen DIR``): its maps are
+sampler2D bindings 3, 4, ... read with the pixel's uv derivatives, every case >= 1 that material.
 """
 
 from __future__ import annotations
@@ -18,13 +20,14 @@ import os
 import pathlib
 import shutil
 import subprocess
-from dataclasses import dataclass
-from typing import List
+from dataclasses import dataclass, field
+from typing import List, Optional
 
 import jinja2
 
 from hybridbrdf import _core
-from hybridbrdf.codegen import generate
+from hybridbrdf.codegen import generate, generate_textured
+from hybridbrdf.codegen.textured import textured_plan
 from hybridbrdf.codegen.literals import material_constant
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.files.package_data import package_data_dir
@@ -45,6 +48,9 @@ class FramePlan:
     cases: List[str]
     case_constants: List[str]
     carrier: str
+    textured: Optional[str] = None  #: a textured material's folder: its code, and the frame's only case
+    maps: List[dict] = field(default_factory=list)  #: its maps in binding order (textured_plan's)
+    addressing: str = "repeat"  #: its maps' addressing
 
 
 def frame_plan(scene: str) -> FramePlan:
@@ -60,6 +66,16 @@ def frame_plan(scene: str) -> FramePlan:
         if not same_file(m["file"], full[0]["file"]):
             raise InputFileError(origin, f"{m['where']}: the raster frame draws the full model materials of one "
                                          f"model file; {full[0]['where']} uses {full[0]['file']}, this one {m['file']}")
+    textured = _textured_materials(data, base_dir, origin, decl)
+    if textured:
+        if full:
+            raise InputFileError(origin, f"{full[0]['where']}: a frame with a textured material draws it beside "
+                                         "analytic materials only (the generated files would define the same names)")
+        tplan = textured_plan(textured[0][1])
+        return FramePlan(model_file=os.fspath(tplan["model"].path), emitted=tplan["materials"],
+                         cases=[name for name, _ in textured], case_constants=[], textured=textured[0][1],
+                         carrier=material_constant(tplan["layers"][0]), maps=tplan["maps"],
+                         addressing=tplan["addressing"])
     files = [m["file"] for m in full] or [m["file"] for m in decl["model_materials"]] or [prior_path()]
     model = load_model(files[0])
     if not model.has_analytic:
@@ -76,6 +92,26 @@ def frame_plan(scene: str) -> FramePlan:
                      carrier=material_constant(emitted[0]))
 
 
+def _textured_materials(data: dict, base_dir: str, origin: str, decl: dict) -> list:
+    """[(scene name, folder)] of the scene's textured materials; InputFileError unless they share
+    one folder and evaluate in full."""
+    found = []
+    for m in decl["other_materials"]:
+        if m["type"] != "textured":
+            continue
+        where = m["where"]
+        spec = (data["materials"][m["name"]] if where.startswith("materials.") else
+                data["objects"][int(where.split("[")[1].split("]")[0])]["material"])
+        if spec.get("evaluate", "full") != "full":
+            raise InputFileError(origin, f"{where}.evaluate: the raster frame draws textured materials in full")
+        found.append((m["name"], os.path.join(base_dir, spec["svbrdf"])))
+    for name, folder in found[1:]:
+        if not same_file(folder, found[0][1]):
+            raise InputFileError(origin, f"{name}: the raster frame draws one textured folder; {found[0][0]} uses "
+                                         f"{found[0][1]}, this one {folder}")
+    return found
+
+
 def _templates() -> jinja2.Environment:
     folder = package_data_dir("codegen", "raster.frag.j2")
     return jinja2.Environment(loader=jinja2.FileSystemLoader(str(folder)), undefined=jinja2.StrictUndefined,
@@ -85,13 +121,17 @@ def _templates() -> jinja2.Environment:
 def write_frame_sources(plan: FramePlan, folder: pathlib.Path) -> tuple:
     """Writes ``model.glsl`` (the generated code), ``frame.vert`` and ``frame.frag`` into ``folder``;
     returns the two shader paths."""
-    model = load_model(plan.model_file)
-    (folder / "model.glsl").write_text(generate(model, "glsl", materials=plan.emitted, model_path=plan.model_file))
+    if plan.textured is not None:
+        code = generate_textured(plan.textured, "glsl")
+    else:
+        code = generate(load_model(plan.model_file), "glsl", materials=plan.emitted, model_path=plan.model_file)
+    (folder / "model.glsl").write_text(code)
+    textured = None if plan.textured is None else {"maps": [m["param"] for m in plan.maps]}
     env = _templates()
     vert, frag = folder / "frame.vert", folder / "frame.frag"
     vert.write_text(env.get_template("raster.vert.j2").render())
     frag.write_text(env.get_template("raster.frag.j2").render(model_file="model.glsl", carrier=plan.carrier,
-                                                              cases=plan.case_constants))
+                                                              cases=plan.case_constants, textured=textured))
     return vert, frag
 
 
