@@ -5,11 +5,13 @@ the hybrid materials of one or more models, on the same scene, as ratios from on
     python bench/raster_frame.py [--models results/rgl54_hybrid_32x2.safetensors results/rgl54_fast.safetensors]
                                  [--material paper_white_rgb.rgl] [--repeat 3] [--width 1280 --height 720]
                                  [--sphere-segments 256] [--tool build/hbrdf_raster] [--device lavapipe|any]
+                                 [--svbrdf DIR]
 
 The scene: a sphere (radius 1) on a plane (size 6) filling most of the frame, both of the model's
 material, lit by one point and one directional light (two BRDF evaluations per covered pixel).
 "f_a only" draws the same material with "evaluate": "analytic" (the first model's f_a: the
-generated hbrdf_eval_analytic, no network). Each row is the best of --repeat frames after one
+generated hbrdf_eval_analytic, no network). --svbrdf adds a row for a textured folder (hbrdf paint)
+on both objects: its maps through samplers, every texel's layers of positive weight evaluated. Each row is the best of --repeat frames after one
 warm-up (host clock around submit + wait, the device's timestamps, and the process's CPU time: on
 lavapipe the frame's work, whatever else the machine runs), shaders generated and
 compiled once per row outside the timing. The machine and driver are printed with the table.
@@ -32,7 +34,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def scene(model: str, material: str, evaluate: str, width: int, height: int) -> dict:
-    mat = {"type": "model", "file": os.path.abspath(model), "material": material, "evaluate": evaluate}
+    mat = ({"type": "textured", "svbrdf": os.path.abspath(model)} if evaluate == "textured" else
+           {"type": "model", "file": os.path.abspath(model), "material": material, "evaluate": evaluate})
     return {"camera": {"position": [0.0, 0.9, 3.4], "look_at": [0, -0.2, 0], "up": [0, 1, 0], "fov_deg": 45,
                        "width": width, "height": height},
             "environment": {"type": "constant", "radiance": [0, 0, 0]},
@@ -61,11 +64,14 @@ def main() -> int:
     ap.add_argument("--tool", default=os.environ.get("HBRDF_RASTER", str(ROOT / "build" / "hbrdf_raster")))
     ap.add_argument("--device", choices=["lavapipe", "any"], default="lavapipe",
                     help="lavapipe: pin Mesa's CPU driver; any: the Vulkan loader's choice (a GPU first)")
+    ap.add_argument("--svbrdf", help="a textured material's folder (hbrdf paint) for one more row")
     args = ap.parse_args()
     models = [m for m in args.models if os.path.exists(m)]
     rows = [("f_a only", models[0], "analytic")] + [
         (f"hybrid {arch(m)} "
          f"({os.path.basename(m)})", m, "full") for m in models]
+    if args.svbrdf:
+        rows.append((f"textured ({os.path.basename(os.path.abspath(args.svbrdf))})", args.svbrdf, "textured"))
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for label, model, evaluate in rows:
