@@ -151,6 +151,7 @@ int run(int argc, char** argv) {
         if (device.validation_messages()) {  // a pipeline the layer refused may crash a driver when drawn
             std::fprintf(stderr, "hbrdf_raster: %d validation message(s) before drawing\n", device.validation_messages());
             for (Texture& t : textures) destroy(device, t);
+            for (Buffer* b : {&vertices, &indices, &camera, &materials, &lights}) device.destroy(*b);
             return 3;
         }
         VkQueryPool queries = VK_NULL_HANDLE;

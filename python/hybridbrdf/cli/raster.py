@@ -35,7 +35,10 @@ def add_parser(sub) -> None:
                    help="pin Mesa's CPU Vulkan driver (lavapipe) instead of the Vulkan loader's first device")
     p.add_argument("--tool", help="the hbrdf_raster executable (default: $HBRDF_RASTER, else hbrdf_raster on PATH; "
                                   "a source build has it in build/)")
-    p.add_argument("--keep-shaders", metavar="DIR", help="write the generated GLSL and its SPIR-V into DIR")
+    p.add_argument("--language", choices=["glsl", "hlsl"], default="glsl",
+                   help="the fragment stage's shading language: the generated GLSL, or the generated HLSL through "
+                        "glslang's HLSL front end (not for textured materials); default %(default)s")
+    p.add_argument("--keep-shaders", metavar="DIR", help="write the generated code, both stages and their SPIR-V into DIR")
     p.set_defaults(func=run)
 
 
@@ -47,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         stats = draw_frame(args.scene, args.out, png=args.png, validation=args.validation, repeat=args.repeat,
                            sphere_segments=args.sphere_segments, lavapipe=args.lavapipe, tool=args.tool,
-                           keep_shaders=args.keep_shaders)
+                           keep_shaders=args.keep_shaders, language=args.language)
     except RuntimeError as exc:  # the tool's, the compilers' or Vulkan's words, one line
         print(f"hbrdf raster: {exc}", file=sys.stderr)
         return 1

@@ -1,6 +1,6 @@
-"""The raster frame's shaders for one scene: the generated GLSL of its model materials inside the
-frame template (``codegen/raster.frag.j2``, ``codegen/raster.vert.j2``), compiled to SPIR-V by
-glslangValidator and checked by spirv-val.
+"""The raster frame's shaders for one scene: the generated GLSL (or HLSL) of its model materials
+inside the frame template (``codegen/raster.frag.j2`` or ``raster.hlsl.j2``, with the GLSL vertex
+stage ``codegen/raster.vert.j2``), compiled to SPIR-V by glslangValidator and checked by spirv-val.
 
 Which code: the scene's materials of type "model" evaluated in full (``"evaluate": "full"`` and a
 ``neural_max_depth`` other than 0) are each a case of the fragment shader's switch, a constant of the
@@ -118,20 +118,26 @@ def _templates() -> jinja2.Environment:
                               keep_trailing_newline=True)
 
 
-def write_frame_sources(plan: FramePlan, folder: pathlib.Path) -> tuple:
-    """Writes ``model.glsl`` (the generated code), ``frame.vert`` and ``frame.frag`` into ``folder``;
-    returns the two shader paths."""
+def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "glsl") -> tuple:
+    """Writes the generated code (``model.glsl`` or ``model.hlsl``), ``frame.vert`` and the fragment
+    stage (``frame.frag``, or ``frame.hlsl`` for ``language`` "hlsl") into ``folder``; returns the
+    two shader paths. The vertex stage is GLSL in both."""
+    if language not in ("glsl", "hlsl"):
+        raise ValueError(f"language: expected 'glsl' or 'hlsl', got {language!r}")
+    if plan.textured is not None and language != "glsl":
+        raise ValueError("language: a frame with a textured material is drawn from GLSL only")
     if plan.textured is not None:
         code = generate_textured(plan.textured, "glsl")
     else:
-        code = generate(load_model(plan.model_file), "glsl", materials=plan.emitted, model_path=plan.model_file)
-    (folder / "model.glsl").write_text(code)
+        code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file)
+    (folder / f"model.{language}").write_text(code)
     textured = None if plan.textured is None else {"maps": [m["param"] for m in plan.maps]}
     env = _templates()
-    vert, frag = folder / "frame.vert", folder / "frame.frag"
+    vert, frag = folder / "frame.vert", folder / ("frame.frag" if language == "glsl" else "frame.hlsl")
     vert.write_text(env.get_template("raster.vert.j2").render())
-    frag.write_text(env.get_template("raster.frag.j2").render(model_file="model.glsl", carrier=plan.carrier,
-                                                              cases=plan.case_constants, textured=textured))
+    template = "raster.frag.j2" if language == "glsl" else "raster.hlsl.j2"
+    frag.write_text(env.get_template(template).render(model_file=f"model.{language}", carrier=plan.carrier,
+                                                      cases=plan.case_constants, textured=textured))
     return vert, frag
 
 
@@ -142,7 +148,8 @@ def compile_stage(source: pathlib.Path, spirv: pathlib.Path) -> None:
         if shutil.which(tool) is None:
             raise RuntimeError(f"{tool} not found: the raster frame compiles its shaders with it "
                                "(Debian: glslang-tools, spirv-tools)")
-    r = subprocess.run(["glslangValidator", "-V", "--target-env", "vulkan1.1", str(source), "-o", str(spirv)],
+    hlsl = ["-D", "-S", "frag", "-e", "main"] if source.suffix == ".hlsl" else []  # glslang's HLSL front end
+    r = subprocess.run(["glslangValidator", *hlsl, "-V", "--target-env", "vulkan1.1", str(source), "-o", str(spirv)],
                        capture_output=True, text=True)
     if r.returncode != 0:
         errors = [line for line in r.stdout.splitlines() if "ERROR" in line] or r.stdout.splitlines()[-1:]
@@ -152,9 +159,10 @@ def compile_stage(source: pathlib.Path, spirv: pathlib.Path) -> None:
         raise RuntimeError(f"{spirv}: spirv-val: {(r.stderr or r.stdout).strip().splitlines()[0]}")
 
 
-def build_frame_shaders(plan: FramePlan, folder: pathlib.Path) -> tuple:
-    """The plan's sources written into ``folder`` and compiled: (vert.spv, frag.spv)."""
-    vert, frag = write_frame_sources(plan, folder)
+def build_frame_shaders(plan: FramePlan, folder: pathlib.Path, language: str = "glsl") -> tuple:
+    """The plan's sources written into ``folder`` (the fragment stage in ``language``, "glsl" or
+    "hlsl") and compiled: (vert.spv, frag.spv)."""
+    vert, frag = write_frame_sources(plan, folder, language)
     spirv = folder / "vert.spv", folder / "frag.spv"
     compile_stage(vert, spirv[0])
     compile_stage(frag, spirv[1])
