@@ -48,7 +48,13 @@ Device::Device(bool validation) {
         ici.ppEnabledExtensionNames = extensions;
         ici.pNext = &dbg;  // also reports problems in instance creation itself
     }
-    check(vkCreateInstance(&ici, nullptr, &instance_), "vkCreateInstance");
+    const VkResult created = vkCreateInstance(&ici, nullptr, &instance_);
+    if (created == VK_ERROR_INCOMPATIBLE_DRIVER)
+        throw std::runtime_error("no Vulkan driver (VK_ERROR_INCOMPATIBLE_DRIVER): install one (Debian: mesa-vulkan-drivers "
+                                 "for lavapipe) or check VK_DRIVER_FILES");
+    if (created == VK_ERROR_LAYER_NOT_PRESENT)
+        throw std::runtime_error("--validation needs the Khronos validation layer (Debian: vulkan-validationlayers)");
+    check(created, "vkCreateInstance");
     if (validation) {
         auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
             vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));

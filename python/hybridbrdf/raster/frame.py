@@ -93,7 +93,9 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:
         # The tool's own line; the validation layer's messages (multi-line dumps) come before it.
+        # (A tool that cannot start, e.g. without libvulkan, says so in the loader's words: its last line.)
         lines = [line for line in r.stderr.splitlines() if line.startswith("hbrdf_raster:")]
+        other = [line.strip() for line in r.stderr.splitlines() if line.strip()]
         status = f"killed by signal {-r.returncode}" if r.returncode < 0 else f"failed with status {r.returncode}"
-        raise RuntimeError(lines[-1] if lines else f"hbrdf_raster: {status}")
+        raise RuntimeError(lines[-1] if lines else f"hbrdf_raster: {status}" + (f": {other[-1]}" if other else ""))
     return _parse_report(r.stdout)
