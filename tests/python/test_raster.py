@@ -262,6 +262,7 @@ def painted(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # ~12 s of CPU with the paint: the folder, three tracer renders, the frame
 def test_textured_frame_matches_tracer(tmp_path, painted):
     """A textured sphere: its weights map through a sampler2D, filtered by the texture unit and
     decoded by the generated code, against the tracer's bilinear lookup of the same map (level 0,
