@@ -92,7 +92,10 @@ def test_the_hybrid_fit_recovers_prior_materials_on_pure_texels_in_every_directi
 def test_the_written_folder_evaluates_in_libhybridbrdf_as_eval_does(halves_observations, tmp_path, monkeypatch):
     # A fit's maps, not a converged one's: what is written and read back is the same whatever the
     # fit's steps (its own fit: the module's accurate one would be fitted again on another worker).
+    # Two clusters, as the sample has two materials: scoring a cluster against the prior's 142
+    # materials costs ~1 s of CPU.
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
+    monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
     prior, obs = halves_observations
     maps = fit_hybrid_texels(obs, prior, steps=10, seed=0)
     maps.save(tmp_path / "sv")
@@ -146,6 +149,9 @@ class Stop(Exception):
 
 def test_resume_continues_and_matches_and_nothing_is_half_written(tmp_path, monkeypatch):
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
+    # Two clusters (the sample's two materials; a restored state of one would not show its clusters
+    # swapped): each costs ~1 s of CPU scoring the prior's 142 materials, in each of three runs.
+    monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
     # The kd edits' energy tables (5 s each) are tested with hbrdf paint's; resuming does not touch them.
     monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))
     prior = load_prior()
