@@ -7,7 +7,9 @@ validation layer on, against independent references at every pixel centre:
   evaluated at the float64 reference's directions;
 - the same scenes rendered by the path tracer's deterministic direct-light mode (max_depth 1,
   pixel_jitter and shadows off, a black environment), pixel by pixel, and a textured sphere (the
-  folder of scenes/textured.json) whose weights map the fragment shader reads through a sampler2D.
+  folder of scenes/textured.json) whose weights map the fragment shader reads through a sampler2D,
+  and a smooth OBJ mesh without uvs;
+- the generated HLSL in the fragment stage, against the same library references.
 
 Pixels within one pixel of a silhouette or of the plane's edge are left out: there the
 tessellated sphere (sphere_gap 3.8e-5 of the radius at 512 segments) and the exact one may cover a
