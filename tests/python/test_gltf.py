@@ -144,8 +144,9 @@ def test_closed_form_start_inverts_the_mapping(kd, eta, alpha):
 
 @pytest.mark.slow
 def test_fit_no_worse_than_closed_form_and_better_when_anisotropic():
-    """The fallback kept is never worse than the closed form against f_a on either metric, and on
-    an anisotropic material the fit is strictly better on both (Schlick against exact Fresnel,
+    """The fallback kept is never worse than the closed form against f_a on the two metrics
+    together (the mean of the SMAPE and cMAE ratios at most 1, docs/GLTF.md), and on an
+    anisotropic material the fit is strictly better on both (Schlick against exact Fresnel,
     height-correlated against separable Smith and the diffuse's 1 - max F are what it absorbs;
     seen failing with the fit's result taken whatever its error, on the dark material below)."""
     for kd, eta, alpha in (((0.3, 0.2, 0.1), (1.6, 1.6, 1.6), (0.3, 0.05)),
@@ -153,7 +154,7 @@ def test_fit_no_worse_than_closed_form_and_better_when_anisotropic():
         r = fit_fallback(kd, eta, alpha, **QUICK)
         kept = r.metrics[(r.kept, "f_a")]
         start = r.metrics[("closed_form", "f_a")]
-        assert kept[0] <= start[0] and kept[1] <= start[1]
+        assert (kept[0] / start[0] + kept[1] / start[1]) / 2 <= 1.0
         if alpha[0] != alpha[1]:
             assert r.kept == "fitted"
             fitted = r.metrics[("fitted", "f_a")]
