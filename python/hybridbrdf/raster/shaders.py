@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass, field
@@ -35,6 +36,18 @@ from hybridbrdf.inputs import same_file
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import prior_path
 from hybridbrdf.render.tracer import load_scene_dict
+
+
+#: A glTF object's bind as the scene's declaration names it (read_scene_decl's "where").
+_BIND = re.compile(r"^(objects\[\d+\])\.bind\.(.*)$", re.S)
+
+
+def _loaded_name(where: str, name: str) -> str:
+    """The loaded scene's name for a declared material (the tool matches --model-material by it): a
+    glTF object's bind is "objects[i]:KEY" there (scene_loader.cpp's label for the asset's
+    materials), "objects[i].bind.KEY" in the declaration; other materials keep their names."""
+    match = _BIND.match(where)
+    return f"{match.group(1)}:{match.group(2)}" if match else name
 
 
 @dataclass
@@ -87,7 +100,7 @@ def frame_plan(scene: str) -> FramePlan:
             raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {files[0]}")
     if not emitted:
         emitted = [model.materials[0]]
-    return FramePlan(model_file=os.fspath(files[0]), emitted=emitted, cases=[m["name"] for m in full],
+    return FramePlan(model_file=os.fspath(files[0]), emitted=emitted, cases=[_loaded_name(m["where"], m["name"]) for m in full],
                      case_constants=[material_constant(m["material"]) for m in full],
                      carrier=material_constant(emitted[0]))
 
@@ -99,12 +112,13 @@ def _textured_materials(data: dict, base_dir: str, origin: str, decl: dict) -> l
     for m in decl["other_materials"]:
         if m["type"] != "textured":
             continue
-        where = m["where"]
-        spec = (data["materials"][m["name"]] if where.startswith("materials.") else
-                data["objects"][int(where.split("[")[1].split("]")[0])]["material"])
+        where, bind = m["where"], _BIND.match(m["where"])
+        obj = None if where.startswith("materials.") else data["objects"][int(where.split("[")[1].split("]")[0])]
+        spec = (data["materials"][m["name"]] if obj is None else
+                {"svbrdf": obj["bind"][bind.group(2)]} if bind else obj["material"])
         if spec.get("evaluate", "full") != "full":
             raise InputFileError(origin, f"{where}.evaluate: the raster frame draws textured materials in full")
-        found.append((m["name"], os.path.join(base_dir, spec["svbrdf"])))
+        found.append((_loaded_name(where, m["name"]), os.path.join(base_dir, spec["svbrdf"])))
     for name, folder in found[1:]:
         if not same_file(folder, found[0][1]):
             raise InputFileError(origin, f"{name}: the raster frame draws one textured folder; {found[0][0]} uses "
