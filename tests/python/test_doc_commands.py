@@ -43,6 +43,7 @@ PLACEHOLDERS = {
     "DIR": "out/dir", "SRC": "out/dir", "DIR2": "out/dir2", "CAPTURE": "out/capture", "RIG.json": "out/rig.json", "OUT": "out/materials.glsl",
     "SCENE.json": "scenes/sphere_env.json", "S.json": "scenes/sphere_env.json", "OUT.exr": "out/image.exr",
     "OUT.png": "out/image.png", "MAP.exr": "out/environment.exr", "HOST0:29500": "localhost:29500",
+    "MODEL_OR_SVBRDF": MODEL, "OUT.glb": "out/asset.glb", "FILE.obj": "out/mesh.obj",
     "N": "2", "K": "0", "EV": "0.5", "EPS": "0.1", "DEVICE": "cpu", "KxV": "2x3", "WxH": "8x8", "D": "0.3", "P": "1000", "E": "2", "S": "0.001",
 }
 #: "hbrdf fit ..." stands for a whole fit command line.
@@ -136,6 +137,10 @@ NOT_RUN = {
     "python bench/render_selective.py --size 256 --spp 32": "a rendering benchmark: a minute",
     "python bench/viewer_load.py --runs 3": "starts chromium three times: a minute",
 }
+NOT_RUN.update({  # docs/GLTF.md: each fallback fit takes seconds; test_gltf.py runs hbrdf export on one material
+    "hbrdf export results/rgl54_fast.safetensors --gltf out/two.glb --material paper_white_rgb.rgl "
+    "vch_golden_yellow_rgb.rgl": "two fallback fits, 5-20 s; test_gltf.py exports the same two materials",
+    "python bench/gltf_fallback.py": "fits the fallback of each of the shipped prior's 142 materials: minutes"})
 NOT_RUN.update({f"hbrdf-codegen out/textured --target {target} -o material.{target}": (
     "needs the folder scenes/textured.json's paint command writes; test_codegen_textured.py runs these as printed")
     for target in ("glsl", "hlsl", "slang", "wgsl")})
