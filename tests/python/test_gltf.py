@@ -294,3 +294,8 @@ def test_cli_export_end_to_end(tmp_path):
     assert not (tmp_path / "x.glb").exists()
     over = run_cli_here("export", out, "--gltf", out)
     assert over.returncode == 1 and "would destroy" in over.stderr
+    neural = ROOT / "results" / "rgl44_heldout_neural_32x3_10k.safetensors"
+    r = run_cli_here("export", neural, "--gltf", tmp_path / "n.glb")
+    assert r.returncode == 1 and f"{neural}: a 'neural' model has no analytic part" in r.stderr
+    r = run_cli_here("export", MODEL, "--gltf", tmp_path, "--material", "paper_white_rgb.rgl")
+    assert r.returncode == 1 and "is a folder" in r.stderr and "fitted" not in r.stdout

@@ -107,9 +107,9 @@ CASES = [
 
 @pytest.mark.parametrize("name,damage,pattern", CASES, ids=[c[0] for c in CASES])
 def test_refusals_name_the_json_path(tmp_path, seed, name, damage, pattern):
-    """Each damage refused in one line, ``<file>: <JSON path>: <problem>`` (seen failing, case by
-    case, with the matching check removed: the accessor count then raises NumPy's ValueError, the
-    index a later IndexError in a renderer, the URI reads the file outside)."""
+    """Each damage refused in one line, ``<file>: <JSON path>: <problem>`` (seen failing with the
+    matching check removed for the accessor count, the index bound and the URI's folder check:
+    the asset then reads, or NumPy's error escapes)."""
     doc, binary = damage(json.loads(json.dumps(seed[0])), seed[1])
     (tmp_path.parent / "secret.bin").write_bytes(b"\0" * 4096)
     path = tmp_path / "asset.glb"

@@ -13,7 +13,8 @@ from typing import Callable, List, Optional, Sequence
 import numpy as np
 from PIL import Image
 
-from hybridbrdf.files import scratch_folder
+from hybridbrdf.errors import InputFileError
+from hybridbrdf.files import check_writable, scratch_folder
 from hybridbrdf.gltf.fallback import FallbackReport, fit_fallback
 from hybridbrdf.gltf.hybrid import MODEL_FILE, folder_payload, model_payload
 from hybridbrdf.gltf.meshes import Mesh, plane, read_obj, uv_sphere
@@ -96,6 +97,7 @@ def export_gltf(source, out, mesh="sphere", materials: Optional[Sequence[str]] =
     (or KeyError for a material the model lacks); nothing is written unless everything worked."""
     source, out = os.fspath(source), os.fspath(out)
     refuse_output_over_input(out, [source] + ([mesh] if mesh not in ("sphere", "plane") else []), "--gltf")
+    check_writable(out, "glTF output")  # fail now, not after the fits
     geometry = export_mesh(mesh)
     entries, reports = [], []
     if os.path.isdir(source):
@@ -111,6 +113,8 @@ def export_gltf(source, out, mesh="sphere", materials: Optional[Sequence[str]] =
             with open(copy, "wb") as fh:
                 fh.write(data)
             model = load_model(copy)
+            if not model.has_analytic:
+                raise InputFileError(source, f"a '{model.kind}' model has no analytic part f_a: no glTF fallback to fit")
             names = list(materials) if materials else model.materials
             indices = [model.index(n) for n in names]  # KeyError naming a missing material, before any fit
             for name, i in zip(names, indices):
