@@ -8,9 +8,6 @@ functions at the nodes), the white furnace of the tracer, exact reciprocity, and
 refusal of tables that could add light. Each bound has its control: the same material without the
 table reflects more than it receives, so every check can fail."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 import torch
@@ -25,7 +22,7 @@ from hybridbrdf.model import energy
 from hybridbrdf.model.random import random_model
 from hybridbrdf.render import tracer
 
-from helpers import hard_pairs, skip_without_vulkan
+from helpers import hard_pairs, run_cli_here, skip_without_vulkan
 from shader_kernels import render_shader
 from slang_wgsl_tools import run_kernel
 
@@ -272,31 +269,30 @@ def test_a_fit_writes_tables_and_no_energy_bound_does_not(tmp_path):
     out = tmp_path / "m.safetensors"
     plain = tmp_path / "plain.safetensors"
     # 10 steps and no preview: the tables follow whatever the fit ends at; the preview is not read here.
+    # hbrdf in this process (a fresh interpreter imports torch and torch._dynamo: 4-5 s of CPU).
     for path, extra in ((out, []), (plain, ["--no-energy-bound"])):
-        subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "fit", "synthetic:gold", "synthetic:plastic",
-                        "--steps", "10", "--batch", "512", "--pool", "4096", "--eval-pairs", "2000", "--mlp", "8x1",
-                        "--no-preview", "--out", str(path), *extra], check=True, capture_output=True, text=True)
+        r = run_cli_here("fit", "synthetic:gold", "synthetic:plastic", "--steps", "10", "--batch", "512", "--pool",
+                         "4096", "--eval-pairs", "2000", "--mlp", "8x1", "--no-preview", "--out", str(path), *extra)
+        assert r.returncode == 0, r.stderr
     model, free = hb.load_model(out), hb.load_model(plain)
     assert model.arch["energy_bound"] == "albedo_table" and model.tensors["materials.energy_bound"].shape == (2, spec.ENERGY_NODES)
     assert all("energy_bound" in m for m in model.material_info)
     assert free.arch["energy_bound"] == "none" and "materials.energy_bound" not in free.tensors
-    info = subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "info", str(out), "--albedo-samples", "0"],
-                          check=True, capture_output=True, text=True).stdout
-    assert "energy bound per material" in info and "energy bound: max albedo" in info
+    r = run_cli_here("info", str(out), "--albedo-samples", "0")
+    assert r.returncode == 0, r.stderr
+    assert "energy bound per material" in r.stdout and "energy bound: max albedo" in r.stdout
 
 
 def test_hbrdf_bound_bounds_an_old_file_and_leaves_out_alone_on_error(tmp_path, bright_edit):
     edited, free = bright_edit
     out = tmp_path / "b.safetensors"
-    r = subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "bound", free.path, "--out", str(out),
-                        "--materials", "bright"], capture_output=True, text=True)
+    r = run_cli_here("bound", free.path, "--out", str(out), "--materials", "bright")
     assert r.returncode == 0, r.stderr
     assert "bright" in r.stdout and "1 material(s) dimmed" in r.stdout
     bounded = hb.load_model(out)
     assert bounded.tensors["materials.energy_bound"][bounded.index("bright")].min() < 0.9
     others = [i for i, m in enumerate(bounded.materials) if m != "bright"]
     assert (bounded.tensors["materials.energy_bound"][others] == 1.0).all()
-    r = subprocess.run([sys.executable, "-m", "hybridbrdf.cli", "bound", free.path, "--out", str(tmp_path / "x"),
-                        "--materials", "no-such"], capture_output=True, text=True)
+    r = run_cli_here("bound", free.path, "--out", str(tmp_path / "x"), "--materials", "no-such")
     assert r.returncode == 1 and "no-such" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
