@@ -5,11 +5,13 @@ the exported asset through two other readers and the glTF 2.0 JSON schema, the r
 the hybrid material bit for bit, and ``hbrdf export`` end to end. The bounded reader's
 refusals are test_gltf_reader.py's."""
 
+import io
 import math
 import pathlib
 
 import numpy as np
 import pytest
+from PIL import Image
 
 import hybridbrdf
 from hybridbrdf.gltf import (GltfMaterial, export_gltf, fa_to_material, fit_fallback, gltf_eval, material_to_fa,
@@ -257,8 +259,9 @@ def test_round_trip_bit_for_bit(exported, tmp_path):
 @pytest.mark.slow
 def test_textured_round_trip_bit_for_bit(tmp_path):
     """A textured material's folder travels whole: read back, it evaluates bit for bit as the
-    folder; its fallback carries a baseColor image of the texels' kd (seen failing with a map
-    file left out of the carried files: the folder is refused on load)."""
+    folder; its fallback carries a baseColor image of the texels' kd and the folder's normal map as
+    its normalTexture (seen failing with a map file left out of the carried files: the folder is
+    refused on load)."""
     from hybridbrdf.svbrdf import SVBRDF, load_svbrdf
 
     model = hybridbrdf.load_model(MODEL)
@@ -266,12 +269,18 @@ def test_textured_round_trip_bit_for_bit(tmp_path):
     weights = np.zeros((8, 8, 3), np.float32)
     weights[:, 4:, 0] = 1.0
     kd = rng.random((8, 8, 3)).astype(np.float32)
-    sv = SVBRDF(model, ["paper_white_rgb.rgl", "vch_golden_yellow_rgb.rgl"], (8, 8), weights, [{"kd": kd}, {}])
+    normal = np.zeros((8, 8, 2), np.float32)
+    normal[:, :, 0] = 0.3  # tilted toward +x: the fallback's normalTexture holds it
+    sv = SVBRDF(model, ["paper_white_rgb.rgl", "vch_golden_yellow_rgb.rgl"], (8, 8), weights, [{"kd": kd}, {}],
+                normal=normal)
     sv.save(tmp_path / "tex")
     export_gltf(tmp_path / "tex", tmp_path / "tex.glb", mesh="plane", **QUICK)
     asset = read_gltf(tmp_path / "tex.glb")
     mat = asset.document["materials"][0]
     assert "baseColorTexture" in mat["pbrMetallicRoughness"] and asset.image_info[0] == ("png", 8, 8)
+    png = asset.image_bytes(asset.document["textures"][mat["normalTexture"]["index"]]["source"])
+    texel = np.asarray(Image.open(io.BytesIO(png)))[0, 0] / 255.0 * 2 - 1  # glTF: n = 2 v - 1
+    np.testing.assert_allclose(texel, [0.3, 0.0, math.sqrt(1 - 0.09)], atol=0.01)
     back = read_hybrid(tmp_path / "tex.glb", tmp_path / "back")["tex"].svbrdf
     ref = load_svbrdf(tmp_path / "tex")
     uv = rng.random((3000, 2))
