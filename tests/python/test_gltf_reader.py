@@ -197,3 +197,18 @@ def test_extension_refusals(tmp_path, seed, field, value, pattern):
     with pytest.raises(GltfError, match=r"^" + re.escape(str(path)) + r": /materials/0/extensions" + ".*" + pattern):
         read_hybrid(path, tmp_path / "out")
     assert not (tmp_path / "model.safetensors").exists() and not (tmp_path / "out").exists()
+
+
+def test_another_writers_assets_read(tmp_path):
+    """Assets trimesh writes (GLB, and .gltf with its buffer beside it) read, their accessors as
+    trimesh's arrays (the reader refuses damage, not other writers' layouts; seen failing with the
+    bufferView's byteOffset left out of an accessor's start)."""
+    import trimesh
+
+    box = trimesh.creation.box()
+    for name in ("t.glb", "t.gltf"):
+        trimesh.Scene([box]).export(tmp_path / name)
+        asset = read_gltf(tmp_path / name)
+        prim = asset.document["meshes"][0]["primitives"][0]
+        np.testing.assert_array_equal(asset.accessor(prim["attributes"]["POSITION"]), box.vertices.astype(np.float32))
+        assert asset.accessor(prim["indices"]).reshape(-1, 3).shape == box.faces.shape
