@@ -117,7 +117,8 @@ def test_material_to_fa_hand_computed():
     kd = 0.75 baseColor = (0.6, 0.375, 0.15); F0 = 0.75 * 0.04 * 0.5 * specularColor + 0.25
     baseColor = (0.215, 0.1325, 0.065); eta = (1 + sqrt F0) / (1 - sqrt F0) = (2.7291234,
     2.1446813, 1.6843871); alpha = 0.25, alpha_x = 0.25 (1 - 0.36) + 0.36 = 0.52 (seen failing with
-    the metallic mix of F0 left out, and with alpha_x = mix(alpha, 1, s))."""
+    the metallic mix of F0 left out, with alpha_x = mix(alpha, 1, s), and without the min(., 1) of
+    KHR_materials_specular)."""
     mat = GltfMaterial(base_color=(0.8, 0.5, 0.2), metallic=0.25, roughness=0.5, ior=1.5, specular=0.5,
                        specular_color=(1.0, 0.5, 1.0), anisotropy=0.6)
     fa = material_to_fa(mat)
@@ -126,6 +127,9 @@ def test_material_to_fa_hand_computed():
     np.testing.assert_allclose(fa["alpha"], [0.52, 0.25], rtol=1e-12)
     turned = material_to_fa(GltfMaterial(roughness=0.5, anisotropy=0.6, anisotropy_rotation=math.pi / 2))
     np.testing.assert_allclose(turned["alpha"], [0.25, 0.52], rtol=1e-12)
+    # KHR_materials_specular's clamp: min(1 * 2, 1) * 0.5 = 0.5, eta = (1 + sqrt 0.5) / (1 - sqrt 0.5)
+    capped = material_to_fa(GltfMaterial(metallic=0.0, ior=0.0, specular=0.5, specular_color=(2.0, 2.0, 2.0)))
+    np.testing.assert_allclose(capped["eta"], 5.828427124746190, rtol=1e-12)
     clamped = material_to_fa(GltfMaterial(base_color=(1, 1, 1), metallic=1.0, roughness=0.0))
     assert clamped["eta"].tolist() == [10.0] * 3 and clamped["alpha"].tolist() == [hybridbrdf.ALPHA_MIN] * 2
 

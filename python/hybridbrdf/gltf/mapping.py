@@ -3,7 +3,7 @@
 by readers of glTF assets (:func:`material_to_fa`; libhybridbrdf's tracer states the same rule).
 
     kd_c    = baseColor_c (1 - metallic)
-    F0_c    = mix(((ior - 1) / (ior + 1))^2 specularColor_c specular, baseColor_c, metallic)
+    F0_c    = mix(min(((ior - 1) / (ior + 1))^2 specularColor_c, 1) specular, baseColor_c, metallic)
     eta_c   = (1 + sqrt F0_c) / (1 - sqrt F0_c), clamped to [1, 10]
     alpha   = roughness^2, clamped to [alpha_min, 1]
     alpha_x = mix(alpha, 1, s^2), alpha_y = alpha     (s: anisotropyStrength)
@@ -53,7 +53,8 @@ def material_to_fa(material: GltfMaterial) -> dict:
     base = np.asarray(material.base_color, dtype=np.float64)
     m = float(material.metallic)
     spec_color = np.asarray(material.specular_color, dtype=np.float64)
-    dielectric_f0 = material.dielectric_f0_scale() * spec_color * material.specular
+    # min(., 1): KHR_materials_specular's clamp (specularColor may exceed 1)
+    dielectric_f0 = np.minimum(material.dielectric_f0_scale() * spec_color, 1.0) * material.specular
     f0 = (1.0 - m) * dielectric_f0 + m * base
     alpha_t, alpha_b = alphas(material.roughness, material.anisotropy)
     alpha_t, alpha_b = (min(max(a, ALPHA_MIN), ALPHA_MAX) for a in (alpha_t, alpha_b))
