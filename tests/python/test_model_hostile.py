@@ -13,7 +13,7 @@ from hybridbrdf import _core, spec
 from hybridbrdf.model.validate import network_overflow_problem
 from hybridbrdf.model.random import random_model
 
-from helpers import hard_pairs, run_cli
+from helpers import hard_pairs, run_cli_here
 
 
 @pytest.mark.parametrize("edit", [
@@ -33,7 +33,7 @@ def test_info_prints_any_valid_file(tmp_path, edit):
     edit(model)
     path = tmp_path / "m.safetensors"
     model.save(path)
-    r = run_cli("info", str(path))
+    r = run_cli_here("info", str(path))
     assert r.returncode == 0, r.stderr
     assert "Traceback" not in r.stderr
     assert all(ch == "\n" or " " <= ch <= "~" for ch in r.stdout), r.stdout
@@ -115,7 +115,7 @@ def test_render_names_scene_key_and_file_for_a_byte_flipped_model(tmp_path):
     scene["camera"].update(width=8, height=8)
     scene_path = tmp_path / "scene.json"
     scene_path.write_text(json.dumps(scene))
-    r = run_cli("render", str(scene_path), "-o", str(tmp_path / "o.exr"), "--quiet")
+    r = run_cli_here("render", str(scene_path), "-o", str(tmp_path / "o.exr"), "--quiet")
     assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
     line = r.stderr.strip()
     assert "\n" not in line and f"{scene_path}: materials.paper.file: {path}: " in line, line

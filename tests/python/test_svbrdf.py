@@ -28,7 +28,7 @@ from hybridbrdf.svbrdf.entries import SVBRDFError
 from hybridbrdf.svbrdf.decode import decode, encode, inverse_transfer, png_channel, transfer
 from hybridbrdf.svbrdf.maps import write_map
 
-from helpers import run_cli, saved_random_model
+from helpers import run_cli_here, saved_random_model
 
 
 def _directions(n=3000, seed=3):
@@ -548,17 +548,17 @@ def test_paint_fits_a_measured_layer_on_the_frozen_network(tmp_path):
 def test_hbrdf_paint_command_line(tmp_path):
     path, m = saved_random_model(tmp_path, "hybrid")
     _write_png(tmp_path / "mask.png", np.full((3, 5), 255, np.uint8), "L")
-    r = run_cli("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
+    r = run_cli_here("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
                 "--format", "exr", "--out", str(tmp_path / "sv"))
     assert r.returncode == 0, r.stderr
     assert "5x3 texels, 2 layer(s)" in r.stdout
     assert load_svbrdf(tmp_path / "sv").texels(np.array([[0.5, 0.5]]))["weight"][0].tolist() == [0.0, 1.0]
     _write_png(tmp_path / "small.png", np.full((2, 2), 255, np.uint8), "L")
-    r = run_cli("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
+    r = run_cli_here("paint", str(path), "--base", m.materials[0], "--layer", f"{m.materials[1]}=" + str(tmp_path / "mask.png"),
                 "--layer", f"{m.materials[2]}=" + str(tmp_path / "small.png"), "--out", str(tmp_path / "sv2"))
     assert r.returncode != 0 and "small.png: mask is 2x2; the textured material is 5x3" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "sv2").exists()
-    r = run_cli("paint", str(path), "--base", "no-such-material", "--size", "4x4", "--out", str(tmp_path / "sv3"))
+    r = run_cli_here("paint", str(path), "--base", "no-such-material", "--size", "4x4", "--out", str(tmp_path / "sv3"))
     assert r.returncode != 0 and "neither a material of" in r.stderr
 
 

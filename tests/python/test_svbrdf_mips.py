@@ -309,20 +309,20 @@ def test_ktx2_maps_the_quantity_cannot_hold_are_refused_by_both_loaders(model, t
 def test_paint_and_convert_write_chains_and_ktx2_on_the_command_line(model, tmp_path):
     from PIL import Image
 
-    from helpers import run_cli
+    from helpers import run_cli_here
 
     Image.fromarray(np.tile(np.array([[0, 255]], np.uint8), (8, 4)), "L").save(tmp_path / "mask.png")  # 8x8 stripes
-    r = run_cli("paint", model.path, "--base", model.materials[0], "--layer", f"{model.materials[1]}={tmp_path / 'mask.png'}",
+    r = run_cli_here("paint", model.path, "--base", model.materials[0], "--layer", f"{model.materials[1]}={tmp_path / 'mask.png'}",
                 "--mips", "--format", "ktx2", "--out", str(tmp_path / "painted"))
     assert r.returncode == 0, r.stderr
     assert "8x8 texels, 2 layer(s)" in r.stdout and "ktx2 maps, 4 mip levels" in r.stdout
     painted = load_svbrdf(tmp_path / "painted")
     assert painted.levels == 4 and np.allclose(painted.mips[2][0][..., 0], 0.5, atol=1 / 255)  # stripes average to 1/2
-    r = run_cli("convert", str(tmp_path / "painted"), "--format", "png", "--out", str(tmp_path / "png"))
+    r = run_cli_here("convert", str(tmp_path / "painted"), "--format", "png", "--out", str(tmp_path / "png"))
     assert r.returncode == 0 and load_svbrdf(tmp_path / "png").levels == 4, r.stderr  # the chain kept as it is
-    r = run_cli("convert", str(tmp_path / "png"), "--format", "exr", "--no-mips", "--out", str(tmp_path / "exr"))
+    r = run_cli_here("convert", str(tmp_path / "png"), "--format", "exr", "--no-mips", "--out", str(tmp_path / "exr"))
     assert r.returncode == 0 and load_svbrdf(tmp_path / "exr").levels == 1, r.stderr
     Image.fromarray(np.zeros((6, 8), np.uint8), "L").save(tmp_path / "npot.png")
-    r = run_cli("paint", model.path, "--base", model.materials[0], "--layer", f"{model.materials[1]}={tmp_path / 'npot.png'}",
+    r = run_cli_here("paint", model.path, "--base", model.materials[0], "--layer", f"{model.materials[1]}={tmp_path / 'npot.png'}",
                 "--mips", "--out", str(tmp_path / "npot"))
     assert r.returncode != 0 and "power-of-two sides, the size is 8x6" in r.stderr and not (tmp_path / "npot").exists()

@@ -240,13 +240,13 @@ def test_hbrdf_paint_normal(tmp_path):
     writes it (KTX2: BC5; with its mip chain) and refuses another size in one line, writing nothing."""
     from PIL import Image
 
-    from helpers import run_cli
+    from helpers import run_cli_here
 
     path, m = saved_random_model(tmp_path, "hybrid")
     rgb = np.zeros((4, 8, 3), np.uint8)
     rgb[..., 0], rgb[..., 1], rgb[..., 2] = 191, 64, 200  # x = 0.498, y = -0.498 (green low: tilted towards +v)
     Image.fromarray(rgb, "RGB").save(tmp_path / "n.png")
-    r = run_cli("paint", str(path), "--base", m.materials[0], "--size", "8x4", "--normal", str(tmp_path / "n.png"),
+    r = run_cli_here("paint", str(path), "--base", m.materials[0], "--size", "8x4", "--normal", str(tmp_path / "n.png"),
                 "--format", "ktx2", "--mips", "--out", str(tmp_path / "sv"))
     assert r.returncode == 0, r.stderr
     assert "a normal map" in r.stdout
@@ -254,7 +254,7 @@ def test_hbrdf_paint_normal(tmp_path):
     assert np.abs(sv.normal - [191 / 255 * 2 - 1, 64 / 255 * 2 - 1]).max() <= 1.01 / 255 * 2
     assert sv.levels == 4 and np.abs(sv.normal_mips[-1] - sv.normal[0, 0]).max() <= 0.01
     Image.fromarray(rgb[:2], "RGB").save(tmp_path / "small.png")
-    r = run_cli("paint", str(path), "--base", m.materials[0], "--size", "8x4", "--normal", str(tmp_path / "small.png"),
+    r = run_cli_here("paint", str(path), "--base", m.materials[0], "--size", "8x4", "--normal", str(tmp_path / "small.png"),
                 "--out", str(tmp_path / "sv2"))
     assert r.returncode != 0 and "small.png: normal map is 8x2; the textured material is 8x4" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "sv2").exists()
