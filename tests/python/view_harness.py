@@ -27,9 +27,7 @@ are waited for: the page's WebGPU queues done, one synchronous call on each of i
 from __future__ import annotations
 
 import atexit
-import contextlib
 import ctypes
-import io
 import json
 import os
 import select
@@ -38,7 +36,6 @@ import signal
 import subprocess
 import tempfile
 import time
-import types
 import urllib.parse
 
 #: JavaScript run in every page before its own scripts. It keeps the WebGL2 contexts and WebGPU
@@ -290,13 +287,7 @@ def _tail(b):
 
 def cli(*args):
     """``hbrdf ARGS`` in this process (the same ``hybridbrdf.cli.main`` as the command; torch is
-    imported once): an object with returncode, stdout and stderr, as helpers.run_cli returns."""
-    from hybridbrdf import cli as hbrdf_cli
+    imported once): :func:`helpers.run_cli_here`, as helpers.run_cli reports it."""
+    from helpers import run_cli_here
 
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = hbrdf_cli.main([str(a) for a in args])
-        except SystemExit as exc:  # argparse's usage errors
-            code = exc.code if isinstance(exc.code, int) else 2
-    return types.SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue(), args=args)
+    return run_cli_here(*args)
