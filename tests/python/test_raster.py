@@ -358,3 +358,87 @@ def test_gltf_frame_matches_tracer(tmp_path):
     # The bind is the hybrid, not its f_a: the frame differs from the same asset drawn unbound.
     unbound, _ = draw(tmp_path, {**scene, "objects": [{**scene["objects"][0], "bind": {}}, scene["objects"][1]]})
     assert np.abs(unbound - image)[keep].max() > 1e-3
+
+
+def write_normal_map(path, size=(32, 16), flip_y=False):
+    """A glTF-style 8-bit normal map (R, G = (x + 1) / 2, (y + 1) / 2): two smooth bumps along u, a
+    tilt along v that is not symmetric (so a flipped green differs), B = z for viewers."""
+    from PIL import Image
+    w, h = size
+    u = (np.arange(w) + 0.5) / w
+    v = (np.arange(h) + 0.5) / h
+    x = np.broadcast_to(0.35 * np.sin(4 * np.pi * u)[None, :], (h, w))
+    y = np.broadcast_to((0.25 + 0.2 * np.cos(2 * np.pi * v))[:, None], (h, w))
+    y = -y if flip_y else y
+    z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
+    rgb = np.rint(np.stack([x, y, z], -1) * 127.5 + 127.5).clip(0, 255).astype(np.uint8)
+    Image.fromarray(rgb, "RGB").save(path)
+
+
+def paint_with_normal(out, normal_png, extra=()):
+    """``hbrdf paint`` of the model's paper_white with ``normal_png`` (and ``extra`` arguments)."""
+    from helpers import run_cli_here
+    r = run_cli_here("paint", str(MODEL), "--base", MATERIAL, *extra, "--normal", str(normal_png), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def near_shading_horizon(normal_png, bound=0.05):
+    """Pixels of the test scene (its sphere and plane both carrying ``normal_png``, repeat
+    addressing) where wo or a light's wi is within ``bound`` of the normal map's shading horizon
+    (|cos| to n_s, float64, the map bilinear at the tracer's uv): there f jumps to 0 by the
+    horizon rule, so a normal tilted by the texture unit's 8-bit filter flips the pixel."""
+    from PIL import Image
+    stored = np.asarray(Image.open(normal_png), float)[..., :2] / 255.0 * 2.0 - 1.0
+    h, w = stored.shape[:2]
+    ids, p, wo_world, t, b, n = surfaces()
+    rel = p - np.array(PLANE["center"])
+    plane_uv = np.stack([rel @ np.array(PLANE["tangent"]) / PLANE["size"] + 0.5,
+                         0.5 - rel @ np.cross(PLANE["normal"], PLANE["tangent"]) / PLANE["size"]], -1)
+    sphere_uv = np.stack([np.arctan2(n[..., 2], n[..., 0]) / (2 * np.pi) + 0.5,
+                          np.arccos(np.clip(n[..., 1], -1, 1)) / np.pi], -1)
+    uv = np.where(ids[..., None] == 1, sphere_uv, plane_uv)
+    x, y = uv[..., 0] * w - 0.5, uv[..., 1] * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    tap = lambda i, j: stored[j % h, i % w]  # noqa: E731 (repeat addressing)
+    xy = ((1 - fx) * (1 - fy) * tap(x0, y0) + fx * (1 - fy) * tap(x0 + 1, y0) + (1 - fx) * fy * tap(x0, y0 + 1)
+          + fx * fy * tap(x0 + 1, y0 + 1))
+    z = np.sqrt(np.maximum(0.0, 1.0 - (xy * xy).sum(-1, keepdims=True)))
+    ns = unit(xy[..., :1] * t + xy[..., 1:] * b + z * n)
+    near = np.abs((wo_world * ns).sum(-1)) < bound
+    for light in (POINT, SUN):
+        wi = (unit(np.array(light["position"]) - p) if light["type"] == "point"
+              else np.broadcast_to(unit(np.array(light["direction"], float)), p.shape))
+        near |= np.abs((wi * ns).sum(-1)) < bound
+    return near & (ids > 0)
+
+
+@pytest.mark.skipif(not MODEL.exists(), reason="results/rgl54_fast.safetensors is not in this checkout")
+def test_normal_mapped_frame_matches_tracer(tmp_path):
+    """A textured folder with a normal map on the sphere and the plane: the frame reads the map
+    through its own sampler (x, y = 2 v - 1, z rebuilt), builds the tracer's shading frame
+    (hybridbrdf/normal_map.hpp: n_s, Gram-Schmidt t_s), evaluates the texel in it and zeroes f below
+    either horizon; the light's cosine stays the interpolated normal's. Both read level 0 bilinearly
+    (no chain, "mip_lod": false); the texture unit's 8-bit filtered values tilt a normal by up to
+    ~1/255 rad, so the bound is on the mean and the 99th percentile. Seen failing with the map's y
+    flipped (the frame drawn with the flipped map against the tracer's unflipped one)."""
+    write_normal_map(tmp_path / "n.png", flip_y=False)
+    write_normal_map(tmp_path / "flipped.png", flip_y=True)
+    folders = [paint_with_normal(tmp_path / name, tmp_path / png, ("--size", "32x16"))
+               for name, png in (("bumpy", "n.png"), ("flipped", "flipped.png"))]
+    scene = scene_dict({"type": "textured", "svbrdf": str(folders[0])})
+    scene["materials"]["floor"] = scene["materials"]["ball"]
+    traced = np.asarray(hybridbrdf.render.render({**scene, "pixel_jitter": False, "shadows": False,
+                                                  "mip_lod": False})[0], float)
+    _, ids = reference(analytic_brdf)
+    ids = np.where(near_shading_horizon(tmp_path / "n.png"), -1, ids)
+    image, _ = draw(tmp_path, scene)
+    err, keep = relative_errors(image, traced, ids)
+    assert keep.sum() > 0.4 * W * H
+    print("normal-mapped frame:", keep.sum(), err.mean(), np.percentile(err, 99), err.max())
+    assert err.mean() < 2e-3 and np.percentile(err, 99) < 2e-2, (err.mean(), np.percentile(err, 99), err.max())
+    scene["materials"]["ball"] = scene["materials"]["floor"] = {"type": "textured", "svbrdf": str(folders[1])}
+    flipped, _ = draw(tmp_path, scene)
+    err_flipped, _ = relative_errors(flipped, traced, ids)
+    assert err_flipped.mean() > 10 * max(err.mean(), 1e-3), (err_flipped.mean(), err.mean())

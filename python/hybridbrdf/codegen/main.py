@@ -73,17 +73,21 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
 
 
 def generate_textured(folder, target: str, precision: str = "fp32", mlp_form: str = "auto",
-                      extra_args: str = "") -> str:
+                      extra_args: str = "", own_normal: bool = False, materials=None) -> str:
     """Source code for ``target`` (glsl, hlsl, slang, wgsl or cpp) of the textured material in
     ``folder`` (docs/SVBRDF.md; read by :func:`hybridbrdf.svbrdf.load_svbrdf`, whose one-line errors
     it raises): its model restricted to exactly the layers' materials, plus the maps' decode
     constants, ``HbrdfTexel``, ``hbrdf_decode_texel``, the sampler lookups ``hbrdf_texel_grad`` and
     ``hbrdf_texel_lod`` (not in C++) and ``hbrdf_eval_texel`` / ``hbrdf_pdf_texel`` /
-    ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine")."""
+    ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine"). ``own_normal``:
+    a folder with a normal map is generated without it (the caller reads the map and applies the
+    shading frame itself; refused otherwise). ``materials``: more materials of the folder's model
+    to emit beside the layers' (their ``HBRDF_MATERIAL_*`` constants; the raster frame's model cases)."""
     if target not in DIALECTS:
         raise ValueError(f"a textured material's folder generates {', '.join(DIALECTS)} code, not {target!r}")
-    plan = textured_plan(folder)
-    return generate(plan["model"], target, plan["materials"], model_path=plan["folder"], extra_args=extra_args,
+    plan = textured_plan(folder, own_normal=own_normal)
+    emitted = list(dict.fromkeys(list(plan["materials"]) + list(materials or [])))
+    return generate(plan["model"], target, emitted, model_path=plan["folder"], extra_args=extra_args,
                     precision=precision, mlp_form=mlp_form, textured=plan)
 
 

@@ -60,21 +60,26 @@ def _targets(quantity: str, first: int, used: int, n_layers: int) -> List[str]:
     return [f"z[{first + c}]" for c in range(used)]
 
 
-def textured_plan(folder) -> Dict[str, Any]:
+def textured_plan(folder, own_normal: bool = False) -> Dict[str, Any]:
     """What ``codegen/textured.j2`` needs of the textured material in ``folder``: ``layers`` (material
     names, base first), ``model`` (the folder's, loaded), ``materials`` (the distinct ones, the materials to emit), ``size``,
     ``addressing``, ``maps`` (in the lookup's parameter order: weights, then per layer kd, eta,
     alpha, latent maps) and ``layer_maps`` (per layer, its maps). Raises the loader's one-line
-    SVBRDFError / ModelFileError for a folder it refuses."""
+    SVBRDFError / ModelFileError for a folder it refuses. A folder with a normal map is refused
+    unless ``own_normal`` (a caller that reads the map itself, as the raster frame does): ``normal``
+    is then its map entry's file (None without one), left out of ``maps``."""
     sv = load_svbrdf(folder)
     index_path = os.path.join(os.fspath(folder), SV["index_file"])
-    if sv.normal is not None:  # refused rather than emitted without it (docs/SVBRDF.md, "Not yet")
+    if sv.normal is not None and not own_normal:  # refused rather than emitted without it (docs/SVBRDF.md)
         raise SVBRDFError(index_path, "has a normal map, which the generated code does not read yet")
     with open(index_path, "rb") as f:  # the loader has just read and checked it (bounded, valid)
         index = json.loads(f.read().decode("utf-8"))
     n_layers, latent = len(sv.layers), sv.model.arch["latent"]
-    maps = []
+    maps, normal = [], None
     for entry in index["maps"]:
+        if entry["quantity"] == "normal":
+            normal = entry["file"]
+            continue
         q, layer, first = entry["quantity"], entry.get("layer"), entry["first"]
         components = 3 if q == "weights" else {"kd": 3, "eta": 3, "alpha": 2, "latent": latent}[q]
         used = min(SV["map_channels"], components - first)
@@ -101,7 +106,7 @@ def textured_plan(folder) -> Dict[str, Any]:
             "materials": materials, "size": list(sv.size), "addressing": sv.addressing, "maps": maps,
             "layer_maps": [[m for m in maps if m["layer"] == k] for k in range(n_layers)],
             "has_weights": any(m["quantity"] == "weights" for m in maps), "n_layers": n_layers,
-            "levels": index.get("levels", 1)}
+            "levels": index.get("levels", 1), "normal": normal}
 
 
 def textured_code(plan: Dict[str, Any], target: str) -> Dict[str, Any]:

@@ -88,7 +88,8 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
         for name in plan.cases:
             args += ["--model-material", name]
         if plan.textured is not None:
-            for path in write_textures(plan.textured, {"maps": plan.maps, "addressing": plan.addressing}, folder):
+            for path in write_textures(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
+                                                          "normal": plan.normal}, folder):
                 args += ["--texture", str(path)]
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:

@@ -8,9 +8,11 @@ code generated from their model file (one file per scene: the generated files of
 the same names). Every other material the frame draws ("analytic", or a model material evaluated
 as f_a) is case 0: f_a of the parameters the tool reads from the scene, through the generated
 ``hbrdf_eval_analytic``. A scene without full model materials takes that code from its model
-file, or from the shipped prior (no network runs). A scene with a textured material (one folder,
-beside analytic materials only) takes the folder's code (``hbrdf-codegen DIR``): its maps are
-sampler2D bindings 3, 4, ... read with the pixel's uv derivatives, every case >= 1 that material.
+file, or from the shipped prior (no network runs). A scene with a textured material (one folder)
+takes the folder's code (``hbrdf-codegen DIR``), with the scene's full model materials emitted
+beside its layers when they come from the folder's model (the same tensors): its maps are
+sampler2D bindings 3, 4, ... read with the pixel's uv derivatives, its normal map (when it has one)
+the next binding, read and applied by the frame itself; the textured names are the last cases.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import List, Optional
 
 import jinja2
+import numpy as np
 
 from hybridbrdf import _core
 from hybridbrdf.codegen import generate, generate_textured
@@ -64,6 +67,7 @@ class FramePlan:
     textured: Optional[str] = None  #: a textured material's folder: its code, and the frame's only case
     maps: List[dict] = field(default_factory=list)  #: its maps in binding order (textured_plan's)
     addressing: str = "repeat"  #: its maps' addressing
+    normal: Optional[str] = None  #: its normal map's file (in the folder), read by the frame's own code
 
 
 def frame_plan(scene: str) -> FramePlan:
@@ -81,14 +85,20 @@ def frame_plan(scene: str) -> FramePlan:
                                          f"model file; {full[0]['where']} uses {full[0]['file']}, this one {m['file']}")
     textured = _textured_materials(data, base_dir, origin, decl)
     if textured:
-        if full:
-            raise InputFileError(origin, f"{full[0]['where']}: a frame with a textured material draws it beside "
-                                         "analytic materials only (the generated files would define the same names)")
-        tplan = textured_plan(textured[0][1])
-        return FramePlan(model_file=os.fspath(tplan["model"].path), emitted=tplan["materials"],
-                         cases=[name for name, _ in textured], case_constants=[], textured=textured[0][1],
+        tplan = textured_plan(textured[0][1], own_normal=True)
+        for m in full:
+            if not _same_model(load_model(m["file"]), tplan["model"]):
+                raise InputFileError(origin, f"{m['where']}: a frame with a textured material draws full model materials "
+                                             f"of the folder's own model only; {m['file']} is not the model of "
+                                             f"{textured[0][1]} (the generated files would define the same names)")
+            if m["material"] not in tplan["model"].materials:
+                raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {m['file']}")
+        return FramePlan(model_file=os.fspath(tplan["model"].path),
+                         emitted=list(dict.fromkeys(list(tplan["materials"]) + [m["material"] for m in full])),
+                         cases=[_loaded_name(m["where"], m["name"]) for m in full] + [name for name, _ in textured],
+                         case_constants=[material_constant(m["material"]) for m in full], textured=textured[0][1],
                          carrier=material_constant(tplan["layers"][0]), maps=tplan["maps"],
-                         addressing=tplan["addressing"])
+                         addressing=tplan["addressing"], normal=tplan["normal"])
     files = [m["file"] for m in full] or [m["file"] for m in decl["model_materials"]] or [prior_path()]
     model = load_model(files[0])
     if not model.has_analytic:
@@ -103,6 +113,14 @@ def frame_plan(scene: str) -> FramePlan:
     return FramePlan(model_file=os.fspath(files[0]), emitted=emitted, cases=[_loaded_name(m["where"], m["name"]) for m in full],
                      case_constants=[material_constant(m["material"]) for m in full],
                      carrier=material_constant(emitted[0]))
+
+
+def _same_model(a, b) -> bool:
+    """Whether two loaded models hold the same network and materials (a painted folder's
+    model.safetensors is its source's copy): the same architecture, names and tensors."""
+    if a.arch != b.arch or list(a.materials) != list(b.materials) or a.tensors.keys() != b.tensors.keys():
+        return False
+    return all(np.array_equal(np.asarray(a.tensors[k]), np.asarray(b.tensors[k])) for k in a.tensors)
 
 
 def _textured_materials(data: dict, base_dir: str, origin: str, decl: dict) -> list:
@@ -141,11 +159,13 @@ def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "
     if plan.textured is not None and language != "glsl":
         raise ValueError("language: a frame with a textured material is drawn from GLSL only")
     if plan.textured is not None:
-        code = generate_textured(plan.textured, "glsl")
+        code = generate_textured(plan.textured, "glsl", own_normal=True, materials=plan.emitted)
     else:
         code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file)
     (folder / f"model.{language}").write_text(code)
-    textured = None if plan.textured is None else {"maps": [m["param"] for m in plan.maps]}
+    textured = None if plan.textured is None else {
+        "maps": [m["param"] for m in plan.maps], "first_case": len(plan.case_constants) + 1,
+        "normal_binding": 3 + len(plan.maps) if plan.normal is not None else None}
     env = _templates()
     vert, frag = folder / "frame.vert", folder / ("frame.frag" if language == "glsl" else "frame.hlsl")
     vert.write_text(env.get_template("raster.vert.j2").render())

@@ -28,14 +28,18 @@ def _level_files(folder: str, index: Dict[str, Any], file: str) -> List[str]:
 
 def write_textures(folder, plan: Dict[str, Any], out: pathlib.Path) -> List[pathlib.Path]:
     """Writes one ``.hbtx`` file per map of ``plan`` (``codegen.textured.textured_plan(folder)``)
-    into ``out``; returns them in binding order. InputFileError for maps that are not 8-bit PNG
-    (EXR and KTX2 maps are not uploaded yet)."""
+    into ``out``, then the normal map's (``plan["normal"]``, when there is one: linear, never sRGB);
+    returns them in binding order. InputFileError for maps that are not 8-bit PNG (EXR and KTX2
+    maps are not uploaded yet)."""
     folder = os.fspath(folder)
     with open(os.path.join(folder, "svbrdf.json"), "rb") as f:  # checked by the loader that made the plan
         index = json.loads(f.read().decode("utf-8"))
     clamp = 1 if plan["addressing"] == "clamp" else 0
     paths = []
-    for k, m in enumerate(plan["maps"]):
+    maps = list(plan["maps"])
+    if plan.get("normal") is not None:
+        maps.append({"file": plan["normal"], "id": "normal", "srgb_texture": False})
+    for k, m in enumerate(maps):
         levels = []
         for file in _level_files(folder, index, m["file"]):
             values, bits = read_map(file)
