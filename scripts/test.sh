@@ -64,8 +64,10 @@ stage_sanitizers() {
   # -O1 -g1: the optimisation level ASan's documentation recommends, with line tables for its stack
   # traces; it builds in half of -O2 -g's time (61 s against 130 s on 2 cores, one-off, 2026-11-27).
   # -O0 builds these two targets in 190 s of CPU against -O1's 324, but the sanitized tests then run
-  # 3.5x longer (cpp_unit_tests 50 s of CPU against 14; the tabulated shard 45 s at -O1), which eats
-  # the saving on 2 cores (Ninja, X1 under load, 2026-11-29; docs/CONVENTIONS.md, "Testing").
+  # 3.5x longer (cpp_unit_tests 50 s of CPU against 14), which eats the saving on 2 cores. The cold
+  # sources (the JSON readers and doctest's runner: CMakeLists.txt, HBRDF_SANITIZE_COLD_OPTIONS) are
+  # compiled at -Og, still instrumented: 311 s of CPU for the build against 389 s, and the tests'
+  # CPU unchanged (X1 under load, back to back, 2026-11-29; docs/CONVENTIONS.md, "Testing").
   # Without ccache: nothing else compiles these objects (and another clone's paths differ), so on a
   # fresh clone every compile would be a miss, paying ccache's preprocessor pass on top (the stage
   # took 521 s of CPU through a cold ccache against 391 s without, one run each under load).
@@ -80,10 +82,11 @@ stage_sanitizers() {
   grep __ubsan_handle <<< "$symbols" > /dev/null || { echo "test: UBSan build is not instrumented" >&2; return 1; }
   # The consumer test links an installed static library and is not sanitised. The renderer's
   # tests run too (Embree, TBB and assimp are not instrumented; tests/cpp/lsan.supp says which
-  # third-party leak is suppressed and why).
+  # third-party leak is suppressed and why). Four shards on both cores (tests/cpp/CMakeLists.txt):
+  # 44 s wall against 63 s as three, back to back on X1.
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     LSAN_OPTIONS=suppressions=$PWD/tests/cpp/lsan.supp \
-    ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_tabulated_tests|cpp_render_tests"
+    ctest --test-dir build-asan --output-on-failure -j "$JOBS" -R "cpp_unit_tests|cpp_tabulated|cpp_render_tests"
 }
 
 # The Python suite: tests marked slow first (tests/python/conftest.py), handed to the workers one

@@ -1,4 +1,5 @@
-// Shared helpers for the C++ tests: parameter corners, hard directions, hand-built model files.
+// Shared helpers for the C++ tests: parameter corners, hand-built model files. (The hard directions
+// live in test_hard_cases.cpp, their one reader: it alone pays for nlohmann's JSON parser.)
 #pragma once
 
 #include <cmath>
@@ -8,8 +9,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "hybridbrdf/hybridbrdf.hpp"
 
@@ -34,44 +33,6 @@ template <typename T> inline std::vector<AnalyticParamsT<T>> param_corners() {
                 out.push_back(p);
             }
     return out;
-}
-
-namespace detail {
-
-// One component of tests/data/hard_directions.json: a number, or a string for what JSON
-// cannot hold ("nan", "inf", "-inf") or what depends on the type ("denorm_min").
-template <typename T> T hard_component(const nlohmann::json& v, const std::string& file) {
-    if (v.is_number()) return T(v.get<double>());
-    const std::string s = v.is_string() ? v.get<std::string>() : v.dump();
-    if (s == "nan") return std::numeric_limits<T>::quiet_NaN();
-    if (s == "inf") return std::numeric_limits<T>::infinity();
-    if (s == "-inf") return -std::numeric_limits<T>::infinity();
-    if (s == "denorm_min") return std::numeric_limits<T>::denorm_min();
-    throw std::runtime_error(file + ": unknown component " + s);
-}
-
-}  // namespace detail
-
-/// The hard directions of the contract, read from tests/data/hard_directions.json (the table
-/// the Python tests read too): grazing (z = 0, 1e-8), the normal, below the horizon,
-/// zero-length, NaN and Inf, huge, tiny and subnormal lengths. Read once per type.
-template <typename T> inline const std::vector<Vec3<T>>& hard_directions() {
-    static const std::vector<Vec3<T>> dirs = [] {
-        const std::string file = HBRDF_TEST_DATA_DIR "/hard_directions.json";
-        std::ifstream in(file);
-        if (!in) throw std::runtime_error(file + ": cannot open");
-        const nlohmann::json doc = nlohmann::json::parse(in);
-        std::vector<Vec3<T>> out;
-        for (const auto& entry : doc.at("directions")) {
-            const auto& w = entry.at("w");
-            if (w.size() != 3) throw std::runtime_error(file + ": an entry's w has " + std::to_string(w.size()) +
-                                                        " components, expected 3");
-            out.emplace_back(detail::hard_component<T>(w[0], file), detail::hard_component<T>(w[1], file),
-                             detail::hard_component<T>(w[2], file));
-        }
-        return out;
-    }();
-    return dirs;
 }
 
 /// The same parameters in another precision, each value rounded to U.
