@@ -26,11 +26,9 @@ def hbrdf_cmd(*args):
     return [sys.executable, "-m", "hybridbrdf.cli", *args]
 
 
-def torchrun_cmd(ranks, *args, monitor_interval=None):
-    """torchrun of ``hbrdf`` on ``ranks`` local ranks; ``monitor_interval``: seconds between the
-    launcher's checks of its workers (its default, 0.1 s, when None)."""
-    monitor = [f"--monitor-interval={monitor_interval}"] if monitor_interval is not None else []
-    return [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}", *monitor,
+def torchrun_cmd(ranks, *args):
+    """torchrun of ``hbrdf`` on ``ranks`` local ranks."""
+    return [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}",
             "-m", "hybridbrdf.cli", *args]
 
 
@@ -146,10 +144,13 @@ def test_ctrl_c_leaves_a_checkpoint_that_resumes_on_two_ranks(tmp_path, monkeypa
 def test_a_rank_that_dies_ends_the_run_and_keeps_the_files(tmp_path):
     (tmp_path / "m.safetensors").write_bytes(b"the previous model")
     args = [*FIT, "--steps", "100000", "--checkpoint", "ck.pt", "--checkpoint-every", "100", "--out", "m.safetensors"]
-    # The launcher checks its workers every 30 s here, not every 0.1 s: it stops the other workers
-    # once it sees one die, and on a loaded machine it could stop rank 0 before rank 0 noticed the
-    # lost rank and said so, which is the behaviour under test.
-    proc = subprocess.Popen(torchrun_cmd(2, *args, monitor_interval=30), cwd=tmp_path, env=ENV,
+    # The launcher checks its workers every 0.1 s (its default) and, once it sees rank 1 dead, sends
+    # rank 0 SIGTERM. Rank 0 takes that as a request to stop after its step (StopRequest), and no
+    # step ends without rank 1: the step's collective fails and rank 0 says so whichever comes
+    # first (seen both ways). Until 2026-11-29 the launcher checked every 30 s here, and the test
+    # waited up to that long after rank 0 had ended (32.5 s in the run of c815511; 0.2-0.3 s from
+    # the kill to rank 0's end and ~2 s to the launcher's, three runs under load).
+    proc = subprocess.Popen(torchrun_cmd(2, *args), cwd=tmp_path, env=ENV,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.time() + 120
