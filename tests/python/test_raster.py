@@ -59,11 +59,11 @@ def scene_dict(sphere_material):
             "max_depth": 1, "spp": 1, "threads": 1}
 
 
-def draw(tmp_path, scene, language="glsl"):
+def draw(tmp_path, scene, language="glsl", per_pixel=True):
     path = tmp_path / "scene.json"
     path.write_text(json.dumps(scene))
     stats = hybridbrdf.raster.draw_frame(path, tmp_path / "frame.exr", validation=True, lavapipe=True, tool=TOOL,
-                                         language=language)
+                                         language=language, per_pixel=per_pixel, keep_shaders=tmp_path / "shaders")
     assert stats["device"].startswith("llvmpipe")  # lavapipe, and the validation layer reported nothing
     image = hybridbrdf.render.read_exr(tmp_path / "frame.exr")
     assert image.shape == (H, W, 3) and np.isfinite(image).all() and (image >= 0).all()
@@ -176,12 +176,18 @@ def test_analytic_frame_matches_float64_reference(tmp_path):
 
 
 @pytest.mark.skipif(not MODEL.exists(), reason="results/rgl54_fast.safetensors is not in this checkout")
-@pytest.mark.parametrize("language", ["glsl", "hlsl"])
-def test_hybrid_frame_matches_library_model(tmp_path, language):
+@pytest.mark.parametrize("language,per_pixel", [("glsl", True), ("hlsl", True), ("glsl", False)])
+def test_hybrid_frame_matches_library_model(tmp_path, language, per_pixel):
     """The generated GLSL, and the generated HLSL through glslang's HLSL front end (codegen/raster.hlsl.j2;
-    measured: the same frame bit for bit), in the fragment stage. The HLSL one seen failing with a point
-    light's 1/d^2 dropped."""
-    image, _ = draw(tmp_path, scene_dict({"type": "model", "file": str(MODEL), "material": MATERIAL}), language)
+    measured: the same frame bit for bit), in the fragment stage; the per-pixel form (hbrdf_pixel per
+    pixel, hbrdf_eval_pixel per light: what hbrdf raster draws) and the generic hbrdf_eval per light.
+    The HLSL one seen failing with a point light's 1/d^2 dropped; the per-pixel form with wo's
+    first-layer terms given wi's weights (0.024 mean, 0.21 max) and with the latent terms dropped
+    and the energy scale taken at wo.x (0.15 mean)."""
+    image, _ = draw(tmp_path, scene_dict({"type": "model", "file": str(MODEL), "material": MATERIAL}), language,
+                    per_pixel)
+    frag = (tmp_path / "shaders" / ("frame.frag" if language == "glsl" else "frame.hlsl")).read_text()
+    assert ("hbrdf_eval_pixel(wi, px, " in frag) == per_pixel and ("hbrdf_eval(wi, wo, " in frag) != per_pixel
     model = hybridbrdf.load_model(MODEL)
 
     def brdf(obj, wi, wo):

@@ -48,7 +48,7 @@ TARGETS = ("glsl", "hlsl", "slang", "wgsl", "cpp", "brdfexplorer")
 def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
              model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
              precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None,
-             textured: Optional[Dict[str, object]] = None) -> str:
+             textured: Optional[Dict[str, object]] = None, pixel_split: bool = False) -> str:
     """Source code of ``model`` for ``target`` (one of :data:`TARGETS`), for all or
     the named materials. For brdfexplorer the first (or only) material gives the parameters'
     default values; kd, eta, alpha and the latent code become sliders.
@@ -61,7 +61,10 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     code prints the rounded values (exactly), loops store them packed two per 32-bit word.
     ``scene`` is the plan :func:`load_scene` makes of a path-tracer scene: ``{"name", "materials":
     [{"name", "evaluate"}], "neural_max_depth" (optional), "not_emitted" (optional)}``.
-    ``textured`` is the plan :func:`generate_textured` makes of a textured material's folder."""
+    ``textured`` is the plan :func:`generate_textured` makes of a textured material's folder.
+    ``pixel_split`` (GLSL, HLSL; unrolled; local direction inputs) adds ``hbrdf_pixel(wo, m)`` and
+    ``hbrdf_eval_pixel(wi, px, m)``: hbrdf_eval split at a frame's light loop, the first layer's
+    latent and wo terms summed once per pixel (docs/CODEGEN.md, "The per-pixel form")."""
     if target == "brdfexplorer":
         if textured is not None:
             raise ValueError("a BRDF Explorer file shows one uniform material, not a textured one")
@@ -69,11 +72,11 @@ def generate(model: HybridModel, target: str, materials: Optional[Sequence[str]]
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(TARGETS)}")
     return generate_source(model, target, materials, model_path, extra_args, scene, precision, mlp_form, literal_head,
-                           textured)
+                           textured, pixel_split)
 
 
 def generate_textured(folder, target: str, precision: str = "fp32", mlp_form: str = "auto",
-                      extra_args: str = "", own_normal: bool = False, materials=None) -> str:
+                      extra_args: str = "", own_normal: bool = False, materials=None, pixel_split: bool = False) -> str:
     """Source code for ``target`` (glsl, hlsl, slang, wgsl or cpp) of the textured material in
     ``folder`` (docs/SVBRDF.md; read by :func:`hybridbrdf.svbrdf.load_svbrdf`, whose one-line errors
     it raises): its model restricted to exactly the layers' materials, plus the maps' decode
@@ -82,13 +85,15 @@ def generate_textured(folder, target: str, precision: str = "fp32", mlp_form: st
     ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine"). ``own_normal``:
     a folder with a normal map is generated without it (the caller reads the map and applies the
     shading frame itself; refused otherwise). ``materials``: more materials of the folder's model
-    to emit beside the layers' (their ``HBRDF_MATERIAL_*`` constants; the raster frame's model cases)."""
+    to emit beside the layers' (their ``HBRDF_MATERIAL_*`` constants; the raster frame's model cases).
+    ``pixel_split``: the per-pixel form as :func:`generate`'s (for those constants; the texel's
+    functions stay per light)."""
     if target not in DIALECTS:
         raise ValueError(f"a textured material's folder generates {', '.join(DIALECTS)} code, not {target!r}")
     plan = textured_plan(folder, own_normal=own_normal)
     emitted = list(dict.fromkeys(list(plan["materials"]) + list(materials or [])))
     return generate(plan["model"], target, emitted, model_path=plan["folder"], extra_args=extra_args,
-                    precision=precision, mlp_form=mlp_form, textured=plan)
+                    precision=precision, mlp_form=mlp_form, textured=plan, pixel_split=pixel_split)
 
 
 def build_parser() -> argparse.ArgumentParser:

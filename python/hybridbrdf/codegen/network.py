@@ -42,6 +42,36 @@ def unrolled_layer(layer: Dict[str, object], index: int, last: bool, fp16: bool 
     return lines
 
 
+def split_first_layer(layer: Dict[str, object], pixel_inputs: Dict[int, str], fp16: bool = False,
+                      let: Callable[[str], str] = _c_declaration) -> Tuple[List[str], List[str]]:
+    """The first layer split at a raster frame's light loop (the per-pixel form, ``hbrdf_pixel``):
+    ``(pixel, light)`` statements. ``pixel_inputs`` maps the input index of each value that is the
+    same for every light of a pixel (the latent code, wo) to its expression, in the order they are
+    summed (latent first: with a constant material every partial sum is a constant the compiler
+    folds); ``pixel`` sets ``px.pre0[j]`` to the bias plus those terms, ``light`` declares
+    ``h0_<j> = hbrdf_activation(px.pre0[j] + ...)`` with the other inputs ``x[k]``. The same terms as
+    :func:`unrolled_layer`'s; only the order of the sum differs (float rounding)."""
+    n_in, n_out = layer["n_in"], layer["n_out"]
+    w = np.asarray(layer["weight"], dtype=np.float32).reshape(n_out, n_in)
+    if fp16:
+        w = w.astype(np.float16).astype(np.float32)
+    b = np.asarray(layer["bias"], dtype=np.float32)
+    light_inputs = {k: f"x[{k}]" for k in range(n_in) if k not in pixel_inputs}
+    pixel, light = [], []
+    for j in range(n_out):
+        pixel.append(f"px.pre0[{j}] = {_weighted_sum(float_literal(b[j]), w[j], pixel_inputs)};")
+        light.append(f"{let(f'float h0_{j}')} = hbrdf_activation({_weighted_sum(f'px.pre0[{j}]', w[j], light_inputs)});")
+    return pixel, light
+
+
+def _weighted_sum(first: str, row, inputs: Dict[int, str]) -> str:
+    """``first + w_k * input_k ...`` over ``inputs`` (index -> expression) in their order, exactly-zero
+    weights left out (the inputs are finite)."""
+    terms = [first] + [f"{'-' if row[k] < 0 else '+'} {float_literal(abs(row[k]))} * {expr}"
+                       for k, expr in inputs.items() if row[k] != 0.0]
+    return " ".join(terms)
+
+
 def unrolled_head(width: int, n_out: int, depth: int) -> List[str]:
     """The output layer of a model with material output layers, read from the material:
     ``o[j] = m.head_b[j] + m.head_w[j * width + k] * h<depth-1>_k + ...`` with constant indices

@@ -10,7 +10,7 @@ import jinja2
 
 from hybridbrdf import _core, spec
 from hybridbrdf.codegen.literals import DIALECTS, comment_text, contract_literals, float_literal, material_constant
-from hybridbrdf.codegen.network import network_layers, unrolled_frames, unrolled_head
+from hybridbrdf.codegen.network import network_layers, split_first_layer, unrolled_frames, unrolled_head
 from hybridbrdf.codegen.scene import NO_DEPTH_LIMIT, Specialisation, specialisation
 from hybridbrdf.codegen.textured import textured_code
 from hybridbrdf.model.file import HybridModel
@@ -76,12 +76,13 @@ def _material_constants(model: HybridModel, plan: Specialisation, head_in_materi
 def generate_source(model: HybridModel, target: str, materials: Optional[Sequence[str]] = None,
                     model_path: str = "MODEL", extra_args: str = "", scene: Optional[Dict[str, object]] = None,
                     precision: str = "fp32", mlp_form: str = "auto", literal_head: Optional[str] = None,
-                    textured: Optional[Dict[str, Any]] = None) -> str:
+                    textured: Optional[Dict[str, Any]] = None, pixel_split: bool = False) -> str:
     """:func:`hybridbrdf.codegen.main.generate` for the dialects of :data:`DIALECTS` (glsl, hlsl,
     slang, wgsl, cpp). ``literal_head`` (a material's name) writes that material's output layer as literals
     even without a scene, as BRDF Explorer files do. ``textured`` (the plan of
     :func:`hybridbrdf.codegen.textured.textured_plan`) adds its decode, lookup and evaluation
-    (``codegen/textured.j2``); ``materials`` must then be its layers' materials."""
+    (``codegen/textured.j2``); ``materials`` must then be its layers' materials. ``pixel_split`` adds
+    the per-pixel form ``hbrdf_pixel`` / ``hbrdf_eval_pixel`` (``codegen/pixel.j2``)."""
     if target not in DIALECTS:
         raise ValueError(f"unknown target {target!r}; expected one of {', '.join(DIALECTS)}")
     if precision not in ("fp32", "fp16"):
@@ -96,6 +97,7 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
         model, plan.names, fold_latent=plan.fold_latent, analytic_only=plan.analytic_only,
         literal_head=literal_head, precision=precision, unrolled=unrolled,
         let=DIALECTS[target]["let"])
+    px = _pixel_split(model, target, unrolled, plan, layers, latent_in, precision) if pixel_split else None
     # The neural baseline's network predicts shading frames from the latent code (spec: 'frames').
     predicts_frames = spec.ARCHS[model.kind]["directions"] == "frames"
     return template("hbrdf.j2").render(
@@ -116,4 +118,30 @@ def generate_source(model: HybridModel, target: str, materials: Optional[Sequenc
         frames_unrolled=unrolled_frames(t) if unrolled and predicts_frames else [],
         frames_weight=t["frames.weight"].ravel() if predicts_frames else [],
         frames_bias=t["frames.bias"] if predicts_frames else [],
-        tx=textured_code(textured, target) if textured is not None else None)
+        tx=textured_code(textured, target) if textured is not None else None, px=px)
+
+
+def pixel_split_problem(model: HybridModel, target: str = "glsl", unrolled: bool = True,
+                        analytic_only: bool = False) -> Optional[str]:
+    """Why ``model``'s code for ``target`` has no per-pixel form (``generate(..., pixel_split=True)``),
+    or None where it has one: GLSL or HLSL, unrolled, a network, direction inputs with wi and wo apart."""
+    directions = spec.ARCHS[model.kind]["directions"]
+    return ("GLSL and HLSL only" if target not in ("glsl", "hlsl") else
+            "the unrolled form only" if not unrolled else
+            "no network to split (analytic only)" if analytic_only else
+            f"the {directions!r} direction inputs mix wi and wo" if directions not in ("local", "local_half") else None)
+
+
+def _pixel_split(model: HybridModel, target: str, unrolled: bool, plan: Specialisation, layers, latent_in: int,
+                 precision: str) -> Dict[str, List[str]]:
+    """The statements of the per-pixel form (codegen/pixel.j2): the first layer split into what a
+    pixel's lights share (latent code, wo) and what each light adds (wi and what depends on it).
+    ValueError where there is no such split or it is not written (one line naming why)."""
+    why = pixel_split_problem(model, target, unrolled, plan.analytic_only)
+    if why:
+        raise ValueError(f"pixel_split: {why} (the per-pixel form needs wo's first-layer terms apart from wi's)")
+    n_dir = spec.ARCHS[model.kind]["direction_count"]
+    pixel_inputs = {n_dir + k: f"m.z[{k}]" for k in range(latent_in)}  # latent first: constants fold
+    pixel_inputs.update({3: "wo.x", 4: "wo.y", 5: "wo.z"})
+    pixel, light = split_first_layer(layers[0], pixel_inputs, precision == "fp16", DIALECTS[target]["let"])
+    return {"pixel": pixel, "light": light}

@@ -55,14 +55,16 @@ def _parse_report(stdout: str) -> Dict[str, object]:
 def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, validation: bool = False,
                repeat: int = 0, sphere_segments: int = SPHERE_SEGMENTS, lavapipe: bool = False,
                tool: Optional[PathLike] = None, keep_shaders: Optional[PathLike] = None,
-               language: str = "glsl") -> Dict[str, object]:
+               language: str = "glsl", per_pixel: bool = True) -> Dict[str, object]:
     """Draws scene file ``scene`` into ``out`` (linear OpenEXR) and optionally ``png`` (8-bit sRGB).
 
     ``validation`` runs under the Khronos validation layer (any message is an error); ``repeat``
     draws that many more frames for timing; ``lavapipe`` pins Mesa's CPU driver (else the Vulkan
     loader's choice, a discrete GPU first); ``keep_shaders`` a folder that receives the generated
     sources and SPIR-V; ``language`` the fragment stage's, "glsl" or "hlsl" (the generated HLSL through
-    glslang's HLSL front end; textured materials are GLSL only). Returns the tool's report: ``device``, ``size``, ``triangles``, ``draws``,
+    glslang's HLSL front end; textured materials are GLSL only); ``per_pixel`` the model materials'
+    generated per-pixel form (what a pixel's lights share computed once per pixel; docs/RASTER.md
+    "Cost"), False for the generic ``hbrdf_eval`` per light. Returns the tool's report: ``device``, ``size``, ``triangles``, ``draws``,
     ``sphere_gap`` (world units), ``best_ms`` and, where the device has timestamps, ``best_gpu_ms``
     and ``median_gpu_ms``. Raises InputFileError / ValueError for bad scenes, RuntimeError (one
     line, the tool's words) when the tool, the shader compilers or Vulkan fail."""
@@ -80,7 +82,7 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
     with tempfile.TemporaryDirectory(prefix="hbrdf_raster_") as tmp:
         folder = pathlib.Path(keep_shaders) if keep_shaders is not None else pathlib.Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        vert, frag = build_frame_shaders(plan, folder, language)
+        vert, frag = build_frame_shaders(plan, folder, language, per_pixel)
         args = [exe, os.fspath(scene), str(vert), str(frag), "--out", os.fspath(out),
                 "--sphere-segments", str(sphere_segments), "--repeat", str(repeat)]
         args += ["--png", os.fspath(png)] if png is not None else []

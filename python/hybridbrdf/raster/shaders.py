@@ -31,6 +31,7 @@ import numpy as np
 
 from hybridbrdf import _core
 from hybridbrdf.codegen import generate, generate_textured
+from hybridbrdf.codegen.source import pixel_split_problem
 from hybridbrdf.codegen.textured import textured_plan
 from hybridbrdf.codegen.literals import material_constant
 from hybridbrdf.errors import InputFileError
@@ -150,18 +151,22 @@ def _templates() -> jinja2.Environment:
                               keep_trailing_newline=True)
 
 
-def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "glsl") -> tuple:
+def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "glsl", per_pixel: bool = True) -> tuple:
     """Writes the generated code (``model.glsl`` or ``model.hlsl``), ``frame.vert`` and the fragment
     stage (``frame.frag``, or ``frame.hlsl`` for ``language`` "hlsl") into ``folder``; returns the
-    two shader paths. The vertex stage is GLSL in both."""
+    two shader paths. The vertex stage is GLSL in both. ``per_pixel``: the model cases take the
+    generated per-pixel form (``hbrdf_pixel`` once per pixel, ``hbrdf_eval_pixel`` per light) where
+    their architecture has one (wi and wo apart in the inputs), else ``hbrdf_eval`` per light."""
     if language not in ("glsl", "hlsl"):
         raise ValueError(f"language: expected 'glsl' or 'hlsl', got {language!r}")
     if plan.textured is not None and language != "glsl":
         raise ValueError("language: a frame with a textured material is drawn from GLSL only")
+    per_pixel = per_pixel and bool(plan.case_constants) and pixel_split_problem(load_model(plan.model_file)) is None
     if plan.textured is not None:
-        code = generate_textured(plan.textured, "glsl", own_normal=True, materials=plan.emitted)
+        code = generate_textured(plan.textured, "glsl", own_normal=True, materials=plan.emitted, pixel_split=per_pixel)
     else:
-        code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file)
+        code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file,
+                        pixel_split=per_pixel)
     (folder / f"model.{language}").write_text(code)
     textured = None if plan.textured is None else {
         "maps": [m["param"] for m in plan.maps], "first_case": len(plan.case_constants) + 1,
@@ -171,7 +176,8 @@ def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "
     vert.write_text(env.get_template("raster.vert.j2").render())
     template = "raster.frag.j2" if language == "glsl" else "raster.hlsl.j2"
     frag.write_text(env.get_template(template).render(model_file=f"model.{language}", carrier=plan.carrier,
-                                                      cases=plan.case_constants, textured=textured))
+                                                      cases=plan.case_constants, textured=textured,
+                                                      per_pixel=per_pixel))
     return vert, frag
 
 
@@ -193,10 +199,10 @@ def compile_stage(source: pathlib.Path, spirv: pathlib.Path) -> None:
         raise RuntimeError(f"{spirv}: spirv-val: {(r.stderr or r.stdout).strip().splitlines()[0]}")
 
 
-def build_frame_shaders(plan: FramePlan, folder: pathlib.Path, language: str = "glsl") -> tuple:
+def build_frame_shaders(plan: FramePlan, folder: pathlib.Path, language: str = "glsl", per_pixel: bool = True) -> tuple:
     """The plan's sources written into ``folder`` (the fragment stage in ``language``, "glsl" or
-    "hlsl") and compiled: (vert.spv, frag.spv)."""
-    vert, frag = write_frame_sources(plan, folder, language)
+    "hlsl"; ``per_pixel`` as :func:`write_frame_sources`'s) and compiled: (vert.spv, frag.spv)."""
+    vert, frag = write_frame_sources(plan, folder, language, per_pixel)
     spirv = folder / "vert.spv", folder / "frag.spv"
     compile_stage(vert, spirv[0])
     compile_stage(frag, spirv[1])
