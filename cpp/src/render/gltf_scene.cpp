@@ -54,27 +54,6 @@ struct Asset {
     std::vector<std::string> buffers;  // each buffer's bytes (at least byteLength), for the index check
 };
 
-std::string base64_decode(const std::string& text) {
-    std::string out;
-    unsigned bits = 0;
-    int count = 0;
-    for (char ch : text) {
-        int v;
-        if (ch >= 'A' && ch <= 'Z') v = ch - 'A';
-        else if (ch >= 'a' && ch <= 'z') v = ch - 'a' + 26;
-        else if (ch >= '0' && ch <= '9') v = ch - '0' + 52;
-        else if (ch == '+' || ch == '-') v = 62;
-        else if (ch == '/' || ch == '_') v = 63;
-        else continue;  // '=' padding, whitespace
-        bits = (bits << 6) | unsigned(v);
-        if ((count += 6) >= 8) {
-            count -= 8;
-            out.push_back(char((bits >> count) & 0xFF));
-        }
-    }
-    return out;
-}
-
 json parse_json(const SceneReader& r, const std::string& text, const std::string& what) {
     if (json_depth(text) > spec::kMaxJsonDepth)
         r.fail(what, "JSON nested deeper than " + std::to_string(spec::kMaxJsonDepth) + " levels");
@@ -378,6 +357,27 @@ float factor(const SceneReader& r, const json& obj, const std::string& w, const 
 
 }  // namespace
 
+std::string base64_decode(const std::string& text) {
+    std::string out;
+    unsigned bits = 0;
+    int count = 0;
+    for (char ch : text) {
+        int v;
+        if (ch >= 'A' && ch <= 'Z') v = ch - 'A';
+        else if (ch >= 'a' && ch <= 'z') v = ch - 'a' + 26;
+        else if (ch >= '0' && ch <= '9') v = ch - '0' + 52;
+        else if (ch == '+' || ch == '-') v = 62;
+        else if (ch == '/' || ch == '_') v = 63;
+        else continue;  // '=' padding, whitespace
+        bits = (bits << 6) | unsigned(v);
+        if ((count += 6) >= 8) {
+            count -= 8;
+            out.push_back(char((bits >> count) & 0xFF));
+        }
+    }
+    return out;
+}
+
 GltfFa gltf_material_to_fa(const SceneReader& r, const json& m, const std::string& w) {
     if (!m.is_object()) r.fail(w, "expected an object");
     const json none = json::object();
@@ -405,18 +405,14 @@ GltfFa gltf_material_to_fa(const SceneReader& r, const json& m, const std::strin
                                          we + "KHR_materials_anisotropy.anisotropyStrength");
     GltfFa out;
     out.rotation = factor(r, aniso_ext, we + "KHR_materials_anisotropy", "anisotropyRotation", 0.0f);
-    // In double, then rounded once: F0 near 1 makes (1 + sqrt F0) / (1 - sqrt F0) steep.
     const double f0_ior = ior == 0.0f ? 1.0 : ((double(ior) - 1.0) / (double(ior) + 1.0)) * ((double(ior) - 1.0) / (double(ior) + 1.0));
+    GltfFactors& k = out.factors;
     for (int c = 0; c < 3; ++c) {
-        const double dielectric = std::min(f0_ior * double(spec_color[c]), 1.0) * double(specular);  // KHR_materials_specular's clamp
-        const double f0 = std::clamp(dielectric * (1.0 - metallic) + double(base[c]) * metallic, 0.0, 1.0);
-        const double s = std::sqrt(f0);
-        out.params.kd[c] = float(std::clamp(double(base[c]) * (1.0 - metallic), 0.0, 1.0));
-        out.params.eta[c] = float(s < 1.0 ? std::clamp((1.0 + s) / (1.0 - s), kEtaMin, kEtaMax) : kEtaMax);
+        k.base[c] = base[c];
+        k.dielectric_f0[c] = std::min(f0_ior * double(spec_color[c]), 1.0) * double(specular);  // KHR_materials_specular's clamp
     }
-    const double alpha = double(roughness) * double(roughness), s2 = double(strength) * double(strength);
-    out.params.alpha.x = float(std::clamp(alpha * (1.0 - s2) + s2, kAlphaMin, kAlphaMax));
-    out.params.alpha.y = float(std::clamp(alpha, kAlphaMin, kAlphaMax));
+    k.metallic = metallic, k.roughness = roughness, k.anisotropy = strength;
+    out.params = gltf_fa(k.base, k.metallic, k.roughness, k.dielectric_f0, k.anisotropy);
     return out;
 }
 
@@ -452,10 +448,24 @@ GltfAsset read_gltf(const std::string& path) {
     check_indices(r, a);
     GltfAsset out;
     const json& materials = array_of(r, a.doc, "materials");
+    GltfImages images(r, a.doc, a.buffers, a.folder);
     for (std::size_t i = 0; i < materials.size(); ++i) {
         const std::string w = "materials[" + std::to_string(i) + "]";
         GltfFa fa = gltf_material_to_fa(r, materials[i], w);
         fa.name = materials[i].contains("name") ? r.string(materials[i].at("name"), w + ".name") : "";
+        // Its textures, decoded (bounded from their headers first): unbound materials read all
+        // three, bound ones the normalTexture (scene_loader.cpp).
+        const json& m = materials[i];
+        const json none = json::object();
+        const json& pbr = m.contains("pbrMetallicRoughness") ? m.at("pbrMetallicRoughness") : none;
+        fa.base_color = images.texture(pbr, "baseColorTexture", w + ".pbrMetallicRoughness", true);
+        fa.metallic_roughness = images.texture(pbr, "metallicRoughnessTexture", w + ".pbrMetallicRoughness", false);
+        if (std::optional<GltfTexture> t = images.texture(m, "normalTexture", w, false)) {
+            GltfNormalTexture n;
+            n.texture = std::move(*t);
+            n.scale = factor(r, m.at("normalTexture"), w + ".normalTexture", "scale", 1.0f);
+            fa.normal = std::move(n);
+        }
         out.materials.push_back(std::move(fa));
     }
     out.parts = read_parts(r, a);

@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "hybridbrdf/render/gltf_material.hpp"
 #include "hybridbrdf/render/integrator.hpp"
 #include "hybridbrdf/render/limits.hpp"
 #include "hybridbrdf/render/sky.hpp"
@@ -525,8 +526,20 @@ private:
             else fa = detail::gltf_material_to_fa(r_, none, w);  // glTF's default material
             const std::string label = w + ":" + (g < 0 ? std::string("default") : fa.name.empty() ? "#" + std::to_string(g) : fa.name);
             int index;
-            if (g >= 0 && !fa.name.empty() && bind.contains(fa.name)) index = bound_material(bind.at(fa.name), w + ".bind." + fa.name, label, scene);
-            else {
+            if (g >= 0 && !fa.name.empty() && bind.contains(fa.name)) {
+                index = bound_material(bind.at(fa.name), w + ".bind." + fa.name, label, scene);
+                // The asset's normal map stays, unless the bound folder brings its own (docs/GLTF.md).
+                const auto* folder = dynamic_cast<const TexturedMaterial*>(scene.materials[std::size_t(index)].get());
+                if (fa.normal && !(folder && folder->svbrdf().has_normal_map())) {
+                    const std::optional<AnalyticParams> proxy = proxies_[std::size_t(index)];
+                    proxies_.push_back(proxy);
+                    index = scene.add_material(std::make_unique<NormalMappedMaterial>(label, scene.materials[std::size_t(index)].get(), *fa.normal));
+                }
+            } else if (fa.textured()) {  // per-texel f_a of its factors times its textures
+                auto gm = std::make_unique<GltfMaterial>(label, fa.factors, fa.base_color, fa.metallic_roughness, fa.normal);
+                proxies_.push_back(gm->factor_params());  // records the strategy; sampling reads the texel's f_a
+                index = scene.add_material(std::move(gm));
+            } else {
                 proxies_.push_back(fa.params);
                 index = scene.add_material(std::make_unique<AnalyticMaterial>(label, fa.params));
             }

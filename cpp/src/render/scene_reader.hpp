@@ -162,8 +162,13 @@ private:
 }  // namespace hbrdf::render::detail
 
 // ---- the loader's parts that live in files of their own ---------------------------------------
+#include <map>
+#include <memory>
+#include <optional>
+
 #include "hybridbrdf/params.hpp"
 #include "hybridbrdf/render/light.hpp"
+#include "hybridbrdf/render/gltf_material.hpp"
 #include "hybridbrdf/render/mesh.hpp"
 
 namespace hbrdf::render::detail {
@@ -172,11 +177,16 @@ namespace hbrdf::render::detail {
 /// `r`'s one-line errors ("lights[1].intensity[2]: must be >= 0, got -1").
 DeltaLights read_lights(const SceneReader& r, const json& lights);
 
-/// A glTF material as f_a (gltf_scene.cpp; the mapping of docs/RENDERING.md, "glTF objects").
+/// A glTF material as f_a (gltf_scene.cpp; the mapping of docs/GLTF.md): its factors' f_a and,
+/// when it has them, its textures (gltf_material.hpp).
 struct GltfFa {
     std::string name;        ///< the glTF material's name ("" when it has none)
-    AnalyticParams params;
+    AnalyticParams params;   ///< the factors' f_a
+    GltfFactors factors;
     float rotation = 0.0f;   ///< KHR_materials_anisotropy's anisotropyRotation, radians
+    std::optional<GltfTexture> base_color, metallic_roughness;
+    std::optional<GltfNormalTexture> normal;
+    bool textured() const { return base_color || metallic_roughness || normal; }
 };
 
 /// The triangles of one glTF material, node transforms applied (world = the asset's root space).
@@ -192,6 +202,34 @@ struct GltfAsset {
 
 /// A glTF asset larger than this is refused before it is read (it is held in memory twice).
 inline constexpr std::uint64_t kMaxGltfBytes = std::uint64_t(1) << 30;
+/// A glTF image's bounds, checked from its header before it is decoded (the Python reader's).
+inline constexpr int kMaxGltfImageSide = 16384;
+inline constexpr std::uint64_t kMaxGltfImageTexels = std::uint64_t(1) << 26;
+/// The longest data: URI read (characters).
+inline constexpr std::size_t kMaxGltfDataUri = std::size_t(16) << 20;
+
+/// RFC 4648 base64 (and its URL-safe alphabet); padding and whitespace skipped.
+std::string base64_decode(const std::string& text);
+
+/// A glTF asset's images and textures as its materials' slots read them (gltf_textures.cpp): each
+/// image bounded from its header, then decoded once. Errors are `r`'s one line at the JSON path.
+class GltfImages {
+public:
+    /// `buffers`: each buffer's bytes (checked: every buffer view lies inside its buffer).
+    GltfImages(const SceneReader& r, const json& doc, const std::vector<std::string>& buffers, std::string folder);
+    /// The texture of textureInfo `owner[key]` (at `w_owner`), nullopt when absent; `srgb` for
+    /// baseColorTexture. Refuses texCoord other than 0 and KHR_texture_transform.
+    std::optional<GltfTexture> texture(const json& owner, const char* key, const std::string& w_owner, bool srgb);
+
+private:
+    const SceneReader& r_;
+    const json& doc_;
+    const std::vector<std::string>& buffers_;
+    std::string folder_;
+    std::map<std::uint64_t, std::shared_ptr<const GltfImage>> cache_;
+    std::string encoded(const json& image, const std::string& w, std::string& type) const;
+    std::shared_ptr<const GltfImage> image(std::uint64_t index, const std::string& w_source);
+};
 
 /// The glTF material `m` (JSON, at `w` for errors) mapped onto f_a.
 GltfFa gltf_material_to_fa(const SceneReader& r, const json& m, const std::string& w);

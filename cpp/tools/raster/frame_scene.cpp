@@ -115,14 +115,42 @@ GpuMaterial analytic_entry(const AnalyticParams& p, int kind) {
     for (int c = 0; c < 3; ++c) g.kd[c] = p.kd[c], g.eta[c] = p.eta[c];
     g.alpha[0] = p.alpha.x, g.alpha[1] = p.alpha.y;
     g.kind[0] = kind;
+    g.kind[1] = g.kind[2] = g.kind[3] = -1;
     return g;
 }
 
+// The next slot of `textures`, holding t (or -1 without one).
+int32_t slot(const std::optional<render::GltfTexture>& t, std::vector<render::GltfTexture>& textures) {
+    if (!t) return -1;
+    textures.push_back(*t);
+    return int32_t(textures.size()) - 1;
+}
+
 // The table entry of scene material m; kind -1 where the raster frame cannot draw it.
-GpuMaterial material_entry(const render::Material& m, const std::vector<std::string>& model_materials) {
+GpuMaterial material_entry(const render::Material& m, const std::vector<std::string>& model_materials,
+                           std::vector<render::GltfTexture>& textures) {
     const auto listed = std::find(model_materials.begin(), model_materials.end(), m.name());
     const int model_case = listed == model_materials.end() ? -1 : int(listed - model_materials.begin()) + 1;
     if (const auto* a = dynamic_cast<const render::AnalyticMaterial*>(&m)) return analytic_entry(a->params(), 0);
+    if (const auto* gm = dynamic_cast<const render::GltfMaterial*>(&m)) {
+        const render::GltfFactors& k = gm->factors();
+        GpuMaterial g{};
+        for (int c = 0; c < 3; ++c) g.kd[c] = float(k.base[c]), g.eta[c] = float(k.dielectric_f0[c]);
+        g.alpha[0] = float(k.metallic), g.alpha[1] = float(k.roughness), g.alpha[2] = float(k.anisotropy);
+        g.kind[0] = kGltfCase;
+        g.kind[1] = slot(gm->base_color(), textures);
+        g.kind[2] = slot(gm->metallic_roughness(), textures);
+        g.kind[3] = slot(gm->normal() ? std::optional<render::GltfTexture>(gm->normal()->texture) : std::nullopt, textures);
+        g.alpha[3] = gm->normal() ? float(gm->normal()->scale) : 1.0f;
+        return g;
+    }
+    if (const auto* nm = dynamic_cast<const render::NormalMappedMaterial*>(&m)) {  // a bound material, the asset's normal map
+        GpuMaterial g = material_entry(nm->inner(), model_materials, textures);
+        if (g.kind[0] == -1) return g;
+        g.kind[3] = slot(nm->normal().texture, textures);
+        g.alpha[3] = float(nm->normal().scale);
+        return g;
+    }
     if (const auto* t = dynamic_cast<const render::TexturedMaterial*>(&m); t && model_case > 0)
         return analytic_entry(t->base_params(), model_case);  // the shader reads its maps
     if (const auto* model = dynamic_cast<const render::ModelMaterial*>(&m)) {
@@ -168,12 +196,12 @@ FrameScene build_frame_scene(const render::Scene& scene, const std::vector<std::
         throw std::invalid_argument("sphere segments must be an even number in [8, 8192], got " +
                                     std::to_string(sphere_segments));
     FrameScene out;
-    for (const auto& m : scene.materials) out.materials.push_back(material_entry(*m, model_materials));
+    for (const auto& m : scene.materials) out.materials.push_back(material_entry(*m, model_materials, out.gltf_textures));
     for (const std::string& name : model_materials)
         if (std::none_of(scene.materials.begin(), scene.materials.end(), [&](const auto& m) { return m->name() == name; }))
             throw std::invalid_argument("--model-material '" + name + "' is no material of the scene");
     auto draw = [&](int material, auto&& add) {
-        if (out.materials.at(std::size_t(material)).kind[0] < 0)
+        if (out.materials.at(std::size_t(material)).kind[0] == -1)
             throw std::invalid_argument("material '" + scene.materials[std::size_t(material)]->name() + "' (" +
                                         scene.materials[std::size_t(material)]->type() +
                                         "): the raster frame draws analytic, model and textured materials only (a textured one as a "

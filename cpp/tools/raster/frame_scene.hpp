@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "hybridbrdf/render/gltf_material.hpp"
 #include "hybridbrdf/render/scene.hpp"
 
 namespace hbrdf::raster {
@@ -31,13 +32,20 @@ struct Draw {
 
 /// A material as the fragment shader reads it (std430, 64 bytes). kind.x is the shader's case:
 /// 0 = f_a with the parameters kd, eta, alpha given here; k >= 1 = the k-th --model-material,
-/// a constant of the generated code.
+/// a constant of the generated code; kGltfCase = a glTF material with textures, f_a of the
+/// mapping (docs/GLTF.md) per pixel: kd.xyz its baseColorFactor, eta.xyz its dielectric F0,
+/// alpha.xyz its metallic and roughness factors and anisotropy strength. kind.y, kind.z, kind.w:
+/// the glTF texture slots (FrameScene::gltf_textures) of its baseColor, metallicRoughness and
+/// normal textures, or -1; a normal slot (also on any other row: a bound material keeping the
+/// asset's normal map) with its scale in alpha.w.
 struct GpuMaterial {
     float kd[4];
     float eta[4];
     float alpha[4];
     int32_t kind[4];
 };
+
+inline constexpr int32_t kGltfCase = -2;
 
 struct FrameScene {
     std::vector<Vertex> vertices;
@@ -50,6 +58,8 @@ struct FrameScene {
     /// std140 uniform: mat4 view_proj (column-major), vec4 camera position.
     float camera[20] = {};
     double max_sphere_gap = 0;  ///< the largest distance from a sphere's triangles to the sphere, in world units
+    /// The glTF textures the rows' slots name, in slot order (each slot one texture and its sampler).
+    std::vector<render::GltfTexture> gltf_textures;
 };
 
 /// Builds the frame of `scene`. `model_materials` names, in order, the scene materials the shader

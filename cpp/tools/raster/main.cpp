@@ -6,12 +6,15 @@
 // the tracer's deterministic direct-light mode (max_depth 1, pixel_jitter 0, a black environment).
 //
 //   hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]...
-//                [--texture MAP.hbtx]... [--sphere-segments 512] [--validation] [--repeat R]
+//                [--texture MAP.hbtx]... [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]
 //
 // The scene is read by the tracer's own loader (hybridbrdf_render). --model-material names, in
 // order, the scene materials the fragment shader evaluates as constants of the generated code
 // (cases 1, 2, ...); the others draw as f_a with their parameters (case 0). --texture names, in
-// binding order (3, 4, ...), the maps of a textured material (textures.hpp). Spheres are tessellated
+// binding order (3, 4, ...), the maps of a textured material (textures.hpp). --gltf-slots: how many
+// glTF texture samplers the fragment shader declares after those bindings; the scene's glTF
+// textures fill them in slot order (frame_scene.hpp), 1 x 1 white textures the rest (more glTF
+// textures than slots is refused). Spheres are tessellated
 // (frame_scene.hpp); "sphere_gap" prints how far inside the sphere its flat triangles reach.
 // --validation enables the Khronos validation layer: any warning or error fails the run (status 3).
 // --repeat R draws R more frames and prints the best time (host clock around submit + wait,
@@ -47,13 +50,13 @@ using namespace hbrdf::raster;
 struct Args {
     std::string scene, vert, frag, out, png;
     std::vector<std::string> model_materials, textures;
-    int sphere_segments = 512, repeat = 0;
+    int sphere_segments = 512, repeat = 0, gltf_slots = 0;
     bool validation = false;
 };
 
 const char* kUsage =
     "usage: hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]... "
-    "[--texture MAP.hbtx]... [--sphere-segments 512] [--validation] [--repeat R]";
+    "[--texture MAP.hbtx]... [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]";
 
 int parse_int(const char* flag, const char* text, int lo, int hi) {
     char* end = nullptr;
@@ -76,6 +79,7 @@ Args parse(int argc, char** argv) {
         else if (s == "--model-material" && has_value) a.model_materials.push_back(argv[++i]);
         else if (s == "--texture" && has_value) a.textures.push_back(argv[++i]);
         else if (s == "--sphere-segments" && has_value) a.sphere_segments = parse_int("--sphere-segments", argv[++i], 8, 8192);
+        else if (s == "--gltf-slots" && has_value) a.gltf_slots = parse_int("--gltf-slots", argv[++i], 0, 256);
         else if (s == "--repeat" && has_value) a.repeat = parse_int("--repeat", argv[++i], 0, 100000);
         else if (s.rfind("--", 0) == 0) throw std::invalid_argument("unknown or incomplete argument " + s + "\n" + kUsage);
         else positional.push_back(s);
@@ -133,6 +137,9 @@ int run(int argc, char** argv) {
     const render::Scene scene = render::load_scene(a.scene);
     const FrameScene fs = build_frame_scene(scene, a.model_materials, a.sphere_segments);
     if (fs.indices.empty()) throw std::invalid_argument(a.scene + ": nothing to draw");
+    if (fs.gltf_textures.size() > std::size_t(a.gltf_slots))
+        throw std::invalid_argument(a.scene + ": its glTF materials read " + std::to_string(fs.gltf_textures.size()) +
+                                    " textures; the fragment shader declares " + std::to_string(a.gltf_slots) + " (--gltf-slots)");
     const auto width = uint32_t(scene.camera.width()), height = uint32_t(scene.camera.height());
 
     Device device(a.validation);
@@ -146,6 +153,8 @@ int run(int argc, char** argv) {
     {
         std::vector<Texture> textures;
         for (const std::string& path : a.textures) textures.push_back(load_texture(device, path));
+        for (const render::GltfTexture& t : fs.gltf_textures) textures.push_back(upload_gltf_texture(device, t));
+        for (std::size_t k = fs.gltf_textures.size(); k < std::size_t(a.gltf_slots); ++k) textures.push_back(blank_texture(device));
         FramePipeline pipe(device, width, height, vert, frag, uint32_t(textures.size()));
         pipe.bind_buffers(camera, materials, lights, textures);
         if (device.validation_messages()) {  // a pipeline the layer refused may crash a driver when drawn

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "hybridbrdf/render/image.hpp"
+#include "hybridbrdf/render/gltf_material.hpp"
 
 namespace hbrdf::raster {
 namespace {
@@ -27,7 +28,110 @@ void to_layout(VkCommandBuffer cmd, VkImage image, uint32_t levels, VkImageLayou
     vkCmdPipelineBarrier(cmd, src, dst, 0, 0, nullptr, 0, nullptr, 1, &b);
 }
 
+// Level 0 from `rgba` (4 bytes a texel, top row first) into a new image of `levels` levels, each
+// further level blitted from the one before (linear filter, the usual generated chain), left in
+// SHADER_READ_ONLY_OPTIMAL.
+Image upload_with_chain(const Device& device, const unsigned char* rgba, uint32_t width, uint32_t height, uint32_t levels,
+                        VkFormat format) {
+    Image image = device.make_image(width, height, format,
+                                    VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                                    VK_IMAGE_ASPECT_COLOR_BIT, levels);
+    const std::size_t bytes = std::size_t(width) * height * 4;
+    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    Buffer stage = device.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
+    void* mapped = nullptr;
+    check(vkMapMemory(device.handle(), stage.memory, 0, stage.size, 0, &mapped), "vkMapMemory");
+    std::memcpy(mapped, rgba, bytes);
+    vkUnmapMemory(device.handle(), stage.memory);
+    VkCommandBuffer cmd = device.begin_commands();
+    to_layout(cmd, image.image, levels, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+              VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = {width, height, 1};
+    vkCmdCopyBufferToImage(cmd, stage.buffer, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    for (uint32_t l = 1; l < levels; ++l) {
+        VkImageMemoryBarrier b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};  // level l - 1 becomes the blit's source
+        b.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+        b.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+        b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        b.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+        b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+        b.image = image.image;
+        b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, l - 1, 1, 0, 1};
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1, &b);
+        VkImageBlit blit{};
+        blit.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l - 1, 0, 1};
+        blit.srcOffsets[1] = {int32_t(std::max(1u, width >> (l - 1))), int32_t(std::max(1u, height >> (l - 1))), 1};
+        blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
+        blit.dstOffsets[1] = {int32_t(std::max(1u, width >> l)), int32_t(std::max(1u, height >> l)), 1};
+        vkCmdBlitImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
+                       &blit, VK_FILTER_LINEAR);
+    }
+    if (levels > 1)  // every level but the last is a blit source now
+        to_layout(cmd, image.image, levels - 1, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                  VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                  VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
+    VkImageMemoryBarrier last{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+    last.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    last.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    last.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    last.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+    last.srcQueueFamilyIndex = last.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    last.image = image.image;
+    last.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, levels - 1, 1, 0, 1};
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1, &last);
+    device.submit_and_wait(cmd);
+    device.free_commands(cmd);
+    device.destroy(stage);
+    return image;
+}
+
+VkSamplerAddressMode address_mode(render::GltfWrap w) {
+    switch (w) {
+        case render::GltfWrap::ClampToEdge: return VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+        case render::GltfWrap::MirroredRepeat: return VK_SAMPLER_ADDRESS_MODE_MIRRORED_REPEAT;
+        default: return VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    }
+}
+
 }  // namespace
+
+Texture upload_gltf_texture(const Device& device, const render::GltfTexture& gt) {
+    const render::GltfImage& im = *gt.image;
+    const auto width = uint32_t(im.width), height = uint32_t(im.height);
+    // glTF minFilter 9984-9987 asks for a mip chain: generated here (the tracer reads level 0).
+    const bool mipmapped = gt.min_filter >= 9984 && gt.min_filter <= 9987;
+    uint32_t levels = 1;
+    if (mipmapped)
+        while ((std::max(width, height) >> levels) > 0) ++levels;
+    Texture t;
+    t.image = upload_with_chain(device, im.rgba.data(), width, height, levels,
+                                gt.srgb ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM);
+    VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+    si.magFilter = gt.nearest ? VK_FILTER_NEAREST : VK_FILTER_LINEAR;
+    // 9728 NEAREST, 9729 LINEAR, 9984 NEAREST_MIPMAP_NEAREST, 9985 LINEAR_MIPMAP_NEAREST,
+    // 9986 NEAREST_MIPMAP_LINEAR, 9987 LINEAR_MIPMAP_LINEAR
+    const int m = gt.min_filter;
+    si.minFilter = (m == 9728 || m == 9984 || m == 9986) ? VK_FILTER_NEAREST : VK_FILTER_LINEAR;
+    si.mipmapMode = (m == 9986 || m == 9987) ? VK_SAMPLER_MIPMAP_MODE_LINEAR : VK_SAMPLER_MIPMAP_MODE_NEAREST;
+    si.addressModeU = address_mode(gt.wrap_s);
+    si.addressModeV = address_mode(gt.wrap_t);
+    si.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    si.maxLod = float(levels - 1);
+    check(vkCreateSampler(device.handle(), &si, nullptr, &t.sampler), "vkCreateSampler");
+    return t;
+}
+
+Texture blank_texture(const Device& device) {
+    render::GltfTexture gt;
+    auto im = std::make_shared<render::GltfImage>();
+    im->width = im->height = 1;
+    im->rgba = {255, 255, 255, 255};
+    gt.image = im;
+    gt.min_filter = 9729;
+    return upload_gltf_texture(device, gt);
+}
 
 Texture load_texture(const Device& device, const std::string& path) {
     render::check_input_file(path, "texture file");

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "device.hpp"
+#include "hybridbrdf/render/gltf_material.hpp"
 
 namespace hbrdf::raster {
 
@@ -20,5 +21,13 @@ struct Texture {
 /// Throws render::FileError naming the file for a malformed one.
 Texture load_texture(const Device& device, const std::string& path);
 void destroy(const Device& device, Texture& texture);
+
+/// A glTF texture (the tracer's decoded image, render/gltf_material.hpp) as a sampled image: its
+/// 8-bit RGBA level 0 (R8G8B8A8_SRGB for a baseColorTexture, the texture unit decodes; UNORM
+/// otherwise), a mip chain blitted from it when the glTF minFilter is a mipmap mode, and a sampler
+/// of its wrap modes and filters.
+Texture upload_gltf_texture(const Device& device, const render::GltfTexture& texture);
+/// A 1 x 1 white texture: the slots a frame's shader declares beyond the scene's glTF textures.
+Texture blank_texture(const Device& device);
 
 }  // namespace hbrdf::raster

@@ -89,6 +89,7 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
         args += ["--validation"] if validation else []
         for name in plan.cases:
             args += ["--model-material", name]
+        args += ["--gltf-slots", str(plan.gltf_slots)] if plan.gltf_slots else []
         if plan.textured is not None:
             for path in write_textures(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
                                                           "normal": plan.normal}, folder):

@@ -13,6 +13,10 @@ takes the folder's code (``hbrdf-codegen DIR``), with the scene's full model mat
 beside its layers when they come from the folder's model (the same tensors): its maps are
 sampler2D bindings 3, 4, ... read with the pixel's uv derivatives, its normal map (when it has one)
 the next binding, read and applied by the frame itself; the textured names are the last cases.
+A scene with glTF objects declares one more sampler2D per texture its assets' materials name
+(baseColor, metallicRoughness, normal; the tool fills them from the tracer's decoded images): a
+glTF material with textures is f_a of docs/GLTF.md's mapping per pixel, and a normalTexture tilts
+any row's shading frame (GLSL only).
 """
 
 from __future__ import annotations
@@ -36,9 +40,11 @@ from hybridbrdf.codegen.textured import textured_plan
 from hybridbrdf.codegen.literals import material_constant
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.files.package_data import package_data_dir
+from hybridbrdf.gltf import read_gltf
 from hybridbrdf.inputs import same_file
 from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import prior_path
+from hybridbrdf.spec import ALPHA_MIN
 from hybridbrdf.render.tracer import load_scene_dict
 
 
@@ -69,6 +75,7 @@ class FramePlan:
     maps: List[dict] = field(default_factory=list)  #: its maps in binding order (textured_plan's)
     addressing: str = "repeat"  #: its maps' addressing
     normal: Optional[str] = None  #: its normal map's file (in the folder), read by the frame's own code
+    gltf_slots: int = 0  #: sampler2D slots for the glTF assets' textures (the tool's --gltf-slots)
 
 
 def frame_plan(scene: str) -> FramePlan:
@@ -94,7 +101,7 @@ def frame_plan(scene: str) -> FramePlan:
                                              f"{textured[0][1]} (the generated files would define the same names)")
             if m["material"] not in tplan["model"].materials:
                 raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {m['file']}")
-        return FramePlan(model_file=os.fspath(tplan["model"].path),
+        return FramePlan(gltf_slots=_gltf_texture_slots(data, base_dir), model_file=os.fspath(tplan["model"].path),
                          emitted=list(dict.fromkeys(list(tplan["materials"]) + [m["material"] for m in full])),
                          cases=[_loaded_name(m["where"], m["name"]) for m in full] + [name for name, _ in textured],
                          case_constants=[material_constant(m["material"]) for m in full], textured=textured[0][1],
@@ -111,9 +118,24 @@ def frame_plan(scene: str) -> FramePlan:
             raise InputFileError(origin, f"{m['where']}.material: no material {m['material']!r} in {files[0]}")
     if not emitted:
         emitted = [model.materials[0]]
-    return FramePlan(model_file=os.fspath(files[0]), emitted=emitted, cases=[_loaded_name(m["where"], m["name"]) for m in full],
+    return FramePlan(gltf_slots=_gltf_texture_slots(data, base_dir), model_file=os.fspath(files[0]), emitted=emitted, cases=[_loaded_name(m["where"], m["name"]) for m in full],
                      case_constants=[material_constant(m["material"]) for m in full],
                      carrier=material_constant(emitted[0]))
+
+
+def _gltf_texture_slots(data: dict, base_dir: str) -> int:
+    """How many textures the scene's glTF assets' materials name (baseColor, metallicRoughness and
+    normal, counted per material: at least the slots the tool fills), read by the bounded reader."""
+    slots = 0
+    for obj in data["objects"]:
+        if obj.get("type") != "gltf":
+            continue
+        doc = read_gltf(os.path.join(base_dir, obj["file"])).document
+        for material in doc.get("materials", []):
+            pbr = material.get("pbrMetallicRoughness", {})
+            slots += sum(key in pbr for key in ("baseColorTexture", "metallicRoughnessTexture"))
+            slots += "normalTexture" in material
+    return slots
 
 
 def _same_model(a, b) -> bool:
@@ -168,6 +190,11 @@ def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "
         code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file,
                         pixel_split=per_pixel)
     (folder / f"model.{language}").write_text(code)
+    if plan.gltf_slots and language != "glsl":
+        raise ValueError("language: a frame with glTF textures is drawn from GLSL only")
+    gltf = None if not plan.gltf_slots else {
+        "first_binding": 3 + len(plan.maps) + (plan.normal is not None), "slots": plan.gltf_slots,
+        "alpha_min": repr(float(ALPHA_MIN))}
     textured = None if plan.textured is None else {
         "maps": [m["param"] for m in plan.maps], "first_case": len(plan.case_constants) + 1,
         "normal_binding": 3 + len(plan.maps) if plan.normal is not None else None}
@@ -177,7 +204,7 @@ def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "
     template = "raster.frag.j2" if language == "glsl" else "raster.hlsl.j2"
     frag.write_text(env.get_template(template).render(model_file=f"model.{language}", carrier=plan.carrier,
                                                       cases=plan.case_constants, textured=textured,
-                                                      per_pixel=per_pixel))
+                                                      per_pixel=per_pixel, gltf=gltf))
     return vert, frag
 
 

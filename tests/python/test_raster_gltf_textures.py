@@ -1,0 +1,76 @@
+"""The raster frame draws a glTF asset's own textures as the tracer does (docs/RASTER.md, docs/GLTF.md
+"Textures"): the pygltflib quad of gltf_textured_asset.py (two-colour sRGB baseColor, a roughness
+ramp and metallic step through a NEAREST mirrored sampler, a tilted normal map with its scale),
+unbound (f_a of the mapping per pixel in the fragment stage) and bound to a scene material (the
+asset's normal map kept), under lavapipe with the validation layer, against the tracer's
+deterministic direct light (bench/raster_vs_tracer.py's comparison: relative error per channel,
+floor 1e-3 of the image's largest value) over the pixels on the quad.
+
+The texture unit filters 8-bit values as 8-bit values (docs/RASTER.md, "the tracer, textured"), so
+the bound is the issue's 1% on the mean. Measured (lavapipe, 1,320 pixels): unbound 3.4e-3 mean,
+1.6e-2 at the 99th percentile; bound 2.5e-4, 2.7e-3. Seen failing (then reverted): the frame's sRGB
+decode skipped (baseColor uploaded UNORM: mean 1.30), the metallic and roughness channels swapped
+in the shader (0.87) and the normal map's y flipped in the shader (0.23; bound 0.13)."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+import hybridbrdf
+from hybridbrdf.render import render
+from helpers import LVP_ICD, ROOT
+import gltf_textured_asset as asset
+
+TOOL = ROOT / "build" / "hbrdf_raster"
+if not (TOOL.exists() and os.path.exists(LVP_ICD)):
+    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
+        raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
+    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+pytest.importorskip("pygltflib")
+
+
+def both(tmp_path, s):
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(s))
+    traced = np.asarray(render(str(path))[0], np.float64)
+    stats = hybridbrdf.raster.draw_frame(path, tmp_path / "frame.exr", validation=True, lavapipe=True, tool=TOOL,
+                                         keep_shaders=tmp_path / "shaders")
+    assert stats["device"].startswith("llvmpipe")
+    drawn = np.asarray(hybridbrdf.render.read_exr(tmp_path / "frame.exr"), np.float64)
+    assert np.isfinite(drawn).all() and (drawn >= 0).all()
+    return drawn, traced
+
+
+def compare(drawn, traced):
+    _, on = asset.reference(lambda u, v: (np.zeros(3), np.ones(3) * 1.5, (0.5, 0.5)), normal=False)
+    err = (np.abs(drawn - traced) / np.maximum(traced, 1e-3 * traced.max()))[on]
+    return err.mean(), np.quantile(err, 0.99)
+
+
+def test_unbound_textured_material_matches_tracer(tmp_path):
+    glb = asset.write_asset(tmp_path / "quad.glb")
+    drawn, traced = both(tmp_path, asset.scene(glb))
+    mean, p99 = compare(drawn, traced)
+    print(mean, p99)
+    assert mean <= 0.01, (mean, p99)
+    plan = hybridbrdf.raster.shaders.frame_plan(str(tmp_path / "scene.json"))
+    assert plan.gltf_slots == 3
+
+
+def test_bound_material_keeps_normal_map_in_frame(tmp_path):
+    glb = asset.write_asset(tmp_path / "quad.glb")
+    paint = {"type": "analytic", "kd": [0.5, 0.3, 0.2], "eta": [1.8, 1.7, 1.6], "alpha": [0.3, 0.3]}
+    drawn, traced = both(tmp_path, asset.scene(glb, bind={"Painted": "paint"}, materials={"paint": paint}))
+    mean, p99 = compare(drawn, traced)
+    print(mean, p99)
+    assert mean <= 0.01, (mean, p99)
+
+
+def test_hlsl_refuses_gltf_textures(tmp_path):
+    glb = asset.write_asset(tmp_path / "quad.glb")
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(asset.scene(glb)))
+    with pytest.raises(ValueError, match="glTF textures is drawn from GLSL only"):
+        hybridbrdf.raster.draw_frame(path, tmp_path / "f.exr", lavapipe=True, tool=TOOL, language="hlsl")
