@@ -9,7 +9,9 @@ structure-aware damage of a valid asset (a field of an accessor, buffer, bufferV
 mesh primitive or node set to an extreme, a neighbour, another type, or removed; an image's
 header size forged; the GLB header or a chunk length forged; a URI pointed outside the folder)
 or fuzz_surfaces' byte damage. tests/python/test_fuzz.py drives it with Hypothesis;
-bench/fuzz_scale.py at scale.
+bench/fuzz_scale.py at scale. :func:`check_gltf_tracer` puts the same mutants through the tracer's
+own C++ reader (its images decoded: the seed's material has a baseColor PNG), driven by
+tests/python/test_gltf_textures.py.
 """
 
 from __future__ import annotations
@@ -149,4 +151,31 @@ def check_gltf(data: bytes, path: pathlib.Path) -> str:
         result = fs.expect_clean_error("glTF file", exc, str(path))
     if path.read_bytes() != data:
         raise fs.Violation("glTF file: the file was changed by reading it")
+    return result
+
+
+def check_gltf_tracer(data: bytes, path: pathlib.Path) -> str:
+    """The tracer's glTF reader (C++, images decoded) on ``data`` written at ``path``, through a
+    4 x 4 direct-light render: a one-line error naming the file, or a finite image."""
+    from hybridbrdf.render import render
+    path.write_bytes(data)
+    scene = {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "fov_deg": 40, "width": 4, "height": 4},
+             "environment": {"type": "constant", "radiance": 0},
+             "lights": [{"type": "directional", "direction": [0, 0, 1], "irradiance": 1}],
+             "objects": [{"type": "gltf", "file": str(path)}], "max_depth": 1, "spp": 1, "pixel_jitter": False,
+             "threads": 1}
+    scene_path = path.with_suffix(".json")
+    scene_path.write_text(json.dumps(scene))
+    try:
+        with fs._memory_bound():  # noqa: SLF001 - the suite's shared bound
+            image, _ = render(str(scene_path))
+        if not np.isfinite(image).all():
+            raise fs.Violation("glTF file (tracer): a non-finite pixel")
+        result = fs.VALID
+    except fs.Violation:
+        raise
+    except Exception as exc:  # noqa: BLE001
+        result = fs.expect_clean_error("glTF file (tracer)", exc, str(path))
+    if path.read_bytes() != data:
+        raise fs.Violation("glTF file (tracer): the file was changed by reading it")
     return result

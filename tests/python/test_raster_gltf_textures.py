@@ -68,6 +68,19 @@ def test_bound_material_keeps_normal_map_in_frame(tmp_path):
     assert mean <= 0.01, (mean, p99)
 
 
+def test_bound_model_material_keeps_normal_map_in_frame(tmp_path):
+    """A full model material (its network, the per-pixel form at the normal map's wo) in the asset's
+    normal-map frame."""
+    model = ROOT / "results" / "rgl54_fast.safetensors"
+    if not model.exists():
+        pytest.skip("results/rgl54_fast.safetensors is not in this checkout")
+    glb = asset.write_asset(tmp_path / "quad.glb")
+    drawn, traced = both(tmp_path, asset.scene(glb, bind={"Painted": f"{model}#paper_white_rgb.rgl"}))
+    mean, p99 = compare(drawn, traced)
+    print(mean, p99)
+    assert mean <= 0.01, (mean, p99)
+
+
 def test_hlsl_refuses_gltf_textures(tmp_path):
     glb = asset.write_asset(tmp_path / "quad.glb")
     path = tmp_path / "scene.json"
