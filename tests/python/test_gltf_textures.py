@@ -173,3 +173,14 @@ def test_fuzzed_assets_through_the_tracer(tmp_path):
                                            tmp_path / f"a{i}.{kind}")
                for i, kind in ((i, ("glb", "gltf")[i % 2]) for i in range(24))]
     assert {"valid", "rejected"} <= set(results)
+
+
+def test_tangents_from_uvs_follow_the_same_convention(glb, tmp_path):
+    """Without TANGENT, assimp's tangents from the uvs (dP/du; its flip of v to bottom-up changes
+    the sign of dv and of the determinant together) give the frame the asset's TANGENT gives."""
+    def no_tangent(doc):
+        del doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]
+    bare = asset.write_asset(tmp_path / "bare.glb", edit=no_tangent)
+    a, b = trace(tmp_path, asset.scene(bare)), trace(tmp_path, asset.scene(glb))
+    ref, on = asset.reference()
+    assert relative(a, b, on).max() < 1e-5 and relative(a, ref, on).mean() < 1e-5
