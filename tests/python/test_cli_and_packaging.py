@@ -1,4 +1,9 @@
-"""The hbrdf command line and packaging facts (versions agree everywhere)."""
+"""The hbrdf command line and packaging facts (versions agree everywhere).
+
+Commands run by :func:`helpers.run_cli_here`, in the test's process, unless the test is about
+the fresh interpreter: the README's main job (a warning Python prints once per process, and
+pytest records instead of printing, would pass unseen in-process) and the bad-arguments exit.
+A fresh interpreter costs 2-4 s of CPU importing torch per fitting command."""
 
 import pathlib
 import re
@@ -10,12 +15,12 @@ import hybridbrdf as hb
 
 from hybridbrdf.fit.settings import FitSettings
 
-from helpers import ROOT, run_cli
+from helpers import ROOT, run_cli, run_cli_here
 
 
 def test_demo_writes_a_png(tmp_path):
     out = tmp_path / "sub" / "slices.png"
-    r = run_cli("demo", "--out", str(out), "--samples", "2000")
+    r = run_cli_here("demo", "--out", str(out), "--samples", "2000")
     assert r.returncode == 0, r.stderr
     data = out.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
@@ -58,14 +63,14 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     # 30 steps, no preview: what this test reads (the materials, settings and metrics each command
     # prints and records) does not depend on the fit's progress; the default preview is
     # test_the_readme_main_job's and test_fit_preview_flags'.
-    r = run_cli("fit", "synthetic:plastic", "synthetic:gold", "--mlp", "16x2", "--steps", "30", "--pool", "4096",
+    r = run_cli_here("fit", "synthetic:plastic", "synthetic:gold", "--mlp", "16x2", "--steps", "30", "--pool", "4096",
                 "--eval-pairs", "5000", "--out", str(out), "--quiet", "--no-preview")
     assert r.returncode == 0, r.stderr
     assert "plastic" in r.stdout and "gold" in r.stdout and "SMAPE analytic" in r.stdout
     model = hb.load_model(out)
     assert model.materials == ["plastic", "gold"] and model.arch["width"] == 16 and model.arch["depth"] == 2
     assert model.training["steps"] == 30 and model.training["sources"] == ["synthetic:plastic", "synthetic:gold"]
-    r = run_cli("eval", str(out), "synthetic:gold", "--pairs", "5000", "--all-metrics")
+    r = run_cli_here("eval", str(out), "synthetic:gold", "--pairs", "5000", "--all-metrics")
     assert r.returncode == 0, r.stderr
     ext = [line for line in r.stdout.splitlines() if line.startswith("gold")][1].split()
     # gold is reciprocal and so is its analytic fit; the reference albedo of gold at 45 degrees is < 1
@@ -77,21 +82,21 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     row = [line for line in r.stdout.splitlines() if line.startswith("gold")][0]
     smape_a, smape_m = (float(x) for x in row.split()[-4:-2])
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
-    r = run_cli("info", str(out))
+    r = run_cli_here("info", str(out))
     assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
     assert "lr 0.005, lr_schedule cosine, lr_final 0.01, clip 0.01, weight_decay 0.0, seed 0," in r.stdout, r.stdout
     assert "recipe hybridbrdf" in r.stdout, r.stdout
     assert "sparse_init" not in r.stdout  # a joint fit: no sparse settings
     for init in ("nearest", "neutral"):  # sparse fitting: the network stays, the start is recorded
         sparse = tmp_path / f"sparse_{init}.safetensors"
-        r = run_cli("fit", "--frozen", str(out), "synthetic:gold", "--steps", "20", "--pool", "4096",
+        r = run_cli_here("fit", "--frozen", str(out), "synthetic:gold", "--steps", "20", "--pool", "4096",
                     "--eval-pairs", "5000", "--sparse-init", init, "--out", str(sparse), "--quiet", "--no-preview")
         assert r.returncode == 0, r.stderr
         added = hb.load_model(sparse)
         assert added.training["sparse_init"] == init and added.training["frozen_from"] == str(out)
         assert all(np.array_equal(v, added.tensors[k]) for k, v in model.tensors.items()
                    if not k.startswith("materials."))
-        r = run_cli("info", str(sparse))
+        r = run_cli_here("info", str(sparse))
         assert f"sparse_init {init}" in r.stdout and f"frozen_from {out}" in r.stdout, r.stdout
         assert "loss: loss_eps 0.1," in r.stdout, r.stdout
         assert ("sparse fit started from gold (smape " in r.stdout) == (init == "nearest"), r.stdout
@@ -107,7 +112,7 @@ def test_cli_errors_are_one_line(tmp_path):
         (("fit", str(bad), "--out", str(tmp_path / "o.st")), "unknown BRDF format"),
         (("fit", "synthetic:gold", "--mlp", "32by3", "--out", str(tmp_path / "o.st")), "WIDTHxDEPTH"),
     ):
-        r = run_cli(*args)
+        r = run_cli_here(*args)
         assert r.returncode == 1, (args, r.stderr)
         assert needle in r.stderr and r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "o.st").exists()
@@ -253,13 +258,13 @@ def test_the_readme_main_job_prints_no_warning_and_ends_with_a_picture(tmp_path)
 def test_fit_preview_flags(tmp_path):
     out = tmp_path / "m.safetensors"
     common = ("fit", "synthetic:plastic", "--mlp", "8x1", "--steps", "20", "--pool", "4096", "--eval-pairs", "2000")
-    r = run_cli(*common, "--out", str(out), "--no-preview", "--quiet")
+    r = run_cli_here(*common, "--out", str(out), "--no-preview", "--quiet")
     assert r.returncode == 0, r.stderr
     assert not list(tmp_path.glob("*.png")) and "as spheres" not in r.stdout
     pic = tmp_path / "pics" / "plastic.png"
-    r = run_cli(*common, "--out", str(out), "--preview", str(pic), "--quiet")
+    r = run_cli_here(*common, "--out", str(out), "--preview", str(pic), "--quiet")
     assert r.returncode == 0, r.stderr
     assert pic.read_bytes()[:4] == b"\x89PNG" and f"wrote {pic}: 1 material as spheres" in r.stdout
-    r = run_cli(*common, "--out", str(out), "--preview", str(out), "--quiet")
+    r = run_cli_here(*common, "--out", str(out), "--preview", str(out), "--quiet")
     assert r.returncode == 1 and "--out and --preview name the same file" in r.stderr
     assert r.stderr.strip().count("\n") == 0
