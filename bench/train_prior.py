@@ -5,6 +5,7 @@ materials: 142), written into the package (python/hybridbrdf/data/prior.safetens
 
     python bench/train_prior.py [--steps 20000] [--batch 512] [--mlp 32x2] [--latent 8]
         [--output-layer shared|material] [--folders F,...] [--leave-out NAME]... [--out FILE] [--checkpoint FILE] [--compile]
+        [--arch hybrid|hybrid-reciprocal]
 
 --leave-out NAME drops a material in every form (raw file and reconstruction): the prior of
 the new-measurement hold-out (protocol (a) with the prior's recipe), e.g. all five raw RGL files, then
@@ -51,6 +52,7 @@ def main() -> int:
     ap.add_argument("--out", default=str(ROOT / "python" / "hybridbrdf" / "data" / "prior.safetensors"))
     ap.add_argument("--checkpoint", help="checkpoint file (resumed if it exists)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the training steps")
+    ap.add_argument("--arch", default="hybrid", help="model architecture (hybrid, or hybrid-reciprocal: issue 60)")
     args = ap.parse_args()
     folders = tuple(f for f in args.folders.split(",") if f)
     specs = [p for p in hb.expand_sources([os.path.join(args.shared, f) for f in folders])
@@ -62,7 +64,8 @@ def main() -> int:
     sources = [hb.open_source(p) for p in specs]
     width, depth = parse_mlp(args.mlp)
     # Sources recorded relative to the data folder: the file ships, the machine's paths do not.
-    settings = FitSettings(width=width, depth=depth, latent=args.latent, steps=args.steps, batch=args.batch,
+    settings = FitSettings(arch=args.arch, width=width, depth=depth, latent=args.latent, steps=args.steps,
+                           batch=args.batch,
                            seed=args.seed, eval_pairs=100_000, output_layer=args.output_layer,
                            sources=[os.path.relpath(p, args.shared) for p in specs])
     t0 = time.time()
