@@ -138,6 +138,13 @@ def read_state(dom):
     return px[::-1, :, :3], scene, cmd  # the readback gives the bottom row first
 
 
+def shared_page_state(tmp_path_factory, page, hash_, size=SIZE):
+    """page_state, made once per test run for every test that opens these page bytes with this
+    fragment at this size (view_harness.shared: the load is asserted clean where it is made)."""
+    return view_harness.shared(tmp_path_factory, "webgl2", [view_harness.file_sha256(page), hash_, size, BROWSER_FLAGS,
+                                                            chromium()], lambda: page_state(page, hash_, size))
+
+
 def page_pixels(page, hash_):
     return page_state(page, hash_)[0]
 
@@ -147,6 +154,18 @@ def tracer_pixels(scene, seed=0):
 
     img, _ = render(scene, seed=seed, spp=SPP, threads=2)
     return srgb8(img)
+
+
+_CORE_SHA256 = []
+
+
+def shared_tracer_pixels(tmp_path_factory, scene, seed=0):
+    """tracer_pixels, rendered once per test run for every test that renders this scene (the files it
+    reads by content, view_harness.content_key) with this seed by this build of the library."""
+    if not _CORE_SHA256:
+        _CORE_SHA256.append(view_harness.file_sha256(_core.__file__))
+    key = [view_harness.content_key(scene), seed, SPP, _CORE_SHA256[0]]
+    return view_harness.shared(tmp_path_factory, "tracer", key, lambda: tracer_pixels(scene, seed))
 
 
 def interior_mask(size=SIZE):
@@ -196,12 +215,17 @@ def page(tmp_path_factory):
     return got[0]
 
 
-def assert_matches_tracer(page_img, scene, max_noise=3.0):
+def assert_matches_tracer(page_img, scene, max_noise=3.0, shared=None):
     """The page's picture against the tracer's render of ``scene`` (the picture's size) within the
-    bound of the module docstring; (the difference, the tracer's two-seed noise)."""
+    bound of the module docstring; (the difference, the tracer's two-seed noise). ``shared``: the
+    tmp_path_factory through which the renders are shared with the run's other tests
+    (shared_tracer_pixels); None renders them here."""
     assert scene["camera"]["width"] == scene["camera"]["height"] == len(page_img)
     mask = interior_mask(len(page_img))
-    t0, t1 = tracer_pixels(scene, seed=0), tracer_pixels(scene, seed=1)
+    if shared is None:
+        t0, t1 = tracer_pixels(scene, seed=0), tracer_pixels(scene, seed=1)
+    else:
+        t0, t1 = shared_tracer_pixels(shared, scene, seed=0), shared_tracer_pixels(shared, scene, seed=1)
     noise = mad(t0, t1, mask)
     lit = (t0[mask].max(axis=-1) > 10).mean()
     assert lit > 0.3 and noise < max_noise, (lit, noise)  # a lit sphere, a converged-enough tracer
@@ -212,13 +236,24 @@ def assert_matches_tracer(page_img, scene, max_noise=3.0):
 
 @needs_renderer
 @pytest.mark.parametrize("analytic", [False, True], ids=["full", "analytic"])
-def test_page_matches_tracer(page, analytic):
-    """(1) The page's sphere against the tracer's image of the scene the page shows for it."""
+def test_page_matches_tracer(page, analytic, tmp_path_factory):
+    """(1) The page's sphere against the tracer's image of the scene the page shows for it (the
+    renders shared with test_view_webgpu's test of the same scene)."""
     material = "paper_white_rgb.rgl"
     img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
     assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
                                         light="sun", elevation=40, azimuth=130)
-    assert_matches_tracer(img, scene)
+    assert_matches_tracer(img, scene, shared=tmp_path_factory)
+
+
+def env_state(material, analytic, rotation):
+    """The URL fragment of the page under the environment map with 256 samples per pixel."""
+    return f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256"
+
+
+#: The state under the map that test_page_matches_tracer_under_the_environment[glossy_full],
+#: test_view_webgpu's glossy_full and its backend comparison all draw (one load per backend per run).
+ENV_STATE = env_state("cc_ibiza_sunset_rgb.rgl", False, -40)
 
 
 @needs_renderer
@@ -226,18 +261,19 @@ def test_page_matches_tracer(page, analytic):
                                                        ("cc_ibiza_sunset_rgb.rgl", False, -40),
                                                        ("cc_ibiza_sunset_rgb.rgl", True, 0)],
                          ids=["diffuse_full", "glossy_full", "glossy_analytic"])
-def test_page_matches_tracer_under_the_environment(page, material, analytic, rotation):
+def test_page_matches_tracer_under_the_environment(page, material, analytic, rotation, tmp_path_factory):
     """(1) The page's default light, the environment map (the tracer's sky), by Monte Carlo in the
     page: 256 samples per pixel against the tracer's 64 (bound in the module docstring); the map's
-    rotation turns the same way in both (the opposite turn is far off)."""
-    img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&rotation={rotation}&spp=256",
-                               ENV_SIZE)
+    rotation turns the same way in both (the opposite turn is far off). The picture and the renders
+    are shared with the run's other tests of the same state (test_view_webgpu's glossy_full and
+    backend comparison: ENV_STATE)."""
+    img, scene, _ = shared_page_state(tmp_path_factory, page, env_state(material, analytic, rotation), ENV_SIZE)
     assert scene == tracer_scene(MODEL, material, width=ENV_SIZE, height=ENV_SIZE, analytic=analytic, spp=256,
                                  rotation=rotation)
-    diff, noise = assert_matches_tracer(img, scene, max_noise=6.0)
+    diff, noise = assert_matches_tracer(img, scene, max_noise=6.0, shared=tmp_path_factory)
     if rotation:
         mirrored = tracer_scene(MODEL, material, width=ENV_SIZE, height=ENV_SIZE, analytic=analytic, rotation=-rotation)
-        assert mad(img, tracer_pixels(mirrored), interior_mask(ENV_SIZE)) > noise + 4.0
+        assert mad(img, shared_tracer_pixels(tmp_path_factory, mirrored), interior_mask(ENV_SIZE)) > noise + 4.0
 
 
 @needs_renderer
@@ -321,8 +357,11 @@ def test_hostile_text_cannot_inject(tmp_path):
     assert "\u2028" not in html and "\u2029" not in html
     # size=16: the page's frame after its title drawn at 16 x 16 (the test reads its text, not its picture).
     # An origin, shown for its material, reads back as the text it is (all: the training line): the
-    # first material's on the page as opened (the default material), the fourth's chosen in the URL.
-    for i, chosen in ((0, ""), (3, f"&material={model.materials[3]}")):
+    # first material's on the page as opened (the default material; kd set as its slider sets it, for
+    # the edit line below), the fourth's chosen in the URL. Two tabs: each load compiles the page's
+    # shader (2-3 s of CPU), and the edit line is read from the first.
+    doms = []
+    for i, chosen in ((0, "&kd=0.5"), (3, f"&material={model.materials[3]}")):
         title, status, dom, console = open_page(out, "size=16" + chosen)
         assert title == "hbrdf view: ok" and console == [], (title, status, console)
         assert "pwned" not in title
@@ -330,9 +369,9 @@ def test_hostile_text_cannot_inject(tmp_path):
         info = re.search(r'<p id="info">(.*?)</p>', dom, re.S).group(1)
         shown = info.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
         assert shown.startswith("origin: " + HOSTILE[i]), (HOSTILE[i], shown)  # exactly: the DOM over DevTools keeps CR
-    # the hbrdf edit line quotes the hostile path for a POSIX shell
-    title, status, dom, console = open_page(out, f"size=16&material={model.materials[0]}&kd=0.5")
-    cmd = re.search(r'<div id="cmd">(.*?)</div>', dom, re.S).group(1)
+        doms.append(dom)
+    # the hbrdf edit line of the default material's tab quotes the hostile path for a POSIX shell
+    cmd = re.search(r'<div id="cmd">(.*?)</div>', doms[0], re.S).group(1)
     cmd = cmd.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
     assert shlex.split(cmd) == ["hbrdf", "edit", str(hostile_path), model.materials[0], "--set", "kd=0.5,0.5,0.5", "--as",
                                 model.materials[0] + "_edit", "--out", str(hostile_path)], cmd
@@ -497,3 +536,36 @@ def test_env_refused_with_its_name(tmp_path):
         assert r.returncode != 0 and not out.exists()
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and os.path.basename(env) in lines[0], r.stderr
+
+
+def test_shared_pictures_are_keyed_by_what_they_read(tmp_path, tmp_path_factory):
+    """view_harness.shared (the pictures and renders several tests read, made once per run): the key
+    follows the bytes of every file a scene names (not only its path), a new key makes the value
+    again, and a make that fails leaves nothing behind."""
+    model = tmp_path / "m.safetensors"
+    model.write_bytes(b"one")
+    scene = {"materials": {"m": {"type": "model", "file": str(model)}}, "spp": 64}
+    before = view_harness.content_key(scene)
+    model.write_bytes(b"two")  # the same path, other bytes
+    assert view_harness.content_key(scene) != before
+    folder = tmp_path / "sv"
+    folder.mkdir()
+    (folder / "kd.png").write_bytes(b"a")
+    textured = view_harness.content_key({"svbrdf": str(folder)})
+    (folder / "kd.png").write_bytes(b"b")  # a file inside a folder the scene names
+    assert view_harness.content_key({"svbrdf": str(folder)}) != textured
+    made = []
+    tag = f"test-{os.getpid()}-{tmp_path.name}"
+
+    def make(value):
+        made.append(value)
+        return value
+    assert view_harness.shared(tmp_path_factory, tag, [before], lambda: make(1)) == 1
+    assert view_harness.shared(tmp_path_factory, tag, [before], lambda: make(2)) == 1 and made == [1]
+    assert view_harness.shared(tmp_path_factory, tag, [view_harness.content_key(scene)], lambda: make(3)) == 3
+
+    def fail():
+        raise AssertionError("a load that was not clean")
+    with pytest.raises(AssertionError):
+        view_harness.shared(tmp_path_factory, tag, ["failed"], fail)
+    assert view_harness.shared(tmp_path_factory, tag, ["failed"], lambda: make(4)) == 4 and made == [1, 3, 4]

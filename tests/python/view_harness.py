@@ -28,8 +28,10 @@ from __future__ import annotations
 
 import atexit
 import ctypes
+import hashlib
 import json
 import os
+import pickle
 import select
 import shutil
 import signal
@@ -291,3 +293,63 @@ def cli(*args):
     from helpers import run_cli_here
 
     return run_cli_here(*args)
+
+
+# ---- pictures several tests read ----
+
+_MADE: dict = {}  # key -> value, this process's
+
+
+def shared(tmp_path_factory, what, key_parts, make):
+    """``make()``'s value (a page's picture, a tracer's render), made once per test run for every test
+    that asks with the same ``key_parts``, which must name everything the value depends on (file
+    contents by their sha256, the fragment, the flags, the seed). Within a process it is kept in
+    memory; under pytest-xdist the first worker to ask makes it and writes it into the folder the
+    run's workers share (:func:`helpers.run_shared_path`: fresh for every run, so nothing of an
+    earlier run is read) and the other reads it. Why: a page load is mostly SwiftShader compiling
+    the page's shader (2-6 s of CPU, redone in every tab), and the tests compare some pictures and
+    tracer renders that another test has made already. Nothing is written when ``make`` fails (its
+    assertion fails the test that asked; the next one to ask makes it again)."""
+    key = hashlib.sha256(json.dumps([what, key_parts], sort_keys=True, default=str).encode()).hexdigest()[:32]
+    if key in _MADE:
+        return _MADE[key]
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        value = make()
+    else:
+        from helpers import run_shared_path
+
+        with run_shared_path(tmp_path_factory, f"view-{what}-{key}.pickle") as path:
+            if path.exists():
+                value = pickle.loads(path.read_bytes())
+            else:
+                value = make()
+                part = path.with_name(path.name + ".part")
+                part.write_bytes(pickle.dumps(value))
+                os.replace(part, path)
+    _MADE[key] = value
+    return value
+
+
+def file_sha256(path) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def content_key(value):
+    """``value`` (a scene dict) with every string that names an existing file or folder followed by the
+    sha256 of its bytes (a folder: of each file's name and bytes): a key that changes when a file the
+    value reads changes, not only when its path does."""
+    if isinstance(value, dict):
+        return {k: content_key(v) for k, v in sorted(value.items())}
+    if isinstance(value, list):
+        return [content_key(v) for v in value]
+    if isinstance(value, str) and value and os.path.isfile(value):
+        return [value, file_sha256(value)]
+    if isinstance(value, str) and value and os.path.isdir(value):
+        h = hashlib.sha256()
+        for root, _, files in sorted(os.walk(value)):
+            for name in sorted(files):
+                h.update(os.path.relpath(os.path.join(root, name), value).encode() + b"\0")
+                h.update(file_sha256(os.path.join(root, name)).encode())
+        return [value, h.hexdigest()]
+    return value
