@@ -80,9 +80,11 @@ def smapes(model):
 @pytest.mark.slow
 def test_two_ranks_fit_the_one_rank_model(tmp_path, monkeypatch):
     # The one-rank fits skip the preview (a picture, 2 s of CPU, that no comparison here reads);
-    # the torchrun fit still renders it, on rank 0 alone.
-    assert fit_here([*FIT, "--steps", "300", "--no-preview", "--out", "one.safetensors"], tmp_path, monkeypatch) == 0
-    two = run(torchrun_cmd(2, *[a for a in FIT if a != "--quiet"], "--steps", "300", "--out", "two.safetensors"),
+    # the torchrun fit still renders it, on rank 0 alone. 100 steps (300 until 2026-11-29: 45.6 ->
+    # 34.5 s of CPU): ranks that do not average their gradients (wrap without DDP) still miss the
+    # one-rank weights by 0.40 against the bound 1e-4.
+    assert fit_here([*FIT, "--steps", "100", "--no-preview", "--out", "one.safetensors"], tmp_path, monkeypatch) == 0
+    two = run(torchrun_cmd(2, *[a for a in FIT if a != "--quiet"], "--steps", "100", "--out", "two.safetensors"),
               tmp_path)
     assert two.returncode == 0, two.stderr
     assert "data-parallel fit on 2 ranks: 128 pairs of each 256-pair batch per rank" in two.stderr
@@ -99,7 +101,7 @@ def test_two_ranks_fit_the_one_rank_model(tmp_path, monkeypatch):
     assert max_weight_difference(a, b) < 1e-4
     assert np.allclose(smapes(a), smapes(b), rtol=1e-5)
     # A second rank that did not train would leave the weights where the first rank's half-batches take them.
-    assert fit_here([*FIT, "--steps", "300", "--batch", "128", "--no-preview", "--out", "half.safetensors"], tmp_path,
+    assert fit_here([*FIT, "--steps", "100", "--batch", "128", "--no-preview", "--out", "half.safetensors"], tmp_path,
                     monkeypatch) == 0
     assert max_weight_difference(a, hb.load_model(tmp_path / "half.safetensors")) > 1e-3
 
