@@ -60,6 +60,13 @@ def max_data_bytes(spec: dict) -> int:
     return 4 * floats
 
 
+def since_format(spec: dict, arch: dict):
+    """(the format_version an architecture's files are written in, why an older one is refused):
+    its direction inputs' since_format and refused_before, else the oldest version and ""."""
+    d = spec["direction_inputs"][arch["directions"]]
+    return d.get("since_format", spec["oldest_format_version"]), d.get("refused_before", "")
+
+
 def _cpp_number(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -84,7 +91,9 @@ def cpp_header(spec: dict) -> str:
     out = [f"// {BANNER}", "//", "// The model contract of hybridbrdf (docs/FITTING.md, \"Model files\"): constants, the",
            "// architectures' input layout and combine rule, and the validation table of model files.",
            "#pragma once", "", "#include <cstdint>", "", "namespace hbrdf::spec {", "",
+           _cpp_comment(spec["_format_versions"]),
            f"inline constexpr int kFormatVersion = {spec['format_version']};",
+           f"inline constexpr int kOldestFormatVersion = {spec['oldest_format_version']};",
            f"inline constexpr int kConventionsVersion = {spec['conventions_version']};",
            f"inline constexpr const char* kMetadataKey = \"{spec['metadata_key']}\";",
            f"inline constexpr const char* kTensorDtype = \"{spec['container']['dtype']}\";",
@@ -123,12 +132,15 @@ def cpp_header(spec: dict) -> str:
             "    int direction_count;  ///< inputs before the latent code (= the latent code's offset)",
             "    ExtraInputs extra;", "    int extra_count;      ///< inputs after the latent code",
             "    int n_out;", "    Combine combine;", "    bool analytic;        ///< has per-material analytic parameters",
+            "    int since_format;     ///< format_version its files are written in; older ones are refused",
+            "    const char* refused_before;  ///< why a file of an older format_version is refused",
             "};", "inline constexpr ArchSpec kArchs[] = {"]
     for k, a in spec["archs"].items():
         d, e = spec["direction_inputs"][a["directions"]], spec["extra_inputs"][a["extra"]]
+        since, refused = since_format(spec, a)
         out.append(f"    {{\"{k}\", ModelKind::{a['cpp']}, DirectionInputs::{d['cpp']}, {d['count']}, "
                    f"ExtraInputs::{e['cpp']}, {e['count']}, {a['n_out']}, Combine::{spec['combines'][a['combine']]['cpp']}, "
-                   f"{_cpp_number(a['analytic'])}}},  // {a['doc']}")
+                   f"{_cpp_number(a['analytic'])}, {since}, {json.dumps(refused)}}},  // {a['doc']}")
     out += ["};", "inline constexpr const ArchSpec& arch_spec(ModelKind k) { return kArchs[static_cast<int>(k)]; }", ""]
     out += ["/// Fields of a model file's `arch` object, checked in this order by both loaders.",
             "enum class FieldType { Int, Number, Enum };",
@@ -169,10 +181,13 @@ def python_module(spec: dict) -> str:
     consts = {k: v["value"] for k, v in spec["constants"].items()}
     archs = {k: {"directions": a["directions"], "direction_count": spec["direction_inputs"][a["directions"]]["count"],
                  "extra": a["extra"], "extra_count": spec["extra_inputs"][a["extra"]]["count"], "n_out": a["n_out"],
-                 "combine": a["combine"], "analytic": a["analytic"], "doc": a["doc"]}
+                 "combine": a["combine"], "analytic": a["analytic"], "since_format": since_format(spec, a)[0],
+                 "refused_before": since_format(spec, a)[1], "doc": a["doc"]}
              for k, a in spec["archs"].items()}
     lines = [f'"""The model contract of hybridbrdf (docs/FITTING.md, "Model files").', "", BANNER, '"""', "",
-             f"FORMAT_VERSION = {spec['format_version']}", f"CONVENTIONS_VERSION = {spec['conventions_version']}",
+             f"#: {spec['_format_versions']}",
+             f"FORMAT_VERSION = {spec['format_version']}", f"OLDEST_FORMAT_VERSION = {spec['oldest_format_version']}",
+             f"CONVENTIONS_VERSION = {spec['conventions_version']}",
              f"METADATA_KEY = {spec['metadata_key']!r}", f"TENSOR_DTYPE = {spec['container']['dtype']!r}",
              f"MAX_HEADER_BYTES = {spec['container']['max_header_bytes']}",
              "#: Largest tensor data section of a model file the contract allows (scripts/gen_spec.py",

@@ -423,7 +423,7 @@ struct ModelBatchKernels {
     }
 
     // The hybrid-reciprocal inputs (nine rows of x) of the normalised rows, by the scalar path's
-    // function (model_math.hpp): m = (wi + wo) / 2 and the products of e = (wi - wo) / 2.
+    // function (model_math.hpp): s = wi + wo and the products of d = wi - wo.
     HBRDF_KERNEL_INLINE static void reciprocal_rows(const float* __restrict d, float* __restrict x) {
         // vectorises: reciprocal_rows (tests/python/test_vectorisation.py)
         for (int i = 0; i < kChunk; ++i) {

@@ -24,17 +24,18 @@ HBRDF_INLINE float activate(Activation a, float x) {
     return x * clamp_nan_lo((x + kKnee) * (1.0f / (2.0f * kKnee)), 0.0f, 1.0f);
 }
 
-/// The hybrid-reciprocal network inputs (spec/model.json, direction_inputs reciprocal) of unit wi,
-/// wo into x[0], x[stride], ..., x[8 stride]: m = (wi + wo) / 2, then e.x e.x, e.y e.y, e.z e.z,
-/// e.x e.y, e.x e.z, e.y e.z of e = (wi - wo) / 2. Exchanging wi and wo leaves every value
-/// unchanged bit for bit (the sum commutes; e only changes sign, and the products are even in it),
-/// so the network, f_a and the combine all see the same numbers: f(wi, wo) = f(wo, wi) exactly.
+/// The hybrid-reciprocal network inputs (spec/model.json, direction_inputs reciprocal, format 2)
+/// of unit wi, wo into x[0], x[stride], ..., x[8 stride]: s = wi + wo, then d.x d.x, d.y d.y,
+/// d.z d.z, d.x d.y, d.x d.z, d.y d.z of d = wi - wo (no halves: at half the scale a third of the
+/// last hidden layer died in every fit, issue 60). Exchanging wi and wo leaves every value
+/// unchanged bit for bit (the sum commutes; d only changes sign, exactly, and the products are even
+/// in it), so the network, f_a and the combine all see the same numbers: f(wi, wo) = f(wo, wi).
 HBRDF_INLINE void reciprocal_inputs(const Vec3<float>& wi, const Vec3<float>& wo, float* x, int stride) {
-    const Vec3<float> m = 0.5f * (wi + wo);
-    const Vec3<float> e = 0.5f * (wi - wo);
-    x[0] = m.x, x[stride] = m.y, x[2 * stride] = m.z;
-    x[3 * stride] = e.x * e.x, x[4 * stride] = e.y * e.y, x[5 * stride] = e.z * e.z;
-    x[6 * stride] = e.x * e.y, x[7 * stride] = e.x * e.z, x[8 * stride] = e.y * e.z;
+    const Vec3<float> s = wi + wo;
+    const Vec3<float> d = wi - wo;
+    x[0] = s.x, x[stride] = s.y, x[2 * stride] = s.z;
+    x[3 * stride] = d.x * d.x, x[4 * stride] = d.y * d.y, x[5 * stride] = d.z * d.z;
+    x[6 * stride] = d.x * d.y, x[7 * stride] = d.x * d.z, x[8 * stride] = d.y * d.z;
 }
 
 /// exp(min(x, bound)): the file's pre_exp_max keeps every exp() finite in float32.

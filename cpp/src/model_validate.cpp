@@ -202,17 +202,22 @@ json read_document(const std::string& path, const std::map<std::string, std::str
 }
 
 void check_versions(const std::string& path, const json& doc) {
-    for (const auto& [field, expected] : {std::pair<const char*, int>{"format_version", spec::kFormatVersion},
-                                          {"conventions_version", spec::kConventionsVersion}}) {
-        const json* v = doc.contains(field) ? &doc[field] : nullptr;
+    struct Versions { const char* field; int oldest, newest; };
+    for (const Versions& f : {Versions{"format_version", spec::kOldestFormatVersion, spec::kFormatVersion},
+                              Versions{"conventions_version", spec::kConventionsVersion, spec::kConventionsVersion}}) {
+        std::string reads = std::to_string(f.oldest);
+        for (int n = f.oldest + 1; n <= f.newest; ++n) reads += " and " + std::to_string(n);
+        const json* v = doc.contains(f.field) ? &doc[f.field] : nullptr;
         if (!v || !v->is_number_integer())
-            throw ModelFileError(path, std::string(field) + " must be an integer, got " + (v ? json_type(*v) : "nothing") +
-                                           " (this library reads " + std::to_string(expected) + ")");
-        const bool ok = v->is_number_unsigned() ? v->get<std::uint64_t>() == std::uint64_t(expected)
-                                                : v->get<std::int64_t>() == expected;
+            throw ModelFileError(path, std::string(f.field) + " must be an integer, got " +
+                                           (v ? json_type(*v) : "nothing") + " (this library reads " + reads + ")");
+        // Compared as 64-bit integers of their own sign: 2^32 + 1 must not wrap onto 1.
+        const bool ok = v->is_number_unsigned()
+                            ? v->get<std::uint64_t>() >= std::uint64_t(f.oldest) && v->get<std::uint64_t>() <= std::uint64_t(f.newest)
+                            : v->get<std::int64_t>() >= f.oldest && v->get<std::int64_t>() <= f.newest;
         if (!ok)
-            throw ModelFileError(path, std::string(field) + " " + v->dump() + " is not supported (this library reads " +
-                                           std::to_string(expected) + ")");
+            throw ModelFileError(path, std::string(f.field) + " " + v->dump() + " is not supported (this library reads " +
+                                           reads + ")");
     }
 }
 
@@ -233,6 +238,12 @@ Arch read_arch(const std::string& path, const json& doc) {
     a.output_layer = static_cast<OutputLayer>(int(field.at("output_layer")));
     a.energy_bound = static_cast<EnergyBound>(int(field.at("energy_bound")));
     const spec::ArchSpec& as = a.row();
+    // An older definition of the same inputs (spec/model.json, since_format): check_versions ran first.
+    const int format_version = int(doc["format_version"].get<std::int64_t>());
+    if (format_version < as.since_format)
+        throw ModelFileError(path, std::string("arch.kind '") + as.name + "' in format_version " +
+                                       std::to_string(format_version) + ": " + as.refused_before +
+                                       "; refit with --arch " + as.name);
     const int expected_in = as.direction_count + a.latent + as.extra_count;
     if (a.n_in != expected_in || a.n_out != as.n_out)
         throw ModelFileError(path, "arch n_in/n_out " + std::to_string(a.n_in) + "/" + std::to_string(a.n_out) +

@@ -37,11 +37,14 @@ using TensorShapes = std::map<std::string, std::vector<std::int64_t>>;
 /// spec::kMaxJsonDepth (checked before parsing), valid JSON, an object.
 json read_document(const std::string& path, const std::map<std::string, std::string>& metadata);
 
-/// format_version and conventions_version are integers, the ones this library reads.
+/// format_version and conventions_version are integers this library reads (format_version
+/// kOldestFormatVersion .. kFormatVersion).
 void check_versions(const std::string& path, const json& doc);
 
 /// Every arch field in the contract's table order (so that the first problem reported is the
-/// Python loader's too), then n_in / n_out against the architecture's input layout.
+/// Python loader's too), then the file's format_version against the architecture's since_format
+/// (format 1 hybrid-reciprocal files hold the halves encoding: refused), then n_in / n_out against
+/// the architecture's input layout.
 Arch read_arch(const std::string& path, const json& doc);
 
 /// The materials' records: names by the contract's rule, distinct, and distinct as shader

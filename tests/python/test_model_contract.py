@@ -43,9 +43,9 @@ def test_python_and_cpp_read_the_same_contract():
         _core.ALPHA_MIN, _core.ALPHA_MAX, _core.ETA_MIN, _core.ETA_MAX)
 
 
-def base_model(base=TABLE["base"], output_layer="shared") -> HybridModel:
+def base_model(base=TABLE["base"], output_layer="shared", arch=None) -> HybridModel:
     torch.manual_seed(0)
-    mod = build_model(base["arch"], base["materials"], base["width"], base["depth"], base["latent"], "hardgelu",
+    mod = build_model(arch or base["arch"], base["materials"], base["width"], base["depth"], base["latent"], "hardgelu",
                       base["isotropic"], output_layer=output_layer)
     with torch.no_grad():
         for p in mod.parameters():
@@ -166,10 +166,15 @@ def good_files(tmp_path_factory):
     table = np.linspace(0.25, 1.0, 3 * spec.ENERGY_NODES, dtype=np.float32).reshape(3, spec.ENERGY_NODES)
     out["energy"] = folder / "good_energy.safetensors"
     energy.attach(base_model(), table).save(out["energy"])
+    # A case with "arch": "hybrid-reciprocal" starts from that architecture's base (format_version 2).
+    out["hybrid-reciprocal"] = folder / "good_reciprocal.safetensors"
+    base_model(arch="hybrid-reciprocal").save(out["hybrid-reciprocal"])
     return out
 
 
 def _base_file(good_files, case):
+    if "arch" in case:
+        return good_files[case["arch"]]
     return good_files["energy" if case.get("energy_bound") else case.get("output_layer", "shared")]
 
 

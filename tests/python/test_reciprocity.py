@@ -2,14 +2,18 @@
 reciprocal) gives f(wi, wo) == f(wo, wi) bit for bit in every implementation, and f_a does for
 every analytic architecture.
 
-The network sees m = (wi + wo) / 2 and the products of e = (wi - wo) / 2, which do not change when
-wi and wo are exchanged; f_a multiplies G1(wi) G1(wo) before D and averages the two Fresnel
-cosines; the gated combine is per value. So the exchange changes no number anywhere: the test
-requires exact equality (no tolerance) on cosine-weighted pairs and on the hard-direction table
-crossed with itself (grazing, near-normal, wi = wo, mirrored and tiny-component directions), in
-PyTorch (float32 and float64), libhybridbrdf's scalar path and every batched kernel this CPU runs,
-and the generated GLSL under lavapipe. The paper's hybrid is the control: the same check finds
-its error, so the check can fail."""
+The network sees s = wi + wo and the products of d = wi - wo (format 2; format 1 had their halves,
+issue 60), which do not change when wi and wo are exchanged; f_a multiplies G1(wi) G1(wo) before D
+and averages the two Fresnel cosines; the gated combine is per value. So the exchange changes no
+number anywhere: the test requires exact equality (no tolerance) on cosine-weighted pairs and on
+the hard-direction table crossed with itself (grazing, near-normal, wi = wo, mirrored and
+tiny-component directions), in PyTorch (float32 and float64), libhybridbrdf's scalar path and
+every batched kernel this CPU runs, and the generated GLSL, HLSL, Slang and WGSL under lavapipe.
+The paper's hybrid is the control: the same check finds its error, so the check can fail.
+
+What the inputs are is checked from outside: a float64 formula written here from the spec's text
+against PyTorch's reciprocal_inputs, and against libhybridbrdf's scalar and batched paths through a
+file whose network reads its inputs out (each material's f = exp(x_j) for three inputs j)."""
 
 import numpy as np
 import pytest
@@ -22,9 +26,11 @@ from hybridbrdf.codegen.main import generate
 from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.model.random import random_model
 
+from hybridbrdf.brdf.torch_brdf import reciprocal_inputs
+
 from helpers import hard_pairs, skip_without_vulkan
-from shader_kernels import render_shader
-from slang_wgsl_tools import run_kernel
+from slang_wgsl_tools import skip_without_slang, skip_without_wgpu
+from test_shader_hostile import run_all_outputs
 
 RECIPROCAL = [a for a, s in spec.ARCHS.items() if s["directions"] == "reciprocal"]
 
@@ -96,20 +102,90 @@ def test_the_paper_hybrid_is_not_reciprocal_so_the_check_can_fail(tmp_path):
     assert smape > 1e-3
 
 
-@pytest.mark.parametrize("output_layer", ["shared", "material"])
-def test_the_generated_glsl_is_exactly_reciprocal_under_lavapipe(tmp_path, output_layer):
-    """hbrdf_eval of the generated GLSL on (wi, wo) and on (wo, wi), one dispatch: the same floats."""
+@pytest.mark.parametrize("target,output_layer", [("glsl", "shared"), ("glsl", "material"), ("hlsl", "material"),
+                                                 ("slang", "material"), ("wgsl", "material")])
+def test_the_generated_code_is_exactly_reciprocal_under_lavapipe(tmp_path, target, output_layer):
+    """hbrdf_eval of the generated code on (wi, wo) and on (wo, wi), one dispatch: the same floats."""
     skip_without_vulkan()
+    {"slang": skip_without_slang, "wgsl": skip_without_wgpu}.get(target, lambda: None)()
     _, model = saved(tmp_path, "hybrid-reciprocal", output_layer)
     wi, wo = pairs()
-    u = np.full((len(wi), 2), 0.5, dtype=np.float32)
-    code = generate(model, "glsl")
-    (tmp_path / "model.glsl").write_text(code)
-    material = model.materials[1]
-    kernel = render_shader("all_outputs.comp.glsl", include="model.glsl", material=material_constant(material),
-                           n=2 * len(wi))
-    rows = np.concatenate([np.concatenate([wi, wo, u], axis=1), np.concatenate([wo, wi, u], axis=1)])
-    out = run_kernel(tmp_path, "glsl", kernel, rows, out_floats=17)
+    u = np.full((2 * len(wi), 2), 0.5, dtype=np.float32)
+    out = run_all_outputs(tmp_path, target, model, model.materials[1], np.concatenate([wi, wo]),
+                          np.concatenate([wo, wi]), u)
     f, g = out[:len(wi), 0:3], out[len(wi):, 0:3]
     assert (f > 0).any()
     assert np.array_equal(f, g)
+
+
+def inputs_by_the_spec(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """spec/model.json, direction_inputs reciprocal, in float64: s = wi + wo, then d.x d.x, d.y d.y,
+    d.z d.z, d.x d.y, d.x d.z, d.y d.z of d = wi - wo."""
+    wi, wo = wi.astype(np.float64), wo.astype(np.float64)
+    sx, sy, sz = (wi[:, k] + wo[:, k] for k in range(3))
+    dx, dy, dz = (wi[:, k] - wo[:, k] for k in range(3))
+    return np.stack([sx, sy, sz, dx ** 2, dy ** 2, dz ** 2, dx * dy, dx * dz, dy * dz], axis=1)
+
+
+def test_the_spec_text_names_the_sums():
+    doc = spec.DIRECTION_INPUTS["reciprocal"][1]
+    assert doc.startswith("s = wi + wo, then the products of d = wi - wo: d.x d.x, d.y d.y, d.z d.z, d.x d.y, "
+                          "d.x d.z, d.y d.z")
+    assert spec.ARCHS["hybrid-reciprocal"]["since_format"] == 2 == spec.FORMAT_VERSION
+
+
+def test_pytorch_computes_the_inputs_the_spec_states():
+    rng = np.random.default_rng(5)
+    wi, wo = cosine_directions(rng, 5000), cosine_directions(rng, 5000)
+    ref = inputs_by_the_spec(wi, wo)
+    assert np.abs(ref[:, :3]).max() > 1.5 and ref[:, 3:6].max() > 2.5  # the scale: no halves
+    # float64: the same IEEE operations, so the same numbers
+    x64 = reciprocal_inputs(torch.from_numpy(wi), torch.from_numpy(wo)).numpy()
+    assert np.array_equal(x64, ref)
+    x32 = reciprocal_inputs(torch.from_numpy(wi.astype(np.float32)), torch.from_numpy(wo.astype(np.float32))).numpy()
+    assert np.allclose(x32, inputs_by_the_spec(wi.astype(np.float32), wo.astype(np.float32)), rtol=0, atol=1e-6)
+
+
+def input_reader(tmp_path):
+    """A hybrid-reciprocal file (no latent code, one 9-wide hidden layer of ReLU, material output
+    layers) whose material k gives f = exp(x_{3k}), exp(x_{3k+1}), exp(x_{3k+2}): hidden unit j is
+    x_j + 5 (identity weights, bias 5: positive, as every input is >= -4), material k's output c
+    is unit 3k + c less 5, and f_a = 0 (kd 0; eta 1: no specular lobe), so the gate adds nothing."""
+    _, model = random_model("hybrid-reciprocal", n=3, latent=0, width=9, depth=1, output_layer="material")
+    t = model.tensors
+    t["mlp.hidden.0.weight"] = np.eye(9, dtype=np.float32)
+    t["mlp.hidden.0.bias"] = np.full(9, 5.0, np.float32)
+    t["materials.head_weight"] = np.zeros((3, 6, 9), np.float32)
+    for k in range(3):
+        for c in range(3):
+            t["materials.head_weight"][k, c, 3 * k + c] = 1.0
+    t["materials.head_bias"] = np.tile(np.array([-5, -5, -5, 0, 0, 0], np.float32), (3, 1))
+    t["materials.kd"] = np.zeros((3, 3), np.float32)
+    t["materials.eta"] = np.ones((3, 3), np.float32)
+    model.arch["activation"] = "relu"
+    path = tmp_path / "reader.safetensors"
+    model.save(path)
+    return path
+
+
+def test_libhybridbrdf_computes_the_inputs_the_spec_states(tmp_path):
+    """Through the bindings: log f of the input reader is the inputs, on the scalar path and every
+    batched kernel this CPU runs, and in PyTorch from the same file."""
+    path = input_reader(tmp_path)
+    rng = np.random.default_rng(6)
+    wi, wo = (cosine_directions(rng, 4099).astype(np.float32) for _ in range(2))
+    ref = inputs_by_the_spec(wi, wo)
+    cpp, model = _core.Model(str(path)), hb.load_model(path)
+    try:
+        for kernel in _kernels():
+            _core.limit_model_simd(kernel)
+            got = np.concatenate([cpp.eval(wi, wo, k) for k in range(3)], axis=1)
+            assert np.abs(np.log(got.astype(np.float64)) - ref).max() < 2e-6, kernel
+    finally:
+        _core.limit_model_simd("avx512")
+    got = np.concatenate([cpp.eval_scalar(wi, wo, k) for k in range(3)], axis=1)
+    assert np.abs(np.log(got.astype(np.float64)) - ref).max() < 2e-6
+    # PyTorch in float64 normalises the float32 directions in float64 first (a change of ~1e-8)
+    unit = [w.astype(np.float64) / np.linalg.norm(w.astype(np.float64), axis=1, keepdims=True) for w in (wi, wo)]
+    got = np.concatenate([model.eval(wi, wo, k, dtype=torch.float64) for k in range(3)], axis=1)
+    assert np.abs(np.log(got) - inputs_by_the_spec(*unit)).max() < 1e-12

@@ -8,7 +8,16 @@
 
 namespace hbrdf::spec {
 
-inline constexpr int kFormatVersion = 1;
+/// A model file records the format_version it was written in; both loaders read
+/// oldest_format_version .. format_version. A writer records the oldest version that defines its
+/// architecture: its direction inputs' since_format, else oldest_format_version (so a file an older
+/// hybridbrdf can read correctly stays readable there). Version 2 (issue 60): the hybrid-reciprocal
+/// inputs are s = wi + wo and the products of d = wi - wo; version 1 files of that architecture
+/// hold the halves m = (wi + wo) / 2 and the products of e = (wi - wo) / 2, and both loaders refuse
+/// them (direction_inputs reciprocal, refused_before). Other architectures are unchanged and still
+/// written as version 1.
+inline constexpr int kFormatVersion = 2;
+inline constexpr int kOldestFormatVersion = 1;
 inline constexpr int kConventionsVersion = 1;
 inline constexpr const char* kMetadataKey = "hybridbrdf";
 inline constexpr const char* kTensorDtype = "F32";
@@ -152,15 +161,17 @@ struct ArchSpec {
     int n_out;
     Combine combine;
     bool analytic;        ///< has per-material analytic parameters
+    int since_format;     ///< format_version its files are written in; older ones are refused
+    const char* refused_before;  ///< why a file of an older format_version is refused
 };
 inline constexpr ArchSpec kArchs[] = {
-    {"hybrid", ModelKind::Hybrid, DirectionInputs::Local, 6, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model: f_t = f_c + f_g f_a
-    {"neural", ModelKind::Neural, DirectionInputs::Frames, 18, ExtraInputs::None, 0, 3, Combine::Exp, false},  // the fully neural baseline (the paper's adaptation of Zeltner et al. 2024)
-    {"additive", ModelKind::Additive, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::Additive, true},  // ablation: f_t = max(f_a + o, 0)
-    {"logmul", ModelKind::LogMul, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::LogMul, true},  // ablation: f_t = f_a exp(o)
-    {"analytic-input", ModelKind::AnalyticInput, DirectionInputs::Local, 6, ExtraInputs::Log1pFa, 3, 6, Combine::Gated, true},  // ablation: as hybrid, with log1p(f_a) appended to the network input
-    {"hybrid-half", ModelKind::HybridHalf, DirectionInputs::LocalHalf, 8, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model with the half vector's cos theta_h and cos theta_d as two more network inputs: a small network shapes highlights and thin-film colour from them instead of spending neurons on the products that make them
-    {"hybrid-reciprocal", ModelKind::HybridReciprocal, DirectionInputs::Reciprocal, 9, ExtraInputs::None, 0, 6, Combine::Gated, true},  // the paper's model, reciprocal by construction: the network sees (wi, wo) through inputs that do not change when they are exchanged, and f_a and the gated combine are symmetric, so f(wi, wo) = f(wo, wi) exactly
+    {"hybrid", ModelKind::Hybrid, DirectionInputs::Local, 6, ExtraInputs::None, 0, 6, Combine::Gated, true, 1, ""},  // the paper's model: f_t = f_c + f_g f_a
+    {"neural", ModelKind::Neural, DirectionInputs::Frames, 18, ExtraInputs::None, 0, 3, Combine::Exp, false, 1, ""},  // the fully neural baseline (the paper's adaptation of Zeltner et al. 2024)
+    {"additive", ModelKind::Additive, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::Additive, true, 1, ""},  // ablation: f_t = max(f_a + o, 0)
+    {"logmul", ModelKind::LogMul, DirectionInputs::Local, 6, ExtraInputs::None, 0, 3, Combine::LogMul, true, 1, ""},  // ablation: f_t = f_a exp(o)
+    {"analytic-input", ModelKind::AnalyticInput, DirectionInputs::Local, 6, ExtraInputs::Log1pFa, 3, 6, Combine::Gated, true, 1, ""},  // ablation: as hybrid, with log1p(f_a) appended to the network input
+    {"hybrid-half", ModelKind::HybridHalf, DirectionInputs::LocalHalf, 8, ExtraInputs::None, 0, 6, Combine::Gated, true, 1, ""},  // the paper's model with the half vector's cos theta_h and cos theta_d as two more network inputs: a small network shapes highlights and thin-film colour from them instead of spending neurons on the products that make them
+    {"hybrid-reciprocal", ModelKind::HybridReciprocal, DirectionInputs::Reciprocal, 9, ExtraInputs::None, 0, 6, Combine::Gated, true, 2, "written with the halves encoding of hybridbrdf 0.1.0 before format 2 (m = (wi + wo) / 2 and the products of e = (wi - wo) / 2)"},  // the paper's model, reciprocal by construction: the network sees (wi, wo) through inputs that do not change when they are exchanged, and f_a and the gated combine are symmetric, so f(wi, wo) = f(wo, wi) exactly
 };
 inline constexpr const ArchSpec& arch_spec(ModelKind k) { return kArchs[static_cast<int>(k)]; }
 

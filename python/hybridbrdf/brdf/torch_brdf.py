@@ -169,13 +169,14 @@ def half_angle_cosines(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
 
 def reciprocal_inputs(wi: torch.Tensor, wo: torch.Tensor) -> torch.Tensor:
     """The network inputs of the hybrid-reciprocal architecture (spec/model.json, direction_inputs
-    reciprocal), shape (..., 9): m = (wi + wo) / 2, then e.x e.x, e.y e.y, e.z e.z, e.x e.y, e.x e.z,
-    e.y e.z of e = (wi - wo) / 2. Exchanging wi and wo gives the same values bit for bit (the sum
-    commutes, e only changes sign), so a network on them is exactly reciprocal."""
-    m = 0.5 * (wi + wo)
-    e = 0.5 * (wi - wo)
-    ex, ey, ez = e.unbind(-1)
-    return torch.cat([m, torch.stack([ex * ex, ey * ey, ez * ez, ex * ey, ex * ez, ey * ez], dim=-1)], dim=-1)
+    reciprocal, format 2), shape (..., 9): s = wi + wo, then d.x d.x, d.y d.y, d.z d.z, d.x d.y,
+    d.x d.z, d.y d.z of d = wi - wo. Exchanging wi and wo gives the same values bit for bit (the sum
+    commutes, d only changes sign, exactly), so a network on them is exactly reciprocal. No halves:
+    at half the scale (format 1) a third of the last hidden layer died in every fit (issue 60)."""
+    s = wi + wo
+    d = wi - wo
+    dx, dy, dz = d.unbind(-1)
+    return torch.cat([s, torch.stack([dx * dx, dy * dy, dz * dz, dx * dy, dx * dz, dy * dz], dim=-1)], dim=-1)
 
 
 # ---- importance sampling (the library's three strategies, in PyTorch) --------

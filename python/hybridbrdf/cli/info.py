@@ -29,6 +29,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from hybridbrdf.fit.record import environment_line
     from hybridbrdf.limits import check_count
+    from hybridbrdf.model.container import format_version
     from hybridbrdf.model.file import load_model
 
     if args.albedo_samples < 0:
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     a = model.arch
     written_by = getattr(model, "written_by", None)
-    print(f"{args.model}: hybridbrdf model, format {spec.FORMAT_VERSION}, conventions {spec.CONVENTIONS_VERSION}"
+    print(f"{args.model}: hybridbrdf model, format {format_version(a['kind'])}, conventions {spec.CONVENTIONS_VERSION}"
           + (f", written by hybridbrdf {_shown(written_by)}" if written_by is not None else ""))
     heads = model.output_layer == "material"
     print(f"architecture: {a['kind']}, MLP {a['width']}x{a['depth']} {a['activation']}, latent {a['latent']}, "

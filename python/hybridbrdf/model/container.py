@@ -17,7 +17,6 @@ from hybridbrdf import spec
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.inputs import check_input_file
 
-FORMAT_VERSION = spec.FORMAT_VERSION
 METADATA_KEY = spec.METADATA_KEY
 MAX_HEADER_BYTES = spec.MAX_HEADER_BYTES
 
@@ -25,6 +24,13 @@ MAX_HEADER_BYTES = spec.MAX_HEADER_BYTES
 #: The output layer of a model whose ``arch`` does not name one (files older than material output
 #: layers): spec/model.json's default of the arch field. (A new fit's default is FitSettings'.)
 DEFAULT_OUTPUT_LAYER = next(f["default"] for f in spec.ARCH_FIELDS if f["key"] == "output_layer")
+
+
+def format_version(kind: str) -> int:
+    """The format_version a model file of architecture ``kind`` is written in: the oldest that
+    defines it (spec/model.json, since_format), so that older readers keep reading what they read
+    correctly and refuse the rest (format 2: the hybrid-reciprocal inputs without the halves)."""
+    return spec.ARCHS[kind]["since_format"]
 
 
 def output_layer(arch: Dict[str, Any]) -> str:
@@ -53,8 +59,8 @@ def input_description(kind: str, latent: int) -> str:
     a = spec.ARCHS[kind]
     directions = {"local": "wi.x wi.y wi.z wo.x wo.y wo.z",
                   "local_half": "wi.x wi.y wi.z wo.x wo.y wo.z cos_theta_h cos_theta_d",
-                  "reciprocal": "m.x m.y m.z e.x^2 e.y^2 e.z^2 e.x*e.y e.x*e.z e.y*e.z (m = (wi + wo) / 2, "
-                                "e = (wi - wo) / 2)"}.get(
+                  "reciprocal": "s.x s.y s.z d.x^2 d.y^2 d.z^2 d.x*d.y d.x*d.z d.y*d.z (s = wi + wo, "
+                                "d = wi - wo)"}.get(
         a["directions"], "wi and wo in 3 predicted frames (t, b, n each; 18 values)")
     extra = " log1p(f_a.r) log1p(f_a.g) log1p(f_a.b)" if a["extra"] == "log1p_fa" else ""
     return directions + "".join(f" z_{i}" for i in range(latent)) + extra

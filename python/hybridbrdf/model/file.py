@@ -5,7 +5,8 @@ length, a JSON header, raw little-endian tensor bytes), read and written here by
 ``safetensors`` package and read in C++ by libhybridbrdf's own reader. The JSON
 header's ``__metadata__`` holds one entry, ``"hybridbrdf"``, a JSON document:
 
-    format_version       1
+    format_version       1, or 2 for hybrid-reciprocal (its inputs without the halves; a format 1
+                         hybrid-reciprocal file is refused): container.format_version
     conventions_version  docs/CONVENTIONS.md version the math follows
     library_version      hybridbrdf version that wrote the file
     arch                 {kind, width, depth, activation, latent, n_in, n_out, pre_exp_max,
@@ -43,7 +44,7 @@ from hybridbrdf.brdf.analytic import AnalyticParams
 from hybridbrdf.errors import ModelFileError
 from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model import editing, sizes
-from hybridbrdf.model.container import (FORMAT_VERSION, METADATA_KEY, arch_description, decode, encode,
+from hybridbrdf.model.container import (METADATA_KEY, arch_description, decode, encode, format_version,
                                         output_layer)
 from hybridbrdf.model.validate import read_document, validate
 from hybridbrdf.files import atomic_write_bytes
@@ -242,7 +243,7 @@ class HybridModel:
     # ---- persistence -----------------------------------------------------------
     def header(self) -> Dict[str, Any]:
 
-        return {"format_version": FORMAT_VERSION, "conventions_version": _core.CONVENTIONS_VERSION,
+        return {"format_version": format_version(self.arch["kind"]), "conventions_version": _core.CONVENTIONS_VERSION,
                 "library_version": __version__, "arch": self.arch, "materials": self.material_info,
                 "training": self.training}
 

@@ -100,14 +100,16 @@ def read_document(path: str, metadata: Dict[str, str]) -> Dict[str, Any]:
 
 
 def _check_versions(path: str, doc: Dict[str, Any]) -> None:
-    """format_version and conventions_version are the ones this library reads (C++ check_versions)."""
-    for field, expected in (("format_version", spec.FORMAT_VERSION), ("conventions_version", spec.CONVENTIONS_VERSION)):
+    """format_version and conventions_version are ones this library reads (C++ check_versions)."""
+    for field, oldest, newest in (("format_version", spec.OLDEST_FORMAT_VERSION, spec.FORMAT_VERSION),
+                                  ("conventions_version", spec.CONVENTIONS_VERSION, spec.CONVENTIONS_VERSION)):
         v = doc.get(field)
+        reads = " and ".join(str(n) for n in range(oldest, newest + 1))
         if not _is_json_integer(v):
             raise ModelFileError(path, f"{field} must be an integer, got {_json_type(v) if field in doc else 'nothing'} "
-                                       f"(this library reads {expected})")
-        if v != expected:
-            raise ModelFileError(path, f"{field} {v} is not supported (this library reads {expected})")
+                                       f"(this library reads {reads})")
+        if not oldest <= v <= newest:
+            raise ModelFileError(path, f"{field} {v} is not supported (this library reads {reads})")
 
 
 def _read_arch(path: str, doc: Dict[str, Any]) -> Dict[str, Any]:
@@ -123,6 +125,9 @@ def _read_arch(path: str, doc: Dict[str, Any]) -> Dict[str, Any]:
     for f in spec.ARCH_FIELDS:
         arch[f["key"]] = _arch_field(fail, arch, f)
     a = spec.ARCHS[arch["kind"]]
+    if doc["format_version"] < a["since_format"]:  # an older definition of the same inputs (spec: since_format)
+        fail(f"arch.kind '{arch['kind']}' in format_version {doc['format_version']}: {a['refused_before']}; "
+             f"refit with --arch {arch['kind']}")
     expected_in = a["direction_count"] + arch["latent"] + a["extra_count"]
     if (arch["n_in"], arch["n_out"]) != (expected_in, a["n_out"]):
         fail(f"arch n_in/n_out {arch['n_in']}/{arch['n_out']} do not match kind {arch['kind']} with latent "
