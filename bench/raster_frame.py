@@ -13,8 +13,8 @@ BRDF evaluation per covered pixel and light. "f_a only" draws the same material 
 "analytic" (the first model's f_a: the generated hbrdf_eval_analytic, no network). Each hybrid row is
 drawn in each of --forms: "generic" (hbrdf_eval per light, the generated code's generic form) and
 "per-pixel" (hbrdf_pixel once per pixel, hbrdf_eval_pixel per light: the latent and wo terms of the
-first layer, and the energy scale at wo.z, shared by the lights). --svbrdf adds a row for a textured
-folder (hbrdf paint) on both objects: its maps through samplers, every texel's layers of positive
+first layer, and the energy scale at wo.z, shared by the lights). --svbrdf adds a row per light count
+for a textured folder (hbrdf paint) on both objects: its maps through samplers, every texel's layers of positive
 weight evaluated.
 
 Timing: each row is drawn --rounds times, the rows interleaved round by round (so that the machine's
@@ -66,7 +66,8 @@ def arch(model: str) -> str:
 
 
 def rows_of(args, models) -> list:
-    """(label, model, evaluate, lights, per_pixel) of every row, f_a first for each light count."""
+    """(label, model, evaluate, lights, per_pixel) of every row: for each light count f_a first, then the
+    hybrid rows in each form, then the textured folder's."""
     rows = []
     for lights in args.lights:
         rows.append((f"f_a only, {lights} light(s)", models[0], "analytic", lights, False))
@@ -74,9 +75,9 @@ def rows_of(args, models) -> list:
             for form in args.forms:
                 rows.append((f"hybrid {arch(m)} ({os.path.basename(m)}), {form}, {lights} light(s)", m, "full", lights,
                              form == "per-pixel"))
-    if args.svbrdf:
-        name = os.path.basename(os.path.abspath(args.svbrdf))
-        rows.append((f"textured ({name}), {args.lights[0]} light(s)", args.svbrdf, "textured", args.lights[0], True))
+        if args.svbrdf:
+            name = os.path.basename(os.path.abspath(args.svbrdf))
+            rows.append((f"textured ({name}), {lights} light(s)", args.svbrdf, "textured", lights, True))
     return rows
 
 
@@ -98,7 +99,7 @@ def parse_args():
     ap.add_argument("--tool", default=os.environ.get("HBRDF_RASTER", str(ROOT / "build" / "hbrdf_raster")))
     ap.add_argument("--device", choices=["lavapipe", "any"], default="lavapipe",
                     help="lavapipe: pin Mesa's CPU driver; any: the Vulkan loader's choice (a GPU first)")
-    ap.add_argument("--svbrdf", help="a textured material's folder (hbrdf paint) for one more row")
+    ap.add_argument("--svbrdf", help="a textured material's folder (hbrdf paint) for one more row per light count")
     return ap.parse_args()
 
 

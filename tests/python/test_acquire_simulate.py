@@ -184,7 +184,7 @@ BAD_RIGS = [
     (("cameras", 1, "up"), [0, 0, 0], "cameras[1].up: is zero or parallel"),
     (("cameras", 0, "position"), [0, 0, 0], "cameras[0].position: must lie above the sample plane"),
     (("shots", 0, "light"), 2, "shots[0].light: must be an index 0 to 1"),
-    (("shots", 1, "image"), "../x.exr", "shots[1].image: must be a plain .exr file name"),
+    (("shots", 1, "image"), "../x.exr", "shots[1].image: must be a plain .exr, .png, .tif, .tiff file name"),
     (("shots", 1, "image"), "photo_000.exr", "shots[1].image: 'photo_000.exr' names two shots"),
     (("shots",), [], "shots: a rig needs at least one shot"),
     (("image_size",), [0, 12], "image_size: must be [width, height]"),

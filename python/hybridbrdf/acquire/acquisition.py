@@ -13,11 +13,12 @@ and a finished run removes; the output folder is written whole or not at all."""
 
 from __future__ import annotations
 
+import json
 import os
 from typing import TYPE_CHECKING, Callable, Optional, Tuple
 
 from hybridbrdf import spec
-from hybridbrdf.acquire.exposure import stated_noise_floor, usable_pixels
+from hybridbrdf.acquire.exposure import stated_noise_floor, stated_noise_model, usable_pixels
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.sizes import STEPS
 from hybridbrdf.errors import InputFileError
@@ -34,6 +35,8 @@ if TYPE_CHECKING:  # annotations only: the fit's modules (PyTorch) load when acq
 #: peaked at 1.56 GB, about 0.8 GB of it the photographs, observations and libraries, the rest
 #: (about 46 KiB a texel) the 8 rows per texel and their activations through the network with autograd.
 BYTES_PER_TEXEL = 64 * 1024
+#: The fit's report in the written folder: the clusters, what each chose and how well (docs/ACQUISITION.md).
+REPORT_FILE = "acquisition.json"
 
 
 def checkpoint_path(out) -> str:
@@ -60,12 +63,16 @@ def check_output(out: str, capture: str) -> None:
 
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
-            log: Callable[[str], None] = lambda msg: None) -> HybridMaps:
+            log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
-    (:meth:`HybridMaps.save`). ``resume`` continues the checkpoint of an interrupted run with the
-    same settings; ``force`` starts afresh over one. Returns the fit."""
+    (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
+    (:mod:`~hybridbrdf.acquire.cluster_report`: its lines go to ``log`` once the clusters are known,
+    a warning per cluster no prior material explains to ``warn``). ``resume`` continues the
+    checkpoint of an interrupted run with the same settings; ``force`` starts afresh over one.
+    Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.capture import load_capture
+    from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
     from hybridbrdf.fit import checkpoint
 
@@ -80,8 +87,10 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     model = load_prior() if prior is None else load_model(prior)
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
                 "steps": int(steps), "seed": int(seed)}
-    rig, photos, index = load_capture(capture, finite=False)
-    masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture)
+    rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
+    masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture, saturated=saturated)
+    if report["saturated"]:
+        log(f"{report['saturated']} pixels saturated (a channel at the encoding's largest code): left out")
     if report["not finite"]:
         log(f"{report['not finite']} pixels not finite: left out")
     if report["under-exposed"]:
@@ -105,9 +114,22 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
         def save_state(fit_state):
             checkpoint.save(ckpt, {"settings": settings, "fit": fit_state})
 
+        chosen, labelled = [], []
+
+        def on_clusters(family, labels, clusters):
+            chosen[:] = cluster_report(family, model.materials, obs, rig, labels, clusters, seed,
+                                       stated_noise_model(index), report["floor"])
+            labelled[:] = [labels]
+            report_logger(log, warn)(chosen)
+
         maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
-                                 save_state=save_state, log=log)
-        maps.save(out)
+                                 save_state=save_state, log=log, on_clusters=on_clusters)
+        layer = maps.layer.reshape(-1)
+        maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "layers": maps.layers,
+                       "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}
+                                    for c in chosen if c["texels"]]}
+        log(f"writing {out}: the model (its energy-bound checks) and {len(maps.layers)} layer(s) of maps")
+        maps.save(out, extra={REPORT_FILE: (json.dumps(maps.report, indent=1) + "\n").encode()})
         if os.path.lexists(ckpt):
             os.unlink(ckpt)
     return maps

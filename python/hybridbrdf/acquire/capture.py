@@ -2,7 +2,9 @@
 them, and (for a simulated capture) the truth behind them.
 
     rig.json          the rig (hybridbrdf.acquire.rig): cameras, lights as stated, shots and their images
-    photo_000.exr ... one linear HDR photograph per shot, the rig's image size
+    photo_000.exr ... one linear HDR photograph per shot, the rig's image size (a real capture's
+                      may be 8/16-bit PNG or TIFF, decoded by the index's "photographs" encoding:
+                      hybridbrdf.acquire.photographs)
     capture.json      {"format_version": 1, "rig": "rig.json", "simulated": {...}}: the noise model,
                       seed, light jitter, the lights' true positions, the mixture's layers (their
                       source paths or synthetic names) and its weights map
@@ -21,11 +23,12 @@ from typing import List, Tuple
 
 import numpy as np
 
+from hybridbrdf.acquire.photographs import PhotoEncoding, decode_photo, encoding_of_index
 from hybridbrdf.acquire.rig import Rig, load_rig
 from hybridbrdf.acquire.simulation import Capture
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.inputs import check_input_file, loads_json, read_input_text
-from hybridbrdf.render.tracer import read_image, write_exr
+from hybridbrdf.render.tracer import write_exr
 from hybridbrdf.sources import SYNTHETIC_PREFIX
 from hybridbrdf.files import atomic_write_bytes, make_parent_folder
 
@@ -33,7 +36,7 @@ FORMAT_VERSION = 1
 INDEX_FILE = "capture.json"
 RIG_FILE = "rig.json"
 WEIGHTS_FILE = "weights.exr"
-#: Largest photograph file read: 8192 x 8192 RGB float32 and EXR's headers.
+#: Largest photograph file read: 8192 x 8192 RGB float32 and a file format's headers.
 MAX_PHOTO_BYTES = 8192 * 8192 * 12 + (1 << 20)
 
 
@@ -113,28 +116,30 @@ def write_capture(capture: Capture, folder) -> str:
     return folder
 
 
-def read_photo(path: str, size: Tuple[int, int], finite: bool = True) -> np.ndarray:
-    """One photograph (H, W, 3) float32, checked: a regular EXR file of the rig's ``size`` (W, H)
-    whose pixels are all finite (:class:`CaptureError` naming the file otherwise); ``finite``
-    False lets values that are not finite through (a fit masks them)."""
+def read_photo(path: str, size: Tuple[int, int], finite: bool = True,
+               encoding: PhotoEncoding = PhotoEncoding()) -> Tuple[np.ndarray, np.ndarray]:
+    """(photograph (H, W, 3) float32 radiance, saturated (H, W) bool), checked: a regular file of
+    the rig's ``size`` (W, H), float EXR/TIFF or 8/16-bit PNG/TIFF decoded by ``encoding``
+    (:mod:`~hybridbrdf.acquire.photographs`), whose pixels are finite and unsaturated
+    (:class:`CaptureError` naming the file otherwise); ``finite`` False lets both through (a fit
+    masks them)."""
     check_input_file(path, "photograph", MAX_PHOTO_BYTES, CaptureError)
-    try:
-        image = read_image(path)
-    except (RuntimeError, ValueError, OSError) as exc:
-        raise CaptureError(path, f"cannot read the photograph: {exc}") from None
-    w, h = size
-    if image.shape != (h, w, 3):
-        raise CaptureError(path, f"photograph is {image.shape[1]}x{image.shape[0]}; the rig says {w}x{h}")
+    image, saturated = decode_photo(path, size, encoding, CaptureError)
     bad = ~np.isfinite(image)
     if finite and bad.any():
         r, c, _ = (int(v[0]) for v in np.nonzero(bad))
         raise CaptureError(path, f"{int(bad.sum())} values are not finite (first at column {c}, row {r})")
-    return image
+    if finite and saturated.any():
+        r, c = (int(v[0]) for v in np.nonzero(saturated))
+        raise CaptureError(path, f"{int(saturated.sum())} pixels saturated (first at column {c}, row {r})")
+    return image, saturated
 
 
-def load_capture(folder, finite: bool = True) -> Tuple[Rig, List[np.ndarray], dict]:
+def load_capture(folder, finite: bool = True, saturation: bool = False):
     """(rig, photos, index) of a capture folder (or of a rig file, whose folder holds its images):
-    every photograph present, of the rig's size, finite (unless ``finite`` is False)."""
+    every photograph present, of the rig's size, finite and unsaturated (unless ``finite`` is
+    False), decoded by the index's ``photographs`` encoding. ``saturation`` adds a fourth item,
+    per photograph its (H, W) mask of saturated pixels."""
     folder = os.fspath(folder)
     if os.path.isdir(folder):
         index_path = os.path.join(folder, INDEX_FILE)
@@ -146,9 +151,11 @@ def load_capture(folder, finite: bool = True) -> Tuple[Rig, List[np.ndarray], di
         if not isinstance(rig_name, str) or os.path.basename(rig_name) != rig_name:
             raise CaptureError(index_path, f"rig: must be a plain file name inside the folder, got {rig_name!r}")
         rig_path = os.path.join(folder, rig_name)
+        encoding = encoding_of_index(index, index_path, CaptureError)
     else:
-        rig_path, index = folder, {}
+        rig_path, index, encoding = folder, {}, PhotoEncoding()
     rig = load_rig(rig_path)
     base = os.path.dirname(rig_path)
-    photos = [read_photo(os.path.join(base, s.image), rig.image_size, finite) for s in rig.shots]
-    return rig, photos, index
+    read = [read_photo(os.path.join(base, s.image), rig.image_size, finite, encoding) for s in rig.shots]
+    photos = [image for image, _ in read]
+    return (rig, photos, index, [mask for _, mask in read]) if saturation else (rig, photos, index)

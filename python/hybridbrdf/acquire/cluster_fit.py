@@ -101,11 +101,13 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
                  progress: Optional[Progress] = None) -> Dict[str, object]:
     """Per cluster: the prior's material that explains its rows best after fitting (see the module
     docstring), its fitted values and the fit's residual variance. Returns {"material" (K,),
-    "centres" {name: (K, c)}, "sigma2" (K,)}."""
+    "centres" {name: (K, c)}, "sigma2" (K,), "candidates": per cluster the fitted candidates, best
+    first, each {"material", "loss", "raw" {name: (c,)}} (what :mod:`~hybridbrdf.acquire.cluster_report`
+    prints)}."""
     k = int(labels.max()) + 1
     every = family.raw_of_materials()
     n_mat = len(next(iter(every.values())))
-    materials, centres, sigma2 = [], {name: [] for name in every}, []
+    materials, centres, sigma2, candidates = [], {name: [] for name in every}, [], []
     total = k * CANDIDATES * CLUSTER_STEPS
     done = 0
     for c in range(k):
@@ -115,13 +117,14 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             for name in every:
                 centres[name].append(centres[name][0] if centres[name] else every[name][0])
             sigma2.append(sigma2[0] if sigma2 else 1.0)
+            candidates.append([])
             continue
         score_rows = rows[::max(1, len(rows) // 1024)][:1024]  # spread over the cluster (rows are sorted by texel)
         with torch.no_grad():
             scores = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
                                              {name: v[m].expand(len(score_rows), -1) for name, v in every.items()},
                                              score_rows) for m in range(n_mat)])
-        best = None
+        fitted = []
         for m in torch.argsort(scores)[:CANDIDATES].tolist():
             raw = {name: v[m:m + 1].clone().requires_grad_() for name, v in every.items()}
             mats = torch.full((len(rows),), m)
@@ -135,14 +138,16 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
                 progress("clusters", done, total)
             with torch.no_grad():
                 final = float(loss(None))
-            if best is None or final < best[0]:
-                best = (final, m, {n: v.detach()[0] for n, v in raw.items()})
-        materials.append(best[1])
+            fitted.append({"material": m, "loss": final, "raw": {n: v.detach()[0] for n, v in raw.items()}})
+        fitted.sort(key=lambda cand: cand["loss"])  # stable: a tie keeps the better-scored material
+        best = fitted[0]
+        materials.append(best["material"])
         for name in every:
-            centres[name].append(best[2][name])
-        sigma2.append(max(best[0], 1e-8))
+            centres[name].append(best["raw"][name])
+        sigma2.append(max(best["loss"], 1e-8))
+        candidates.append(fitted)
     return {"material": torch.tensor(materials), "centres": {n: torch.stack(v) for n, v in centres.items()},
-            "sigma2": torch.tensor(sigma2)}
+            "sigma2": torch.tensor(sigma2), "candidates": candidates}
 
 
 def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
@@ -177,10 +182,12 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
 
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
-                 save_state: Optional[Callable[[dict], None]] = None) -> Tuple[np.ndarray, Dict, Dict]:
+                 save_state: Optional[Callable[[dict], None]] = None,
+                 on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None) -> Tuple[np.ndarray, Dict, Dict]:
     """The three stages (module docstring): (labels (n_texels,), clusters, per-texel raw values).
     ``state`` (what ``save_state`` was last given) resumes after the last finished stage or within
-    the analytic and texel stages at their last checkpoint (every 50 steps)."""
+    the analytic and texel stages at their last checkpoint (every 50 steps). ``on_clusters(labels,
+    clusters)`` is called once the clusters are known (fitted or restored), before the texel stage."""
     state = dict(state or {})
 
     def saver(key):
@@ -208,6 +215,8 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     if "clusters" not in state:
         finish("clusters", fit_clusters(family, obs, data, labels, seed, progress))
     clusters = state["clusters"]
+    if on_clusters is not None:
+        on_clusters(labels, clusters)
     raw = refine_texels(family, obs, data, labels, clusters, steps, seed, rows_per_texel, progress=progress,
                         state=state.get("texels_partial"), save_state=saver("texels_partial"))
     return labels, clusters, raw

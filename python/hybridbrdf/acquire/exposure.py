@@ -2,6 +2,8 @@
 refusal, wherever something usable remains.
 
 - **Not finite** (NaN, infinity: a dead pixel, a failed merge): the pixel is left out, counted.
+- **Saturated** (a channel at an 8- or 16-bit encoding's largest code: the sensor clipped, the
+  radiance is unknown above it): left out as a pixel that is not finite is, counted apart.
 - **Under-exposed photograph**: most of the pixels that see the sample (more than half) read below
   :data:`FLOOR_SIGMAS` times the noise floor sigma in every channel, so most of what the
   photograph says about the sample is noise. The floor is the capture's stated read noise in
@@ -20,6 +22,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from hybridbrdf.acquire.geometry import pixel_geometry
+from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.rig import Rig
 
 #: A pixel is dark when every channel reads below this many noise floors.
@@ -28,12 +31,21 @@ FLOOR_SIGMAS = 3.0
 MIN_BACKGROUND = 64
 
 
-def stated_noise_floor(index: dict) -> Optional[float]:
-    """read_noise / photons from a capture index's noise model (``simulated.noise``), or None."""
-    noise = (index.get("simulated") or {}).get("noise") if isinstance(index, dict) else None
+def stated_noise_model(index: dict) -> Optional[NoiseModel]:
+    """The noise model a capture index states (``simulated.noise``, or ``noise`` for a capture
+    that was not simulated), or None."""
+    if not isinstance(index, dict):
+        return None
+    noise = index.get("noise") or (index.get("simulated") or {}).get("noise")
     if isinstance(noise, dict) and noise.get("photons"):
-        return float(noise.get("read_noise") or 0.0) / float(noise["photons"])
+        return NoiseModel(float(noise["photons"]), float(noise.get("read_noise") or 0.0))
     return None
+
+
+def stated_noise_floor(index: dict) -> Optional[float]:
+    """read_noise / photons from a capture index's noise model (:func:`stated_noise_model`), or None."""
+    noise = stated_noise_model(index)
+    return None if noise is None else noise.read_noise / noise.photons
 
 
 def background_floor(photo: np.ndarray, sample: np.ndarray) -> float:
@@ -47,16 +59,22 @@ def background_floor(photo: np.ndarray, sample: np.ndarray) -> float:
 
 
 def usable_pixels(rig: Rig, photos: Sequence[np.ndarray], floor: Optional[float] = None,
-                  where: str = "capture") -> Tuple[List[np.ndarray], Dict[str, object]]:
+                  where: str = "capture", saturated: Optional[Sequence[np.ndarray]] = None
+                  ) -> Tuple[List[np.ndarray], Dict[str, object]]:
     """(masks, report): per photograph the (H, W) bool mask of pixels a fit may use, and
-    {"not finite": pixels left out, "under-exposed": [photograph indices left out], "floor":
-    [sigma per photograph]}. ``floor``: the stated noise floor (None: from the background).
+    {"not finite": pixels left out, "saturated": pixels left out, "under-exposed": [photograph
+    indices left out], "floor": [sigma per photograph]}. ``floor``: the stated noise floor (None:
+    from the background); ``saturated``: per photograph the (H, W) mask of saturated pixels
+    (:func:`hybridbrdf.acquire.capture.read_photo`), left out as pixels that are not finite are.
     ValueError naming ``where`` when nothing usable remains."""
-    masks, report = [], {"not finite": 0, "under-exposed": [], "floor": []}
+    masks, report = [], {"not finite": 0, "saturated": 0, "under-exposed": [], "floor": []}
     for k, photo in enumerate(photos):
         photo = np.asarray(photo)
+        clipped = np.zeros(photo.shape[:2], bool) if saturated is None else np.asarray(saturated[k], bool)
+        report["saturated"] += int(clipped.sum())
+        photo = np.where(clipped[..., None], np.nan, photo)
         finite = np.isfinite(photo).all(axis=2)
-        report["not finite"] += int((~finite).sum())
+        report["not finite"] += int((~finite & ~clipped).sum())
         sample = pixel_geometry(rig, k).mask
         sigma = background_floor(photo, sample) if floor is None else floor
         report["floor"].append(sigma)

@@ -78,7 +78,8 @@ class HybridMaps:
     """A hybrid fit: ``model`` (the prior, with an edit per layer whose kd map is brighter than its
     material: :func:`hybridbrdf.fit.painting.bound_bright_kd`), ``layers`` (material names, at most 4),
     ``layer`` (H, W) each texel's layer, per texel ``kd``, ``eta`` (H, W, 3), ``alpha`` (H, W, 2),
-    ``z`` (H, W, l) float32, ``counts`` (H, W) observations per texel (0: its cluster's values)."""
+    ``z`` (H, W, l) float32, ``counts`` (H, W) observations per texel (0: its cluster's values),
+    ``report`` what :func:`~hybridbrdf.acquire.acquisition.acquire` wrote as acquisition.json."""
     model: HybridModel
     layers: List[str]
     layer: np.ndarray
@@ -87,6 +88,7 @@ class HybridMaps:
     alpha: np.ndarray
     z: np.ndarray
     counts: np.ndarray
+    report: Optional[dict] = None  # hbrdf acquire fit's clusters and choices (acquire/cluster_report.py)
 
     def eval(self, texel: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
         """The fitted BRDF (no cosine) at texels ``texel`` ((M,) int, j * W + i) for ``wi``, ``wo``
@@ -120,25 +122,30 @@ class HybridMaps:
             maps.append(layer_maps)
         return SVBRDF(self.model, self.layers, (w, h), weights if len(self.layers) > 1 else None, maps, "clamp")
 
-    def save(self, folder, format: str = "exr") -> SVBRDF:
+    def save(self, folder, format: str = "exr", extra: Optional[Dict[str, bytes]] = None) -> SVBRDF:
         """Write the textured-material folder (:meth:`SVBRDF.save`: atomic, an existing folder replaced
-        only when it is a textured material's); EXR keeps the fitted values exactly (float32), so
-        the folder evaluates as :meth:`eval` does."""
+        only when it is a textured material's, ``extra`` files with it); EXR keeps the fitted values
+        exactly (float32), so the folder evaluates as :meth:`eval` does."""
         sv = self.svbrdf()
-        sv.save(folder, format=format)
+        sv.save(folder, format=format, extra=extra)
         return sv
 
 
 def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, seed: int = 0,
                       progress: Optional[Progress] = None, rows_per_texel: int = ROWS_PER_TEXEL,
                       state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
-                      log: Callable[[str], None] = lambda msg: None) -> HybridMaps:
+                      log: Callable[[str], None] = lambda msg: None,
+                      on_clusters: Optional[Callable[[HybridFamily, np.ndarray, Dict], None]] = None) -> HybridMaps:
     """Fit (p, z) per texel on ``model``'s frozen network (a hybrid prior with its materials):
     the stages of :func:`hybridbrdf.acquire.cluster_fit.fit_on_prior` (analytic ``steps // 2``
-    steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each). ``progress``
-    gets (stage, done, total) after each step; ``save_state`` a resumable state, ``state`` resumes."""
+    steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each), then the
+    energy tables of the layers whose kd map is brighter than their material (stage "energy
+    tables", one step a layer: about 5 s each). ``progress`` gets (stage, done, total) after each
+    step; ``save_state`` a resumable state, ``state`` resumes; ``on_clusters(family, labels,
+    clusters)`` runs once the clusters are known (:mod:`~hybridbrdf.acquire.cluster_report`)."""
     family = HybridFamily(model)
-    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state)
+    hook = None if on_clusters is None else (lambda labels, clusters: on_clusters(family, labels, clusters))
+    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook)
     w, h = obs.size
     with torch.no_grad():
         kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))
@@ -147,8 +154,10 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     chosen = list(dict.fromkeys(cluster_material))
     layer = np.array([chosen.index(m) for m in cluster_material])[labels]
     names = [model.materials[m] for m in chosen]
-    kd_maps = {k: kd[layer == k] for k in range(len(names))}
-    model, names = bound_bright_kd(model, names, kd_maps, log)
+    for k in range(len(names)):  # one layer at a time: a step of the "energy tables" bar each
+        model, names = bound_bright_kd(model, names, {k: kd[layer == k]}, log)
+        if progress is not None:
+            progress("energy tables", k + 1, len(names))
     shape = (h, w)
     return HybridMaps(model, names, layer.reshape(shape), kd.reshape(*shape, 3), eta.reshape(*shape, 3),
                       alpha.reshape(*shape, 2), z.reshape(*shape, -1), obs.counts())

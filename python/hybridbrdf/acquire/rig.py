@@ -36,6 +36,8 @@ MAX_RIG_BYTES = 16 << 20
 TOP_KEYS = ("format_version", "image_size", "sample_extent", "cameras", "lights", "shots")
 CAMERA_KEYS = ("position", "look_at", "up", "fov_deg")
 LIGHT_KEYS = ("position", "intensity")
+#: Photograph files a shot may name (hybridbrdf.acquire.photographs decodes them).
+PHOTO_EXTENSIONS = (".exr", ".png", ".tif", ".tiff")
 SHOT_KEYS = ("camera", "light", "image")
 
 
@@ -213,8 +215,9 @@ class _RigReader:
             self.keys(s, where, SHOT_KEYS, ("camera", "light"))
             image = s.get("image", photo_name(i))
             if not isinstance(image, str) or not image or os.path.basename(image) != image or image in (".", "..") \
-                    or not image.lower().endswith(".exr"):
-                self.fail(f"{where}.image", f"must be a plain .exr file name inside the rig's folder, got {image!r}")
+                    or not image.lower().endswith(PHOTO_EXTENSIONS):
+                self.fail(f"{where}.image", f"must be a plain {', '.join(PHOTO_EXTENSIONS)} file name inside the rig's "
+                                            f"folder, got {image!r}")
             if image in names:
                 self.fail(f"{where}.image", f"{image!r} names two shots")
             names.add(image)

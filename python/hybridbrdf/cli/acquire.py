@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 
 from hybridbrdf.acquire.sizes import MAX_ITEMS, MAX_SIDE, STEPS
 from hybridbrdf.cli import COMMANDS, layer_masks
@@ -111,11 +112,12 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, texels)."""
+    """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, texels, energy
+    tables), a line per cluster and a message before writing; warnings on stderr."""
     import torch
     from tqdm import tqdm
 
-    from hybridbrdf.acquire.acquisition import acquire
+    from hybridbrdf.acquire.acquisition import REPORT_FILE, acquire
 
     bars = {}
 
@@ -132,13 +134,15 @@ def run_fit(args: argparse.Namespace) -> int:
     torch.set_num_threads(args.threads)
     try:
         maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
-                       resume=args.resume, force=args.force, progress=progress, log=say)
+                       resume=args.resume, force=args.force, progress=progress, log=say,
+                       warn=lambda msg: tqdm.write(msg, file=sys.stderr))
     finally:
         for bar in bars.values():
             bar.close()
     h, w = maps.layer.shape
     print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
-          f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}")
+          f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}; the clusters and "
+          f"their materials in {REPORT_FILE}")
     return 0
 
 
@@ -195,8 +199,12 @@ def add_parser(sub) -> None:
                     "to the photographs of a capture (a capture folder, or a rig file beside its photographs) and "
                     "write a textured-material folder as hbrdf paint does (docs/SVBRDF.md): texels are clustered "
                     "(at most 4: the layers), each cluster starts at the prior's material that explains it best, "
-                    "each texel is refined from its cluster's values. Pixels that are not finite are left out "
-                    "(counted); photographs whose sample pixels mostly read below 3x the noise floor are left out "
+                    "each texel is refined from its cluster's values. Prints a line per cluster (its texels, the "
+                    "material chosen and the runner-up with their loss and relative error) and warns on stderr "
+                    "when a cluster's best material leaves an error well above the noise; OUT/acquisition.json "
+                    "records them. Photographs: float EXR/TIFF, or 8/16-bit PNG/TIFF decoded by capture.json's "
+                    "\"photographs\" encoding (linear or srgb, scale, black_level); saturated pixels (a channel at "
+                    "the largest code) and pixels that are not finite are left out (counted); photographs whose sample pixels mostly read below 3x the noise floor are left out "
                     "(counted); a capture with nothing usable is refused. A checkpoint beside OUT "
                     "(.OUT.acquire-checkpoint) lets --resume continue an interrupted run; OUT is written once "
                     "complete and replaced only when it is a textured material's folder (or empty).")
@@ -216,5 +224,5 @@ def add_parser(sub) -> None:
                         "docs/ACQUISITION.md)")
     f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
     f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
-    f.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    f.add_argument("--quiet", action="store_true", help="no progress bars or messages (warnings still go to stderr)")
     f.set_defaults(func=run_fit)

@@ -252,14 +252,15 @@ class SVBRDF:
         return f if visible is None else np.where(visible[:, None], f, 0.0)
 
     # ---- persistence ---------------------------------------------------------------------
-    def save(self, folder, format: str = "png") -> None:
+    def save(self, folder, format: str = "png", extra: Optional[Dict[str, bytes]] = None) -> None:
         """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.files.atomic_folder`):
         into a temporary folder beside it, then renamed over it; SIGTERM or an error leaves the old
         folder, an OSError names ``folder``. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
         the values), 'exr' (float32, decoded values stored), each a file per mip level, or 'ktx2'
         (the 8-bit decode in GPU block formats, one file holding the chain:
         :data:`hybridbrdf.svbrdf.entries.KTX2_FORMATS`). An existing ``folder`` is replaced
-        only when it is a textured material's folder (it holds svbrdf.json) or empty."""
+        only when it is a textured material's folder (it holds svbrdf.json) or empty. ``extra``:
+        plain file name -> bytes, written into the folder with it (a fit's report)."""
         if format not in MAP_FORMATS:
             raise ValueError(f"format must be one of {', '.join(MAP_FORMATS)}, got {format!r}")
         folder = os.path.abspath(os.fspath(folder))
@@ -290,6 +291,10 @@ class SVBRDF:
                      **({} if self.levels == 1 else {"levels": self.levels}),
                      "layers": [{"material": m} for m in self.layers], "maps": entries}
             atomic_write_bytes(os.path.join(tmp, SV["index_file"]), (json.dumps(index, indent=1) + "\n").encode())
+            for name, data in (extra or {}).items():
+                if os.path.basename(name) != name or name in os.listdir(tmp):
+                    raise ValueError(f"extra file {name!r}: must be a plain name the folder does not use")
+                atomic_write_bytes(os.path.join(tmp, name), data)
             load_svbrdf(tmp)  # what was written reads back
         self.path = folder
         self.model = load_model(os.path.join(folder, SV["model_file"]))  # evaluated by libhybridbrdf from now on
