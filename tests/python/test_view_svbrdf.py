@@ -24,6 +24,7 @@ libhybridbrdf (at the tracer's 96 x 96), against the tracer (full), its maps bes
 
 import json
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -228,6 +229,29 @@ def test_two_regions_show_each_material(model, tmp_path):
         print(f"region of layer {layer}: mean {diff.mean():.4f}, max {diff.max()} over {pure.sum()} pixels")
         assert diff.mean() <= 0.05 and diff.max() <= 1, (layer, diff.mean(), diff.max())
         assert np.abs(got - want)[~pure & corners[0][1]].mean() > 1, "the other region differs"
+
+
+def test_textured_fragment_shader_compiles_as_es300(model, tmp_path):
+    """The textured page's shader (four layers, every quantity mapped), for a shared output layer and
+    for material output layers with energy tables: hbrdf-codegen's GLSL unchanged, then the page's
+    code, which glslang compiles as a GLSL ES 3.00 fragment shader (without a browser), and no
+    HbrdfMaterial is a parameter or field of the page's code (a layer's material is built where it is
+    used: four of them passed by value were most of what SwiftShader compiled, docs/VIEWER.md)."""
+    from hybridbrdf.codegen.main import generate
+    from hybridbrdf.viewer.page import page_data
+
+    sv = _four_layer_material(model, tmp_path / "sv")
+    frag = page_data(sv.model, sv.model.path, svbrdf=sv)["fragment"]
+    glsl = generate(sv.model, "glsl", materials=[sv.model.materials[0]], model_path=sv.model.path)
+    assert frag.startswith("#version 300 es\nprecision highp float;\nprecision highp int;\n" + glsl)
+    page_code = frag[len("#version 300 es\nprecision highp float;\nprecision highp int;\n" + glsl):]
+    assert "HbrdfMaterial m0" not in page_code and "HbrdfMaterial s" not in page_code
+    exe = shutil.which("glslangValidator")
+    if exe is None:
+        pytest.skip("glslangValidator not installed (scripts/setup.sh installs glslang-tools)")
+    (tmp_path / "page.frag").write_text(frag)
+    r = subprocess.run([exe, "-S", "frag", str(tmp_path / "page.frag")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:]
 
 
 def test_maps_shown_beside_the_sphere_and_webgpu_refused(four_layer):

@@ -210,8 +210,12 @@ vec3 hbrdf_view_reflected(vec3 wo, HbrdfMaterial m, int count, vec3 wi0, vec3 we
 #: (u = phi / 2 pi + 1/2 with phi = atan2(n.z, n.x), v = theta / pi from +y). The texel's f is
 #: hbrdf_eval_layers' sum, 0 + f_0 w_0 + f_1 w_1 + ..., in that order over the layers of positive
 #: weight, written as a loop so that the network has one call site (hbrdf_eval_layers has four, and
-#: SwiftShader compiles each copy for seconds); its sampling and density are the generated
-#: hbrdf_sample_layers and hbrdf_pdf_layers (the tracer's mixture of the layers' samplers).
+#: SwiftShader compiles each copy for seconds); its sampling and density are hbrdf_sample_layers' and
+#: hbrdf_pdf_layers' arithmetic (the tracer's mixture of the layers' samplers) written as loops over a
+#: layer index. The shading point keeps only what the maps change (kd, eta, alpha, z per layer); a
+#: layer's HbrdfMaterial is built where one is used, its output layer and energy table read from the
+#: uniforms by the layer's index: four HbrdfMaterials passed by value (each with its output layer and
+#: table, 118 floats for a 16x2 model) were most of the shader SwiftShader compiled.
 _TEXTURED_MATERIAL = """uniform vec3 u_layer_kd[4];
 uniform vec3 u_layer_eta[4];
 uniform vec2 u_layer_alpha[4];
@@ -222,8 +226,12 @@ uniform ivec2 u_map_size;
 uniform bool u_map_repeat;               // addressing: repeat, else clamp
 uniform int u_plane_weights;             // the weights map's layer of u_maps (w_1, w_2, w_3), -1: none
 uniform ivec4 u_plane_kd, u_plane_eta, u_plane_alpha, u_plane_latent;  // per material layer; -1: its material's
+// The texel's layers as the maps make them (layer k's latent code: z[k * {z_len} ...]) and weights.
 struct HbrdfViewShading {{
-    HbrdfMaterial m0, m1, m2, m3;
+    vec3 kd[4];
+    vec3 eta[4];
+    vec2 alpha[4];
+    float z[4 * {z_len}];
     vec4 w;
 }};
 float hbrdf_view_packed(int k, int i) {{ return u_layer_pack[k * {n_vec} + i / 4][i % 4]; }}
@@ -244,21 +252,36 @@ vec4 hbrdf_view_map(int plane, vec2 uv) {{
     vec4 top = a + (b - a) * f.x, bottom = c + (d - c) * f.x;
     return top + (bottom - top) * f.y;
 }}
-HbrdfMaterial hbrdf_view_layer(int k, vec2 uv) {{
-    int kk = min(k, u_layers - 1);  // a layer beyond the last has weight 0: any valid material
-    HbrdfMaterial m;
-    m.kd = u_plane_kd[kk] >= 0 ? hbrdf_view_map(u_plane_kd[kk], uv).rgb : u_layer_kd[kk];
-    m.eta = u_plane_eta[kk] >= 0 ? hbrdf_view_map(u_plane_eta[kk], uv).rgb : u_layer_eta[kk];
-    vec2 alpha = u_plane_alpha[kk] >= 0 ? hbrdf_view_map(u_plane_alpha[kk], uv).rg : u_layer_alpha[kk];
-    m.alpha_x = alpha.x;
-    m.alpha_y = alpha.y;
+// Layer k's mapped values at uv into s (a layer beyond the last has weight 0: any valid material,
+// the last layer's).
+void hbrdf_view_layer(int k, vec2 uv, inout HbrdfViewShading s) {{
+    int kk = min(k, u_layers - 1);
+    s.kd[k] = u_plane_kd[kk] >= 0 ? hbrdf_view_map(u_plane_kd[kk], uv).rgb : u_layer_kd[kk];
+    s.eta[k] = u_plane_eta[kk] >= 0 ? hbrdf_view_map(u_plane_eta[kk], uv).rgb : u_layer_eta[kk];
+    s.alpha[k] = u_plane_alpha[kk] >= 0 ? hbrdf_view_map(u_plane_alpha[kk], uv).rg : u_layer_alpha[kk];
     for (int p = 0; p < ({z_len} + 2) / 3; ++p) {{  // one lookup per latent map (3 components)
         vec4 v = u_plane_latent[kk] >= 0 ? hbrdf_view_map(u_plane_latent[kk] + p, uv) : vec4(0.0);
         for (int c = 0; c < 3; ++c) {{
             int i = 3 * p + c;
-            if (i < {z_len}) m.z[i] = u_plane_latent[kk] >= 0 ? v[c] : hbrdf_view_packed(kk, i);
+            if (i < {z_len}) s.z[k * {z_len} + i] = u_plane_latent[kk] >= 0 ? v[c] : hbrdf_view_packed(kk, i);
         }}
     }}
+}}
+// Layer k's HbrdfMaterial without its output layer and energy table, which hbrdf_pdf and
+// hbrdf_sample do not read (ANGLE zero-fills them).
+HbrdfMaterial hbrdf_view_material(HbrdfViewShading s, int k) {{
+    HbrdfMaterial m;
+    m.kd = s.kd[k];
+    m.eta = s.eta[k];
+    m.alpha_x = s.alpha[k].x;
+    m.alpha_y = s.alpha[k].y;
+    for (int i = 0; i < {z_len}; ++i) m.z[i] = s.z[k * {z_len} + i];
+    return m;
+}}
+// Layer k's whole HbrdfMaterial, for hbrdf_eval: the output layer and energy table from the uniforms.
+HbrdfMaterial hbrdf_view_material_full(HbrdfViewShading s, int k) {{
+    int kk = min(k, u_layers - 1);
+    HbrdfMaterial m = hbrdf_view_material(s, k);
 {layer_head_lines}    return m;
 }}
 // The texel's weights as libhybridbrdf's Svbrdf::texel normalises them: w_1..3 filtered, divided by
@@ -275,18 +298,40 @@ HbrdfViewShading hbrdf_view_shading(vec3 n) {{
     const float INV_PI = 0.318309886183791;
     vec2 uv = vec2(atan(n.z, n.x) * (0.5 * INV_PI) + 0.5, acos(clamp(n.y, -1.0, 1.0)) * INV_PI);
     HbrdfViewShading s;
-    s.m0 = hbrdf_view_layer(0, uv);
-    s.m1 = hbrdf_view_layer(1, uv);
-    s.m2 = hbrdf_view_layer(2, uv);
-    s.m3 = hbrdf_view_layer(3, uv);
+    for (int k = 0; k < 4; ++k) hbrdf_view_layer(k, uv, s);
     s.w = hbrdf_view_weights(uv);
     return s;
 }}
+// hbrdf_pdf_layers: sum_k w_k hbrdf_pdf(wi, wo, m_k) over the layers of positive weight, in order.
 float hbrdf_view_pdf(vec3 wi, vec3 wo, HbrdfViewShading s) {{
-    return hbrdf_pdf_layers(wi, wo, s.m0, s.m1, s.m2, s.m3, s.w.x, s.w.y, s.w.z, s.w.w);
+    float p = 0.0;
+    for (int k = 0; k < 4; ++k) {{
+        if (s.w[k] > 0.0) p = p + s.w[k] * hbrdf_pdf(wi, wo, hbrdf_view_material(s, k));
+    }}
+    return p;
 }}
-vec3 hbrdf_view_sample(vec3 wo, vec2 u, HbrdfViewShading s, out float pdf) {{
-    return hbrdf_sample_layers(wo, u, s.m0, s.m1, s.m2, s.m3, s.w.x, s.w.y, s.w.z, s.w.w, pdf);
+// hbrdf_sample_layers: layer k with probability w_k (the first of positive weight whose interval
+// holds u.x, else the last of positive weight; u.x rescaled to it), then its hbrdf_sample.
+vec3 hbrdf_view_sample(vec3 wo, vec2 u_in, HbrdfViewShading s, out float pdf) {{
+    float ux = hbrdf_clamp_lo(u_in.x, 0.0, HBRDF_ONE_MINUS_EPS);
+    int layer = 0;
+    float start = 0.0, end = 0.0, w = s.w.x;
+    bool found = false;
+    for (int k = 0; k < 4; ++k) {{
+        float wk = s.w[k];
+        if (k == 0 || (!found && wk > 0.0)) {{
+            layer = k;
+            start = end;
+            w = wk;
+            found = wk > 0.0 && ux < end + wk;  // the last layer takes the rest
+        }}
+        end = end + (wk > 0.0 ? wk : 0.0);
+    }}
+    vec2 u = vec2(hbrdf_clamp_lo(w > 0.0 ? (ux - start) / w : ux, 0.0, HBRDF_ONE_MINUS_EPS), u_in.y);
+    float pdf_k = 0.0;
+    vec3 wi = hbrdf_sample(wo, u, hbrdf_view_material(s, layer), pdf_k);
+    pdf = pdf_k > 0.0 ? hbrdf_view_pdf(wi, wo, s) : 0.0;
+    return wi;
 }}
 // One call site of the network: a loop over (direction, layer); each direction's texel f is summed
 // over the layers first (hbrdf_eval_layers' order), then clipped at 0 and weighted as the uniform page does.
@@ -298,10 +343,7 @@ vec3 hbrdf_view_reflected(vec3 wo, HbrdfViewShading s, int count, vec3 wi0, vec3
         vec3 wi = j < 4 ? wi0 : wi1, weight = j < 4 ? weight0 : weight1;
         float w = s.w[k];
         if (w > 0.0 && wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) {{
-            HbrdfMaterial m = s.m0;
-            if (k == 1) m = s.m1;
-            if (k == 2) m = s.m2;
-            if (k == 3) m = s.m3;
+            HbrdfMaterial m = hbrdf_view_material_full(s, k);
             f += (u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m)) * w;
         }}
         if (k == 3) {{
