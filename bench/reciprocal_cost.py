@@ -15,7 +15,8 @@ per evaluation; everything after the first layer is the same. Timed here:
 - the generated GLSL (default form) under lavapipe, the buffer kernel of the conformance tests
   (pairs read from a storage buffer), the host's SIMD path and AVX2 only
   (bench_inference.VK_RUNS), one lavapipe process per shader per round over ``--vk-pairs`` pairs
-  (the runner's best of 21 dispatches: small dispatches make an unpreempted one likely), with
+  (wall time: the runner's best of 8 dispatches; and CPU time: all the runner's threads with 16
+  extra dispatches minus with none, which leaves out start, compile and preemption), with
   each shader's SPIR-V instruction count per evaluation (load-independent).
 
 Each round times the plain model then the reciprocal one, the next round the other way round;
@@ -32,6 +33,8 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
+import resource
+import subprocess
 import statistics
 import sys
 import tempfile
@@ -98,6 +101,19 @@ def cpp_rounds(paths, wi, wo, args, kernels):
     return out
 
 
+def lavapipe_cpu_rate(spv, n: int, d, env, repeat: int = 16) -> float:
+    """Evaluations per CPU second of lavapipe on ``spv``: the runner's CPU time (all its threads,
+    getrusage of the children) with ``repeat`` extra dispatches of ``n`` pairs minus that with
+    none, so process start, shader compile and transfers cancel and preemption does not count."""
+    def cpu(r):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([str(RUNNER), str(spv), f"{d}/in.bin", f"{d}/out.bin", str(n), "3", "--repeat", str(r)],
+                       check=True, capture_output=True, env=dict(os.environ, VK_DRIVER_FILES=LVP, **env))
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return repeat * n / max(cpu(repeat) - cpu(0), 1e-9)
+
+
 def lavapipe_rounds(paths, args, d):
     """Per lavapipe run (VK_RUNS), the (plain, reciprocal) rate of every round."""
     spv = [compile_shader(hb.load_model(str(p)), "hbrdf_eval", d, tag=f"m{i}", directions="buffer")
@@ -111,6 +127,8 @@ def lavapipe_rounds(paths, args, d):
             order = (0, 1) if k_round % 2 == 0 else (1, 0)
             rate = {i: lavapipe_rate(spv[i], args.vk_pairs, d, env) for i in order}
             out[run].append((rate[0], rate[1]))
+            cpu = {i: lavapipe_cpu_rate(spv[i], args.vk_pairs, d, env) for i in order}
+            out.setdefault(f"{run}, CPU time", []).append((cpu[0], cpu[1]))
     return out
 
 
