@@ -24,8 +24,11 @@ from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
+import png
+import tifffile
 
 from hybridbrdf.acquire.rig import PHOTO_EXTENSIONS
+from hybridbrdf.render.tracer import read_image
 
 #: Encodings a capture index may state.
 ENCODINGS = ("linear", "srgb")
@@ -69,8 +72,6 @@ def srgb_to_linear(v: np.ndarray) -> np.ndarray:
 
 def _png_codes(path: str, data: bytes, size: Tuple[int, int], error) -> np.ndarray:
     """(H, W, 3) integer codes of an 8- or 16-bit RGB(A) PNG; the header checked before decoding."""
-    import png
-
     try:
         width, height, rows, info = png.Reader(bytes=data).read()
         if info.get("palette"):
@@ -90,8 +91,6 @@ def _png_codes(path: str, data: bytes, size: Tuple[int, int], error) -> np.ndarr
 
 def _tiff_image(path: str, size: Tuple[int, int], error) -> np.ndarray:
     """(H, W, 3) of an 8/16-bit integer or 32-bit float RGB(A) TIFF (its first image)."""
-    import tifffile
-
     try:
         with tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
@@ -117,8 +116,6 @@ def _check_size(path, width, height, size, error) -> None:
 def decode_photo(path: str, size: Tuple[int, int], encoding: PhotoEncoding, error) -> Tuple[np.ndarray, np.ndarray]:
     """(radiance (H, W, 3) float32, saturated (H, W) bool) of the photograph ``path`` of the rig's
     ``size`` (W, H); a file that cannot be used is ``error(path, problem)``."""
-    from hybridbrdf.render.tracer import read_image
-
     ext = os.path.splitext(path)[1].lower()
     if ext not in EXTENSIONS:
         raise error(path, f"a photograph must be {', '.join(EXTENSIONS)}")
