@@ -50,16 +50,18 @@ def uv_of(x, y):
     return (x + HALF[0]) / (2 * HALF[0]) * 2.0 - 0.5, -0.25 + (HALF[1] - y) / (2 * HALF[1]) * 1.5
 
 
-def write_asset(path, images=None, edit=None, normal=True):
+def write_asset(path, images=None, edit=None, normal=True, mirrored=False):
     """The quad GLB at `path`; `images` replaces the encoded images {"base", "mr", "normal"} (bytes,
-    mimeType); `edit(doc)` edits the glTF JSON before it is written (hostile cases)."""
+    mimeType); `edit(doc)` edits the glTF JSON before it is written (hostile cases). `mirrored`: u
+    decreases along +x (uv_of(-x, y), a mirrored uv island) and TANGENT is (-1, 0, 0, -1): t = dP/du
+    = -x and b = w n x t = +y, still the image's top."""
     import pygltflib
 
     xs, ys = np.array([-HALF[0], HALF[0], HALF[0], -HALF[0]]), np.array([-HALF[1], -HALF[1], HALF[1], HALF[1]])
     pos = np.stack([xs, ys, np.zeros(4)], 1).astype(np.float32)
     nrm = np.tile(np.float32([0, 0, 1]), (4, 1))
-    tan = np.tile(np.float32([1, 0, 0, 1]), (4, 1))
-    uv = np.stack(uv_of(xs, ys), 1).astype(np.float32)
+    tan = np.tile(np.float32([-1, 0, 0, -1] if mirrored else [1, 0, 0, 1]), (4, 1))
+    uv = np.stack(uv_of(-xs if mirrored else xs, ys), 1).astype(np.float32)
     idx = np.array([0, 1, 2, 0, 2, 3], np.uint32)
     encoded = {"base": (png_bytes(BASE_TEXELS), "image/png"), "mr": (png_bytes(MR_TEXELS), "image/png"),
                "normal": (png_bytes(NORMAL_TEXELS), "image/png")}

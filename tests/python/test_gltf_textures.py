@@ -7,7 +7,8 @@ float64 reference computed here from the mapping formula and texel lookups by ha
 Measured: mean relative error 3.6e-7, max 1.1e-5 over the 1,320 pixels on the quad (bound
 material: 8.1e-8, 4.1e-7). Seen failing (then reverted): the sRGB decode of baseColorTexture
 skipped in the tracer (mean 1.30), the metallic and roughness channels swapped (0.87) and the
-normal map's y flipped (0.23; the bound material 0.13; and the sign test). Hostile images are one-line errors naming the asset and the JSON path."""
+normal map's y flipped (0.23; the bound material 0.13; and the sign test). The mirrored uv island's
+sign tests fail with TANGENT.w read as +1 (the top light: 133.0 with the map against 138.5 without). Hostile images are one-line errors naming the asset and the JSON path."""
 
 import json
 
@@ -59,6 +60,27 @@ def test_normal_map_sign_by_hand(glb, tmp_path):
     lights the quad more than without the map, one from below less."""
     def lit(direction, normal):
         s = asset.scene(asset.write_asset(tmp_path / f"q{normal}.glb", normal=normal))
+        s["lights"] = [{"type": "directional", "direction": direction, "irradiance": [1, 1, 1]}]
+        return trace(tmp_path, s).sum()
+    above, below = [0.0, 0.8, 0.6], [0.0, -0.8, 0.6]
+    assert lit(above, True) > 1.05 * lit(above, False)
+    assert lit(below, True) < 0.95 * lit(below, False)
+
+
+def drop_tangent(doc):
+    del doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]
+
+
+@pytest.mark.parametrize("tangent", ["given", "from_uvs"])
+def test_normal_map_sign_on_a_mirrored_uv_island(tmp_path, tangent):
+    """A mirrored uv island (u decreasing along +x): with TANGENT (-1, 0, 0, w = -1), b = w n x t is
+    still +y, the image's top; without TANGENT the sign comes from the uvs' orientation (the uv
+    Jacobian's determinant is negative). Either way a light from above must brighten the quad, as
+    on the unmirrored one; reading w as +1 would tilt the normals toward -y and darken it."""
+    edit = drop_tangent if tangent == "from_uvs" else None
+    def lit(direction, normal):
+        glb = asset.write_asset(tmp_path / f"m{normal}.glb", normal=normal, mirrored=True, edit=edit)
+        s = asset.scene(glb)
         s["lights"] = [{"type": "directional", "direction": direction, "irradiance": [1, 1, 1]}]
         return trace(tmp_path, s).sum()
     above, below = [0.0, 0.8, 0.6], [0.0, -0.8, 0.6]
@@ -178,9 +200,7 @@ def test_fuzzed_assets_through_the_tracer(tmp_path):
 def test_tangents_from_uvs_follow_the_same_convention(glb, tmp_path):
     """Without TANGENT, assimp's tangents from the uvs (dP/du; its flip of v to bottom-up changes
     the sign of dv and of the determinant together) give the frame the asset's TANGENT gives."""
-    def no_tangent(doc):
-        del doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]
-    bare = asset.write_asset(tmp_path / "bare.glb", edit=no_tangent)
+    bare = asset.write_asset(tmp_path / "bare.glb", edit=drop_tangent)
     a, b = trace(tmp_path, asset.scene(bare)), trace(tmp_path, asset.scene(glb))
     ref, on = asset.reference()
     assert relative(a, b, on).max() < 1e-5 and relative(a, ref, on).mean() < 1e-5

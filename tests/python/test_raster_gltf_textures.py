@@ -10,7 +10,11 @@ The texture unit filters 8-bit values as 8-bit values (docs/RASTER.md, "the trac
 the bound is the issue's 1% on the mean. Measured (lavapipe, 1,320 pixels): unbound 3.4e-3 mean,
 1.6e-2 at the 99th percentile; bound 2.5e-4, 2.7e-3. Seen failing (then reverted): the frame's sRGB
 decode skipped (baseColor uploaded UNORM: mean 1.30), the metallic and roughness channels swapped
-in the shader (0.87) and the normal map's y flipped in the shader (0.23; bound 0.13)."""
+in the shader (0.87) and the normal map's y flipped in the shader (0.23; bound 0.13). Mirrored uv
+island (TANGENT.w = -1 or the sign from the uvs): 3.4e-3 mean, bound model 3.3e-5; the shader
+ignoring the handedness attribute fails them (0.33, bound model 0.053), w read as +1 by the loader
+fails the sign by hand. Not caught: the normal map's b_s built right-handed (paper_white's network
+is near mirror-symmetric, the bound comparison stays at 3.3e-5)."""
 
 import json
 import os
@@ -87,3 +91,41 @@ def test_hlsl_refuses_gltf_textures(tmp_path):
     path.write_text(json.dumps(asset.scene(glb)))
     with pytest.raises(ValueError, match="glTF textures is drawn from GLSL only"):
         hybridbrdf.raster.draw_frame(path, tmp_path / "f.exr", lavapipe=True, tool=TOOL, language="hlsl")
+
+
+def drop_tangent(doc):
+    del doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]
+
+
+@pytest.mark.parametrize("tangent", ["given", "from_uvs"])
+def test_mirrored_uv_island_matches_tracer_and_the_sign_by_hand(tmp_path, tangent):
+    """A mirrored uv island (u decreasing along +x; TANGENT w = -1, or no TANGENT and the sign from
+    the uvs): the frame draws it as the tracer (the handedness a flat vertex attribute, b = w n x t),
+    and a light from the image's top brightens the quad in the frame as on the unmirrored one."""
+    edit = drop_tangent if tangent == "from_uvs" else None
+    glb = asset.write_asset(tmp_path / "mirrored.glb", mirrored=True, edit=edit)
+    drawn, traced = both(tmp_path, asset.scene(glb))
+    mean, p99 = compare(drawn, traced)
+    print(mean, p99)
+    assert mean <= 0.01, (mean, p99)
+
+    def lit(direction, normal):
+        s = asset.scene(asset.write_asset(tmp_path / f"m{normal}.glb", normal=normal, mirrored=True, edit=edit))
+        s["lights"] = [{"type": "directional", "direction": direction, "irradiance": [1, 1, 1]}]
+        return both(tmp_path, s)[0].sum()
+    above, below = [0.0, 0.8, 0.6], [0.0, -0.8, 0.6]
+    assert lit(above, True) > 1.05 * lit(above, False)
+    assert lit(below, True) < 0.95 * lit(below, False)
+
+
+def test_mirrored_island_bound_model_matches_tracer(tmp_path):
+    """A full model material on the mirrored island: the network sees the frame the tracer gives it,
+    left-handed there (b and the normal map's b_s both carry w)."""
+    model = ROOT / "results" / "rgl54_fast.safetensors"
+    if not model.exists():
+        pytest.skip("results/rgl54_fast.safetensors is not in this checkout")
+    glb = asset.write_asset(tmp_path / "mirrored.glb", mirrored=True)
+    drawn, traced = both(tmp_path, asset.scene(glb, bind={"Painted": f"{model}#paper_white_rgb.rgl"}))
+    mean, p99 = compare(drawn, traced)
+    print(mean, p99)
+    assert mean <= 0.01, (mean, p99)

@@ -310,6 +310,21 @@ Vec3f unit_or(const aiVector3D& v, const Vec3f& fallback) {
     return l2 > 0.0f && std::isfinite(l2) ? u / std::sqrt(l2) : fallback;
 }
 
+// The bitangent's handedness w at vertex v (glTF 2.0: b = w n x t, w = -1 on a mirrored uv
+// island), read off assimp's bitangent. Its glTF reader stores the asset's b = w (n x t); its
+// CalcTangentSpace (no TANGENT) stores b along dP/dv' in its bottom-up v' = 1 - v, the image's
+// top, with t = dP/du: b is n x t where the uvs keep the orientation and -(n x t) where they are
+// mirrored (the uv Jacobian's determinant negative), the same convention. Seen on a quad both
+// ways with both (test_gltf_textures.py).
+std::int8_t tangent_sign(const aiMesh* am, unsigned v) {
+    if (!am->mBitangents || !am->HasNormals()) return 1;
+    const aiVector3D& n = am->mNormals[v];
+    const aiVector3D& t = am->mTangents[v];
+    const aiVector3D& b = am->mBitangents[v];
+    const float s = (n ^ t) * b;  // assimp: ^ the cross product, * the dot product
+    return s < 0.0f ? std::int8_t(-1) : std::int8_t(1);
+}
+
 // One part per assimp mesh (PreTransformVertices: one per material, node transforms applied).
 std::vector<GltfPart> read_parts(const SceneReader& r, const Asset& a) {
     const std::string data = assimp_copy(a);
@@ -333,7 +348,10 @@ std::vector<GltfPart> read_parts(const SceneReader& r, const Asset& a) {
         for (unsigned v = 0; v < am->mNumVertices; ++v) {
             mesh.positions.emplace_back(am->mVertices[v].x, am->mVertices[v].y, am->mVertices[v].z);
             if (am->HasNormals()) mesh.normals.push_back(unit_or(am->mNormals[v], Vec3f(0, 0, 1)));
-            if (am->HasTangentsAndBitangents()) mesh.tangents.push_back(unit_or(am->mTangents[v], Vec3f(0)));
+            if (am->HasTangentsAndBitangents()) {
+                mesh.tangents.push_back(unit_or(am->mTangents[v], Vec3f(0)));
+                mesh.tangent_signs.push_back(tangent_sign(am, v));
+            }
             if (am->HasTextureCoords(0)) {  // assimp flips v to OpenGL's bottom-up; glTF's v = 0 is the top, as here
                 const aiVector3D& t = am->mTextureCoords[0][v];
                 mesh.uvs.emplace_back(std::isfinite(t.x) ? t.x : 0.0f, std::isfinite(t.y) ? 1.0f - t.y : 0.0f);
@@ -345,6 +363,8 @@ std::vector<GltfPart> read_parts(const SceneReader& r, const Asset& a) {
             for (int k = 0; k < 3; ++k) mesh.indices.push_back(face.mIndices[k]);  // ValidateDataStructure checked them
         }
         if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) mesh.normals.clear();
+        if (std::find(mesh.tangent_signs.begin(), mesh.tangent_signs.end(), -1) == mesh.tangent_signs.end())
+            std::vector<std::int8_t>().swap(mesh.tangent_signs);  // no mirrored vertex: nothing carried
         parts.push_back(std::move(part));
     }
     if (parts.empty()) r.fail("", "the asset has no triangles");
@@ -478,7 +498,9 @@ bool rotate_tangents(TriangleMesh& mesh, float angle) {
     const float c = std::cos(angle), s = std::sin(angle);
     for (std::size_t v = 0; v < mesh.tangents.size(); ++v) {
         Vec3f& t = mesh.tangents[v];
-        t = c * t + s * glm::cross(mesh.normals[v], t);  // counter-clockwise toward glTF's bitangent n x t (w = +1)
+        // counter-clockwise toward glTF's bitangent w n x t
+        const float w = mesh.tangent_signs.empty() ? 1.0f : float(mesh.tangent_signs[v]);
+        t = c * t + (s * w) * glm::cross(mesh.normals[v], t);
     }
     return true;
 }

@@ -10,6 +10,8 @@
 #include <fstream>
 #include <string>
 
+#include <glm/matrix.hpp>
+
 #include "hybridbrdf/render/image.hpp"
 
 namespace hbrdf::render {
@@ -28,6 +30,11 @@ void transform_mesh(TriangleMesh& mesh, const Transform& xf) {
     for (Vec3f& p : mesh.positions) p = xf.point(p);
     for (Vec3f& n : mesh.normals) n = normalized_or(normal_map * n, Vec3f(0, 0, 1));
     for (Vec3f& t : mesh.tangents) t = normalized_or(xf.linear * t, Vec3f(0));
+    // A mirroring map turns n x t against the mapped bitangent: every vertex's handedness flips.
+    if (glm::determinant(xf.linear) < 0.0f && !mesh.tangents.empty()) {
+        if (mesh.tangent_signs.empty()) mesh.tangent_signs.assign(mesh.tangents.size(), std::int8_t(1));
+        for (std::int8_t& w : mesh.tangent_signs) w = std::int8_t(-w);
+    }
 }
 
 std::int64_t first_nonfinite_vertex(const TriangleMesh& mesh) {

@@ -155,6 +155,9 @@ void check_mesh(const TriangleMesh& m, double camera_distance) {
     if (!m.tangents.empty() && m.tangents.size() != m.positions.size())
         throw std::invalid_argument("the mesh has " + std::to_string(m.tangents.size()) + " tangents for " +
                                     std::to_string(m.positions.size()) + " vertices");
+    if (!m.tangent_signs.empty() && m.tangent_signs.size() != m.positions.size())
+        throw std::invalid_argument("the mesh has " + std::to_string(m.tangent_signs.size()) + " tangent signs for " +
+                                    std::to_string(m.positions.size()) + " vertices");
 }
 
 }  // namespace
@@ -277,6 +280,7 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
 
     const Geometry& g = geometries_[rh.hit.geomID];
     Vec3f ng, ns, tangent(0.0f);
+    bool mirrored = false;  // b = -(n x t): a mirrored uv island (glTF TANGENT.w = -1)
     hit->t = rh.ray.tfar;
     if (g.is_sphere) {
         const Sphere& s = *spheres_[std::size_t(g.index)];
@@ -297,6 +301,9 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         ns = m.normals.empty() ? ng : normalized(m.normals[tri[0]] * w + m.normals[tri[1]] * u + m.normals[tri[2]] * v);
         if (!(dot(ns, ns) > 0.0f)) ns = ng;
         if (!m.tangents.empty()) tangent = m.tangents[tri[0]] * w + m.tangents[tri[1]] * u + m.tangents[tri[2]] * v;
+        // Valid assets give a triangle's three vertices one sign; otherwise its first vertex's
+        // decides (Vulkan's provoking vertex: the raster frame's flat attribute).
+        if (!m.tangent_signs.empty()) mirrored = m.tangent_signs[tri[0]] < 0;
         if (m.uvs.empty()) {
             hit->uv = Vec2<float>(0.0f);
             hit->uv_scale_log2 = kPointFootprint;
@@ -313,6 +320,7 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
     }
     hit->ng = ng;
     hit->shading = Frame::from_normal_tangent(ns, tangent);
+    if (mirrored) hit->shading.b = -hit->shading.b;  // the tangent space glTF defines, left-handed there
     hit->material = g.material;
     return true;
 }

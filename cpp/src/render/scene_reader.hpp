@@ -238,7 +238,7 @@ GltfFa gltf_material_to_fa(const SceneReader& r, const json& m, const std::strin
 /// path>: <problem>" (one line).
 GltfAsset read_gltf(const std::string& path);
 
-/// Turns `mesh`'s tangents by `angle` about their vertex normals, toward n x t. False (the mesh
+/// Turns `mesh`'s tangents by `angle` about their vertex normals, toward the bitangent w n x t. False (the mesh
 /// unchanged) when it has no tangents or no vertex normals.
 bool rotate_tangents(TriangleMesh& mesh, float angle);
 

@@ -105,6 +105,7 @@ void add_mesh(const render::TriangleMesh& m, FrameScene& out) {
             v.t[c] = m.tangents.empty() ? 0.0f : m.tangents[k][c];
         }
         if (!m.uvs.empty()) v.uv[0] = m.uvs[k][0], v.uv[1] = m.uvs[k][1];
+        v.w = m.tangent_signs.empty() ? 1.0f : float(m.tangent_signs[k]);
         out.vertices.push_back(v);
     }
     for (uint32_t i : m.indices) out.indices.push_back(base + i);

@@ -21,6 +21,7 @@ struct Vertex {
     float n[3];   ///< shading normal (0: use the triangle's geometric normal, as the tracer)
     float t[3];   ///< tangent (0: the Duff et al. frame of the normal, as the tracer)
     float uv[2];
+    float w;      ///< the bitangent's handedness, b = w n x t (glTF TANGENT.w; a triangle takes its first vertex's)
 };
 
 /// One indexed draw: an object of the scene and its scene material.

@@ -16,6 +16,9 @@ struct TriangleMesh {
     std::vector<Vec3f> positions;
     std::vector<Vec3f> normals;   ///< per vertex shading normals; empty = use the geometric normal
     std::vector<Vec3f> tangents;  ///< per vertex tangents (from UVs); empty = arbitrary frame
+    /// per vertex bitangent handedness, -1 or +1 (glTF's TANGENT.w: b = w n x t; -1 on a mirrored
+    /// uv island); empty = +1 everywhere, so meshes without mirrored uvs carry nothing
+    std::vector<std::int8_t> tangent_signs;
     /// per vertex texture coordinates, (0, 0) the texture's top left (glTF 2.0; docs/SVBRDF.md);
     /// empty = uv (0, 0) everywhere
     std::vector<Vec2<float>> uvs;
