@@ -276,6 +276,7 @@ Ktx2Level decode_level(const std::vector<unsigned char>& data, const Format& f, 
     level.width = w;
     level.height = h;
     const std::size_t texels = std::size_t(w) * h;
+    level.stored.assign(data.begin(), data.end());
     if (f.kind == Kind::Block) {
         level.bytes.resize(texels * std::size_t(f.channels));
         bc::decode_level(f.block_format, data.data(), w, h, level.bytes.data());

@@ -1,4 +1,4 @@
-// hbrdf_raster — the Vulkan device (device.hpp).
+// hbrdf_raster and hbrdf_vk_runner — the Vulkan device (device.hpp).
 #include "device.hpp"
 
 #include <cstdio>
@@ -26,11 +26,11 @@ void check(VkResult r, const char* what) {
     if (r != VK_SUCCESS) throw std::runtime_error(std::string(what) + " failed (VkResult " + std::to_string(r) + ")");
 }
 
-int Device::validation_messages() const { return g_validation_messages; }
+int Device::validation_messages() { return g_validation_messages; }
 
-Device::Device(bool validation) {
+Device::Device(bool validation, VkQueueFlags queue, const char* app_name) {
     VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
-    app.pApplicationName = "hbrdf_raster";
+    app.pApplicationName = app_name;
     app.apiVersion = VK_API_VERSION_1_1;
     const char* layers[] = {"VK_LAYER_KHRONOS_validation"};
     const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
@@ -85,8 +85,10 @@ Device::Device(bool validation) {
     vkGetPhysicalDeviceQueueFamilyProperties(physical_, &n_families, families.data());
     family_ = UINT32_MAX;
     for (uint32_t i = 0; i < n_families && family_ == UINT32_MAX; ++i)
-        if (families[i].queueFlags & VK_QUEUE_GRAPHICS_BIT) family_ = i;
-    if (family_ == UINT32_MAX) throw std::runtime_error("no graphics queue on " + std::string(props_.deviceName));
+        if ((families[i].queueFlags & queue) == queue) family_ = i;
+    if (family_ == UINT32_MAX)
+        throw std::runtime_error(std::string(queue & VK_QUEUE_GRAPHICS_BIT ? "no graphics queue on " : "no compute queue on ") +
+                                 props_.deviceName);
     timestamp_bits_ = props_.limits.timestampPeriod > 0 ? families[family_].timestampValidBits : 0;
 
     const float priority = 1.0f;
@@ -97,6 +99,37 @@ Device::Device(bool validation) {
     VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     dci.queueCreateInfoCount = 1;
     dci.pQueueCreateInfos = &qci;
+    // BC images may be created and sampled only with textureCompressionBC enabled (a KTX2 map in a
+    // block format); half arithmetic in shaders (SPIR-V Float16: bench/shader_forms.py's packed-half
+    // forms) needs shaderFloat16, through VK_KHR_shader_float16_int8 since this instance asks for
+    // Vulkan 1.1 (core in 1.2). Buffers stay float32: no 16-bit storage is needed.
+    VkPhysicalDeviceFeatures available{};
+    vkGetPhysicalDeviceFeatures(physical_, &available);
+    VkPhysicalDeviceFeatures enabled{};
+    enabled.textureCompressionBC = available.textureCompressionBC;
+    texture_compression_bc_ = available.textureCompressionBC == VK_TRUE;
+    dci.pEnabledFeatures = &enabled;
+    uint32_t n_ext = 0;
+    vkEnumerateDeviceExtensionProperties(physical_, nullptr, &n_ext, nullptr);
+    std::vector<VkExtensionProperties> exts(n_ext);
+    vkEnumerateDeviceExtensionProperties(physical_, nullptr, &n_ext, exts.data());
+    bool has_f16_ext = false;
+    for (const VkExtensionProperties& e : exts)
+        has_f16_ext = has_f16_ext || !std::strcmp(e.extensionName, VK_KHR_SHADER_FLOAT16_INT8_EXTENSION_NAME);
+    VkPhysicalDeviceShaderFloat16Int8FeaturesKHR f16{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_FLOAT16_INT8_FEATURES_KHR};
+    const char* device_extensions[] = {VK_KHR_SHADER_FLOAT16_INT8_EXTENSION_NAME};
+    if (has_f16_ext) {
+        VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+        features.pNext = &f16;
+        vkGetPhysicalDeviceFeatures2(physical_, &features);
+        f16.shaderInt8 = VK_FALSE;  // only what the half forms use
+        if (f16.shaderFloat16) {
+            dci.pNext = &f16;
+            dci.enabledExtensionCount = 1;
+            dci.ppEnabledExtensionNames = device_extensions;
+            shader_float16_ = true;
+        }
+    }
     check(vkCreateDevice(physical_, &dci, nullptr, &device_), "vkCreateDevice");
     vkGetDeviceQueue(device_, family_, 0, &queue_);
     VkCommandPoolCreateInfo cpci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
@@ -119,6 +152,12 @@ Device::~Device() {
         if (destroy) destroy(instance_, messenger_, nullptr);
     }
     if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+VkFormatFeatureFlags Device::format_features(VkFormat format) const {
+    VkFormatProperties p{};
+    vkGetPhysicalDeviceFormatProperties(physical_, format, &p);
+    return p.optimalTilingFeatures;
 }
 
 uint32_t Device::memory_type(uint32_t allowed, VkMemoryPropertyFlags want, bool strict) const {

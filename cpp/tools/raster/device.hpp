@@ -1,6 +1,7 @@
-// hbrdf_raster — the Vulkan device: instance (with the Khronos validation layer on request), a
-// graphics queue, buffers and images in the memory types they need, one-shot submissions.
-// What a headless renderer needs and nothing else: no surface, no swapchain.
+// hbrdf_raster and hbrdf_vk_runner — the Vulkan device: instance (with the Khronos validation layer
+// on request), a graphics or compute queue, buffers and images in the memory types they need,
+// one-shot submissions. What a headless renderer or compute runner needs and nothing else: no
+// surface, no swapchain.
 #pragma once
 
 #include <vulkan/vulkan.h>
@@ -26,11 +27,14 @@ struct Image {
     VkImageView view = VK_NULL_HANDLE;
 };
 
-/// One logical device with one graphics queue. A discrete GPU is preferred over other devices
-/// (a GPU machine may also list lavapipe). Destroys everything it made in its destructor.
+/// One logical device with one queue of the first family having `queue` (graphics for the raster
+/// frame, compute for the runner). A discrete GPU is preferred over other devices (a GPU machine
+/// may also list lavapipe). Two optional features are enabled wherever the device has them:
+/// shaderFloat16 (VK_KHR_shader_float16_int8: half arithmetic in shaders) and
+/// textureCompressionBC (sampling BC1-BC7 images). Destroys everything it made in its destructor.
 class Device {
 public:
-    explicit Device(bool validation);
+    explicit Device(bool validation, VkQueueFlags queue = VK_QUEUE_GRAPHICS_BIT, const char* app = "hbrdf_raster");
     ~Device();
     Device(const Device&) = delete;
     Device& operator=(const Device&) = delete;
@@ -39,8 +43,14 @@ public:
     const VkPhysicalDeviceProperties& properties() const { return props_; }
     /// Bits of the queue's timestamps (0: none).
     uint32_t timestamp_bits() const { return timestamp_bits_; }
-    /// Messages of warning or error severity the validation layer reported so far.
-    int validation_messages() const;
+    /// Whether shaderFloat16 and textureCompressionBC were enabled (the device has them).
+    bool shader_float16() const { return shader_float16_; }
+    bool texture_compression_bc() const { return texture_compression_bc_; }
+    /// What optimally tiled images of `format` support on this device (sampling, linear filtering).
+    VkFormatFeatureFlags format_features(VkFormat format) const;
+    /// Messages of warning or error severity the validation layer reported so far, in this process
+    /// (static: a caller counts those of a device's destruction too).
+    static int validation_messages();
 
     /// A buffer in the first memory type having all of `want` (host-visible staging buffers:
     /// coherent too; device buffers: device-local, else any type the buffer accepts).
@@ -72,6 +82,7 @@ private:
     VkCommandPool pool_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
     uint32_t family_ = 0, timestamp_bits_ = 0;
+    bool shader_float16_ = false, texture_compression_bc_ = false;
 };
 
 }  // namespace hbrdf::raster

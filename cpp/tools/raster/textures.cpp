@@ -9,6 +9,7 @@
 
 #include "hybridbrdf/render/image.hpp"
 #include "hybridbrdf/render/gltf_material.hpp"
+#include "hybridbrdf/render/ktx2.hpp"
 
 namespace hbrdf::raster {
 namespace {
@@ -133,8 +134,76 @@ Texture blank_texture(const Device& device) {
     return upload_gltf_texture(device, gt);
 }
 
-Texture load_texture(const Device& device, const std::string& path) {
+namespace {
+
+// Every level of `bytes` (the regions' offsets into it) into a new image of `format`, left in
+// SHADER_READ_ONLY_OPTIMAL; a sampler of `clamp` addressing over its levels.
+Texture upload_levels(const Device& device, VkFormat format, uint32_t width, uint32_t height,
+                      const std::vector<VkBufferImageCopy>& regions, const unsigned char* bytes, std::size_t size,
+                      bool clamp, bool nearest_mip) {
+    const auto levels = uint32_t(regions.size());
+    Texture t;
+    t.image = device.make_image(width, height, format, VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                                VK_IMAGE_ASPECT_COLOR_BIT, levels);
+    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    Buffer stage = device.make_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
+    void* mapped = nullptr;
+    check(vkMapMemory(device.handle(), stage.memory, 0, stage.size, 0, &mapped), "vkMapMemory");
+    std::memcpy(mapped, bytes, size);
+    vkUnmapMemory(device.handle(), stage.memory);
+    VkCommandBuffer cmd = device.begin_commands();
+    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+              VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
+    vkCmdCopyBufferToImage(cmd, stage.buffer, t.image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, levels, regions.data());
+    // Read by fragment shaders (the raster frame) or compute shaders (the runner).
+    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+              VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+              VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+    device.submit_and_wait(cmd);
+    device.free_commands(cmd);
+    device.destroy(stage);
+    VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+    si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+    si.mipmapMode = nearest_mip ? VK_SAMPLER_MIPMAP_MODE_NEAREST : VK_SAMPLER_MIPMAP_MODE_LINEAR;
+    si.addressModeU = si.addressModeV = si.addressModeW =
+        clamp ? VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE : VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    si.maxLod = float(levels - 1);
+    check(vkCreateSampler(device.handle(), &si, nullptr, &t.sampler), "vkCreateSampler");
+    return t;
+}
+
+Texture load_ktx2_texture(const Device& device, const std::string& path, const Sampling& sampling) {
+    const render::Ktx2Texture k = render::read_ktx2(path);  // bounded and checked, its words
+    const auto format = VkFormat(k.vk_format);
+    const bool block = k.format_name.rfind("BC", 0) == 0;
+    const std::string device_name = device.properties().deviceName;
+    if (block && !device.texture_compression_bc())
+        throw render::FileError(path, k.format_name + " needs textureCompressionBC, which the device " + device_name +
+                                          " lacks");
+    const VkFormatFeatureFlags need = VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT | VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT;
+    if ((device.format_features(format) & need) != need)
+        throw render::FileError(path, "the device " + device_name + " cannot sample " + k.format_name +
+                                          " images with linear filtering");
+    std::vector<VkBufferImageCopy> regions;
+    std::vector<unsigned char> bytes;
+    for (uint32_t l = 0; l < k.levels.size(); ++l) {
+        const render::Ktx2Level& level = k.levels[l];
+        VkBufferImageCopy r{};
+        r.bufferOffset = bytes.size();  // each level's size a multiple of its block's bytes (8 or 16) or texel's
+        r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
+        r.imageExtent = {level.width, level.height, 1};  // a partial edge block reaches the level's edge
+        regions.push_back(r);
+        bytes.insert(bytes.end(), level.stored.begin(), level.stored.end());
+    }
+    return upload_levels(device, format, k.width, k.height, regions, bytes.data(), bytes.size(), sampling.clamp,
+                         sampling.nearest_mip);
+}
+
+}  // namespace
+
+Texture load_texture(const Device& device, const std::string& path, const Sampling& sampling) {
     render::check_input_file(path, "texture file");
+    if (path.size() >= 5 && path.compare(path.size() - 5, 5, ".ktx2") == 0) return load_ktx2_texture(device, path, sampling);
     std::ifstream in(path, std::ios::binary);
     const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     uint32_t head[5];
@@ -150,7 +219,7 @@ Texture load_texture(const Device& device, const std::string& path) {
     for (uint32_t l = 0; l < levels; ++l) {
         const uint32_t w = std::max(1u, width >> l), h = std::max(1u, height >> l);
         VkBufferImageCopy r{};
-        r.bufferOffset = offset;
+        r.bufferOffset = offset - 24;
         r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
         r.imageExtent = {w, h, 1};
         regions.push_back(r);
@@ -160,34 +229,8 @@ Texture load_texture(const Device& device, const std::string& path) {
         throw render::FileError(path, "holds " + std::to_string(bytes.size()) + " bytes; its header says " +
                                           std::to_string(offset));
     const VkFormat format = head[3] ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM;
-    Texture t;
-    t.image = device.make_image(width, height, format, VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
-                                VK_IMAGE_ASPECT_COLOR_BIT, levels);
-    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-    Buffer stage = device.make_buffer(bytes.size(), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
-    void* mapped = nullptr;
-    check(vkMapMemory(device.handle(), stage.memory, 0, stage.size, 0, &mapped), "vkMapMemory");
-    std::memcpy(mapped, bytes.data(), bytes.size());
-    vkUnmapMemory(device.handle(), stage.memory);
-    VkCommandBuffer cmd = device.begin_commands();
-    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
-              VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
-    vkCmdCopyBufferToImage(cmd, stage.buffer, t.image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, uint32_t(regions.size()),
-                           regions.data());
-    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-              VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-              VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
-    device.submit_and_wait(cmd);
-    device.free_commands(cmd);
-    device.destroy(stage);
-    VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-    si.magFilter = si.minFilter = VK_FILTER_LINEAR;
-    si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
-    si.addressModeU = si.addressModeV = si.addressModeW =
-        head[4] ? VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE : VK_SAMPLER_ADDRESS_MODE_REPEAT;
-    si.maxLod = float(levels - 1);
-    check(vkCreateSampler(device.handle(), &si, nullptr, &t.sampler), "vkCreateSampler");
-    return t;
+    return upload_levels(device, format, width, height, regions, reinterpret_cast<const unsigned char*>(bytes.data()) + 24,
+                         bytes.size() - 24, head[4] == 1, sampling.nearest_mip);
 }
 
 void destroy(const Device& device, Texture& texture) {

@@ -20,6 +20,8 @@ struct Ktx2Level {
     std::uint32_t width = 0, height = 0;
     std::vector<std::uint8_t> bytes;
     std::vector<float> floats;
+    /// The level's bytes as the file stores them (blocks, halves, floats): what a GPU upload copies.
+    std::vector<std::uint8_t> stored;
 };
 
 struct Ktx2Texture {
