@@ -4,6 +4,7 @@
 //   hbrdf_vk_runner SHADER.spv INPUT.bin OUTPUT.bin N_ITEMS OUT_FLOATS_PER_ITEM
 //                   [--validation] [--repeat R] [--local-size 64]
 //                   [--texture MAP.ktx2|MAP.hbtx]... [--separate-sampler] [--clamp] [--nearest-mip]
+//                   [--without-bc]
 //
 // Binding 0: the input file as a read-only storage buffer; binding 1: the
 // output (N_ITEMS * OUT_FLOATS_PER_ITEM floats). Dispatches ceil(N / local size)
@@ -26,7 +27,8 @@
 // sampler2D); with --separate-sampler, as HLSL, Slang and WGSL declare them: one sampler at binding
 // 2 (the first texture's), the images at bindings 3, 4, ... A KTX2 format the device cannot sample
 // with linear filtering (a BC format without textureCompressionBC) is refused in one line naming
-// the file and the device. Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
+// the file and the device; --without-bc creates the device without textureCompressionBC, as one
+// lacking it (the refusal, tested on a device that has it). Pin lavapipe with VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json.
 #include <vulkan/vulkan.h>
 
 #include <algorithm>
@@ -62,7 +64,7 @@ struct Args {
     std::vector<char> spirv, input;
     std::string out_path;
     uint64_t n_items = 0, out_floats = 0;
-    bool validation = false, separate_sampler = false, clamp = false, nearest_mip = false;
+    bool validation = false, separate_sampler = false, clamp = false, nearest_mip = false, without_bc = false;
     int repeat = 0;
     uint32_t local_size = 64;
     std::vector<std::string> textures;
@@ -83,6 +85,7 @@ Args parse(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--separate-sampler")) a.separate_sampler = true;
         else if (!std::strcmp(argv[i], "--clamp")) a.clamp = true;
         else if (!std::strcmp(argv[i], "--nearest-mip")) a.nearest_mip = true;
+        else if (!std::strcmp(argv[i], "--without-bc")) a.without_bc = true;
         else throw std::runtime_error(std::string("unknown argument ") + argv[i]);
     }
     if (a.spirv.size() % 4 != 0 || a.spirv.empty()) throw std::runtime_error("SPIR-V size is not a multiple of 4");
@@ -150,12 +153,12 @@ int run(int argc, char** argv) {
         std::fprintf(stderr,
                      "usage: %s SHADER.spv INPUT.bin OUTPUT.bin N_ITEMS OUT_FLOATS_PER_ITEM [--validation] "
                      "[--repeat R] [--local-size 64] [--texture MAP.ktx2|MAP.hbtx]... [--separate-sampler] [--clamp] "
-                     "[--nearest-mip]\n",
+                     "[--nearest-mip] [--without-bc]\n",
                      argv[0]);
         return 2;
     }
     const Args a = parse(argc, argv);
-    auto owner = std::make_unique<Device>(a.validation, VK_QUEUE_COMPUTE_BIT, "hbrdf_vk_runner");
+    auto owner = std::make_unique<Device>(a.validation, VK_QUEUE_COMPUTE_BIT, "hbrdf_vk_runner", !a.without_bc);
     Device& device = *owner;
     const VkDevice dev = device.handle();
     const VkPhysicalDeviceProperties& props = device.properties();

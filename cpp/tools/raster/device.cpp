@@ -28,7 +28,7 @@ void check(VkResult r, const char* what) {
 
 int Device::validation_messages() { return g_validation_messages; }
 
-Device::Device(bool validation, VkQueueFlags queue, const char* app_name) {
+Device::Device(bool validation, VkQueueFlags queue, const char* app_name, bool bc) {
     VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
     app.pApplicationName = app_name;
     app.apiVersion = VK_API_VERSION_1_1;
@@ -106,8 +106,8 @@ Device::Device(bool validation, VkQueueFlags queue, const char* app_name) {
     VkPhysicalDeviceFeatures available{};
     vkGetPhysicalDeviceFeatures(physical_, &available);
     VkPhysicalDeviceFeatures enabled{};
-    enabled.textureCompressionBC = available.textureCompressionBC;
-    texture_compression_bc_ = available.textureCompressionBC == VK_TRUE;
+    texture_compression_bc_ = bc && available.textureCompressionBC == VK_TRUE;
+    enabled.textureCompressionBC = texture_compression_bc_ ? VK_TRUE : VK_FALSE;
     dci.pEnabledFeatures = &enabled;
     uint32_t n_ext = 0;
     vkEnumerateDeviceExtensionProperties(physical_, nullptr, &n_ext, nullptr);

@@ -34,7 +34,10 @@ struct Image {
 /// textureCompressionBC (sampling BC1-BC7 images). Destroys everything it made in its destructor.
 class Device {
 public:
-    explicit Device(bool validation, VkQueueFlags queue = VK_QUEUE_GRAPHICS_BIT, const char* app = "hbrdf_raster");
+    /// `bc` false leaves textureCompressionBC off even where the device has it (hbrdf_vk_runner
+    /// --without-bc: how a device without BC sampling refuses a BC map, testable on one that has it).
+    explicit Device(bool validation, VkQueueFlags queue = VK_QUEUE_GRAPHICS_BIT, const char* app = "hbrdf_raster",
+                    bool bc = true);
     ~Device();
     Device(const Device&) = delete;
     Device& operator=(const Device&) = delete;
