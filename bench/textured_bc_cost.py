@@ -13,7 +13,16 @@ maps (bench/svbrdf_mips.py's noise). Printed: Mpairs/s per upload (median of int
 the ratio to today's; lavapipe decodes blocks in software, so compare ratios of one run, and on a
 GPU (where a block format reads a quarter of the bytes) run it there.
 
-    python bench/textured_bc_cost.py [--pairs 262144] [--lod 2] [--runs 5]
+The same for the generated GLSL (`--target glsl`; issue 58's cost target names it): the kernel of
+tests/python/textured_vk.py (`hbrdf_texel_lod` and `hbrdf_texel_grad` per pair, `HBRDF_SRGB_TEXTURES`
+1) run by hbrdf_vk_runner, the maps bound as combined image samplers: today's single level and the
+rgba8 chain as hbrdf raster's HBTX files (R8G8B8A8_UNORM, kd R8G8B8A8_SRGB), the chain in the KTX2
+folder's own files (BC blocks as stored). Each variant a runner process of `--repeat 3` dispatches
+(the best), the variants interleaved `--runs` times; printed the median of the best host-clock times
+and of the best CPU times of the runner process (lavapipe's threads: the work, whatever else the
+machine runs).
+
+    python bench/textured_bc_cost.py [--pairs 262144] [--lod 2] [--runs 5] [--target wgsl|glsl|both]
 """
 
 from __future__ import annotations
@@ -42,6 +51,7 @@ from hybridbrdf.svbrdf.maps import read_map  # noqa: E402
 from svbrdf_mips import material as noise_maps  # noqa: E402
 from svbrdf_mixture import LAYERS, SIZE, masks  # noqa: E402
 from textured_engine import WGSL_KERNEL, map_params  # noqa: E402
+import textured_vk  # noqa: E402
 
 #: WebGPU's names of the block formats entries.KTX2_FORMATS writes.
 BLOCK = {"BC4_UNORM_BLOCK": ("bc4-r-unorm", "bc4"), "BC5_UNORM_BLOCK": ("bc5-rg-unorm", "bc5"),
@@ -92,17 +102,64 @@ def main() -> int:
     ap.add_argument("--pairs", type=int, default=1 << 18)
     ap.add_argument("--lod", type=float, default=2.0, help="the lookups' level of detail (2: 4x minified)")
     ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--target", choices=("wgsl", "glsl", "both"), default="both",
+                    help="the generated dialect timed: WGSL through wgpu, GLSL through hbrdf_vk_runner, or both")
     args = ap.parse_args()
-    import wgpu
-
     model = hb.load_model(ROOT / "results" / "rgl54_fast.safetensors")
     names = [n for n, _ in LAYERS]
     weights = np.concatenate([composite(masks()), np.zeros((SIZE, SIZE, 1))], axis=2).astype(np.float32)
     _, maps = noise_maps(model, SIZE, np.random.default_rng(11))
     layer_maps = [{"kd": maps["kd"][1]}, {"alpha": maps["alpha"][1]}, {}]
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="textured_bc_"))
+    SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).save(tmp / "png1", format="png")
     SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "png", format="png")
     SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "ktx2", format="ktx2")
+    rng = np.random.default_rng(3)
+    n = args.pairs
+    pairs = np.concatenate([rng.uniform(0, 1, (n, 2)), cosine_directions(rng, n), cosine_directions(rng, n)], axis=1)
+    print(f"{n} pairs, lod {args.lod}; generated code of a {SIZE}x{SIZE} three-layer folder (weights, sRGB kd, alpha "
+          f"maps; rgl54_fast 16x2); hybridbrdf {hb.__version__}; median of {args.runs} interleaved runs")
+    if args.target in ("wgsl", "both"):
+        wgsl_times(args, tmp, pairs)
+    if args.target in ("glsl", "both"):
+        glsl_times(args, tmp, pairs)
+    return 0
+
+
+def glsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
+    """The generated GLSL under hbrdf_vk_runner over the three uploads (module docstring)."""
+    n = len(pairs)
+    code = generate_textured(tmp / "png", "glsl")
+    spv = textured_vk.compile_kernel(tmp / "glsl", code, "glsl", (SIZE, SIZE), True)
+    rows = np.concatenate([pairs, np.full((n, 1), args.lod)], axis=1)
+    variants = {"rgba8, one level (today)": textured_vk.folder_textures(tmp / "png1", tmp / "hbtx1"),
+                "rgba8, mip chain": textured_vk.folder_textures(tmp / "png", tmp / "hbtx"),
+                "KTX2 blocks, mip chain": textured_vk.folder_textures(tmp / "ktx2", tmp / "unused")}
+    times = {v: {"best_ms": [], "best_cpu_ms": []} for v in variants}
+    outs = {}
+    for _ in range(args.runs):
+        for v, textures in variants.items():
+            out, process = textured_vk.run(spv, textures, rows, False, repeat=3, validation=False)
+            outs[v] = out
+            for key, t in textured_vk.timings(process).items():
+                if key in times[v]:
+                    times[v][key].append(t)
+    device = process.stdout.splitlines()[0].split(" ", 1)[1]
+    print(f"GLSL, hbrdf_vk_runner on {device}, combined image samplers; best of 3 dispatches per run")
+    base = {k: np.median(times["rgba8, one level (today)"][k]) for k in ("best_ms", "best_cpu_ms")}
+    ref = outs["rgba8, mip chain"]
+    for v in variants:
+        wall, cpu = np.median(times[v]["best_ms"]), np.median(times[v]["best_cpu_ms"])
+        diff = np.abs(outs[v] - ref).max() / np.abs(ref).max()
+        print(f"  {v:28s} {n / wall / 1e3:7.2f} Mpairs/s   {wall / base['best_ms']:5.2f}x today's time, "
+              f"{cpu / base['best_cpu_ms']:5.2f}x its CPU time   (f against the rgba8 chain: max {diff:.3g} of max f)")
+
+
+def wgsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
+    """The generated WGSL through wgpu over the three uploads (module docstring)."""
+    import wgpu
+
+    n = len(pairs)
     code = generate_textured(tmp / "png", "wgsl")
     params = map_params(code)
     index = {e["file"].split(".")[0]: e for e in json.loads((tmp / "png" / "svbrdf.json").read_text())["maps"]}
@@ -115,9 +172,6 @@ def main() -> int:
                                        DX=f"vec2f({2 ** args.lod / SIZE!r}, 0.0)", DY=f"vec2f(0.0, {2 ** args.lod / SIZE!r})")
     pipeline = dev.create_compute_pipeline(layout="auto", compute={
         "module": dev.create_shader_module(code=kernel), "entry_point": "main", "constants": {"HBRDF_SRGB_TEXTURES": 1.0}})
-    rng = np.random.default_rng(3)
-    n = args.pairs
-    pairs = np.concatenate([rng.uniform(0, 1, (n, 2)), cosine_directions(rng, n), cosine_directions(rng, n)], axis=1)
     buf_in = dev.create_buffer_with_data(data=pairs.astype(np.float32).ravel(), usage=wgpu.BufferUsage.STORAGE)
     buf_out = dev.create_buffer(size=24 * n, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
     sampler = dev.create_sampler(address_mode_u="repeat", address_mode_v="repeat", mag_filter="linear",
@@ -159,8 +213,7 @@ def main() -> int:
     for _ in range(args.runs):
         for v, g in groups.items():
             times[v].append(run(g)[0])
-    print(f"{adapter.info['device']}; {n} pairs, lod {args.lod}; generated WGSL of a {SIZE}x{SIZE} three-layer folder "
-          f"(weights, sRGB kd, alpha maps; rgl54_fast 16x2); hybridbrdf {hb.__version__}; median of {args.runs} interleaved runs")
+    print(f"WGSL, wgpu on {adapter.info['device']}")
     base = np.median(times["rgba8, one level (today)"])
     ref = outs["rgba8, mip chain"]
     for v in groups:
@@ -168,7 +221,6 @@ def main() -> int:
         diff = np.abs(outs[v] - ref).max() / np.abs(ref).max()
         print(f"  {v:28s} {n / t / 1e6:7.2f} Mpairs/s   {t / base:5.2f}x today's time   (f against the rgba8 chain: "
               f"max {diff:.3g} of max f)")
-    return 0
 
 
 if __name__ == "__main__":

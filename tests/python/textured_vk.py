@@ -140,5 +140,7 @@ def run(spv: pathlib.Path, textures: Sequence[pathlib.Path], pairs: np.ndarray, 
     return got, r
 
 
-def best_ms(process) -> float:
-    return float(re.search(r"best_ms (\S+)", process.stdout).group(1))
+def timings(process) -> dict:
+    """The runner's timings of a --repeat run: best_ms (host clock), best_cpu_ms (the process's CPU
+    time: lavapipe's threads) and, where the queue has timestamps, best_gpu_ms and median_gpu_ms."""
+    return {k: float(v) for k, v in re.findall(r"^(\w+_ms) (\S+)$", process.stdout, re.M)}

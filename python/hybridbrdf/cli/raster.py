@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
                                   "a source build has it in build/)")
     p.add_argument("--language", choices=["glsl", "hlsl"], default="glsl",
                    help="the fragment stage's shading language: the generated GLSL, or the generated HLSL through "
-                        "glslang's HLSL front end (not for textured materials); default %(default)s")
+                        "glslang's HLSL front end; default %(default)s")
     p.add_argument("--keep-shaders", metavar="DIR", help="write the generated code, both stages and their SPIR-V into DIR")
     p.set_defaults(func=run)
 

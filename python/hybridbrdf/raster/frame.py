@@ -62,7 +62,7 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
     draws that many more frames for timing; ``lavapipe`` pins Mesa's CPU driver (else the Vulkan
     loader's choice, a discrete GPU first); ``keep_shaders`` a folder that receives the generated
     sources and SPIR-V; ``language`` the fragment stage's, "glsl" or "hlsl" (the generated HLSL through
-    glslang's HLSL front end; textured materials are GLSL only); ``per_pixel`` the model materials'
+    glslang's HLSL front end, textured and glTF maps included); ``per_pixel`` the model materials'
     generated per-pixel form (what a pixel's lights share computed once per pixel; docs/RASTER.md
     "Cost"), False for the generic ``hbrdf_eval`` per light. Returns the tool's report: ``device``, ``size``, ``triangles``, ``draws``,
     ``sphere_gap`` (world units), ``best_ms`` and, where the device has timestamps, ``best_gpu_ms``

@@ -16,7 +16,8 @@ the next binding, read and applied by the frame itself; the textured names are t
 A scene with glTF objects declares one more sampler2D per texture its assets' materials name
 (baseColor, metallicRoughness, normal; the tool fills them from the tracer's decoded images): a
 glTF material with textures is f_a of docs/GLTF.md's mapping per pixel, and a normalTexture tilts
-any row's shading frame (GLSL only).
+any row's shading frame. The HLSL stage declares each of these as a Texture2D and a SamplerState at
+one binding (the tool's combined image sampler).
 """
 
 from __future__ import annotations
@@ -181,17 +182,13 @@ def write_frame_sources(plan: FramePlan, folder: pathlib.Path, language: str = "
     their architecture has one (wi and wo apart in the inputs), else ``hbrdf_eval`` per light."""
     if language not in ("glsl", "hlsl"):
         raise ValueError(f"language: expected 'glsl' or 'hlsl', got {language!r}")
-    if plan.textured is not None and language != "glsl":
-        raise ValueError("language: a frame with a textured material is drawn from GLSL only")
     per_pixel = per_pixel and bool(plan.case_constants) and pixel_split_problem(load_model(plan.model_file)) is None
     if plan.textured is not None:
-        code = generate_textured(plan.textured, "glsl", own_normal=True, materials=plan.emitted, pixel_split=per_pixel)
+        code = generate_textured(plan.textured, language, own_normal=True, materials=plan.emitted, pixel_split=per_pixel)
     else:
         code = generate(load_model(plan.model_file), language, materials=plan.emitted, model_path=plan.model_file,
                         pixel_split=per_pixel)
     (folder / f"model.{language}").write_text(code)
-    if plan.gltf_slots and language != "glsl":
-        raise ValueError("language: a frame with glTF textures is drawn from GLSL only")
     gltf = None if not plan.gltf_slots else {
         "first_binding": 3 + len(plan.maps) + (plan.normal is not None), "slots": plan.gltf_slots,
         "alpha_min": repr(float(ALPHA_MIN))}
