@@ -36,7 +36,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def folders(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("textured")
-    return {kind: te.make_folder(tmp / kind, kind) for kind in ("doc", "linear", "all")}
+    return {kind: te.make_folder(tmp / kind, kind) for kind in ("doc", "linear", "all", "normal")}
 
 
 def _run_codegen(argv):
@@ -179,7 +179,7 @@ def _engine_shader(code: str, target: str) -> str:
 
 
 @pytest.mark.parametrize("target", ["glsl", "hlsl", "slang", "wgsl"])
-@pytest.mark.parametrize("kind", ["linear", "all"])
+@pytest.mark.parametrize("kind", ["linear", "all", "normal"])
 def test_lookup_compiles_in_every_dialect(folders, tmp_path, target, kind):
     code = generate_textured(folders[kind], target)
     shader = _engine_shader(code, target)

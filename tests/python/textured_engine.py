@@ -28,10 +28,13 @@ def make_folder(tmp: pathlib.Path, kind: str) -> pathlib.Path:
     ``linear``: 4 layers (one material twice), weights, an sRGB kd map, an eta map and latent maps:
     every channel either linear or sRGB, so a sampler's filter commutes with the decode;
     ``all``: 3 layers, weights, an sRGB kd map and an alpha map (T = square: filter and decode do not
-    commute), clamp addressing."""
+    commute), clamp addressing; ``normal``: ``all``'s layers and maps but kd, repeat addressing, and a
+    tangent-space normal map (glTF convention: x, y in R, G; a smooth bump field with noise, up to
+    70 degrees from +z, so that the horizon rule cuts pairs off); ``doc_normal``: ``doc`` with that
+    normal map (docs/CODEGEN.md's two lines for a normal map)."""
     tmp.mkdir(parents=True, exist_ok=True)
     _, model = saved_random_model(tmp, "hybrid", output_layer="material", energy_bound=True)
-    rng = np.random.default_rng({"doc": 1, "linear": 2, "all": 3}[kind])
+    rng = np.random.default_rng({"doc": 1, "linear": 2, "all": 3, "normal": 4, "doc_normal": 4}[kind])
     mats = model.materials
     # Weights: pure regions, soft ramps and texels whose sum passes 1 (normalised).
     weights = np.zeros((H, W, 3), np.float32)
@@ -39,7 +42,7 @@ def make_folder(tmp: pathlib.Path, kind: str) -> pathlib.Path:
     weights[4:, :, 1] = np.linspace(0, 1, W, dtype=np.float32)
     weights[2, :, :] = rng.uniform(0, 0.7, (W, 3))
     kd = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
-    if kind == "doc":
+    if kind in ("doc", "doc_normal"):
         layers, maps, addressing = mats[:2], [{}, {}], "repeat"
         weights[..., 1:] = 0
     elif kind == "linear":
@@ -47,11 +50,18 @@ def make_folder(tmp: pathlib.Path, kind: str) -> pathlib.Path:
         maps = [{"kd": kd}, {"eta": rng.uniform(1.1, 4, (H, W, 3)).astype(np.float32)}, {},
                 {"latent": rng.uniform(-1, 1, (H, W, 4)).astype(np.float32)}]
     else:
-        layers, addressing = mats[:3], "clamp"
+        layers, addressing = mats[:3], "clamp" if kind == "all" else "repeat"
         weights[..., 2] = 0
-        maps = [{"kd": kd}, {"alpha": rng.uniform(0.05, 0.9, (H, W, 2)).astype(np.float32)}, {}]
+        maps = [{"kd": kd} if kind == "all" else {}, {"alpha": rng.uniform(0.05, 0.9, (H, W, 2)).astype(np.float32)}, {}]
+    normal = None
+    if kind in ("normal", "doc_normal"):
+        u, v = (np.arange(W) + 0.5) / W, (np.arange(H) + 0.5) / H
+        normal = np.stack(np.broadcast_arrays(0.6 * np.sin(4 * np.pi * u)[None, :], 0.5 * np.cos(2 * np.pi * v)[:, None]), 2)
+        normal = normal + rng.uniform(-0.25, 0.25, (H, W, 2))
+        normal *= np.minimum(1.0, 0.94 / np.linalg.norm(normal, axis=2, keepdims=True))  # within 70 degrees of +z
     folder = tmp / "sv"
-    SVBRDF(model, layers, (W, H), weights, maps, addressing).save(folder, format="png")
+    SVBRDF(model, layers, (W, H), weights, maps, addressing,
+           normal=None if normal is None else normal.astype(np.float32)).save(folder, format="png")
     return folder
 
 
@@ -95,7 +105,8 @@ def sampler_reference(folder: pathlib.Path, uv: np.ndarray, srgb_textures: bool,
     vals = {"kd": np.repeat(t["materials.kd"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
             "eta": np.repeat(t["materials.eta"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
             "alpha": np.repeat(t["materials.alpha"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
-            "latent": np.repeat(t["materials.z"][None, [model.index(m) for m in names]], n, 0).astype(np.float64)}
+            "latent": np.repeat(t["materials.z"][None, [model.index(m) for m in names]], n, 0).astype(np.float64),
+            "normal": np.zeros((n, 1, 2))}  # the normal map's decoded x, y (one for the texel)
     rest = np.zeros((n, 3))
     for entry in index["maps"]:
         stored, _ = read_map(folder / entry["file"])
@@ -113,6 +124,8 @@ def sampler_reference(folder: pathlib.Path, uv: np.ndarray, srgb_textures: bool,
             q, k, comp = entry["quantity"], entry.get("layer"), entry["first"] + ch
             if q == "weights":
                 rest[:, ch] = value
+            elif q == "normal":
+                vals[q][:, 0, comp] = value
             else:
                 vals[q][:, k, comp] = value
     rest = np.maximum(rest[:, :L - 1], 0)
@@ -123,12 +136,35 @@ def sampler_reference(folder: pathlib.Path, uv: np.ndarray, srgb_textures: bool,
     return model, np.ascontiguousarray(mat), weight, vals
 
 
-def eval_reference(folder, uv, wi, wo, srgb_textures: bool, shift=None) -> np.ndarray:
-    """libhybridbrdf's f (HybridModel::eval_texel) at the texel values of :func:`sampler_reference`."""
+def shading_directions(xy, wi, wo):
+    """(wi_s, wo_s, visible) of a normal map's filtered x, y (N, 2), in float64 from docs/SVBRDF.md's
+    words: n_s = (x, y, sqrt(max(0, 1 - x^2 - y^2))) normalised, t_s = the tangent (+x) minus its
+    n_s part, normalised, b_s = n_s x t_s; directions given in the geometric frame (t, b, n = x, y,
+    z) expressed in (t_s, b_s, n_s); visible: both above the geometric and the shading horizon."""
+    xy = np.asarray(xy, np.float64)
+    n_s = np.concatenate([xy, np.sqrt(np.maximum(0.0, 1.0 - (xy ** 2).sum(1, keepdims=True)))], 1)
+    n_s /= np.linalg.norm(n_s, axis=1, keepdims=True)
+    t_s = np.array([1.0, 0.0, 0.0]) - n_s[:, :1] * n_s
+    t_s /= np.linalg.norm(t_s, axis=1, keepdims=True)
+    b_s = np.cross(n_s, t_s)
+    wi, wo = np.asarray(wi, np.float64), np.asarray(wo, np.float64)
+    wi_s, wo_s = (np.stack([(w * a).sum(1) for a in (t_s, b_s, n_s)], 1) for w in (wi, wo))
+    visible = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (wi_s[:, 2] > 0) & (wo_s[:, 2] > 0)
+    return wi_s, wo_s, visible
+
+
+def eval_reference(folder, uv, wi, wo, srgb_textures: bool, shift=None, ignore_normal: bool = False) -> np.ndarray:
+    """libhybridbrdf's f (HybridModel::eval_texel) at the texel values of :func:`sampler_reference`;
+    with a normal map (unless ``ignore_normal``), at the directions in the texel's shading frame
+    (:func:`shading_directions`), 0 where the rule cuts them off."""
     model, mat, weight, vals = sampler_reference(folder, uv, srgb_textures, shift)
+    visible = None
+    if not ignore_normal and any(e["quantity"] == "normal" for e in json.loads((folder / "svbrdf.json").read_text())["maps"]):
+        wi, wo, visible = shading_directions(vals["normal"][:, 0], wi, wo)
     f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
-    return model._cpp_model().eval_texels(f32(wi), f32(wo), mat, f32(weight), f32(vals["kd"]), f32(vals["eta"]),
-                                          f32(vals["alpha"]), f32(vals["latent"])).astype(np.float64)
+    f = model._cpp_model().eval_texels(f32(wi), f32(wo), mat, f32(weight), f32(vals["kd"]), f32(vals["eta"]),
+                                       f32(vals["alpha"]), f32(vals["latent"])).astype(np.float64)
+    return f if visible is None else np.where(visible[:, None], f, 0.0)
 
 
 # ---- WGSL through wgpu's samplers ------------------------------------------------------------------
@@ -261,7 +297,7 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
     index = json.loads((folder / "svbrdf.json").read_text())
     by_param = {}
     for e in index["maps"]:
-        ident = "weights" if e["quantity"] == "weights" else f"layer{e['layer']}_{e['quantity']}" + (
+        ident = e["quantity"] if e["quantity"] in ("weights", "normal") else f"layer{e['layer']}_{e['quantity']}" + (
             str(e["first"] // 3) if e["quantity"] == "latent" else "")
         by_param["map_" + ident] = e
     params = map_params(code)
@@ -331,12 +367,13 @@ fn vs(@builtin(vertex_index) k: u32) -> VertexOut {
 """
 
 
-def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye) -> np.ndarray:
+def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye, normal_png=None) -> np.ndarray:
     """``module_code`` (the generated WGSL followed by docs/CODEGEN.md's textured.wgsl, whose fragment
     entry point is ``main``) drawn over a viewport of the weights map's size on lavapipe: one pixel per
     texel, uv at the texel centres, the surface frame the identity (normal +z, tangent +x), the light
-    ``light`` with radiance 1, the eye toward ``eye``. The map as rgba8unorm, a linear repeat sampler.
-    Returns the (H, W, 3) float32 radiance."""
+    ``light`` with radiance 1, the eye toward ``eye``. The map as rgba8unorm, a linear repeat sampler;
+    ``normal_png`` (a folder's normal map) as rgba8unorm at binding 3. Returns the (H, W, 3) float32
+    radiance."""
     import wgpu
 
     from slang_wgsl_tools import wgpu_device, wgsl_errors
@@ -360,7 +397,8 @@ def draw_wgsl_fragment(module_code: str, weights_png: pathlib.Path, light, eye) 
                                     min_filter="linear", mipmap_filter="nearest")
     bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
         {"binding": 0, "resource": _texture(stored, "rgba8unorm")}, {"binding": 1, "resource": sampler},
-        {"binding": 2, "resource": {"buffer": light_buf}}])
+        {"binding": 2, "resource": {"buffer": light_buf}}] + ([] if normal_png is None else [
+        {"binding": 3, "resource": _texture(np.rint(read_map(normal_png)[0] * 255).astype(np.uint8), "rgba8unorm")}]))
     encoder = device.create_command_encoder()
     draw = encoder.begin_render_pass(color_attachments=[{"view": target.create_view(), "load_op": "clear",
                                                          "store_op": "store", "clear_value": (0, 0, 0, 0)}])

@@ -82,9 +82,10 @@ def generate_textured(folder, target: str, precision: str = "fp32", mlp_form: st
     it raises): its model restricted to exactly the layers' materials, plus the maps' decode
     constants, ``HbrdfTexel``, ``hbrdf_decode_texel``, the sampler lookups ``hbrdf_texel_grad`` and
     ``hbrdf_texel_lod`` (not in C++) and ``hbrdf_eval_texel`` / ``hbrdf_pdf_texel`` /
-    ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine"). ``own_normal``:
-    a folder with a normal map is generated without it (the caller reads the map and applies the
-    shading frame itself; refused otherwise). ``materials``: more materials of the folder's model
+    ``hbrdf_sample_texel`` (docs/CODEGEN.md, "A textured material in an engine"); a normal map is
+    read as the lookups' last map and applied by the texel functions. ``own_normal``: a folder with
+    a normal map is generated without it (the caller reads the map and applies the shading frame
+    itself, as the raster frame does). ``materials``: more materials of the folder's model
     to emit beside the layers' (their ``HBRDF_MATERIAL_*`` constants; the raster frame's model cases).
     ``pixel_split``: the per-pixel form as :func:`generate`'s (for those constants; the texel's
     functions stay per light)."""

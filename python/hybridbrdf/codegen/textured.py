@@ -7,7 +7,10 @@ The folder is read by the public loader (:func:`hybridbrdf.svbrdf.load_svbrdf`: 
 one-line refusal of the format), then its index for what the loader decodes away: each map's
 decode. Only level 0's decode is read; a map's mip levels (if the folder has them) are the
 engine's to upload, and the generated lookup reads whatever level its sampler picks, decoding
-after the filter (the decode is the same for every level).
+after the filter (the decode is the same for every level). A normal map is one more map, read last
+(``map_normal``): its x, y decoded, z rebuilt, the texel's shading frame built from it
+(``hbrdf_normal_frame``; docs/SVBRDF.md, "Normal maps"). A chain's levels need nothing more: their
+alpha maps already hold the widening the normals' lost length asks for (svbrdf/mips.py).
 """
 
 from __future__ import annotations
@@ -19,7 +22,6 @@ from typing import Any, Dict, List
 from hybridbrdf import spec
 from hybridbrdf.codegen.literals import float_literal, material_constant
 from hybridbrdf.svbrdf import load_svbrdf
-from hybridbrdf.svbrdf.entries import SVBRDFError
 
 SV = spec.SVBRDF
 #: Per-layer quantities in the order their maps are passed to the lookup (after the weights map).
@@ -42,10 +44,10 @@ TEXTURES["slang"] = TEXTURES["hlsl"]
 
 
 def _map_id(quantity: str, layer, first: int) -> str:
-    """``weights``, ``layer<k>_<quantity>``, ``layer<k>_latent<j>`` (components 3j .. 3j+2): the
-    map's name in the generated code (``map_<id>`` parameters, ``HBRDF_MAP_<ID>_*`` constants)."""
-    if quantity == "weights":
-        return "weights"
+    """``weights``, ``normal``, ``layer<k>_<quantity>``, ``layer<k>_latent<j>`` (components 3j .. 3j+2):
+    the map's name in the generated code (``map_<id>`` parameters, ``HBRDF_MAP_<ID>_*`` constants)."""
+    if quantity in ("weights", "normal"):
+        return quantity
     return f"layer{layer}_{quantity}" + (str(first // 3) if quantity == "latent" else "")
 
 
@@ -57,6 +59,8 @@ def _targets(quantity: str, first: int, used: int, n_layers: int) -> List[str]:
         return [f"{quantity}.{'xyz'[c]}" for c in range(used)]
     if quantity == "alpha":
         return ["alpha_x", "alpha_y"][:used]
+    if quantity == "normal":  # the tangent-space x, y (z is rebuilt from them)
+        return ["x", "y"][:used]
     return [f"z[{first + c}]" for c in range(used)]
 
 
@@ -64,14 +68,13 @@ def textured_plan(folder, own_normal: bool = False) -> Dict[str, Any]:
     """What ``codegen/textured.j2`` needs of the textured material in ``folder``: ``layers`` (material
     names, base first), ``model`` (the folder's, loaded), ``materials`` (the distinct ones, the materials to emit), ``size``,
     ``addressing``, ``maps`` (in the lookup's parameter order: weights, then per layer kd, eta,
-    alpha, latent maps) and ``layer_maps`` (per layer, its maps). Raises the loader's one-line
-    SVBRDFError / ModelFileError for a folder it refuses. A folder with a normal map is refused
-    unless ``own_normal`` (a caller that reads the map itself, as the raster frame does): ``normal``
-    is then its map entry's file (None without one), left out of ``maps``."""
+    alpha, latent maps, then the normal map) and ``layer_maps`` (per layer, its maps). Raises the
+    loader's one-line SVBRDFError / ModelFileError for a folder it refuses. ``normal`` is the
+    normal map entry's file (None without one); ``has_normal`` whether the generated code reads it
+    (a map of ``maps``): not with ``own_normal``, for a caller that reads the map itself and applies
+    the frame (the raster frame)."""
     sv = load_svbrdf(folder)
     index_path = os.path.join(os.fspath(folder), SV["index_file"])
-    if sv.normal is not None and not own_normal:  # refused rather than emitted without it (docs/SVBRDF.md)
-        raise SVBRDFError(index_path, "has a normal map, which the generated code does not read yet")
     with open(index_path, "rb") as f:  # the loader has just read and checked it (bounded, valid)
         index = json.loads(f.read().decode("utf-8"))
     n_layers, latent = len(sv.layers), sv.model.arch["latent"]
@@ -79,9 +82,10 @@ def textured_plan(folder, own_normal: bool = False) -> Dict[str, Any]:
     for entry in index["maps"]:
         if entry["quantity"] == "normal":
             normal = entry["file"]
-            continue
+            if own_normal:
+                continue
         q, layer, first = entry["quantity"], entry.get("layer"), entry["first"]
-        components = 3 if q == "weights" else {"kd": 3, "eta": 3, "alpha": 2, "latent": latent}[q]
+        components = 3 if q == "weights" else {"kd": 3, "eta": 3, "alpha": 2, "normal": 2, "latent": latent}[q]
         used = min(SV["map_channels"], components - first)
         targets = _targets(q, first, used, n_layers)
         channels = []
@@ -98,7 +102,8 @@ def textured_plan(folder, own_normal: bool = False) -> Dict[str, Any]:
                      # An sRGB texture format decodes every colour channel: a map is bound as one (and
                      # HBRDF_SRGB_TEXTURES skips the shader's EOTF) only when all its channels are sRGB.
                      "srgb_texture": bool(srgb) and all(srgb), "live": len(live) > 0,
-                     "key": (-1 if layer is None else layer, LAYER_ORDER.index(q) if q in LAYER_ORDER else -1, first)})
+                     "key": (SV["max_layers"] if q == "normal" else -1 if layer is None else layer,
+                             LAYER_ORDER.index(q) if q in LAYER_ORDER else -1, first)})
     maps.sort(key=lambda m: m["key"])
     maps = [m for m in maps if m["live"]]  # a weights map of one layer feeds nothing
     materials = list(dict.fromkeys(sv.layers))
@@ -106,7 +111,7 @@ def textured_plan(folder, own_normal: bool = False) -> Dict[str, Any]:
             "materials": materials, "size": list(sv.size), "addressing": sv.addressing, "maps": maps,
             "layer_maps": [[m for m in maps if m["layer"] == k] for k in range(n_layers)],
             "has_weights": any(m["quantity"] == "weights" for m in maps), "n_layers": n_layers,
-            "levels": index.get("levels", 1), "normal": normal}
+            "levels": index.get("levels", 1), "normal": normal, "has_normal": normal is not None and not own_normal}
 
 
 def textured_code(plan: Dict[str, Any], target: str) -> Dict[str, Any]:
