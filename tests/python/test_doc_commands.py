@@ -55,6 +55,8 @@ RUN = {
         ["materials.glsl"],
     "hbrdf-codegen results/rgl54_fast.safetensors --target hlsl --materials paper_white_rgb.rgl -o materials.hlsl":
         ["materials.hlsl"],
+    "hbrdf-codegen results/rgl54_fast.safetensors --target glsl --materials paper_white_rgb.rgl --per-pixel -o pixel.glsl":
+        ["pixel.glsl"],
     # RENDERING.md's synopsis; its minimal form is the page's example scene.
     "hbrdf render scenes/sphere_env.json -o out/sphere.exr --png out/sphere.png [--spp N] [--max-depth N] "
     "[--neural-max-depth N] [--sampler cosine|ggx|mis|tabulated] [--nee|--no-nee] [--seed N] [--threads N] "

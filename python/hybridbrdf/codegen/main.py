@@ -1,8 +1,8 @@
 """Code generation: a model file becomes self-contained GLSL, HLSL, Slang, WGSL, C++ or BRDF Explorer code,
 and a textured material's folder the code of its layers with its maps' lookup and decode.
 
-    hbrdf-codegen MODEL --target glsl|hlsl|slang|wgsl|cpp|brdfexplorer [--materials a,b | --scene SCENE.json] -o OUT
-    hbrdf-codegen DIR --target glsl|hlsl|slang|wgsl|cpp -o OUT
+    hbrdf-codegen MODEL --target glsl|hlsl|slang|wgsl|cpp|brdfexplorer [--materials a,b | --scene SCENE.json] [--per-pixel] -o OUT
+    hbrdf-codegen DIR --target glsl|hlsl|slang|wgsl|cpp [--per-pixel] -o OUT
 
 One Jinja2 template (``codegen/hbrdf.j2``) serves every shader and header target; a small
 dialect table (:data:`DIALECTS`) holds what differs between the languages.
@@ -28,6 +28,7 @@ rendered for one dialect) and :mod:`~hybridbrdf.codegen.brdfexplorer`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from typing import Dict, Optional, Sequence
@@ -123,6 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--mlp-form", choices=MLP_FORMS, default="auto",
                     help="network code: unrolled (weights as literals), loops (weights in constant arrays) or auto "
                          "(default: unrolled for GLSL/HLSL/Slang/WGSL, loops for C++)")
+    ap.add_argument("--per-pixel", action="store_true",
+                    help="also emit the per-pixel form: hbrdf_pixel(wo, m) once per pixel, hbrdf_eval_pixel(wi, px, m) "
+                         "per light (glsl and hlsl, unrolled, models whose inputs keep wi and wo apart; refused "
+                         "otherwise; docs/CODEGEN.md, 'The per-pixel form')")
     ap.add_argument("-o", "--out", required=True, help="file to write (written atomically)")
     return ap
 
@@ -150,8 +155,12 @@ def main(argv=None) -> int:
             extra += f" --mlp-form {args.mlp_form}"
         if args.target == "brdfexplorer" and args.precision != "fp32":
             raise ValueError("--precision fp16 is not available for brdfexplorer")
-        text = generate(model, args.target, materials, model_path=os.path.basename(args.model), extra_args=extra,
-                        scene=scene, precision=args.precision, mlp_form=args.mlp_form)
+        if args.target == "brdfexplorer" and args.per_pixel:
+            raise ValueError(f"{args.model}: --per-pixel: GLSL and HLSL only (a BRDF Explorer file has no light loop)")
+        with _per_pixel_errors(args):
+            text = generate(model, args.target, materials, model_path=os.path.basename(args.model),
+                            extra_args=extra + (" --per-pixel" if args.per_pixel else ""), scene=scene,
+                            precision=args.precision, mlp_form=args.mlp_form, pixel_split=args.per_pixel)
         if scene is not None:
             materials = [m["name"] for m in scene["materials"]]
         atomic_write_bytes(args.out, text.encode("utf-8"))
@@ -161,6 +170,18 @@ def main(argv=None) -> int:
         return 1
     print(f"wrote {args.out} ({args.target}, {len(materials or model.materials)} materials)")
     return 0
+
+
+@contextlib.contextmanager
+def _per_pixel_errors(args):
+    """generate's refusal of the per-pixel form (``pixel_split: <why> (...)``) in the command's words:
+    ``MODEL: --per-pixel: <why> (...)``."""
+    try:
+        yield
+    except ValueError as exc:
+        if not str(exc).startswith("pixel_split: "):
+            raise
+        raise ValueError(f"{args.model}: --per-pixel: {str(exc)[len('pixel_split: '):]}") from None
 
 
 def _main_textured(args) -> int:
@@ -182,8 +203,9 @@ def _main_textured(args) -> int:
                          f"{args.target} (a BRDF Explorer file shows one uniform material)")
     check_writable(args.out, "generated code")
     extra = (f" --precision {args.precision}" if args.precision != "fp32" else "") + (
-        f" --mlp-form {args.mlp_form}" if args.mlp_form != "auto" else "")
-    text = generate_textured(folder, args.target, args.precision, args.mlp_form, extra)
+        f" --mlp-form {args.mlp_form}" if args.mlp_form != "auto" else "") + (" --per-pixel" if args.per_pixel else "")
+    with _per_pixel_errors(args):
+        text = generate_textured(folder, args.target, args.precision, args.mlp_form, extra, pixel_split=args.per_pixel)
     atomic_write_bytes(args.out, text.encode("utf-8"))
     print(f"wrote {args.out} ({args.target}, textured material {os.path.basename(os.path.abspath(folder))})")
     return 0
