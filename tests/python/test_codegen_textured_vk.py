@@ -12,8 +12,9 @@ sampler (HLSL, Slang); textured_vk.py holds the kernels. Issue 58 part 4 and its
 - a KTX2 folder (BC5 weights, sRGB BC7 kd, BC5 alpha, BC7 + BC4 latent maps), levels 0 and 1 at any uv,
   in GLSL, HLSL and Slang against libhybridbrdf reading the same KTX2 within the decode tolerance (one
   8-bit step per map channel, test_codegen_textured.py's measure of lavapipe's texture precision);
+- between levels (lod L + 0.25, 0.5, 0.75, uv anywhere), libhybridbrdf's trilinear lookup within 1e-6;
 - the breakages these tests catch: a wrong level, swapped channels, a level that is not its block's
-  mean, the sRGB decode applied twice; and the runner's one-line refusal of a BC map on a device
+  mean, no filter between levels, the sRGB decode applied twice; and the runner's one-line refusal of a BC map on a device
   without textureCompressionBC, and of a damaged KTX2 file."""
 
 from __future__ import annotations
@@ -128,6 +129,30 @@ def test_weights_level_is_the_mean_of_its_block(weights_only, tmp_path):
     for bad in ("swapped.ktx2", "picked.ktx2"):
         got, _ = tv.run(weights_only["spv"], [tmp_path / bad], pairs, False)
         assert _worst(got[coarse], ref[coarse]) > 1e-3, bad
+
+
+def test_trilinear_lod_is_the_library(weights_only):
+    """Between levels: textureLod at lod L + 0.25, 0.5, 0.75 (L = 1..3), uv anywhere (fractions of
+    1/256 of a level-0 texel, repeat), against libhybridbrdf's trilinear SVBRDF.eval(uv, lod) (OpenGL
+    4.6 8.14: the two levels' bilinear values mixed by the fraction; f is linear in the weights, so
+    the mix of the filtered weights is the mix of the BRDFs): within 1e-6 (measured 3.1e-7). Fails
+    with the sampler's mip filter nearest (0.15). Not between levels 0 and 1 here: where level 0's
+    filtered weights sum past 1 the shader normalises them after the sampler has mixed the two levels,
+    the library each level before its mix (up to 5% apart; the chain's levels, and hbrdf paint's
+    weights, sum to at most 1). textureGrad's level
+    from derivatives of 2^(L + t) texels is lavapipe's approximation of log2 (up to 1-2% off f here), so
+    it is compared at integer levels only (test_weights_level_is_the_mean_of_its_block)."""
+    rng = np.random.default_rng(12)
+    n = 1500
+    lod = rng.integers(1, 4, n) + rng.choice([0.25, 0.5, 0.75], n)
+    uv = (rng.integers(-N, 2 * N, (n, 2)) + rng.integers(0, 256, (n, 2)) / 256) / N
+    pairs = np.concatenate([uv, cosine_directions(rng, n), cosine_directions(rng, n), lod[:, None]], 1)
+    lib = load_svbrdf(weights_only["folder"]).eval(uv, pairs[:, 2:5], pairs[:, 5:8], lod=lod)
+    assert np.abs(lib).min() > 1e-4
+    got, _ = tv.run(weights_only["spv"], [weights_only["ktx2"]], pairs, False)
+    assert np.max(np.abs(got[:, :3] - lib) / lib) < 1e-6
+    got, _ = tv.run(weights_only["spv"], [weights_only["ktx2"]], pairs, False, nearest_mip=True)
+    assert np.max(np.abs(got[:, :3] - lib) / lib) > 1e-2  # the breakage: no filter between levels
 
 
 # ---- a KTX2 folder of block formats -----------------------------------------------------------------
