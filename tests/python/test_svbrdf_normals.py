@@ -288,14 +288,14 @@ def test_tracer_shades_in_the_normal_maps_frame(tmp_path):
     assert changed[lit].mean() > 0.5
 
 
-def test_viewer_refuses_a_normal_map_in_one_line(tmp_path):
-    """Not yet read there (docs/SVBRDF.md, "Not yet"): refused, not shown without it. The generated
-    code reads it (tests/python/test_codegen_normals.py)."""
+def test_codegen_and_viewer_read_a_normal_map(tmp_path):
+    """Both read it now (tests/python/test_codegen_normals.py, test_view_svbrdf.py): the plan reads the
+    map, the page carries it as a plane and shows it beside the sphere."""
     path, m = saved_random_model(tmp_path, "hybrid")
     SVBRDF(m, [m.materials[0]], (4, 4), normal=_constant_normal((0.2, 0.1))).save(tmp_path / "sv", format="png")
     from hybridbrdf.codegen.textured import textured_plan
-    from hybridbrdf.viewer.textured import TexturedViewError, page_textured
+    from hybridbrdf.viewer.textured import page_textured
 
     assert textured_plan(tmp_path / "sv")["has_normal"]
-    with pytest.raises(TexturedViewError, match="has a normal map, which the viewer does not read yet"):
-        page_textured(load_svbrdf(tmp_path / "sv"), str(tmp_path / "sv"), 8)
+    page = page_textured(load_svbrdf(tmp_path / "sv"), str(tmp_path / "sv"), 8)
+    assert page["plane"]["normal"] == 0 and page["thumbnails"][0]["label"] == "normal map"

@@ -254,6 +254,35 @@ def test_textured_fragment_shader_compiles_as_es300(model, tmp_path):
     assert r.returncode == 0, r.stdout[-3000:]
 
 
+def test_normal_map_is_libhybridbrdf_under_the_sun(tmp_path):
+    """A two-layer material with an alpha map and a tangent-space normal map (smooth bumps, up to 50
+    degrees; docs/SVBRDF.md "Normal maps"): under the sun the page shows SVBRDF.eval's f (which
+    shades each texel in its frame, 0 unless wi and wo are above both horizons) times the sphere
+    normal's cosine, as the four-layer test bounds it. Controls: the same material without its map,
+    and with the map's green flipped (y read along -b), are each more than one 8-bit step away."""
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    h, w = 8, 16
+    u, v = (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h
+    normal = np.stack(np.broadcast_arrays(0.6 * np.sin(2 * np.pi * u)[None, :], 0.55 * np.cos(2 * np.pi * v)[:, None]), 2)
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[:, w // 2:, 0] = 1.0
+    layers, maps = [m.materials[0], m.materials[1]], [{}, {"alpha": np.full((h, w, 2), 0.25, np.float32)}]
+    for name, n in (("sv", normal), ("flat", None), ("flipped", normal * [1, -1])):
+        SVBRDF(m, layers, (w, h), weights, maps, normal=None if n is None else n.astype(np.float32)).save(
+            tmp_path / name, format="png")
+    el, az = 40.0, 130.0  # SUN
+    got = read_state(page_dom(_view(tmp_path, tmp_path / "sv"), f"analytic=0&{SUN}", TRACER_SIZE))[0].astype(np.int32)
+    size = len(got)
+    want, shown = sun_reference(load_svbrdf(tmp_path / "sv"), size, el, az)
+    assert shown.sum() > 0.4 * size * size * np.pi / 4 * 0.25 and want[shown].mean() > 20
+    diff = np.abs(got - want)[shown]
+    print(f"normal-mapped page against libhybridbrdf: mean {diff.mean():.4f}, max {diff.max()} over {shown.sum()} pixels")
+    assert diff.mean() <= 0.05 and diff.max() <= 2, (diff.mean(), diff.max())
+    for other in ("flat", "flipped"):
+        control, _ = sun_reference(load_svbrdf(tmp_path / other), size, el, az)
+        assert np.abs(got - control)[shown].mean() > 1, other
+
+
 def test_maps_shown_beside_the_sphere_and_webgpu_refused(four_layer):
     _, _, _, page, dom = four_layer("shared")  # loaded clean in the sun (page_dom)
     # the weights and one image per map file (kd, alpha, eta, two latent maps): data URIs with captions

@@ -215,7 +215,10 @@ vec3 hbrdf_view_reflected(vec3 wo, HbrdfMaterial m, int count, vec3 wi0, vec3 we
 #: layer index. The shading point keeps only what the maps change (kd, eta, alpha, z per layer); a
 #: layer's HbrdfMaterial is built where one is used, its output layer and energy table read from the
 #: uniforms by the layer's index: four HbrdfMaterials passed by value (each with its output layer and
-#: table, 118 floats for a 16x2 model) were most of the shader SwiftShader compiled.
+#: table, 118 floats for a 16x2 model) were most of the shader SwiftShader compiled. A normal map (one
+#: more plane, x and y) gives the texel its shading frame (libhybridbrdf's normal_map.hpp): the
+#: directions stay in the sphere's frame (the cosine is its normal's) and the layers see them in the
+#: shading frame, f = 0 unless both are above both horizons; sampled in it and returned.
 _TEXTURED_MATERIAL = """uniform vec3 u_layer_kd[4];
 uniform vec3 u_layer_eta[4];
 uniform vec2 u_layer_alpha[4];
@@ -226,6 +229,7 @@ uniform ivec2 u_map_size;
 uniform bool u_map_repeat;               // addressing: repeat, else clamp
 uniform int u_plane_weights;             // the weights map's layer of u_maps (w_1, w_2, w_3), -1: none
 uniform ivec4 u_plane_kd, u_plane_eta, u_plane_alpha, u_plane_latent;  // per material layer; -1: its material's
+uniform int u_plane_normal;              // the normal map's layer of u_maps (x, y), -1: none
 // The texel's layers as the maps make them (layer k's latent code: z[k * {z_len} ...]) and weights.
 struct HbrdfViewShading {{
     vec3 kd[4];
@@ -233,7 +237,14 @@ struct HbrdfViewShading {{
     vec2 alpha[4];
     float z[4 * {z_len}];
     vec4 w;
+    vec3 ts, bs, ns;  // the normal map's shading frame in the sphere's (tg, bt, n) coordinates
 }};
+// A direction of the sphere's frame in the shading frame's coordinates.
+vec3 hbrdf_view_to_shading(HbrdfViewShading s, vec3 w) {{ return vec3(dot(w, s.ts), dot(w, s.bs), dot(w, s.ns)); }}
+// The normal map's rule (docs/SVBRDF.md): f = 0 unless wi and wo are above both horizons.
+bool hbrdf_view_above(HbrdfViewShading s, vec3 wi, vec3 wo) {{
+    return wi.z > 0.0 && wo.z > 0.0 && dot(wi, s.ns) > 0.0 && dot(wo, s.ns) > 0.0;
+}}
 float hbrdf_view_packed(int k, int i) {{ return u_layer_pack[k * {n_vec} + i / 4][i % 4]; }}
 int hbrdf_view_wrap(int i, int n) {{
     return u_map_repeat ? (i < 0 ? i + n : (i >= n ? i - n : i)) : clamp(i, 0, n - 1);
@@ -300,10 +311,26 @@ HbrdfViewShading hbrdf_view_shading(vec3 n) {{
     HbrdfViewShading s;
     for (int k = 0; k < 4; ++k) hbrdf_view_layer(k, uv, s);
     s.w = hbrdf_view_weights(uv);
+    s.ts = vec3(1.0, 0.0, 0.0);
+    s.bs = vec3(0.0, 1.0, 0.0);
+    s.ns = vec3(0.0, 0.0, 1.0);
+    if (u_plane_normal >= 0) {{  // libhybridbrdf's normal_map.hpp: x, y filtered, z rebuilt, Gram-Schmidt tangent
+        vec2 xy = hbrdf_view_map(u_plane_normal, uv).xy;
+        s.ns = normalize(vec3(xy, sqrt(max(0.0, 1.0 - dot(xy, xy)))));
+        vec3 t = s.ts - s.ns * s.ns.x;
+        s.ts = normalize(dot(t, t) > 1e-12 ? t : cross(s.bs, s.ns));
+        s.bs = cross(s.ns, s.ts);
+    }}
     return s;
 }}
-// hbrdf_pdf_layers: sum_k w_k hbrdf_pdf(wi, wo, m_k) over the layers of positive weight, in order.
+// hbrdf_pdf_layers: sum_k w_k hbrdf_pdf(wi, wo, m_k) over the layers of positive weight, in order;
+// wi, wo in the sphere's frame (with a normal map: the rule, then the shading frame's coordinates).
 float hbrdf_view_pdf(vec3 wi, vec3 wo, HbrdfViewShading s) {{
+    if (u_plane_normal >= 0) {{
+        if (!hbrdf_view_above(s, wi, wo)) return 0.0;
+        wi = hbrdf_view_to_shading(s, wi);
+        wo = hbrdf_view_to_shading(s, wo);
+    }}
     float p = 0.0;
     for (int k = 0; k < 4; ++k) {{
         if (s.w[k] > 0.0) p = p + s.w[k] * hbrdf_pdf(wi, wo, hbrdf_view_material(s, k));
@@ -329,7 +356,9 @@ vec3 hbrdf_view_sample(vec3 wo, vec2 u_in, HbrdfViewShading s, out float pdf) {{
     }}
     vec2 u = vec2(hbrdf_clamp_lo(w > 0.0 ? (ux - start) / w : ux, 0.0, HBRDF_ONE_MINUS_EPS), u_in.y);
     float pdf_k = 0.0;
-    vec3 wi = hbrdf_sample(wo, u, hbrdf_view_material(s, layer), pdf_k);
+    bool mapped = u_plane_normal >= 0;  // drawn in the shading frame, returned in the sphere's
+    vec3 wi = hbrdf_sample(mapped ? hbrdf_view_to_shading(s, wo) : wo, u, hbrdf_view_material(s, layer), pdf_k);
+    if (mapped) wi = s.ts * wi.x + s.bs * wi.y + s.ns * wi.z;
     pdf = pdf_k > 0.0 ? hbrdf_view_pdf(wi, wo, s) : 0.0;
     return wi;
 }}
@@ -342,9 +371,11 @@ vec3 hbrdf_view_reflected(vec3 wo, HbrdfViewShading s, int count, vec3 wi0, vec3
         if (j / 4 >= count) break;
         vec3 wi = j < 4 ? wi0 : wi1, weight = j < 4 ? weight0 : weight1;
         float w = s.w[k];
-        if (w > 0.0 && wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) {{
+        bool mapped = u_plane_normal >= 0;
+        if (w > 0.0 && wi.z > 0.0 && any(greaterThan(weight, vec3(0.0))) && (!mapped || hbrdf_view_above(s, wi, wo))) {{
             HbrdfMaterial m = hbrdf_view_material_full(s, k);
-            f += (u_analytic ? hbrdf_eval_analytic(wi, wo, m) : hbrdf_eval(wi, wo, m)) * w;
+            vec3 a = mapped ? hbrdf_view_to_shading(s, wi) : wi, b = mapped ? hbrdf_view_to_shading(s, wo) : wo;
+            f += (u_analytic ? hbrdf_eval_analytic(a, b, m) : hbrdf_eval(a, b, m)) * w;
         }}
         if (k == 3) {{
             if (wi.z > 0.0 && any(greaterThan(weight, vec3(0.0)))) sum += max(f, vec3(0.0)) * wi.z * weight;

@@ -38,7 +38,8 @@ class TexturedViewError(ValueError):
 def _planes(sv: SVBRDF) -> Tuple[List[np.ndarray], Dict[str, Any]]:
     """The maps as (H, W, 3) float32 planes (a map file's 3 channels each; latent codes in runs of
     3 components, consecutive planes) and the plane of each: ``weights`` (-1: none) and per
-    quantity a list over the layers (-1: the layer's material's own values)."""
+    quantity a list over the layers (-1: the layer's material's own values); ``normal`` the normal
+    map's (x, y), -1: none."""
     planes: List[np.ndarray] = []
     h, w = sv.size[1], sv.size[0]
 
@@ -48,7 +49,8 @@ def _planes(sv: SVBRDF) -> Tuple[List[np.ndarray], Dict[str, Any]]:
         planes.append(plane)
         return len(planes) - 1
 
-    index: Dict[str, Any] = {"weights": -1 if sv.weights is None else add(sv.weights)}
+    index: Dict[str, Any] = {"weights": -1 if sv.weights is None else add(sv.weights),
+                             "normal": -1 if sv.normal is None else add(sv.normal)}  # x, y
     for q in LAYER_QUANTITIES:
         index[q] = [-1] * 4
         for k, maps in enumerate(sv.maps):
@@ -83,6 +85,11 @@ def _display(quantity: str, values: np.ndarray) -> Tuple[np.ndarray, str]:
         return _srgb(v), "sRGB"
     if quantity == "eta":
         return (v - 1.0) / 9.0, "(eta - 1) / 9"
+    if quantity == "normal":  # glTF's normalTexture: (x, y, z + 1) / 2 with z rebuilt
+        xy = np.clip(v, -1.0, 1.0)
+        out[..., :2] = (xy + 1.0) / 2.0
+        out[..., 2] = (np.sqrt(np.maximum(0.0, 1.0 - (xy ** 2).sum(axis=2))) + 1.0) / 2.0
+        return out, "(x + 1) / 2, (y + 1) / 2, (z + 1) / 2 (glTF style)"
     if quantity == "alpha":
         out[..., :2] = np.sqrt(v)
         return out, "sqrt(alpha_x), sqrt(alpha_y) in red, green"
@@ -99,6 +106,9 @@ def thumbnails(sv: SVBRDF) -> List[Dict[str, str]]:
     if sv.weights is not None:
         image, how = _display("weights", sv.weights)
         shown.append({"label": "weights", "how": how, "src": _thumbnail(image)})
+    if sv.normal is not None:
+        image, how = _display("normal", sv.normal)
+        shown.append({"label": "normal map", "how": how, "src": _thumbnail(image)})
     for k, (name, maps) in enumerate(zip(sv.layers, sv.maps)):
         for q in LAYER_QUANTITIES:
             if q not in maps:
@@ -120,8 +130,6 @@ def page_textured(sv: SVBRDF, folder: str, n_pack: int) -> Dict[str, Any]:
     if n_pack > MAX_LAYER_PACK:
         raise TexturedViewError(f"{folder}: {n_pack} floats per layer (latent code and output layer) is more than "
                                 f"the page's uniforms hold for 4 layers ({MAX_LAYER_PACK})")
-    if sv.normal is not None:  # refused rather than shown without it (docs/SVBRDF.md, "Not yet")
-        raise TexturedViewError(f"{folder}: has a normal map, which the viewer does not read yet")
     planes, index = _planes(sv)
     n_bytes = 4 * sum(p.size for p in planes)
     if n_bytes > MAX_VIEW_MAP_BYTES:

@@ -281,7 +281,7 @@
     }
     const p = textured.plane;
     return { n: textured.layers.length, kd: kd, eta: eta, alpha: alpha, pack: pack, weights: p.weights,
-             planes: [p.kd, p.eta, p.alpha, p.latent] };
+             planes: [p.kd, p.eta, p.alpha, p.latent], normal: p.normal };
   }
 
   // ---- the WebGL2 backend: sums in float textures, a draw per sample, the display pass ----
@@ -324,7 +324,7 @@
       "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
       "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
     const texturedNames = ["u_layer_kd", "u_layer_eta", "u_layer_alpha", "u_layer_pack", "u_layers", "u_maps",
-      "u_map_size", "u_map_repeat", "u_plane_weights", "u_plane_kd", "u_plane_eta", "u_plane_alpha", "u_plane_latent"];
+      "u_map_size", "u_map_repeat", "u_plane_weights", "u_plane_kd", "u_plane_eta", "u_plane_alpha", "u_plane_latent", "u_plane_normal"];
     if (textured) texturedNames.forEach(function (n) { accumulate.u[n] = gl.getUniformLocation(accumulate.program, n); });
     const display = link(data.display, ["u_accum", "u_gain"]);
     const u = accumulate.u;
@@ -411,6 +411,7 @@
         gl.uniform4iv(u.u_plane_eta, L.planes[1]);
         gl.uniform4iv(u.u_plane_alpha, L.planes[2]);
         gl.uniform4iv(u.u_plane_latent, L.planes[3]);
+        gl.uniform1i(u.u_plane_normal, L.normal);
       }
     }
     return {
