@@ -17,7 +17,7 @@ The same for the generated GLSL (`--target glsl`; issue 58's cost target names i
 tests/python/textured_vk.py (`hbrdf_texel_lod` and `hbrdf_texel_grad` per pair, `HBRDF_SRGB_TEXTURES`
 1) run by hbrdf_vk_runner, the maps bound as combined image samplers: today's single level and the
 rgba8 chain as hbrdf raster's HBTX files (R8G8B8A8_UNORM, kd R8G8B8A8_SRGB), the chain in the KTX2
-folder's own files (BC blocks as stored). Each variant a runner process of `--repeat 3` dispatches
+folder's own files (BC blocks as stored), and those with kd in BC1 sRGB instead of BC7. Each variant a runner process of `--repeat 3` dispatches
 (the best), the variants interleaved `--runs` times; printed the median of the best host-clock times
 and of the best CPU times of the runner process (lavapipe's threads: the work, whatever else the
 machine runs).
@@ -126,15 +126,28 @@ def main() -> int:
     return 0
 
 
+def bc1_kd(tmp: pathlib.Path) -> pathlib.Path:
+    """Layer 0's kd chain (the PNG folder's 8-bit levels) as a BC1 sRGB KTX2 file (half a byte a texel;
+    docs/TEXTURES.md: BC1 holds kd): lavapipe decodes BC1 far faster than BC7."""
+    from hybridbrdf.svbrdf.ktx2 import write_ktx2
+
+    entry = next(e for e in json.loads((tmp / "png" / "svbrdf.json").read_text())["maps"] if e["quantity"] == "kd")
+    chain = [np.rint(read_map(tmp / "png" / f)[0] * 255).astype(np.uint8) for f in [entry["file"]] + entry["mips"]]
+    write_ktx2(tmp / "kd_bc1.ktx2", chain, "BC1_RGB_SRGB_BLOCK")
+    return tmp / "kd_bc1.ktx2"
+
+
 def glsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
     """The generated GLSL under hbrdf_vk_runner over the three uploads (module docstring)."""
     n = len(pairs)
     code = generate_textured(tmp / "png", "glsl")
     spv = textured_vk.compile_kernel(tmp / "glsl", code, "glsl", (SIZE, SIZE), True)
     rows = np.concatenate([pairs, np.full((n, 1), args.lod)], axis=1)
+    blocks = textured_vk.folder_textures(tmp / "ktx2", tmp / "unused")
     variants = {"rgba8, one level (today)": textured_vk.folder_textures(tmp / "png1", tmp / "hbtx1"),
                 "rgba8, mip chain": textured_vk.folder_textures(tmp / "png", tmp / "hbtx"),
-                "KTX2 blocks, mip chain": textured_vk.folder_textures(tmp / "ktx2", tmp / "unused")}
+                "KTX2 blocks, mip chain": blocks,
+                "KTX2, kd in BC1 sRGB": [bc1_kd(tmp) if t.name == "layer0_kd.ktx2" else t for t in blocks]}
     times = {v: {"best_ms": [], "best_cpu_ms": []} for v in variants}
     outs = {}
     for _ in range(args.runs):
