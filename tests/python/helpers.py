@@ -130,13 +130,14 @@ class AnalyticTestSource(BRDFSource):
 
 
 def saved_random_model(tmp_path, arch, activation="hardgelu", width=16, depth=2, output_layer="shared",
-                       energy_bound=False):
-    """A random model of ``arch`` (latent 12 for the neural baseline, 4 otherwise; materials
-    isotropic, anisotropic, isotropic; ``output_layer`` shared or material; with ``energy_bound``
-    random energy-bound tables) with ``activation``,
-    saved as tmp_path/m.safetensors and loaded back: (path, the loaded model), so that both
-    sides of a comparison read one file."""
-    _, model = random_model(arch, latent=12 if arch == "neural" else 4, width=width, depth=depth,
+                       energy_bound=False, latent=None):
+    """A random model of ``arch`` (latent ``latent``, by default 12 for the neural baseline and 4
+    otherwise; materials isotropic, anisotropic, isotropic; ``output_layer`` shared or material;
+    with ``energy_bound`` random energy-bound tables) with ``activation``, saved as
+    tmp_path/m.safetensors and loaded back: (path, the loaded model), so that both sides of a
+    comparison read one file."""
+    latent = latent if latent is not None else (12 if arch == "neural" else 4)
+    _, model = random_model(arch, latent=latent, width=width, depth=depth,
                             isotropic=[True, False, True], output_layer=output_layer, energy_bound=energy_bound)
     model.arch["activation"] = activation
     path = tmp_path / "m.safetensors"
