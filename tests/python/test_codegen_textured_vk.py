@@ -61,8 +61,11 @@ def weights_only(tmp_path_factory):
     chain = [read_map(folder / f)[0].astype(np.float32) for f in [entry["file"]] + entry["mips"]]
     assert len(chain) == 5 and chain[-1].shape == (1, 1, 3)
     write_ktx2(tmp / "weights.ktx2", chain, "R32G32B32A32_SFLOAT")
+    SVBRDF(model, [mats[0], mats[1], mats[2], mats[1]], (N, N), weights, [{}] * 4, "clamp").with_mips().save(
+        tmp / "clamped", format="exr")  # the same chain (a level's texels are its blocks' means), clamped
     spv = tv.compile_kernel(tmp / "glsl", generate_textured(folder, "glsl"), "glsl", (N, N), False)
-    return {"tmp": tmp, "folder": folder, "chain": chain, "ktx2": tmp / "weights.ktx2", "spv": spv}
+    return {"tmp": tmp, "folder": folder, "chain": chain, "ktx2": tmp / "weights.ktx2", "spv": spv,
+            "clamped": tmp / "clamped"}
 
 
 def _level_pairs(rng, per_texel=2):
@@ -133,7 +136,7 @@ def test_weights_level_is_the_mean_of_its_block(weights_only, tmp_path):
 
 def test_trilinear_lod_is_the_library(weights_only):
     """Between levels: textureLod at lod L + 0.25, 0.5, 0.75 (L = 1..3), uv anywhere (fractions of
-    1/256 of a level-0 texel, repeat), against libhybridbrdf's trilinear SVBRDF.eval(uv, lod) (OpenGL
+    1/256 of a level-0 texel; repeat, and clamp to edge against a clamped folder), against libhybridbrdf's trilinear SVBRDF.eval(uv, lod) (OpenGL
     4.6 8.14: the two levels' bilinear values mixed by the fraction; f is linear in the weights, so
     the mix of the filtered weights is the mix of the BRDFs): within 1e-6 (measured 3.1e-7). Fails
     with the sampler's mip filter nearest (0.15). Not between levels 0 and 1 here: where level 0's
@@ -153,6 +156,11 @@ def test_trilinear_lod_is_the_library(weights_only):
     assert np.max(np.abs(got[:, :3] - lib) / lib) < 1e-6
     got, _ = tv.run(weights_only["spv"], [weights_only["ktx2"]], pairs, False, nearest_mip=True)
     assert np.max(np.abs(got[:, :3] - lib) / lib) > 1e-2  # the breakage: no filter between levels
+    # Clamp-to-edge addressing (hbrdf_vk_runner --clamp) against the same chain in a clamped folder.
+    clamped = load_svbrdf(weights_only["clamped"]).eval(uv, pairs[:, 2:5], pairs[:, 5:8], lod=lod)
+    got, _ = tv.run(weights_only["spv"], [weights_only["ktx2"]], pairs, False, clamp=True)
+    assert np.max(np.abs(got[:, :3] - clamped) / clamped) < 1e-6
+    assert np.max(np.abs(lib - clamped) / clamped) > 1e-2  # the control: repeat reads other texels there
 
 
 # ---- a KTX2 folder of block formats -----------------------------------------------------------------
