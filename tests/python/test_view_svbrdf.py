@@ -283,6 +283,50 @@ def test_normal_map_is_libhybridbrdf_under_the_sun(tmp_path):
         assert np.abs(got - control)[shown].mean() > 1, other
 
 
+def test_mip_chain_is_libhybridbrdf_at_each_pixels_lod(tmp_path):
+    """A 256 x 128 material with its mip chain (kd noise, a normal map, so every layer has widened
+    alpha maps) on a 48-pixel page: the page reads the level of detail libhybridbrdf's Svbrdf::lod
+    gives the uv differences to the next pixel right and below, trilinearly; under the sun its pixels
+    are SVBRDF.eval(uv, wi, wo, lod=) there (float64 geometry here), as the four-layer test bounds it.
+    Control: level 0 alone (what the page read before) is more than one 8-bit step away."""
+    path, m = saved_random_model(tmp_path, "hybrid", output_layer="material", energy_bound=True)
+    rng = np.random.default_rng(3)
+    h, w = 128, 256
+    u, v = (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h
+    normal = np.stack(np.broadcast_arrays(0.5 * np.sin(16 * np.pi * u)[None, :], 0.5 * np.cos(8 * np.pi * v)[:, None]), 2)
+    normal = normal + rng.uniform(-0.3, 0.3, (h, w, 2))
+    weights = np.zeros((h, w, 3), np.float32)
+    weights[..., 0] = rng.uniform(0, 1, (h, w))
+    maps = [{"kd": rng.uniform(0.05, 0.9, (h, w, 3)).astype(np.float32)}, {}]
+    SVBRDF(m, [m.materials[0], m.materials[1]], (w, h), weights, maps, normal=normal.astype(np.float32)).with_mips().save(
+        tmp_path / "sv", format="exr")
+    sv = load_svbrdf(tmp_path / "sv")
+    assert sv.levels == 9
+    el, az = 40.0, 130.0  # SUN
+    got = read_state(page_dom(_view(tmp_path, tmp_path / "sv"), f"analytic=0&{SUN}", SIZE))[0].astype(np.int32)
+    uv, wi, wo, hit = sphere_pixels(SIZE, el, az)
+    steps = []
+    for dx, dy in ((1, 0), (0, 1)):
+        uv_n, _, _, hit_n = sphere_pixels(SIZE, el, az, dx, dy)
+        step = uv_n - uv
+        step[..., 0] -= np.floor(step[..., 0] + 0.5)  # across the seam u = 0 | 1
+        steps.append((step * [w, h], hit_n))
+    lod = 0.5 * np.log2(np.maximum(np.maximum(*[(a ** 2).sum(-1) for a, _ in steps]), 1e-30))
+    shown = hit & steps[0][1] & steps[1][1] & (wo[..., 2] > 0.2) & (np.abs(wi[..., 2]) > 0.02)
+    assert np.median(lod[shown]) > 1  # the control: the page is minified
+
+    def picture(lods):
+        f = sv.eval(uv.reshape(-1, 2), wi.reshape(-1, 3), wo.reshape(-1, 3), lod=lods).reshape(SIZE, SIZE, 3)
+        return srgb8(np.where(((wi[..., 2] > 0) & hit)[..., None], f * np.maximum(wi[..., 2:], 0) * SUN_IRRADIANCE, 0))
+
+    want = picture(lod.ravel()).astype(np.int32)
+    diff = np.abs(got - want)[shown]
+    print(f"mipped page against libhybridbrdf: mean {diff.mean():.4f}, max {diff.max()} over {shown.sum()} pixels")
+    assert want[shown].mean() > 20 and diff.mean() <= 0.05 and diff.max() <= 2, (diff.mean(), diff.max())
+    level0 = picture(np.zeros(SIZE * SIZE)).astype(np.int32)
+    assert np.abs(got - level0)[shown].mean() > 1, "level 0 alone"
+
+
 def test_maps_shown_beside_the_sphere_and_webgpu_refused(four_layer):
     _, _, _, page, dom = four_layer("shared")  # loaded clean in the sun (page_dom)
     # the weights and one image per map file (kd, alpha, eta, two latent maps): data URIs with captions

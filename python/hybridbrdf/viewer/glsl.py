@@ -147,7 +147,7 @@ vec3 hbrdf_view_radiance(vec2 p, vec4 u) {{
     vec3 bt = cross(n, tg);
     vec3 wo = vec3(dot(-d, tg), dot(-d, bt), dot(-d, n));
     if (wo.z <= 0.0) return vec3(0.0);
-    HbrdfViewShading m = hbrdf_view_shading(n);
+    HbrdfViewShading m = hbrdf_view_shading(n, p);
     vec3 wi0, weight0, wi1, weight1;
     int count = hbrdf_view_directions(wo, tg, bt, n, m, u, wi0, weight0, wi1, weight1);
     return hbrdf_view_reflected(wo, m, count, wi0, weight0, wi1, weight1);
@@ -185,7 +185,7 @@ HbrdfMaterial hbrdf_view_material() {{
 {head_lines}    return m;
 }}
 #define HbrdfViewShading HbrdfMaterial
-HbrdfMaterial hbrdf_view_shading(vec3 n) {{ return hbrdf_view_material(); }}
+HbrdfMaterial hbrdf_view_shading(vec3 n, vec2 p) {{ return hbrdf_view_material(); }}
 float hbrdf_view_pdf(vec3 wi, vec3 wo, HbrdfMaterial m) {{ return hbrdf_pdf(wi, wo, m); }}
 vec3 hbrdf_view_sample(vec3 wo, vec2 u, HbrdfMaterial m, out float pdf) {{ return hbrdf_sample(wo, u, m, pdf); }}
 // One call site of the network (a loop over the sample's directions).
@@ -230,6 +230,7 @@ uniform bool u_map_repeat;               // addressing: repeat, else clamp
 uniform int u_plane_weights;             // the weights map's layer of u_maps (w_1, w_2, w_3), -1: none
 uniform ivec4 u_plane_kd, u_plane_eta, u_plane_alpha, u_plane_latent;  // per material layer; -1: its material's
 uniform int u_plane_normal;              // the normal map's layer of u_maps (x, y), -1: none
+uniform int u_map_levels;                // 1, or the mip chain's levels (u_maps' own mip levels)
 // The texel's layers as the maps make them (layer k's latent code: z[k * {z_len} ...]) and weights.
 struct HbrdfViewShading {{
     vec3 kd[4];
@@ -237,6 +238,7 @@ struct HbrdfViewShading {{
     vec2 alpha[4];
     float z[4 * {z_len}];
     vec4 w;
+    vec2 nxy;         // the normal map's filtered x, y
     vec3 ts, bs, ns;  // the normal map's shading frame in the sphere's (tg, bt, n) coordinates
 }};
 // A direction of the sphere's frame in the shading frame's coordinates.
@@ -251,27 +253,28 @@ int hbrdf_view_wrap(int i, int n) {{
 }}
 // Bilinear filter of one map at uv, as a + (b - a) t: a constant map gives its value exactly, as
 // the runtimes' double-precision taps do.
-vec4 hbrdf_view_map(int plane, vec2 uv) {{
+vec4 hbrdf_view_map(int plane, vec2 uv, int level) {{
+    ivec2 size = max(u_map_size >> level, ivec2(1));
     vec2 t = u_map_repeat ? fract(uv) : clamp(uv, 0.0, 1.0);
-    vec2 x = t * vec2(u_map_size) - 0.5;
+    vec2 x = t * vec2(size) - 0.5;
     vec2 x0 = floor(x);
     vec2 f = x - x0;
-    int i0 = hbrdf_view_wrap(int(x0.x), u_map_size.x), i1 = hbrdf_view_wrap(int(x0.x) + 1, u_map_size.x);
-    int j0 = hbrdf_view_wrap(int(x0.y), u_map_size.y), j1 = hbrdf_view_wrap(int(x0.y) + 1, u_map_size.y);
-    vec4 a = texelFetch(u_maps, ivec3(i0, j0, plane), 0), b = texelFetch(u_maps, ivec3(i1, j0, plane), 0);
-    vec4 c = texelFetch(u_maps, ivec3(i0, j1, plane), 0), d = texelFetch(u_maps, ivec3(i1, j1, plane), 0);
+    int i0 = hbrdf_view_wrap(int(x0.x), size.x), i1 = hbrdf_view_wrap(int(x0.x) + 1, size.x);
+    int j0 = hbrdf_view_wrap(int(x0.y), size.y), j1 = hbrdf_view_wrap(int(x0.y) + 1, size.y);
+    vec4 a = texelFetch(u_maps, ivec3(i0, j0, plane), level), b = texelFetch(u_maps, ivec3(i1, j0, plane), level);
+    vec4 c = texelFetch(u_maps, ivec3(i0, j1, plane), level), d = texelFetch(u_maps, ivec3(i1, j1, plane), level);
     vec4 top = a + (b - a) * f.x, bottom = c + (d - c) * f.x;
     return top + (bottom - top) * f.y;
 }}
 // Layer k's mapped values at uv into s (a layer beyond the last has weight 0: any valid material,
 // the last layer's).
-void hbrdf_view_layer(int k, vec2 uv, inout HbrdfViewShading s) {{
+void hbrdf_view_layer(int k, vec2 uv, int level, inout HbrdfViewShading s) {{
     int kk = min(k, u_layers - 1);
-    s.kd[k] = u_plane_kd[kk] >= 0 ? hbrdf_view_map(u_plane_kd[kk], uv).rgb : u_layer_kd[kk];
-    s.eta[k] = u_plane_eta[kk] >= 0 ? hbrdf_view_map(u_plane_eta[kk], uv).rgb : u_layer_eta[kk];
-    s.alpha[k] = u_plane_alpha[kk] >= 0 ? hbrdf_view_map(u_plane_alpha[kk], uv).rg : u_layer_alpha[kk];
+    s.kd[k] = u_plane_kd[kk] >= 0 ? hbrdf_view_map(u_plane_kd[kk], uv, level).rgb : u_layer_kd[kk];
+    s.eta[k] = u_plane_eta[kk] >= 0 ? hbrdf_view_map(u_plane_eta[kk], uv, level).rgb : u_layer_eta[kk];
+    s.alpha[k] = u_plane_alpha[kk] >= 0 ? hbrdf_view_map(u_plane_alpha[kk], uv, level).rg : u_layer_alpha[kk];
     for (int p = 0; p < ({z_len} + 2) / 3; ++p) {{  // one lookup per latent map (3 components)
-        vec4 v = u_plane_latent[kk] >= 0 ? hbrdf_view_map(u_plane_latent[kk] + p, uv) : vec4(0.0);
+        vec4 v = u_plane_latent[kk] >= 0 ? hbrdf_view_map(u_plane_latent[kk] + p, uv, level) : vec4(0.0);
         for (int c = 0; c < 3; ++c) {{
             int i = 3 * p + c;
             if (i < {z_len}) s.z[k * {z_len} + i] = u_plane_latent[kk] >= 0 ? v[c] : hbrdf_view_packed(kk, i);
@@ -297,31 +300,83 @@ HbrdfMaterial hbrdf_view_material_full(HbrdfViewShading s, int k) {{
 }}
 // The texel's weights as libhybridbrdf's Svbrdf::texel normalises them: w_1..3 filtered, divided by
 // their sum where it exceeds 1, w_0 = 1 - their sum clamped to [0, 1].
-vec4 hbrdf_view_weights(vec2 uv) {{
+vec4 hbrdf_view_weights(vec2 uv, int level) {{
     if (u_plane_weights < 0) return vec4(1.0, 0.0, 0.0, 0.0);
-    vec3 r = hbrdf_view_map(u_plane_weights, uv).rgb;
+    vec3 r = hbrdf_view_map(u_plane_weights, uv, level).rgb;
     r = vec3(r.x, u_layers > 2 ? r.y : 0.0, u_layers > 3 ? r.z : 0.0);
     float total = r.x + r.y + r.z;
     if (total > 1.0) r /= total;
     return vec4(clamp(1.0 - (r.x + r.y + r.z), 0.0, 1.0), r);
 }}
-HbrdfViewShading hbrdf_view_shading(vec3 n) {{
-    const float INV_PI = 0.318309886183791;
-    vec2 uv = vec2(atan(n.z, n.x) * (0.5 * INV_PI) + 0.5, acos(clamp(n.y, -1.0, 1.0)) * INV_PI);
+// Level `level`'s texel at uv: every layer's values, the normalised weights, the normal's x, y.
+HbrdfViewShading hbrdf_view_level(vec2 uv, int level) {{
     HbrdfViewShading s;
-    for (int k = 0; k < 4; ++k) hbrdf_view_layer(k, uv, s);
-    s.w = hbrdf_view_weights(uv);
+    for (int k = 0; k < 4; ++k) hbrdf_view_layer(k, uv, level, s);
+    s.w = hbrdf_view_weights(uv, level);
+    s.nxy = u_plane_normal >= 0 ? hbrdf_view_map(u_plane_normal, uv, level).xy : vec2(0.0);
+    return s;
+}}
+// The texel at uv and level of detail lod: libhybridbrdf's trilinear Svbrdf::texel (each of the two
+// levels around lod read bilinearly, normalised, then their values mixed by the fraction).
+HbrdfViewShading hbrdf_view_shading_at(vec2 uv, float lod) {{
+    float d = clamp(lod, 0.0, float(u_map_levels - 1));
+    int fine = int(d);
+    float t = d - float(fine);
+    HbrdfViewShading s = hbrdf_view_level(uv, fine);
+    if (t > 0.0 && fine + 1 < u_map_levels) {{
+        HbrdfViewShading c = hbrdf_view_level(uv, fine + 1);
+        for (int k = 0; k < 4; ++k) {{
+            s.kd[k] = s.kd[k] * (1.0 - t) + c.kd[k] * t;
+            s.eta[k] = s.eta[k] * (1.0 - t) + c.eta[k] * t;
+            s.alpha[k] = s.alpha[k] * (1.0 - t) + c.alpha[k] * t;
+        }}
+        for (int i = 0; i < 4 * {z_len}; ++i) s.z[i] = s.z[i] * (1.0 - t) + c.z[i] * t;
+        s.w = s.w * (1.0 - t) + c.w * t;
+        s.nxy = s.nxy * (1.0 - t) + c.nxy * t;
+    }}
     s.ts = vec3(1.0, 0.0, 0.0);
     s.bs = vec3(0.0, 1.0, 0.0);
     s.ns = vec3(0.0, 0.0, 1.0);
     if (u_plane_normal >= 0) {{  // libhybridbrdf's normal_map.hpp: x, y filtered, z rebuilt, Gram-Schmidt tangent
-        vec2 xy = hbrdf_view_map(u_plane_normal, uv).xy;
+        vec2 xy = s.nxy;
         s.ns = normalize(vec3(xy, sqrt(max(0.0, 1.0 - dot(xy, xy)))));
         vec3 t = s.ts - s.ns * s.ns.x;
         s.ts = normalize(dot(t, t) > 1e-12 ? t : cross(s.bs, s.ns));
         s.bs = cross(s.ns, s.ts);
     }}
     return s;
+}}
+// The tracer's sphere uv of unit normal n.
+vec2 hbrdf_view_uv(vec3 n) {{
+    const float INV_PI = 0.318309886183791;
+    return vec2(atan(n.z, n.x) * (0.5 * INV_PI) + 0.5, acos(clamp(n.y, -1.0, 1.0)) * INV_PI);
+}}
+// The sphere's uv through film point p (pixels, y down; the pinhole of hbrdf_view_radiance); false
+// where the ray misses the sphere.
+bool hbrdf_view_film_uv(vec2 p, out vec2 uv) {{
+    float sx = (2.0 * p.x / u_size.x - 1.0) * u_tan.x, sy = (1.0 - 2.0 * p.y / u_size.y) * u_tan.y;
+    vec3 d = normalize(u_cam_fwd + u_cam_right * sx + u_cam_up * sy);
+    float b = dot(u_cam_pos, d), disc = b * b - (dot(u_cam_pos, u_cam_pos) - 1.0);
+    uv = vec2(0.0);
+    if (disc <= 0.0) return false;
+    uv = hbrdf_view_uv(normalize(u_cam_pos + (-b - sqrt(disc)) * d));
+    return true;
+}}
+// The texel at the sphere's point n seen through film point p. With a mip chain, its level of detail
+// is libhybridbrdf's Svbrdf::lod of the uv differences to the pixels right and below (level 0
+// where either misses the sphere; u's difference taken across the seam u = 0 | 1).
+HbrdfViewShading hbrdf_view_shading(vec3 n, vec2 p) {{
+    vec2 uv = hbrdf_view_uv(n), ux, uy;
+    float lod = 0.0;
+    if (u_map_levels > 1 && hbrdf_view_film_uv(p + vec2(1.0, 0.0), ux) && hbrdf_view_film_uv(p + vec2(0.0, 1.0), uy)) {{
+        vec2 a = ux - uv, b = uy - uv;
+        a.x -= floor(a.x + 0.5);
+        b.x -= floor(b.x + 0.5);
+        a *= vec2(u_map_size);
+        b *= vec2(u_map_size);
+        lod = 0.5 * log2(max(max(dot(a, a), dot(b, b)), 1e-30));
+    }}
+    return hbrdf_view_shading_at(uv, lod);
 }}
 // hbrdf_pdf_layers: sum_k w_k hbrdf_pdf(wi, wo, m_k) over the layers of positive weight, in order;
 // wi, wo in the sphere's frame (with a normal map: the rule, then the shading frame's coordinates).

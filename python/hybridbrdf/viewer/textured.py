@@ -35,13 +35,15 @@ class TexturedViewError(ValueError):
     """A textured material ``hbrdf view --svbrdf`` refuses (one line)."""
 
 
-def _planes(sv: SVBRDF) -> Tuple[List[np.ndarray], Dict[str, Any]]:
-    """The maps as (H, W, 3) float32 planes (a map file's 3 channels each; latent codes in runs of
-    3 components, consecutive planes) and the plane of each: ``weights`` (-1: none) and per
-    quantity a list over the layers (-1: the layer's material's own values); ``normal`` the normal
-    map's (x, y), -1: none."""
+def _planes(sv: SVBRDF, level: int = 0) -> Tuple[List[np.ndarray], Dict[str, Any]]:
+    """Mip level ``level``'s maps as (h, w, 3) float32 planes (a map file's 3 channels each; latent
+    codes in runs of 3 components, consecutive planes) and the plane of each: ``weights`` (-1: none)
+    and per quantity a list over the layers (-1: the layer's material's own values); ``normal`` the
+    normal map's (x, y), -1: none. Every level has the same planes."""
     planes: List[np.ndarray] = []
-    h, w = sv.size[1], sv.size[0]
+    weights, maps = (sv.weights, sv.maps) if level == 0 else sv.mips[level - 1]
+    normal = sv.normal if level == 0 or sv.normal is None else sv.normal_mips[level - 1]
+    w, h = max(1, sv.size[0] >> level), max(1, sv.size[1] >> level)
 
     def add(values: np.ndarray) -> int:
         plane = np.zeros((h, w, 3), dtype=np.float32)
@@ -49,13 +51,13 @@ def _planes(sv: SVBRDF) -> Tuple[List[np.ndarray], Dict[str, Any]]:
         planes.append(plane)
         return len(planes) - 1
 
-    index: Dict[str, Any] = {"weights": -1 if sv.weights is None else add(sv.weights),
-                             "normal": -1 if sv.normal is None else add(sv.normal)}  # x, y
+    index: Dict[str, Any] = {"weights": -1 if weights is None else add(weights),
+                             "normal": -1 if normal is None else add(normal)}  # x, y
     for q in LAYER_QUANTITIES:
         index[q] = [-1] * 4
-        for k, maps in enumerate(sv.maps):
-            if q in maps:
-                values = maps[q]
+        for k, layer_maps in enumerate(maps):
+            if q in layer_maps:
+                values = layer_maps[q]
                 firsts = range(0, values.shape[2], 3)
                 index[q][k] = [add(values[..., f:f + 3]) for f in firsts][0]
     return planes, index
@@ -124,13 +126,15 @@ def thumbnails(sv: SVBRDF) -> List[Dict[str, str]]:
 
 def page_textured(sv: SVBRDF, folder: str, n_pack: int) -> Dict[str, Any]:
     """What the page's script reads for a textured material: layers (names and indices into the page's
-    materials), size, addressing, the planes (base64 float32, row 0 the top of the texture) and their
-    indices, the thumbnails. Raises :class:`TexturedViewError` when the maps or the layers' uniforms
+    materials), size, addressing, the planes (base64 float32, row 0 the top of the texture; level 0's,
+    then each mip level's) and their indices, the level count, the thumbnails. Raises :class:`TexturedViewError` when the maps or the layers' uniforms
     exceed what one page takes."""
     if n_pack > MAX_LAYER_PACK:
         raise TexturedViewError(f"{folder}: {n_pack} floats per layer (latent code and output layer) is more than "
                                 f"the page's uniforms hold for 4 layers ({MAX_LAYER_PACK})")
     planes, index = _planes(sv)
+    for level in range(1, sv.levels):  # the chain's levels after level 0, each the same planes
+        planes += _planes(sv, level)[0]
     n_bytes = 4 * sum(p.size for p in planes)
     if n_bytes > MAX_VIEW_MAP_BYTES:
         raise TexturedViewError(f"{folder}: {n_bytes / 2**20:.1f} MiB of decoded maps ({len(planes)} maps of "
@@ -140,7 +144,8 @@ def page_textured(sv: SVBRDF, folder: str, n_pack: int) -> Dict[str, Any]:
     return {
         "folder": os.path.abspath(folder), "layers": list(sv.layers), "layer_index": list(sv.indices),
         "size": list(sv.size), "addressing": sv.addressing, "filter": "bilinear",
-        "n_planes": len(planes), "planes": base64.b64encode(raw).decode("ascii"), "plane": index,
+        "n_planes": len(planes) // sv.levels, "levels": sv.levels, "planes": base64.b64encode(raw).decode("ascii"),
+        "plane": index,
         "thumbnails": thumbnails(sv), "index_file": spec.SVBRDF["index_file"],
     }
 

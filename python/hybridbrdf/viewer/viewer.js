@@ -324,7 +324,7 @@
       "u_irradiance", "u_env", "u_env_marginal", "u_env_conditional", "u_env_size", "u_env_rotation", "u_accum",
       "u_sample", "u_cam_pos", "u_cam_fwd", "u_cam_right", "u_cam_up", "u_tan", "u_size"]);
     const texturedNames = ["u_layer_kd", "u_layer_eta", "u_layer_alpha", "u_layer_pack", "u_layers", "u_maps",
-      "u_map_size", "u_map_repeat", "u_plane_weights", "u_plane_kd", "u_plane_eta", "u_plane_alpha", "u_plane_latent", "u_plane_normal"];
+      "u_map_size", "u_map_repeat", "u_plane_weights", "u_plane_kd", "u_plane_eta", "u_plane_alpha", "u_plane_latent", "u_plane_normal", "u_map_levels"];
     if (textured) texturedNames.forEach(function (n) { accumulate.u[n] = gl.getUniformLocation(accumulate.program, n); });
     const display = link(data.display, ["u_accum", "u_gain"]);
     const u = accumulate.u;
@@ -355,8 +355,14 @@
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
       gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-      gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGB32F, empty ? 1 : textured.size[0], empty ? 1 : textured.size[1],
-                    empty ? 1 : textured.n_planes, 0, gl.RGB, gl.FLOAT, new Float32Array(raw.buffer));
+      const values = new Float32Array(raw.buffer), levels = empty ? 1 : textured.levels;  // a mip chain: level by level
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, levels - 1);
+      for (let L = 0, at = 0; L < levels; ++L) {
+        const w = empty ? 1 : Math.max(1, textured.size[0] >> L), h = empty ? 1 : Math.max(1, textured.size[1] >> L);
+        const n = empty ? 1 : textured.n_planes;
+        gl.texImage3D(gl.TEXTURE_2D_ARRAY, L, gl.RGB32F, w, h, n, 0, gl.RGB, gl.FLOAT, values.subarray(at, at + 3 * w * h * n));
+        at += 3 * w * h * n;
+      }
       if (gl.getError() !== gl.NO_ERROR) throw new Error("the textured material's maps do not fit this browser's WebGL2 textures");
     }
 
@@ -412,6 +418,7 @@
         gl.uniform4iv(u.u_plane_alpha, L.planes[2]);
         gl.uniform4iv(u.u_plane_latent, L.planes[3]);
         gl.uniform1i(u.u_plane_normal, L.normal);
+        gl.uniform1i(u.u_map_levels, textured.levels);
       }
     }
     return {
