@@ -29,6 +29,7 @@ import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from doc_commands import ROOT, documented_commands, expand, is_synopsis  # noqa: E402
+from helpers import run_shared_path  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 MODEL = "results/rgl54_fast.safetensors"  # tracked: a model every placeholder MODEL can name
@@ -283,12 +284,24 @@ BROKEN = [
 
 
 @pytest.fixture(scope="module")
-def parsed():
-    """(items, complaints) for every argument list of the documents and of BROKEN, in one runner."""
+def parsed(tmp_path_factory):
+    """(items, broken, complaints) for every argument list of the documents and of BROKEN, in one
+    runner per test run. Both tests that read it are slow, so under pytest-xdist they start first,
+    one on each worker, and each worker ran the runner (10-12 s each in the CI run of 2e7ebb2): the
+    first writes its complaints into the folder the run's workers share (fresh for every run, so
+    no earlier run's answers are read) under a name keyed by every argument list, the other reads
+    them."""
+    import hashlib
+
     items = [(w, c, argv) for w, c in commands() for argv in argument_lists(c)]
     broken = [("BROKEN", c, argv) for c in BROKEN for argv in argument_lists(c)]
-    complaints = parse_all(items + broken)
-    return items, broken, complaints
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return items, broken, parse_all(items + broken)
+    key = hashlib.sha256(json.dumps(items + broken).encode()).hexdigest()[:16]
+    with run_shared_path(tmp_path_factory, f"test_doc_commands-parsed-{key}.json") as path:
+        if not path.exists():
+            path.write_text(json.dumps(parse_all(items + broken)))
+    return items, broken, [tuple(c) for c in json.loads(path.read_text())]
 
 
 @pytest.mark.slow  # the runner imports torch, every bench script and two pytest collections: 10-20 s
