@@ -57,13 +57,15 @@ def test_expectile_loss_matches_its_definition():
 @pytest.mark.slow
 def test_analytic_expectile_fits_an_upper_envelope():
     """tau > 0.5 lifts f_a above the data (mean log ratio and share of values above both grow with
-    tau), which the gate can dim: the hybrid stays close to the symmetric fit."""
+    tau), which the gate can dim: the hybrid stays close to the symmetric fit. 300 steps (400 until
+    2026-11-29): lift spread 0.212 against the bound 0.15 (200 steps: 0.126, too few); seen failing
+    with the expectile dropped from the loss (equal lifts) and with its weights swapped (lift falls)."""
     src = [AnalyticTestSource("retro", P_RETRO, retro=0.6)]
     wi, wo = metric_directions(50_000, seed=7)
     ref, cos = src[0].eval(wi, wo), wi[:, 2:3]
     lift, above, hybrid = [], [], []
     for tau in (0.5, 0.75, 0.9):
-        model = fit(src, quick(steps=400, loss_eps=0.05, analytic_expectile=tau), progress=False)
+        model = fit(src, quick(steps=300, loss_eps=0.05, analytic_expectile=tau), progress=False)
         assert model.training["analytic_expectile"] == tau
         f_a = model.eval_analytic(wi, wo, "retro")
         lift.append(np.mean(np.log((0.05 + cos * f_a) / (0.05 + cos * ref))))
