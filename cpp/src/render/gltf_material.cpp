@@ -7,6 +7,7 @@
 
 #include "hybridbrdf/analytic.hpp"
 #include "hybridbrdf/params.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 
 namespace hbrdf::render {
 
@@ -28,15 +29,18 @@ int wrap_texel(int i, int size, GltfWrap wrap) {
 
 double srgb_to_linear(double x) { return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4); }
 
-std::array<double, 4> GltfTexture::sample(double u, double v) const {
-    const GltfImage& im = *image;
-    if (!std::isfinite(u) || !std::isfinite(v)) u = v = 0.0;
-    // Texel value with sRGB decoded first: the texture unit's order (Vulkan 1.3, 16.3.2 before 16.7).
+double linear_to_srgb(double x) { return x <= 0.0031308 ? x * 12.92 : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055; }
+
+namespace {
+
+// One level's filtered RGBA at uv: the texel under it (`nearest`) or the bilinear mix of the four
+// around it, each decoded (sRGB first: the texture unit's order, Vulkan 1.3, 16.3.2 before 16.7).
+std::array<double, 4> sample_level(const GltfImage& im, const GltfTexture& t, double u, double v, bool nearest) {
     auto texel = [&](int x, int y) {
         const unsigned char* p = &im.rgba[(std::size_t(y) * std::size_t(im.width) + std::size_t(x)) * 4];
         std::array<double, 4> out;
         for (int c = 0; c < 4; ++c) out[c] = p[c] / 255.0;
-        if (srgb)
+        if (t.srgb)
             for (int c = 0; c < 3; ++c) out[c] = srgb_to_linear(out[c]);
         return out;
     };
@@ -45,16 +49,41 @@ std::array<double, 4> GltfTexture::sample(double u, double v) const {
     const double lim = 1 << 30;
     if (nearest) {
         const int x = int(std::floor(std::clamp(su, -lim, lim))), y = int(std::floor(std::clamp(sv, -lim, lim)));
-        return texel(wrap_texel(x, im.width, wrap_s), wrap_texel(y, im.height, wrap_t));
+        return texel(wrap_texel(x, im.width, t.wrap_s), wrap_texel(y, im.height, t.wrap_t));
     }
     const double fx = std::clamp(su - 0.5, -lim, lim), fy = std::clamp(sv - 0.5, -lim, lim);
     const double x0 = std::floor(fx), y0 = std::floor(fy), ax = fx - x0, ay = fy - y0;
-    const int xa = wrap_texel(int(x0), im.width, wrap_s), xb = wrap_texel(int(x0) + 1, im.width, wrap_s);
-    const int ya = wrap_texel(int(y0), im.height, wrap_t), yb = wrap_texel(int(y0) + 1, im.height, wrap_t);
+    const int xa = wrap_texel(int(x0), im.width, t.wrap_s), xb = wrap_texel(int(x0) + 1, im.width, t.wrap_s);
+    const int ya = wrap_texel(int(y0), im.height, t.wrap_t), yb = wrap_texel(int(y0) + 1, im.height, t.wrap_t);
     const auto t00 = texel(xa, ya), t10 = texel(xb, ya), t01 = texel(xa, yb), t11 = texel(xb, yb);
     std::array<double, 4> out;
     for (int c = 0; c < 4; ++c)
         out[c] = (t00[c] * (1 - ax) + t10[c] * ax) * (1 - ay) + (t01[c] * (1 - ax) + t11[c] * ax) * ay;
+    return out;
+}
+
+}  // namespace
+
+double GltfTexture::texels_log2() const { return 0.5 * std::log2(double(image->width) * double(image->height)); }
+
+std::array<double, 4> GltfTexture::sample(double u, double v, double lod) const {
+    if (!std::isfinite(u) || !std::isfinite(v)) u = v = 0.0;
+    if (!(lod > 0.0)) return sample_level(*image, *this, u, v, nearest);  // magnified (or NaN): magFilter
+    const int m = min_filter;
+    const bool in_level_nearest = m == 9728 || m == 9984 || m == 9986;
+    const int top = gltf_mipmapped(m) && mips ? int(mips->size()) : 0;  // the last level
+    auto level = [&](int l) -> const GltfImage& { return l == 0 ? *image : (*mips)[std::size_t(l - 1)]; };
+    const double lambda = std::min(lod, double(top));
+    if (top == 0) return sample_level(*image, *this, u, v, in_level_nearest);
+    if (m == 9984 || m == 9985)  // mipmap NEAREST: d = ceil(lambda + 1/2) - 1 (Vulkan 1.3, 16.6.1)
+        return sample_level(level(int(std::ceil(lambda + 0.5)) - 1), *this, u, v, in_level_nearest);
+    const int d = std::min(int(std::floor(lambda)), top);
+    const double frac = lambda - d;
+    const auto lo = sample_level(level(d), *this, u, v, in_level_nearest);
+    if (d == top || frac == 0.0) return lo;
+    const auto hi = sample_level(level(d + 1), *this, u, v, in_level_nearest);
+    std::array<double, 4> out;
+    for (int c = 0; c < 4; ++c) out[c] = lo[c] * (1.0 - frac) + hi[c] * frac;
     return out;
 }
 
@@ -81,8 +110,8 @@ Vec3<float> gltf_tangent_normal(const std::array<double, 4>& rgb, double scale) 
     return Vec3<float>(float(x / len), float(y / len), float(z / len));
 }
 
-ShadingFrame GltfNormalTexture::frame(const Vec2<float>& uv) const {
-    return shading_frame(gltf_tangent_normal(texture.sample(uv.x, uv.y), scale));
+ShadingFrame GltfNormalTexture::frame(const Vec2<float>& uv, float footprint) const {
+    return shading_frame(gltf_tangent_normal(texture.sample(uv.x, uv.y, texture.lod(footprint)), scale));
 }
 
 // ---- GltfMaterial ------------------------------------------------------------------------------
@@ -103,15 +132,15 @@ AnalyticParams GltfMaterial::factor_params() const {
     return gltf_fa(factors_.base, factors_.metallic, factors_.roughness, factors_.dielectric_f0, factors_.anisotropy);
 }
 
-AnalyticParams GltfMaterial::params_at(const Vec2<float>& uv) const {
+AnalyticParams GltfMaterial::params_at(const Vec2<float>& uv, float footprint) const {
     Vec3<double> base = factors_.base;
     double metallic = factors_.metallic, roughness = factors_.roughness;
     if (base_color_) {
-        const auto t = base_color_->sample(uv.x, uv.y);
+        const auto t = base_color_->sample(uv.x, uv.y, base_color_->lod(footprint));
         for (int c = 0; c < 3; ++c) base[c] *= t[c];
     }
     if (metallic_roughness_) {  // glTF: G roughness, B metallic (linear)
-        const auto t = metallic_roughness_->sample(uv.x, uv.y);
+        const auto t = metallic_roughness_->sample(uv.x, uv.y, metallic_roughness_->lod(footprint));
         roughness *= t[1];
         metallic *= t[2];
     }
@@ -123,39 +152,40 @@ void GltfMaterial::eval(std::size_t n, const float* wi, const float* wo, float* 
     eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void GltfMaterial::eval_at(std::size_t n, const float* uv, const float*, const float* wi, const float* wo, float* f,
-                           EvalMode) const {
+void GltfMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo,
+                           float* f, EvalMode) const {
     for (std::size_t i = 0; i < n; ++i) {
         const Vec2<float> at(uv[2 * i], uv[2 * i + 1]);
+        const float fp = footprint ? footprint[i] : kPointFootprint;
         Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         Vec3f v(0.0f);
         bool above = true;
         if (normal_) {
-            const ShadingFrame s = normal_->frame(at);
+            const ShadingFrame s = normal_->frame(at, fp);
             above = above_both_horizons(s, a, b);
             a = s.to_local(a), b = s.to_local(b);
         }
-        if (above) v = AnalyticBrdf(params_at(at)).eval(a, b);
+        if (above) v = AnalyticBrdf(params_at(at, fp)).eval(a, b);
         f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
     }
 }
 
-BrdfSample GltfMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float) const {
+BrdfSample GltfMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    const AnalyticBrdf proxy(params_at(uv));
+    const AnalyticBrdf proxy(params_at(uv, footprint));
     if (!normal_) return hbrdf::sample(s ? *s : Strategy::Cosine, proxy, wo, u);
-    const ShadingFrame fr = normal_->frame(uv);  // drawn in the shading frame; rotations keep solid angle
+    const ShadingFrame fr = normal_->frame(uv, footprint);  // drawn in the shading frame; rotations keep solid angle
     BrdfSample b = hbrdf::sample(s ? *s : Strategy::Cosine, proxy, fr.to_local(wo), u);
     b.wi = fr.to_world(b.wi);
     if (!above_both_horizons(fr, b.wi, wo)) b.pdf = 0.f;
     return b;
 }
 
-float GltfMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float) const {
+float GltfMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    const AnalyticBrdf proxy(params_at(uv));
+    const AnalyticBrdf proxy(params_at(uv, footprint));
     if (!normal_) return hbrdf::pdf(s ? *s : Strategy::Cosine, proxy, wi, wo);
-    const ShadingFrame fr = normal_->frame(uv);
+    const ShadingFrame fr = normal_->frame(uv, footprint);
     if (!above_both_horizons(fr, wi, wo)) return 0.f;
     return hbrdf::pdf(s ? *s : Strategy::Cosine, proxy, fr.to_local(wi), fr.to_local(wo));
 }
@@ -179,7 +209,7 @@ void NormalMappedMaterial::eval_at(std::size_t n, const float* uv, const float* 
     std::vector<float> a(3 * n), b(3 * n);
     std::vector<char> above(n);
     for (std::size_t i = 0; i < n; ++i) {
-        const ShadingFrame s = normal_.frame(Vec2<float>(uv[2 * i], uv[2 * i + 1]));
+        const ShadingFrame s = normal_.frame(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i] : kPointFootprint);
         const Vec3f x(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), y(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         above[i] = above_both_horizons(s, x, y);
         const Vec3f xs = s.to_local(x), ys = s.to_local(y);
@@ -191,7 +221,7 @@ void NormalMappedMaterial::eval_at(std::size_t n, const float* uv, const float* 
 }
 
 BrdfSample NormalMappedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
-    const ShadingFrame fr = normal_.frame(uv);
+    const ShadingFrame fr = normal_.frame(uv, footprint);
     BrdfSample b = inner_->sample_at(fr.to_local(wo), u, uv, footprint);
     b.wi = fr.to_world(b.wi);
     if (!above_both_horizons(fr, b.wi, wo)) b.pdf = 0.f;
@@ -199,7 +229,7 @@ BrdfSample NormalMappedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u
 }
 
 float NormalMappedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
-    const ShadingFrame fr = normal_.frame(uv);
+    const ShadingFrame fr = normal_.frame(uv, footprint);
     if (!above_both_horizons(fr, wi, wo)) return 0.f;
     return inner_->pdf_at(fr.to_local(wi), fr.to_local(wo), uv, footprint);
 }

@@ -6,7 +6,10 @@
 // from its signature), the bytes' signature matching it, and its size read from the header
 // (a PNG's IHDR, a JPEG's start-of-frame, read here without a decoder) at most kMaxGltfImageSide a side and
 // kMaxGltfImageTexels in all. Then stb_image decodes it (8-bit RGBA); a decoder failure (a
-// truncated file) is one line naming the image. Each image is decoded once per asset.
+// truncated file) is one line naming the image. Each image is decoded once per asset, and its mip
+// chain (gltf_mip_chain, below) built once per asset and encoding when a sampler asks for one.
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -15,6 +18,71 @@
 
 #include "hybridbrdf/text.hpp"
 #include "scene_reader.hpp"
+
+namespace hbrdf::render {
+
+namespace {
+
+// The weights of a box filter halving a side of n texels to m = max(1, n / 2): destination texel
+// i covers source [i n / m, (i + 1) n / m); each source texel k weighs its overlap with it, over
+// the footprint's width n / m. Even n: (1/2, 1/2) of texels 2i, 2i + 1; odd n: three texels.
+struct Tap {
+    int k;
+    double w;
+};
+std::vector<std::vector<Tap>> box_taps(int n) {
+    const int m = std::max(1, n / 2);
+    const double width = double(n) / m;
+    std::vector<std::vector<Tap>> taps(static_cast<std::size_t>(m));
+    for (int i = 0; i < m; ++i) {
+        const double lo = i * width, hi = (i + 1) * width;
+        for (int k = int(std::floor(lo)); k < n && k < hi; ++k) {
+            const double overlap = std::min(hi, k + 1.0) - std::max(lo, double(k));
+            if (overlap > 0.0) taps[std::size_t(i)].push_back({k, overlap / width});
+        }
+    }
+    return taps;
+}
+
+}  // namespace
+
+std::vector<GltfImage> gltf_mip_chain(const GltfImage& level0, bool srgb) {
+    int w = level0.width, h = level0.height;
+    // Linear values in double: the previous level unrounded (no 8-bit loss compounding down the chain).
+    std::vector<double> values(level0.rgba.size());
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        const double x = level0.rgba[i] / 255.0;
+        values[i] = srgb && i % 4 != 3 ? srgb_to_linear(x) : x;
+    }
+    std::vector<GltfImage> chain;
+    while (w > 1 || h > 1) {
+        const auto tx = box_taps(w), ty = box_taps(h);
+        const int w2 = int(tx.size()), h2 = int(ty.size());
+        std::vector<double> next(std::size_t(w2) * std::size_t(h2) * 4, 0.0);
+        for (int y = 0; y < h2; ++y)
+            for (int x = 0; x < w2; ++x) {
+                double* out = &next[(std::size_t(y) * std::size_t(w2) + std::size_t(x)) * 4];
+                for (const Tap& a : ty[std::size_t(y)])
+                    for (const Tap& b : tx[std::size_t(x)]) {
+                        const double* in = &values[(std::size_t(a.k) * std::size_t(w) + std::size_t(b.k)) * 4];
+                        for (int c = 0; c < 4; ++c) out[c] += a.w * b.w * in[c];
+                    }
+            }
+        GltfImage level;
+        level.width = w2, level.height = h2;
+        level.rgba.resize(next.size());
+        for (std::size_t i = 0; i < next.size(); ++i) {
+            const double x = std::clamp(srgb && i % 4 != 3 ? linear_to_srgb(next[i]) : next[i], 0.0, 1.0);
+            level.rgba[i] = static_cast<unsigned char>(std::lround(x * 255.0));
+        }
+        chain.push_back(std::move(level));
+        values = std::move(next);
+        w = w2, h = h2;
+    }
+    return chain;
+}
+
+}  // namespace hbrdf::render
 
 namespace hbrdf::render::detail {
 
@@ -204,6 +272,11 @@ std::optional<GltfTexture> GltfImages::texture(const json& owner, const char* ke
             r_.fail(ws + ".minFilter", "expected 9728, 9729 or 9984-9987, got " + std::to_string(min));
         out.nearest = mag == 9728;
         out.min_filter = int(min);
+    }
+    if (gltf_mipmapped(out.min_filter)) {  // no sampler: 9987, as the raster frame's default
+        auto& chain = chains_[{count(r_, tex, wt, "source", 0), srgb}];
+        if (!chain) chain = std::make_shared<const std::vector<GltfImage>>(gltf_mip_chain(*out.image, srgb));
+        out.mips = chain;
     }
     return out;
 }

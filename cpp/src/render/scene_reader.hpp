@@ -227,6 +227,8 @@ private:
     const std::vector<std::string>& buffers_;
     std::string folder_;
     std::map<std::uint64_t, std::shared_ptr<const GltfImage>> cache_;
+    // Mip chains by (image, sRGB): one image may serve an sRGB and a linear slot.
+    std::map<std::pair<std::uint64_t, bool>, std::shared_ptr<const std::vector<GltfImage>>> chains_;
     std::string encoded(const json& image, const std::string& w, std::string& type) const;
     std::shared_ptr<const GltfImage> image(std::uint64_t index, const std::string& w_source);
 };

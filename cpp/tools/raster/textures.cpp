@@ -29,59 +29,27 @@ void to_layout(VkCommandBuffer cmd, VkImage image, uint32_t levels, VkImageLayou
     vkCmdPipelineBarrier(cmd, src, dst, 0, 0, nullptr, 0, nullptr, 1, &b);
 }
 
-// Level 0 from `rgba` (4 bytes a texel, top row first) into a new image of `levels` levels, each
-// further level blitted from the one before (linear filter, the usual generated chain), left in
+// Every level of `bytes` (the regions' offsets into it) into a new image of `format`, left in
 // SHADER_READ_ONLY_OPTIMAL.
-Image upload_with_chain(const Device& device, const unsigned char* rgba, uint32_t width, uint32_t height, uint32_t levels,
-                        VkFormat format) {
-    Image image = device.make_image(width, height, format,
-                                    VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+Image upload_levels(const Device& device, VkFormat format, uint32_t width, uint32_t height,
+                    const std::vector<VkBufferImageCopy>& regions, const unsigned char* bytes, std::size_t size) {
+    const auto levels = uint32_t(regions.size());
+    Image image = device.make_image(width, height, format, VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
                                     VK_IMAGE_ASPECT_COLOR_BIT, levels);
-    const std::size_t bytes = std::size_t(width) * height * 4;
     const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-    Buffer stage = device.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
+    Buffer stage = device.make_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
     void* mapped = nullptr;
     check(vkMapMemory(device.handle(), stage.memory, 0, stage.size, 0, &mapped), "vkMapMemory");
-    std::memcpy(mapped, rgba, bytes);
+    std::memcpy(mapped, bytes, size);
     vkUnmapMemory(device.handle(), stage.memory);
     VkCommandBuffer cmd = device.begin_commands();
     to_layout(cmd, image.image, levels, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
               VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
-    VkBufferImageCopy region{};
-    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-    region.imageExtent = {width, height, 1};
-    vkCmdCopyBufferToImage(cmd, stage.buffer, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-    for (uint32_t l = 1; l < levels; ++l) {
-        VkImageMemoryBarrier b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};  // level l - 1 becomes the blit's source
-        b.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-        b.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
-        b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-        b.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-        b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-        b.image = image.image;
-        b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, l - 1, 1, 0, 1};
-        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1, &b);
-        VkImageBlit blit{};
-        blit.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l - 1, 0, 1};
-        blit.srcOffsets[1] = {int32_t(std::max(1u, width >> (l - 1))), int32_t(std::max(1u, height >> (l - 1))), 1};
-        blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
-        blit.dstOffsets[1] = {int32_t(std::max(1u, width >> l)), int32_t(std::max(1u, height >> l)), 1};
-        vkCmdBlitImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
-                       &blit, VK_FILTER_LINEAR);
-    }
-    if (levels > 1)  // every level but the last is a blit source now
-        to_layout(cmd, image.image, levels - 1, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-                  VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                  VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
-    VkImageMemoryBarrier last{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
-    last.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-    last.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-    last.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    last.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
-    last.srcQueueFamilyIndex = last.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    last.image = image.image;
-    last.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, levels - 1, 1, 0, 1};
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1, &last);
+    vkCmdCopyBufferToImage(cmd, stage.buffer, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, levels, regions.data());
+    // Read by fragment shaders (the raster frame) or compute shaders (the runner).
+    to_layout(cmd, image.image, levels, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+              VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+              VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
     device.submit_and_wait(cmd);
     device.free_commands(cmd);
     device.destroy(stage);
@@ -101,14 +69,28 @@ VkSamplerAddressMode address_mode(render::GltfWrap w) {
 Texture upload_gltf_texture(const Device& device, const render::GltfTexture& gt) {
     const render::GltfImage& im = *gt.image;
     const auto width = uint32_t(im.width), height = uint32_t(im.height);
-    // glTF minFilter 9984-9987 asks for a mip chain: generated here (the tracer reads level 0).
-    const bool mipmapped = gt.min_filter >= 9984 && gt.min_filter <= 9987;
-    uint32_t levels = 1;
-    if (mipmapped)
-        while ((std::max(width, height) >> levels) > 0) ++levels;
+    // glTF minFilter 9984-9987 asks for a mip chain: the tracer's own levels (gltf_mip_chain), built
+    // here only for a texture that arrives without them, so both read the same texels.
+    std::shared_ptr<const std::vector<render::GltfImage>> mips;
+    if (render::gltf_mipmapped(gt.min_filter))
+        mips = gt.mips ? gt.mips : std::make_shared<const std::vector<render::GltfImage>>(render::gltf_mip_chain(im, gt.srgb));
+    std::vector<const render::GltfImage*> chain{&im};
+    if (mips)
+        for (const render::GltfImage& level : *mips) chain.push_back(&level);
+    const auto levels = uint32_t(chain.size());
+    std::vector<VkBufferImageCopy> regions;
+    std::vector<unsigned char> bytes;
+    for (uint32_t l = 0; l < levels; ++l) {
+        VkBufferImageCopy r{};
+        r.bufferOffset = bytes.size();  // RGBA8: every offset a multiple of 4
+        r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
+        r.imageExtent = {uint32_t(chain[l]->width), uint32_t(chain[l]->height), 1};
+        regions.push_back(r);
+        bytes.insert(bytes.end(), chain[l]->rgba.begin(), chain[l]->rgba.end());
+    }
     Texture t;
-    t.image = upload_with_chain(device, im.rgba.data(), width, height, levels,
-                                gt.srgb ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM);
+    t.image = upload_levels(device, gt.srgb ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM, width, height, regions,
+                            bytes.data(), bytes.size());
     VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
     si.magFilter = gt.nearest ? VK_FILTER_NEAREST : VK_FILTER_LINEAR;
     // 9728 NEAREST, 9729 LINEAR, 9984 NEAREST_MIPMAP_NEAREST, 9985 LINEAR_MIPMAP_NEAREST,
@@ -136,40 +118,18 @@ Texture blank_texture(const Device& device) {
 
 namespace {
 
-// Every level of `bytes` (the regions' offsets into it) into a new image of `format`, left in
-// SHADER_READ_ONLY_OPTIMAL; a sampler of `clamp` addressing over its levels.
-Texture upload_levels(const Device& device, VkFormat format, uint32_t width, uint32_t height,
-                      const std::vector<VkBufferImageCopy>& regions, const unsigned char* bytes, std::size_t size,
-                      bool clamp, bool nearest_mip) {
-    const auto levels = uint32_t(regions.size());
-    Texture t;
-    t.image = device.make_image(width, height, format, VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
-                                VK_IMAGE_ASPECT_COLOR_BIT, levels);
-    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-    Buffer stage = device.make_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
-    void* mapped = nullptr;
-    check(vkMapMemory(device.handle(), stage.memory, 0, stage.size, 0, &mapped), "vkMapMemory");
-    std::memcpy(mapped, bytes, size);
-    vkUnmapMemory(device.handle(), stage.memory);
-    VkCommandBuffer cmd = device.begin_commands();
-    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
-              VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
-    vkCmdCopyBufferToImage(cmd, stage.buffer, t.image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, levels, regions.data());
-    // Read by fragment shaders (the raster frame) or compute shaders (the runner).
-    to_layout(cmd, t.image.image, levels, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-              VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-              VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-    device.submit_and_wait(cmd);
-    device.free_commands(cmd);
-    device.destroy(stage);
+// A sampler over a texture's levels of `clamp` addressing, linear in a level, linear or nearest
+// between levels.
+VkSampler folder_sampler(const Device& device, uint32_t levels, bool clamp, bool nearest_mip) {
     VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
     si.magFilter = si.minFilter = VK_FILTER_LINEAR;
     si.mipmapMode = nearest_mip ? VK_SAMPLER_MIPMAP_MODE_NEAREST : VK_SAMPLER_MIPMAP_MODE_LINEAR;
     si.addressModeU = si.addressModeV = si.addressModeW =
         clamp ? VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE : VK_SAMPLER_ADDRESS_MODE_REPEAT;
     si.maxLod = float(levels - 1);
-    check(vkCreateSampler(device.handle(), &si, nullptr, &t.sampler), "vkCreateSampler");
-    return t;
+    VkSampler sampler = VK_NULL_HANDLE;
+    check(vkCreateSampler(device.handle(), &si, nullptr, &sampler), "vkCreateSampler");
+    return sampler;
 }
 
 Texture load_ktx2_texture(const Device& device, const std::string& path, const Sampling& sampling) {
@@ -195,8 +155,10 @@ Texture load_ktx2_texture(const Device& device, const std::string& path, const S
         regions.push_back(r);
         bytes.insert(bytes.end(), level.stored.begin(), level.stored.end());
     }
-    return upload_levels(device, format, k.width, k.height, regions, bytes.data(), bytes.size(), sampling.clamp,
-                         sampling.nearest_mip);
+    Texture t;
+    t.image = upload_levels(device, format, k.width, k.height, regions, bytes.data(), bytes.size());
+    t.sampler = folder_sampler(device, uint32_t(regions.size()), sampling.clamp, sampling.nearest_mip);
+    return t;
 }
 
 }  // namespace
@@ -229,8 +191,11 @@ Texture load_texture(const Device& device, const std::string& path, const Sampli
         throw render::FileError(path, "holds " + std::to_string(bytes.size()) + " bytes; its header says " +
                                           std::to_string(offset));
     const VkFormat format = head[3] ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM;
-    return upload_levels(device, format, width, height, regions, reinterpret_cast<const unsigned char*>(bytes.data()) + 24,
-                         bytes.size() - 24, head[4] == 1, sampling.nearest_mip);
+    Texture t;
+    t.image = upload_levels(device, format, width, height, regions, reinterpret_cast<const unsigned char*>(bytes.data()) + 24,
+                            bytes.size() - 24);
+    t.sampler = folder_sampler(device, levels, head[4] == 1, sampling.nearest_mip);
+    return t;
 }
 
 void destroy(const Device& device, Texture& texture) {

@@ -38,8 +38,8 @@ void destroy(const Device& device, Texture& texture);
 
 /// A glTF texture (the tracer's decoded image, render/gltf_material.hpp) as a sampled image: its
 /// 8-bit RGBA level 0 (R8G8B8A8_SRGB for a baseColorTexture, the texture unit decodes; UNORM
-/// otherwise), a mip chain blitted from it when the glTF minFilter is a mipmap mode, and a sampler
-/// of its wrap modes and filters.
+/// otherwise), with a mipmap minFilter the levels the tracer reads (render::gltf_mip_chain: the
+/// texture's own, or built here when it has none), and a sampler of its wrap modes and filters.
 Texture upload_gltf_texture(const Device& device, const render::GltfTexture& texture);
 /// A 1 x 1 white texture: the slots a frame's shader declares beyond the scene's glTF textures.
 Texture blank_texture(const Device& device);

@@ -6,8 +6,8 @@
 //   metallic  = metallicFactor  * metallicRoughnessTexture.B (linear)
 //   roughness = roughnessFactor * metallicRoughnessTexture.G (linear)
 // each texture read at TEXCOORD_0 through its sampler (wrap S and T: REPEAT, CLAMP_TO_EDGE,
-// MIRRORED_REPEAT; magFilter NEAREST or LINEAR; level 0 only: the tracer builds no mip chain for
-// glTF images). A normalTexture tilts the shading frame: n_t = normalize((2 rgb - 1) (scale, scale,
+// MIRRORED_REPEAT; magFilter and minFilter; with a mipmap minFilter, the level of detail of the
+// ray cone's footprint in gltf_mip_chain's levels, the same levels hbrdf_raster uploads). A normalTexture tilts the shading frame: n_t = normalize((2 rgb - 1) (scale, scale,
 // 1)) in the geometric frame (t = +x, b = n x t = +y, n = +z; glTF's +Y up in the image with
 // w = +1), then normal_map.hpp's frame and horizon rule, as a textured folder's normal map.
 // A glTF material bound to another material keeps the asset's normalTexture through
@@ -15,6 +15,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -33,17 +34,43 @@ struct GltfImage {
     std::vector<unsigned char> rgba;
 };
 
-/// A glTF texture as one material slot reads it: its image and its sampler.
+/// The mip chain of a glTF image, levels 1, 2, ... (level 0 is the image itself), as both the
+/// tracer and hbrdf_raster read it (the raster uploads these levels instead of blitting its own):
+/// level l is max(1, floor(W / 2^l)) x max(1, floor(H / 2^l)) texels (Vulkan's level sizes, down to
+/// 1 x 1), and each of its texels is the area average of the level l - 1 texels under it: the 2 x 2
+/// mean on an even side; on an odd side of n texels, the footprint of n / floor(n / 2) texels
+/// (1 on a side that stays 1), each texel weighed by its overlap (a box filter where a blit's
+/// bilinear tap would drop part of the edge texel). Averages are of linear values: an `srgb`
+/// image's RGB is decoded first (srgb_to_linear) and re-encoded per level; alpha and a linear
+/// image's channels are averaged as stored. Each level is computed in double from the previous
+/// one's unrounded values, then rounded to 8 bits (nearest).
+std::vector<GltfImage> gltf_mip_chain(const GltfImage& level0, bool srgb);
+
+/// True for glTF minFilter values with a mipmap mode (9984-9987): the texture has a chain.
+constexpr bool gltf_mipmapped(int min_filter) { return min_filter >= 9984 && min_filter <= 9987; }
+
+/// A glTF texture as one material slot reads it: its image, its mip chain and its sampler.
 struct GltfTexture {
     std::shared_ptr<const GltfImage> image;
+    /// Levels 1, 2, ... (gltf_mip_chain) when min_filter is a mipmap mode; null or empty: level 0 only.
+    std::shared_ptr<const std::vector<GltfImage>> mips;
     GltfWrap wrap_s = GltfWrap::Repeat, wrap_t = GltfWrap::Repeat;
     bool nearest = false;   ///< magFilter NEAREST (9728): the texel under uv; otherwise bilinear
-    int min_filter = 9987;  ///< glTF minFilter (the raster frame's mip chain; the tracer reads level 0)
+    int min_filter = 9987;  ///< glTF minFilter: the filter in a level and between levels when minified
     bool srgb = false;      ///< the texel's RGB is sRGB-encoded (baseColorTexture): decoded before filtering
 
-    /// The filtered RGBA at uv in [0, 1] (double; sRGB decoded when `srgb`; alpha always linear).
+    /// The filtered RGBA at uv in [0, 1] (double; sRGB decoded when `srgb`; alpha always linear)
+    /// at level of detail `lod` (log2 of the footprint in level-0 texels), as Vulkan's sampler does
+    /// (1.3, 16.5-16.6): lambda = lod clamped to [0, levels - 1]; lod <= 0 (or NaN) is magnified
+    /// (magFilter, level 0); above, minFilter: NEAREST_MIPMAP_* the level round(lambda) (ties
+    /// down), LINEAR_MIPMAP_* the mix of levels floor(lambda) and floor(lambda) + 1, NEAREST or
+    /// LINEAR level 0; in each level nearest (NEAREST, *_MIPMAP_NEAREST's first word) or bilinear.
     /// A non-finite uv reads (0, 0).
-    std::array<double, 4> sample(double u, double v) const;
+    std::array<double, 4> sample(double u, double v, double lod = -std::numeric_limits<double>::infinity()) const;
+    /// 0.5 log2(W H) of level 0: a footprint (log2, uv units) plus this is the level of detail.
+    double texels_log2() const;
+    /// The level of detail of a ray cone's footprint (ray_cone.hpp): footprint + texels_log2().
+    double lod(float footprint) const { return double(footprint) + texels_log2(); }
 };
 
 /// The texel index that `wrap` gives integer coordinate i on a side of `size` texels (Vulkan's
@@ -52,6 +79,8 @@ int wrap_texel(int i, int size, GltfWrap wrap);
 
 /// sRGB's electro-optical transfer function (IEC 61966-2-1), x in [0, 1].
 double srgb_to_linear(double x);
+/// Its inverse (the encoding), x in [0, 1].
+double linear_to_srgb(double x);
 
 /// What of a glTF material is not texture: its factors, reduced to what the mapping needs.
 struct GltfFactors {
@@ -76,8 +105,9 @@ Vec3<float> gltf_tangent_normal(const std::array<double, 4>& rgb, double scale);
 struct GltfNormalTexture {
     GltfTexture texture;
     double scale = 1.0;
-    /// The shading frame at uv in the geometric frame's coordinates.
-    ShadingFrame frame(const Vec2<float>& uv) const;
+    /// The shading frame at uv and ray-cone footprint (log2, uv units; the point footprint reads
+    /// level 0) in the geometric frame's coordinates.
+    ShadingFrame frame(const Vec2<float>& uv, float footprint = -std::numeric_limits<float>::infinity()) const;
 };
 
 /// An unbound glTF material whose textures vary over the surface: f_a of each hit's parameters.
@@ -95,8 +125,9 @@ public:
     bool spatially_varying() const override { return true; }
     const char* type() const override { return "analytic"; }
 
-    /// f_a's parameters at uv (the textures looked up, then the mapping).
-    AnalyticParams params_at(const Vec2<float>& uv) const;
+    /// f_a's parameters at uv and footprint (the textures looked up at their level of detail,
+    /// then the mapping).
+    AnalyticParams params_at(const Vec2<float>& uv, float footprint = -std::numeric_limits<float>::infinity()) const;
     /// The parameters at uv (0, 0) of an untextured texel: the factors' f_a (the sampler's record).
     AnalyticParams factor_params() const;
     const GltfFactors& factors() const { return factors_; }
