@@ -71,8 +71,13 @@ stage_sanitizers() {
   # Without ccache: nothing else compiles these objects (and another clone's paths differ), so on a
   # fresh clone every compile would be a miss, paying ccache's preprocessor pass on top (the stage
   # took 521 s of CPU through a cold ccache against 391 s without, one run each under load).
+  # A unity build (CMake's, batches of 8 sources): the headers' inline functions and templates (doctest's,
+  # glm's, the library's own) are then instrumented and optimised once per batch, not once per source.
+  # The same flags, warnings and instrumentation as one object per source; the cold sources keep their
+  # own objects (a source with COMPILE_OPTIONS is left out of CMake's batches). Each source still
+  # compiles alone in build/. Figures: docs/CONVENTIONS.md, "Testing".
   configure build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    -DHBRDF_SANITIZE=address,undefined -DHBRDF_CCACHE=OFF || return
+    -DHBRDF_SANITIZE=address,undefined -DHBRDF_CCACHE=OFF -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 || return
   cmake --build build-asan -j "$JOBS" --target hbrdf_tests hbrdf_render_tests > /dev/null || return
   # Guard against a silently unsanitised build (a flag typo would pass everything).
   # (grep reads all of nm's output: with -q and pipefail, nm's SIGPIPE would fail the check.)

@@ -30,7 +30,7 @@
 namespace hbrdf {
 namespace {
 
-constexpr int kChunk = 64;
+constexpr int kBaselineChunk = 64;
 
 /// Rusinkiewicz's half vector h and difference vector d (wi rotated by -phi_h
 /// about z, then by -theta_h about y) of one pair, with cos/sin of the angles
@@ -76,42 +76,42 @@ HBRDF_BL_INLINE void merl_body(const float* table, std::size_t n, const float* w
 
 HBRDF_BL_INLINE void nbrdf_body(const std::vector<NbrdfNetwork::Layer>& layers, int max_width, std::size_t n,
                                 const float* wi, const float* wo, float* f) {
-    std::vector<float> buf(std::size_t(2) * max_width * kChunk);
-    float valid[kChunk];
-    for (std::size_t start = 0; start < n; start += kChunk) {
-        const int cnt = int(std::min<std::size_t>(kChunk, n - start));
+    std::vector<float> buf(std::size_t(2) * max_width * kBaselineChunk);
+    float valid[kBaselineChunk];
+    for (std::size_t start = 0; start < n; start += kBaselineChunk) {
+        const int cnt = int(std::min<std::size_t>(kBaselineChunk, n - start));
         float* x = buf.data();
-        float* y = x + std::size_t(max_width) * kChunk;
-        for (int i = 0; i < kChunk; ++i) {
+        float* y = x + std::size_t(max_width) * kBaselineChunk;
+        for (int i = 0; i < kBaselineChunk; ++i) {
             const std::size_t r = 3 * (start + std::size_t(i < cnt ? i : 0));
             Vec3<float> h, d;
             bool ok;
             half_diff(Vec3<float>(wi[r], wi[r + 1], wi[r + 2]), Vec3<float>(wo[r], wo[r + 1], wo[r + 2]), h, d, ok);
             valid[i] = ok ? 1.f : 0.f;
             x[i] = std::sqrt(h.x * h.x + h.y * h.y);  // sin theta_h (phi_h set to 0)
-            x[kChunk + i] = 0.f;
-            x[2 * kChunk + i] = h.z;
-            x[3 * kChunk + i] = d.x, x[4 * kChunk + i] = d.y, x[5 * kChunk + i] = d.z;
+            x[kBaselineChunk + i] = 0.f;
+            x[2 * kBaselineChunk + i] = h.z;
+            x[3 * kBaselineChunk + i] = d.x, x[4 * kBaselineChunk + i] = d.y, x[5 * kBaselineChunk + i] = d.z;
         }
         for (std::size_t l = 0; l < layers.size(); ++l) {
             const NbrdfNetwork::Layer& L = layers[l];
             const bool last = l + 1 == layers.size();
             for (int j = 0; j < L.n_out; ++j) {
-                float acc[kChunk];
-                for (int i = 0; i < kChunk; ++i) acc[i] = L.bias[std::size_t(j)];
+                float acc[kBaselineChunk];
+                for (int i = 0; i < kBaselineChunk; ++i) acc[i] = L.bias[std::size_t(j)];
                 for (int k = 0; k < L.n_in; ++k) {
                     const float w = L.weight[std::size_t(j) * L.n_in + k];
-                    const float* xk = x + std::size_t(k) * kChunk;
-                    for (int i = 0; i < kChunk; ++i) acc[i] += w * xk[i];
+                    const float* xk = x + std::size_t(k) * kBaselineChunk;
+                    for (int i = 0; i < kBaselineChunk; ++i) acc[i] += w * xk[i];
                 }
-                float* out = y + std::size_t(j) * kChunk;
-                for (int i = 0; i < kChunk; ++i) out[i] = last ? acc[i] : std::max(acc[i], 0.f);
+                float* out = y + std::size_t(j) * kBaselineChunk;
+                for (int i = 0; i < kBaselineChunk; ++i) out[i] = last ? acc[i] : std::max(acc[i], 0.f);
             }
             std::swap(x, y);
         }
         for (int i = 0; i < cnt; ++i)
             for (int k = 0; k < 3; ++k)
-                f[3 * (start + i) + k] = valid[i] > 0.f ? std::max(std::expm1(x[std::size_t(k) * kChunk + i]), 0.f) : 0.f;
+                f[3 * (start + i) + k] = valid[i] > 0.f ? std::max(std::expm1(x[std::size_t(k) * kBaselineChunk + i]), 0.f) : 0.f;
     }
 }
 

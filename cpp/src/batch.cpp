@@ -57,10 +57,10 @@ HBRDF_ALWAYS_INLINE void eval_soa_body(const AnalyticBrdf& brdf, std::size_t n, 
 
 // AoS in, AoS out: transpose a chunk into stack SoA buffers, run the SoA
 // body, transpose back. 256 pairs = 9 KiB of buffers, well inside L1.
-constexpr std::size_t kChunk = 256;
+constexpr std::size_t kPairChunk = 256;
 
 // m (wi, wo) pairs of (m, 3) rows into buf[0..2] (wi's x, y, z) and buf[3..5] (wo's).
-HBRDF_ALWAYS_INLINE void pairs_to_soa(const float* a, const float* b, std::size_t m, float (*buf)[kChunk]) {
+HBRDF_ALWAYS_INLINE void pairs_to_soa(const float* a, const float* b, std::size_t m, float (*buf)[kPairChunk]) {
     // vectorises: aos_to_soa (tests/python/test_vectorisation.py)
     for (std::size_t i = 0; i < m; ++i) {
         buf[0][i] = a[3 * i + 0];
@@ -74,9 +74,9 @@ HBRDF_ALWAYS_INLINE void pairs_to_soa(const float* a, const float* b, std::size_
 
 HBRDF_ALWAYS_INLINE void eval_aos_body(const AnalyticBrdf& brdf, std::size_t n, const float* wi, const float* wo,
                                        float* f) {
-    alignas(64) float buf[9][kChunk];
-    for (std::size_t start = 0; start < n; start += kChunk) {
-        const std::size_t m = std::min(kChunk, n - start);
+    alignas(64) float buf[9][kPairChunk];
+    for (std::size_t start = 0; start < n; start += kPairChunk) {
+        const std::size_t m = std::min(kPairChunk, n - start);
         pairs_to_soa(wi + 3 * start, wo + 3 * start, m, buf);
         eval_soa_body(brdf, m, ConstSoA3{buf[0], buf[1], buf[2]}, ConstSoA3{buf[3], buf[4], buf[5]},
                       SoA3{buf[6], buf[7], buf[8]});
@@ -214,9 +214,9 @@ HBRDF_ALWAYS_INLINE void sample_soa_kernel(const AnalyticBrdf brdf, std::size_t 
 template <Strategy S>
 HBRDF_ALWAYS_INLINE void sample_body(const AnalyticBrdf& brdf, std::size_t n, const float* wo, const float* u,
                                      float* wi, float* pdf_out, float* weight) {
-    alignas(64) float buf[11][kChunk];
-    for (std::size_t start = 0; start < n; start += kChunk) {
-        const std::size_t m = std::min(kChunk, n - start);
+    alignas(64) float buf[11][kPairChunk];
+    for (std::size_t start = 0; start < n; start += kPairChunk) {
+        const std::size_t m = std::min(kPairChunk, n - start);
         const float* b = wo + 3 * start;
         const float* v = u + 2 * start;
         // vectorises: sample_aos_to_soa (tests/python/test_vectorisation.py)
@@ -256,9 +256,9 @@ HBRDF_ALWAYS_INLINE void pdf_soa_kernel(const AnalyticBrdf brdf, std::size_t n, 
 template <Strategy S>
 HBRDF_ALWAYS_INLINE void pdf_body(const AnalyticBrdf& brdf, std::size_t n, const float* wi, const float* wo,
                                   float* pdf_out) {
-    alignas(64) float buf[6][kChunk];
-    for (std::size_t start = 0; start < n; start += kChunk) {
-        const std::size_t m = std::min(kChunk, n - start);
+    alignas(64) float buf[6][kPairChunk];
+    for (std::size_t start = 0; start < n; start += kPairChunk) {
+        const std::size_t m = std::min(kPairChunk, n - start);
         pairs_to_soa(wi + 3 * start, wo + 3 * start, m, buf);
         pdf_soa_kernel<S>(brdf, m, buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], pdf_out + start);
     }

@@ -23,7 +23,7 @@ using json = nlohmann::json;
 
 namespace {
 
-const std::string kSourceDir = HBRDF_SOURCE_DIR;
+const std::string kGltfSourceDir = HBRDF_SOURCE_DIR;
 
 std::string temp_dir() {
     static const std::string dir = [] {
@@ -52,7 +52,7 @@ std::string glb_bytes(const json& doc, std::string bin) {
     return u32(0x46546C67) + u32(2) + u32(std::uint32_t(12 + body.size())) + body;
 }
 
-std::string write_file(const std::string& name, const std::string& bytes) {
+std::string write_temp(const std::string& name, const std::string& bytes) {
     const std::string path = temp_dir() + "/" + name;
     std::ofstream(path, std::ios::binary) << bytes;
     return path;
@@ -117,17 +117,17 @@ std::string scene_with(const std::string& object, const std::string& materials =
               "max_depth": 1, "spp": 1, "pixel_jitter": false, "threads": 2})";
 }
 
-Image draw(const Scene& scene) {
+Image draw_gltf(const Scene& scene) {
     RenderOptions o = RenderOptions::from_scene(scene.settings);
     o.quiet = true;
     return render(scene, o);
 }
 
-Scene load(const std::string& text) { return load_scene_json(text, kSourceDir, "s.json"); }
+Scene load_gltf(const std::string& text) { return load_scene_json(text, kGltfSourceDir, "s.json"); }
 
-std::string load_error(const std::string& text) {
+std::string gltf_load_error(const std::string& text) {
     try {
-        load(text);
+        load_gltf(text);
     } catch (const FileError& e) {
         return e.what();
     }
@@ -140,21 +140,21 @@ std::string one_plane_glb(const std::string& name, const json& materials, const 
     doc["scenes"] = {{{"nodes", {0}}}};
     doc["scene"] = 0;
     if (!materials.empty()) doc["materials"] = materials;
-    return write_file(name, glb_bytes(doc, bin));
+    return write_temp(name, glb_bytes(doc, bin));
 }
 
 }  // namespace
 
 TEST_CASE("glTF: a plane bound to a scene material renders as the scene format's plane, per pixel") {
     const std::string file = one_plane_glb("plane.glb", json::array({{{"name", "Floor"}}}));
-    const Scene gltf = load(scene_with(R"({"type": "gltf", "file": ")" + file + R"(", "bind": {"Floor": "m"}})"));
-    const Scene plane = load(scene_with(R"({"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "tangent": [1, 0, 0], "size": 4, "material": "m"})"));
+    const Scene gltf = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + file + R"(", "bind": {"Floor": "m"}})"));
+    const Scene plane = load_gltf(scene_with(R"({"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "tangent": [1, 0, 0], "size": 4, "material": "m"})"));
     // glTF's uv origin is the texture's top left, the renderer's too (docs/SVBRDF.md): the file's
     // TEXCOORD_0 arrive unflipped, equal to make_plane's.
     REQUIRE(gltf.mesh_count() == 1);
     CHECK(gltf.mesh(0).uvs == plane.mesh(0).uvs);
     CHECK(gltf.mesh(0).tangents.size() == 4);
-    const Image a = draw(gltf), b = draw(plane);
+    const Image a = draw_gltf(gltf), b = draw_gltf(plane);
     int lit = 0;
     for (std::size_t i = 0; i < a.rgb.size(); ++i) {
         CHECK(a.rgb[i] == doctest::Approx(b.rgb[i]).epsilon(1e-5));
@@ -172,8 +172,8 @@ TEST_CASE("glTF: node transforms (TRS, a matrix, a parent) and the object's tran
                     {{"mesh", 0}, {"matrix", {0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, -1, 1}}}};
     doc["scenes"] = {{{"nodes", {0}}}};
     doc["scene"] = 0;
-    const std::string file = write_file("nodes.glb", glb_bytes(doc, bin));
-    const Scene s = load(scene_with(R"({"type": "gltf", "file": ")" + file + R"(", "transform": {"translate": [0, -5, 0]}})"));
+    const std::string file = write_temp("nodes.glb", glb_bytes(doc, bin));
+    const Scene s = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + file + R"(", "transform": {"translate": [0, -5, 0]}})"));
     REQUIRE(s.mesh_count() == 1);
     const TriangleMesh& mesh = s.mesh(0);
     REQUIRE(mesh.positions.size() == 4);
@@ -191,17 +191,17 @@ TEST_CASE("glTF: node transforms (TRS, a matrix, a parent) and the object's tran
 }
 
 TEST_CASE("glTF: a material bound to MODEL#MATERIAL renders as that model's material") {
-    const std::string model = kSourceDir + "/results/rgl54_hybrid_32x2.safetensors";
+    const std::string model = kGltfSourceDir + "/results/rgl54_hybrid_32x2.safetensors";
     if (!std::ifstream(model).good()) return;  // the fitted model is part of the repository
     const std::string file = one_plane_glb("bound.glb", json::array({{{"name", "Paint"}, {"pbrMetallicRoughness", {{"metallicFactor", 0}}}}}));
     const std::string mat = R"({"type": "model", "file": "results/rgl54_hybrid_32x2.safetensors", "material": "cc_ibiza_sunset_rgb.rgl"})";
-    const Scene gltf = load(scene_with(R"({"type": "gltf", "file": ")" + file +
+    const Scene gltf = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + file +
                                        R"(", "bind": {"Paint": "results/rgl54_hybrid_32x2.safetensors#cc_ibiza_sunset_rgb.rgl"}})"));
-    const Scene plane = load(scene_with(R"({"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "tangent": [1, 0, 0], "size": 4, "material": "m"})",
+    const Scene plane = load_gltf(scene_with(R"({"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "tangent": [1, 0, 0], "size": 4, "material": "m"})",
                                         R"({"m": )" + mat + "}"));
     REQUIRE(gltf.materials.size() == 2);  // the scene's "m", then the bound one
     CHECK(std::string(gltf.materials[1]->type()) == "model");
-    const Image a = draw(gltf), b = draw(plane);
+    const Image a = draw_gltf(gltf), b = draw_gltf(plane);
     for (std::size_t i = 0; i < a.rgb.size(); ++i) CHECK(a.rgb[i] == doctest::Approx(b.rgb[i]).epsilon(1e-5));
 }
 
@@ -224,8 +224,8 @@ TEST_CASE("glTF: the metallic-roughness mapping onto f_a (computed in double fro
     doc["nodes"] = json::array();
     for (int i = 0; i < 4; ++i) doc["nodes"].push_back({{"mesh", i}, {"translation", {5.0 * i, 0, 0}}});
     doc["scenes"] = {{{"nodes", {0, 1, 2, 3}}}};
-    const std::string file = write_file("materials.glb", glb_bytes(doc, bin));
-    const Scene s = load(scene_with(R"({"type": "gltf", "file": ")" + file + R"("})"));
+    const std::string file = write_temp("materials.glb", glb_bytes(doc, bin));
+    const Scene s = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + file + R"("})"));
     REQUIRE(s.materials.size() == 5);  // the scene's "m" and the asset's four
     auto params_of = [&](const std::string& suffix) -> hbrdf::AnalyticParams {
         for (const auto& m : s.materials)
@@ -274,9 +274,9 @@ TEST_CASE("glTF: the asset's TANGENTs are used; without them, tangents follow th
     doc["buffers"][0]["byteLength"] = bin.size();
     doc["nodes"] = {{{"mesh", 0}}};
     doc["scenes"] = {{{"nodes", {0}}}};
-    const Scene from_uvs = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("uvt.glb", glb_bytes(doc, bin)) + R"("})"));
+    const Scene from_uvs = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + write_temp("uvt.glb", glb_bytes(doc, bin)) + R"("})"));
     doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = doc["accessors"].size() - 1;
-    const Scene given = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("tangents.glb", glb_bytes(doc, bin)) + R"("})"));
+    const Scene given = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + write_temp("tangents.glb", glb_bytes(doc, bin)) + R"("})"));
     for (const auto& t : from_uvs.mesh(0).tangents) CHECK((std::fabs(t.x - 1) < 1e-6 && std::fabs(t.z) < 1e-6));
     for (const auto& t : given.mesh(0).tangents) CHECK((std::fabs(t.z - 1) < 1e-6 && std::fabs(t.x) < 1e-6));
 }
@@ -285,10 +285,10 @@ TEST_CASE("glTF: a .gltf with its buffer in a file beside it, and data: URIs") {
     auto [doc, bin] = document({plane_quad()}, {-1});
     doc["nodes"] = {{{"mesh", 0}}};
     doc["scenes"] = {{{"nodes", {0}}}};
-    write_file("side.bin", bin);
+    write_temp("side.bin", bin);
     doc["buffers"][0]["uri"] = "side.bin";
-    const std::string file = write_file("side.gltf", doc.dump());
-    const Scene s = load(scene_with(R"({"type": "gltf", "file": ")" + file + R"("})"));
+    const std::string file = write_temp("side.gltf", doc.dump());
+    const Scene s = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + file + R"("})"));
     REQUIRE(s.mesh_count() == 1);
     CHECK(s.mesh(0).positions.size() == 4);
     // glTF's default material: metallic 1, roughness 1, base colour 1 -> kd 0, eta 10, alpha 1.
@@ -309,19 +309,19 @@ TEST_CASE("glTF: a .gltf with its buffer in a file beside it, and data: URIs") {
         for (std::size_t k = 0; k < 4; ++k) b64 += k <= present ? kAlphabet[(v >> (18 - 6 * k)) & 63] : '=';
     }
     doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + b64;
-    const Scene d = load(scene_with(R"({"type": "gltf", "file": ")" + write_file("data.gltf", doc.dump()) + R"("})"));
+    const Scene d = load_gltf(scene_with(R"({"type": "gltf", "file": ")" + write_temp("data.gltf", doc.dump()) + R"("})"));
     REQUIRE(d.mesh_count() == 1);
     CHECK(d.mesh(0).positions == s.mesh(0).positions);
     doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + b64.substr(0, 40);
-    CHECK(load_error(scene_with(R"({"type": "gltf", "file": ")" + write_file("short.gltf", doc.dump()) + R"("})"))
+    CHECK(gltf_load_error(scene_with(R"({"type": "gltf", "file": ")" + write_temp("short.gltf", doc.dump()) + R"("})"))
               .find("buffers[0].uri: the data: URI holds 30 bytes, fewer than byteLength = 152") != std::string::npos);
 }
 
 TEST_CASE("glTF: malformed assets are refused with one line naming the file and the problem") {
     const std::string good = glb_bytes(document({plane_quad()}, {-1}).first, document({plane_quad()}, {-1}).second);
     auto error_of = [](const std::string& name, const std::string& bytes, const std::string& bind = "") {
-        const std::string path = write_file(name, bytes);
-        const std::string msg = load_error(scene_with(R"({"type": "gltf", "file": ")" + path + "\"" + bind + "}"));
+        const std::string path = write_temp(name, bytes);
+        const std::string msg = gltf_load_error(scene_with(R"({"type": "gltf", "file": ")" + path + "\"" + bind + "}"));
         const std::string prefix = "s.json: objects[0].file: " + path + ": ";
         if (msg.rfind(prefix, 0) != 0) return "unexpected: " + msg;
         return msg.substr(prefix.size());
@@ -385,6 +385,6 @@ TEST_CASE("glTF: malformed assets are refused with one line naming the file and 
     MESSAGE(assimp);
     CHECK(assimp.find('\n') == std::string::npos);
     // A bind that names no material of the asset.
-    CHECK(load_error(scene_with(R"({"type": "gltf", "file": ")" + one_plane_glb("named.glb", json::array({{{"name", "A"}}})) +
+    CHECK(gltf_load_error(scene_with(R"({"type": "gltf", "file": ")" + one_plane_glb("named.glb", json::array({{{"name", "A"}}})) +
                                 R"(", "bind": {"B": "m"}})")) == "s.json: objects[0].bind.B: the asset has no material named 'B' (it has 'A')");
 }

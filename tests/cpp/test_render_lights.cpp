@@ -18,7 +18,7 @@ using namespace hbrdf::render;
 
 namespace {
 
-const std::string kSourceDir = HBRDF_SOURCE_DIR;
+const std::string kLightsSourceDir = HBRDF_SOURCE_DIR;
 
 struct D3 {
     double x, y, z;
@@ -58,9 +58,9 @@ std::string plane_scene(const std::string& lights, const std::string& extra = ""
            more_objects + R"(], "max_depth": 1, "spp": 1, "pixel_jitter": false, "threads": 2)" + extra + "}";
 }
 
-Scene load(const std::string& text) { return load_scene_json(text, kSourceDir, "<test>"); }
+Scene load_lit(const std::string& text) { return load_scene_json(text, kLightsSourceDir, "<test>"); }
 
-Image draw(const Scene& scene) {
+Image draw_lit(const Scene& scene) {
     RenderOptions o = RenderOptions::from_scene(scene.settings);
     o.quiet = true;
     return render(scene, o);
@@ -98,8 +98,8 @@ template <typename Light> void expect_closed_form(const Scene& scene, const Imag
 TEST_CASE("point light over an anisotropic plane: f I cos / d^2 per pixel (float64 closed form)") {
     const double I[3] = {2.0, 3.0, 4.0};
     const D3 at{0.3, 1.5, -0.2};
-    const Scene scene = load(plane_scene(R"([{"type": "point", "position": [0.3, 1.5, -0.2], "intensity": [2, 3, 4]}])"));
-    expect_closed_form(scene, draw(scene), [&](D3 p) {
+    const Scene scene = load_lit(plane_scene(R"([{"type": "point", "position": [0.3, 1.5, -0.2], "intensity": [2, 3, 4]}])"));
+    expect_closed_form(scene, draw_lit(scene), [&](D3 p) {
         const D3 to = at - p;
         const double d2 = dot3(to, to);
         return std::make_pair(unit(to), std::array<double, 3>{I[0] / d2, I[1] / d2, I[2] / d2});
@@ -107,8 +107,8 @@ TEST_CASE("point light over an anisotropic plane: f I cos / d^2 per pixel (float
 }
 
 TEST_CASE("directional light over an anisotropic plane: f E cos per pixel (float64 closed form)") {
-    const Scene scene = load(plane_scene(R"([{"type": "directional", "direction": [1, 2, -0.5], "irradiance": [1.5, 0.5, 2]}])"));
-    expect_closed_form(scene, draw(scene), [&](D3) {
+    const Scene scene = load_lit(plane_scene(R"([{"type": "directional", "direction": [1, 2, -0.5], "irradiance": [1.5, 0.5, 2]}])"));
+    expect_closed_form(scene, draw_lit(scene), [&](D3) {
         return std::make_pair(unit(D3{1, 2, -0.5}), std::array<double, 3>{1.5, 0.5, 2.0});
     });
 }
@@ -122,8 +122,8 @@ TEST_CASE("point light: doubling the distance quarters the radiance") {
             "lights": [{"type": "point", "position": [0, )" + std::to_string(h) + R"(, 0], "intensity": 7}],
             "objects": [{"type": "plane", "size": 10, "material": {"type": "analytic", "kd": 0.6, "eta": 1, "alpha": 0.5}}],
             "max_depth": 1, "spp": 1, "pixel_jitter": false})";
-        const Scene scene = load(text);
-        return double(draw(scene).at(2, 2)[0]);
+        const Scene scene = load_lit(text);
+        return double(draw_lit(scene).at(2, 2)[0]);
     };
     const double near = centre(0.5), far = centre(1.0), farther = centre(2.0);
     CHECK(near == doctest::Approx(0.6 / kPi * 7 / 0.25).epsilon(1e-5));
@@ -134,9 +134,9 @@ TEST_CASE("point light: doubling the distance quarters the radiance") {
 TEST_CASE("shadows: an occluder darkens the plane; \"shadows\": false skips the delta lights' shadow rays") {
     const std::string light = R"([{"type": "point", "position": [0, 3, 0], "intensity": 10}])";
     const std::string ball = R"(, {"type": "sphere", "center": [0, 1, 0], "radius": 0.4, "material": "m"})";
-    const Scene bare = load(plane_scene(light)), shadowed = load(plane_scene(light, "", ball)),
-                unshadowed = load(plane_scene(light, R"(, "shadows": false)", ball));
-    const Image a = draw(bare), b = draw(shadowed), c = draw(unshadowed);
+    const Scene bare = load_lit(plane_scene(light)), shadowed = load_lit(plane_scene(light, "", ball)),
+                unshadowed = load_lit(plane_scene(light, R"(, "shadows": false)", ball));
+    const Image a = draw_lit(bare), b = draw_lit(shadowed), c = draw_lit(unshadowed);
     int in_shadow = 0, on_plane = 0;
     for (int y = 0; y < a.height; ++y)
         for (int x = 0; x < a.width; ++x) {
@@ -156,7 +156,7 @@ TEST_CASE("shadows: an occluder darkens the plane; \"shadows\": false skips the 
 TEST_CASE("pixel_jitter false: delta lights, one bounce: the same image for any seed, sampler and nee") {
     const std::string lights = R"([{"type": "point", "position": [0.3, 1.5, -0.2], "intensity": [2, 3, 4]},
                                     {"type": "directional", "direction": [1, 2, -0.5], "irradiance": [1.5, 0.5, 2]}])";
-    const Scene scene = load(plane_scene(lights));
+    const Scene scene = load_lit(plane_scene(lights));
     RenderOptions o = RenderOptions::from_scene(scene.settings);
     o.quiet = true;
     const Image ref = render(scene, o);
@@ -172,13 +172,13 @@ TEST_CASE("pixel_jitter false: delta lights, one bounce: the same image for any 
     CHECK(render(scene, o).rgb != ref.rgb);
     for (const char* sampler : {"cosine", "ggx", "mis", "tabulated"}) {
         CAPTURE(sampler);
-        const Scene s = load(plane_scene(lights, std::string(R"(, "tabulated_resolution_deg": 15, "sampler": ")") + sampler + "\""));
-        CHECK(draw(s).rgb == ref.rgb);
+        const Scene s = load_lit(plane_scene(lights, std::string(R"(, "tabulated_resolution_deg": 15, "sampler": ")") + sampler + "\""));
+        CHECK(draw_lit(s).rgb == ref.rgb);
     }
 }
 
 TEST_CASE("delta lights with a hybrid model material: f(wo, wi) in the library's argument order") {
-    const std::string file = kSourceDir + "/results/rgl54_hybrid_32x2.safetensors";
+    const std::string file = kLightsSourceDir + "/results/rgl54_hybrid_32x2.safetensors";
     if (!std::ifstream(file).good()) return;  // the fitted model is part of the repository
     const std::string text = R"({"camera": {"position": [0.4, 2.0, 2.5], "look_at": [0, 0, 0], "fov_deg": 40, "width": 16, "height": 12},
         "environment": {"type": "constant", "radiance": 0},
@@ -186,8 +186,8 @@ TEST_CASE("delta lights with a hybrid model material: f(wo, wi) in the library's
         "lights": [{"type": "point", "position": [-0.8, 1.2, 0.5], "intensity": 3}],
         "objects": [{"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "tangent": [1, 0, 1], "size": 40, "material": "m"}],
         "max_depth": 1, "spp": 1, "pixel_jitter": false})";
-    const Scene scene = load(text);
-    const Image img = draw(scene);
+    const Scene scene = load_lit(text);
+    const Image img = draw_lit(scene);
     const hbrdf::HybridModel model = hbrdf::HybridModel::load(file);
     const int m = model.find("cc_ibiza_sunset_rgb.rgl");
     REQUIRE(m >= 0);
@@ -247,7 +247,7 @@ TEST_CASE("lights: the scene loader's one-line refusals") {
 }
 
 TEST_CASE("a black environment is neither sampled nor traced toward on the last bounce") {
-    const Scene scene = load(plane_scene(R"([{"type": "directional", "direction": [0, 1, 0], "irradiance": 1}])"));
+    const Scene scene = load_lit(plane_scene(R"([{"type": "directional", "direction": [0, 1, 0], "irradiance": 1}])"));
     RenderOptions o = RenderOptions::from_scene(scene.settings);
     o.quiet = true;
     RenderStats st;

@@ -121,7 +121,7 @@ Vec3f normalized(const Vec3f& v) {
     return u * inverse_length_or_zero(u);
 }
 
-bool finite3(const Vec3f& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
+bool all_finite(const Vec3f& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
 
 std::string point_name(const std::string& what, const Vec3f& p) {
     return what + " (" + format_number(p.x) + ", " + format_number(p.y) + ", " + format_number(p.z) + ")";
@@ -136,7 +136,7 @@ void check_mesh(const TriangleMesh& m, double camera_distance) {
         throw std::invalid_argument("the mesh has " + std::to_string(m.indices.size()) + " indices, expected 3 per triangle");
     for (std::size_t i = 0; i < m.positions.size(); ++i) {
         const Vec3f& p = m.positions[i];
-        if (!finite3(p)) throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
+        if (!all_finite(p)) throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
         const double extent = std::max({std::fabs(double(p.x)), std::fabs(double(p.y)), std::fabs(double(p.z))});
         const std::string problem = check_extent(point_name("vertex " + std::to_string(i), p), extent, camera_distance);
         if (!problem.empty()) throw std::invalid_argument(problem);
@@ -228,7 +228,7 @@ void Scene::add_sphere(const Sphere& sphere, int material) {
     if (committed_) throw std::logic_error("Scene::add_sphere after commit()");
     if (!(sphere.radius > 0.0f)) throw std::invalid_argument("sphere radius must be > 0");
     // Its bounds (center +- radius) must be finite floats for Embree.
-    if (!finite3(sphere.center - Vec3f(sphere.radius)) || !finite3(sphere.center + Vec3f(sphere.radius)))
+    if (!all_finite(sphere.center - Vec3f(sphere.radius)) || !all_finite(sphere.center + Vec3f(sphere.radius)))
         throw std::invalid_argument("the sphere's bounds (center +- radius) overflow float");
     const double extent = double(sphere.radius) + std::max({std::fabs(double(sphere.center.x)), std::fabs(double(sphere.center.y)),
                                                             std::fabs(double(sphere.center.z))});
