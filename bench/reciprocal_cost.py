@@ -22,7 +22,7 @@ per evaluation; everything after the first layer is the same. Timed here:
 Each round times the plain model then the reciprocal one, the next round the other way round;
 the summary gives the median of the per-round ratios (reciprocal time / plain time, > 1 is
 slower) with their min and max. Rates: million evaluations per second. Costs do not depend on the
-weights' values, so short fits serve (docs/FITTING.md, "Reciprocal by construction").
+weights' values, so short fits serve (docs/RECIPROCITY.md).
 
     python bench/reciprocal_cost.py PLAIN RECIPROCAL [PLAIN RECIPROCAL ...] [--rounds 5]
         [--pairs 65536] [--vk-pairs 65536] [--repeats 15] [--no-lavapipe]

@@ -144,6 +144,15 @@ NOT_RUN.update({  # docs/GLTF.md: each fallback fit takes seconds; test_gltf.py 
     "hbrdf export results/rgl54_fast.safetensors --gltf out/two.glb --material paper_white_rgb.rgl "
     "vch_golden_yellow_rgb.rgl": "two fallback fits, 5-20 s; test_gltf.py exports the same two materials",
     "python bench/gltf_fallback.py": "fits the fallback of each of the shipped prior's 142 materials: minutes"})
+NOT_RUN.update({  # docs/RECIPROCITY.md's RGL 54 block: a long fit and 10^6-pair evaluations of 54 materials
+    "OMP_NUM_THREADS=1 hbrdf fit ../shared/data/rgl ../shared/data/nbrdf/rgl --recipe fast --arch hybrid-reciprocal "
+    "--compile --out results/rgl54_fast_reciprocal.safetensors": "a 58,000-step fit: hours on one thread",
+    "hbrdf eval results/rgl54_fast_reciprocal.safetensors ../shared/data/nbrdf/rgl --all-metrics":
+        "49 materials at 10^6 pairs: minutes; test_reciprocity.py reads the same file",
+    "python bench/rgl_paper_comparison.py results/rgl54_fast_reciprocal.safetensors":
+        "10^6 pairs on five raw files: minutes (the same script runs on rgl54_fast elsewhere)",
+    "python bench/reciprocal_fidelity.py results/rgl54_fast.safetensors results/rgl54_fast_reciprocal.safetensors "
+    "../shared/data/nbrdf/rgl ../shared/data/rgl": "54 sources, both models, both orders: about 4 minutes"})
 NOT_RUN.update({f"hbrdf-codegen out/textured --target {target} -o material.{target}": (
     "needs the folder scenes/textured.json's paint command writes; test_codegen_textured.py runs these as printed")
     for target in ("glsl", "hlsl", "slang", "wgsl")})
