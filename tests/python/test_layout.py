@@ -13,6 +13,7 @@ The import graph is read with ``ast`` from the source tree, so a test fails on t
 whatever is installed."""
 
 import ast
+import functools
 import importlib
 import pathlib
 import re
@@ -22,6 +23,30 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "python" / "hybridbrdf"
+
+
+@functools.lru_cache(maxsize=None)
+def parsed(text: str) -> ast.Module:
+    """The syntax tree of a source text. Keyed by the text itself, so an edited file is parsed
+    anew: test_every_name_is_imported_from_its_home asks for the names of the same few homes
+    once per import statement (2,000-odd), 12 s of parsing a run before this cache."""
+    return ast.parse(text)
+
+
+def parse(path: pathlib.Path) -> ast.Module:
+    return parsed(path.read_text())
+
+
+def statements(tree: ast.Module):
+    """Every statement of a module, those inside functions, classes and blocks included. Imports
+    are statements, so this walk skips expressions, most of a tree's nodes (ast.walk visits them)."""
+    todo = list(tree.body)
+    while todo:
+        node = todo.pop()
+        yield node
+        for field in ("body", "orelse", "finalbody", "handlers", "cases"):
+            for child in getattr(node, field, ()):  # ExceptHandler and match_case hold statements
+                todo.extend(child.body if isinstance(child, (ast.excepthandler, ast.match_case)) else [child])
 
 
 def module_name(path: pathlib.Path) -> str:
@@ -50,7 +75,7 @@ def unit(name: str) -> str:
 def imports(path: pathlib.Path):
     """[(imported hybridbrdf module, line, [names or None])] of every import statement in the file."""
     out = []
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in statements(parse(path)):
         if isinstance(node, ast.Import):
             out += [(a.name, node.lineno, None) for a in node.names if a.name.split(".")[0] == "hybridbrdf"]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
@@ -125,21 +150,28 @@ def test_no_import_circles():
 
 
 def defined_names(path: pathlib.Path):
+    return names_defined_in(path.read_text())
+
+
+@functools.lru_cache(maxsize=None)
+def names_defined_in(text: str) -> frozenset:
+    """The names a module's text defines at its top level (functions, classes, assignments); keyed
+    by the text, as :func:`parsed`: the same homes are asked about once per import statement."""
     names = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(parsed(text)):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and node.col_offset == 0:
             names.add(node.name)
         elif isinstance(node, (ast.Assign, ast.AnnAssign)) and node.col_offset == 0:
             for target in (node.targets if isinstance(node, ast.Assign) else [node.target]):
                 names |= {x.id for x in ast.walk(target) if isinstance(x, ast.Name)}
-    return names
+    return frozenset(names)
 
 
 def exported_names(path: pathlib.Path):
     """The ``__all__`` of a package's ``__init__.py`` (its public face), as written; empty for a module."""
     if path.name != "__init__.py":
         return set()
-    for node in ast.parse(path.read_text()).body:
+    for node in parse(path).body:
         if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
             return set(ast.literal_eval(node.value))
     return set()
@@ -220,7 +252,7 @@ LAZY = {"matplotlib", "mitsuba", "drjit", "h5py", "torch"}
 def top_level_imports(path: pathlib.Path):
     """The modules a module's own top-level import statements name (not its functions')."""
     out = set()
-    for node in ast.parse(path.read_text()).body:
+    for node in parse(path).body:
         if isinstance(node, ast.Import):
             out |= {a.name for a in node.names}
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
@@ -249,7 +281,7 @@ def test_imports_are_at_the_top_of_modules():
     for name, path in MODULES.items():
         if name == "hybridbrdf.cli" or name.startswith("hybridbrdf.cli."):
             continue
-        tree = ast.parse(path.read_text())
+        tree = parse(path)
         top = {id(n) for n in tree.body}
         for node in ast.walk(tree):
             if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
