@@ -177,12 +177,15 @@ WGSL_KERNEL = """
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3u) {{
     let i = gid.x;
-    if (i >= arrayLength(&pairs) / 8u) {{ return; }}
-    let uv = vec2f(pairs[8u * i], pairs[8u * i + 1u]);
-    let wi = vec3f(pairs[8u * i + 2u], pairs[8u * i + 3u], pairs[8u * i + 4u]);
-    let wo = vec3f(pairs[8u * i + 5u], pairs[8u * i + 6u], pairs[8u * i + 7u]);
-    let f_lod = hbrdf_eval_texel(wi, wo, hbrdf_texel_lod({ARGS}, uv, {LOD}));
-    let f_grad = hbrdf_eval_texel(wi, wo, hbrdf_texel_grad({ARGS}, uv, {DX}, {DY}));
+    if (i >= arrayLength(&pairs) / 11u) {{ return; }}
+    let uv = vec2f(pairs[11u * i], pairs[11u * i + 1u]);
+    let wi = vec3f(pairs[11u * i + 2u], pairs[11u * i + 3u], pairs[11u * i + 4u]);
+    let wo = vec3f(pairs[11u * i + 5u], pairs[11u * i + 6u], pairs[11u * i + 7u]);
+    let lod = pairs[11u * i + 8u];
+    let dx = vec2f(pairs[11u * i + 9u], 0.0);
+    let dy = vec2f(0.0, pairs[11u * i + 10u]);
+    let f_lod = hbrdf_eval_texel(wi, wo, hbrdf_texel_lod({ARGS}, uv, lod));
+    let f_grad = hbrdf_eval_texel(wi, wo, hbrdf_texel_grad({ARGS}, uv, dx, dy));
     out[6u * i] = f_lod.x; out[6u * i + 1u] = f_lod.y; out[6u * i + 2u] = f_lod.z;
     out[6u * i + 3u] = f_grad.x; out[6u * i + 4u] = f_grad.y; out[6u * i + 5u] = f_grad.z;
 }}
@@ -206,12 +209,14 @@ def _dispatch(kernel: str, entries, inputs: np.ndarray, out_bytes: int, constant
     floats, 1 the output, then ``entries`` (sampler, textures); returns the output as float32."""
     import wgpu
 
-    from slang_wgsl_tools import wgpu_device, wgsl_errors
+    from slang_wgsl_tools import wgpu_device
 
     device = wgpu_device()
-    errors = wgsl_errors(kernel)
-    assert errors is None, errors[-3000:]
-    compute_stage = {"module": device.create_shader_module(code=kernel), "entry_point": "main"}
+    try:  # one module: naga parses and validates the kernel once (slang_wgsl_tools.run_wgsl's way)
+        module = device.create_shader_module(code=kernel)
+    except wgpu.GPUValidationError as e:
+        raise AssertionError(str(e)[-3000:]) from None
+    compute_stage = {"module": module, "entry_point": "main"}
     if constants:
         compute_stage["constants"] = constants
     pipeline = device.create_compute_pipeline(layout="auto", compute=compute_stage)
@@ -285,9 +290,11 @@ def map_params(code: str):
 
 
 def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_textures: bool,
-                      levels: int = 1, lod: int = 0) -> np.ndarray:
-    """The generated WGSL's hbrdf_texel_lod (level ``lod``) and hbrdf_texel_grad (derivatives of 2^lod
-    texels along u and v: the same level) with hbrdf_eval_texel, in a compute kernel on lavapipe: the
+                      levels: int = 1, lod=0) -> np.ndarray:
+    """The generated WGSL's hbrdf_texel_lod (level ``lod``: one for all pairs, or one per pair) and
+    hbrdf_texel_grad (derivatives of 2^lod texels along u and v: the same level) with hbrdf_eval_texel,
+    in a compute kernel on lavapipe: the lod and the derivatives are inputs of the kernel, not literals,
+    so that pairs at several levels cost one pipeline (lavapipe compiling it is most of a call's time). The
     folder's STORED 8-bit maps uploaded as rgba8unorm textures (rgba8unorm-srgb for sRGB maps where
     ``srgb_textures``; the kernel's HBRDF_SRGB_TEXTURES override set to match) with the folder's own
     mip chain where its index has one, else ``levels`` levels of :func:`mip_chain`, one linear sampler with a nearest mip filter and the index's
@@ -303,8 +310,9 @@ def run_wgsl_textured(code: str, folder: pathlib.Path, pairs: np.ndarray, srgb_t
     params = map_params(code)
     textures = "\n".join(f"@group(0) @binding({3 + j}) var {p}: texture_2d<f32>;" for j, p in enumerate(params))
     w, h = index["size"]
-    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]), LOD=f"{lod:.1f}",
-                                       DX=f"vec2f({2 ** lod / w!r}, 0.0)", DY=f"vec2f(0.0, {2 ** lod / h!r})")
+    kernel = code + WGSL_KERNEL.format(TEXTURES=textures, ARGS=", ".join(params + ["map_sampler"]))
+    lods = np.broadcast_to(np.asarray(lod, np.float64), (len(pairs),))
+    pairs = np.concatenate([pairs, lods[:, None], (2.0 ** lods / w)[:, None], (2.0 ** lods / h)[:, None]], 1)
     address = "repeat" if index["addressing"] == "repeat" else "clamp-to-edge"
     sampler = wgpu_device().create_sampler(address_mode_u=address, address_mode_v=address, mag_filter="linear",
                                            min_filter="linear", mipmap_filter="nearest")
