@@ -6,12 +6,15 @@
 // the tracer's deterministic direct-light mode (max_depth 1, pixel_jitter 0, a black environment).
 //
 //   hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]...
-//                [--texture MAP.hbtx]... [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]
+//                [--texture MAP.hbtx|MAP.ktx2]... [--clamp] [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]
 //
 // The scene is read by the tracer's own loader (hybridbrdf_render). --model-material names, in
 // order, the scene materials the fragment shader evaluates as constants of the generated code
 // (cases 1, 2, ...); the others draw as f_a with their parameters (case 0). --texture names, in
-// binding order (3, 4, ...), the maps of a textured material (textures.hpp). --gltf-slots: how many
+// binding order (3, 4, ...), the maps of a textured material (textures.hpp): an HBTX file carries
+// its addressing, a KTX2 file (uploaded as stored: its chain, its format, BC blocks decoded by the
+// texture unit) is sampled with repeat addressing, or clamp to edge with --clamp (the folder's
+// "addressing"; hbrdf raster passes it). --gltf-slots: how many
 // glTF texture samplers the fragment shader declares after those bindings; the scene's glTF
 // textures fill them in slot order (frame_scene.hpp), 1 x 1 white textures the rest (more glTF
 // textures than slots is refused). Spheres are tessellated
@@ -51,12 +54,12 @@ struct Args {
     std::string scene, vert, frag, out, png;
     std::vector<std::string> model_materials, textures;
     int sphere_segments = 512, repeat = 0, gltf_slots = 0;
-    bool validation = false;
+    bool validation = false, clamp = false;
 };
 
 const char* kUsage =
     "usage: hbrdf_raster SCENE.json VERT.spv FRAG.spv --out OUT.exr [--png OUT.png] [--model-material NAME]... "
-    "[--texture MAP.hbtx]... [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]";
+    "[--texture MAP.hbtx|MAP.ktx2]... [--clamp] [--gltf-slots S] [--sphere-segments 512] [--validation] [--repeat R]";
 
 int parse_int(const char* flag, const char* text, int lo, int hi) {
     char* end = nullptr;
@@ -74,6 +77,7 @@ Args parse(int argc, char** argv) {
         const std::string s = argv[i];
         const bool has_value = i + 1 < argc;
         if (s == "--validation") a.validation = true;
+        else if (s == "--clamp") a.clamp = true;
         else if (s == "--out" && has_value) a.out = argv[++i];
         else if (s == "--png" && has_value) a.png = argv[++i];
         else if (s == "--model-material" && has_value) a.model_materials.push_back(argv[++i]);
@@ -152,7 +156,7 @@ int run(int argc, char** argv) {
     int status = 0;
     {
         std::vector<Texture> textures;
-        for (const std::string& path : a.textures) textures.push_back(load_texture(device, path));
+        for (const std::string& path : a.textures) textures.push_back(load_texture(device, path, Sampling{a.clamp, false}));
         for (const render::GltfTexture& t : fs.gltf_textures) textures.push_back(upload_gltf_texture(device, t));
         for (std::size_t k = fs.gltf_textures.size(); k < std::size_t(a.gltf_slots); ++k) textures.push_back(blank_texture(device));
         FramePipeline pipe(device, width, height, vert, frag, uint32_t(textures.size()));

@@ -17,7 +17,7 @@ from typing import Dict, Optional, Union
 from hybridbrdf.inputs import refuse_output_over_input
 from hybridbrdf.raster.shaders import build_frame_shaders, frame_plan
 from hybridbrdf.raster.sizes import LAVAPIPE_ICD, SPHERE_SEGMENTS
-from hybridbrdf.raster.textures import write_textures
+from hybridbrdf.raster.textures import texture_args
 
 PathLike = Union[str, os.PathLike]
 
@@ -91,9 +91,8 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
             args += ["--model-material", name]
         args += ["--gltf-slots", str(plan.gltf_slots)] if plan.gltf_slots else []
         if plan.textured is not None:
-            for path in write_textures(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
-                                                          "normal": plan.normal}, folder):
-                args += ["--texture", str(path)]
+            args += texture_args(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
+                                                 "normal": plan.normal}, folder)
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:
         # The tool's own line; the validation layer's messages (multi-line dumps) come before it.
