@@ -68,8 +68,15 @@ CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "
                   "--enable-webgl", "--ignore-gpu-blocklist", "--enable-logging=stderr", "--v=0",
                   "--virtual-time-budget=20000", "--disable-dev-shm-usage", "--no-first-run", NO_NAMES]
 #: The same without virtual time, for the browser the tests drive over DevTools (view_harness): the
-#: page is read once its title says it is done.
-BROWSER_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-budget")]
+#: page is read once its title says it is done. --disable-gpu-compositing: the browser composites the
+#: tab's frames in software; WebGL2 still draws on SwiftShader and the tests read its pixels with
+#: readPixels, so no picture changes (a textured page's readback: the same bytes with and without),
+#: but the GPU process no longer compiles the compositor's shaders at start (2.4-2.6 -> 1.0-1.1 s of
+#: its CPU) nor composites each frame of the page, which a loaded machine made the load wait for:
+#: test_view_svbrdf.py 73.8 -> 71.4 s of CPU, 208 -> 137 s wall (back to back, 2 cores at load 17-20,
+#: 2026-11-29). The WebGPU tests keep GPU compositing (test_view_webgpu.WEBGPU_FLAGS: the canvas's
+#: swap chain is shared with the compositor).
+BROWSER_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-budget")] + ["--disable-gpu-compositing"]
 
 
 def chromium():

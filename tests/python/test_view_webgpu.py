@@ -41,7 +41,7 @@ from hybridbrdf.viewer.scene import tracer_scene
 from hybridbrdf.codegen.main import generate
 from hybridbrdf.model.file import load_model
 import view_harness
-from test_view import (CHROMIUM_FLAGS, ENV_SIZE, ENV_STATE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE,
+from test_view import (BROWSER_FLAGS, CHROMIUM_FLAGS, ENV_SIZE, ENV_STATE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE,
                        assert_matches_tracer, chromium, env_state, interior_mask, mad, needs_renderer, page, page_state,
                        read_state, shared_page_state, shared_tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
@@ -223,7 +223,7 @@ def test_webgpu_compile_error_one_line(webgpu, page, tmp_path):
 
 #: Chromium without WebGPU, read over DevTools once the page has said ok or an error: --dump-dom's
 #: virtual time budget can end while the adapter request is still pending on a loaded machine.
-NO_WEBGPU_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-budget")]
+NO_WEBGPU_FLAGS = BROWSER_FLAGS  # test_view's browser (one chromium for both modules)
 
 
 def test_without_webgpu(page):
