@@ -67,7 +67,9 @@ stage_sanitizers() {
   # 3.5x longer (cpp_unit_tests 50 s of CPU against 14), which eats the saving on 2 cores. The cold
   # sources (the JSON readers and doctest's runner: CMakeLists.txt, HBRDF_SANITIZE_COLD_OPTIONS) are
   # compiled at -Og, still instrumented: 311 s of CPU for the build against 389 s, and the tests'
-  # CPU unchanged (X1 under load, back to back, 2026-11-29; docs/CONVENTIONS.md, "Testing").
+  # CPU unchanged (X1 under load, back to back, 2026-11-29; docs/CONVENTIONS.md, "Testing"). Since
+  # then they are batched in one object per target, and they and the renderer tests' sources take
+  # ASan's checks as calls (HBRDF_SANITIZE_TEST_OPTIONS): nlohmann's parser is instrumented once a target.
   # Without ccache: nothing else compiles these objects (and another clone's paths differ), so on a
   # fresh clone every compile would be a miss, paying ccache's preprocessor pass on top (the stage
   # took 521 s of CPU through a cold ccache against 391 s without, one run each under load).

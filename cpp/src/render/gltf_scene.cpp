@@ -38,11 +38,6 @@ std::uint32_t le32(const unsigned char* p) {
     return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
 }
 
-std::string lower(std::string s) {
-    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
-
 // The asset in memory: its JSON and, for a GLB, where the BIN chunk lies in `bytes`.
 struct Asset {
     std::string path, folder;
@@ -151,7 +146,7 @@ void check_buffers(const SceneReader& r, Asset& a, std::vector<std::uint64_t>& l
             continue;
         }
         const std::string uri = r.string(b.at("uri"), w + ".uri");
-        if (lower(uri.substr(0, 5)) == "data:") {
+        if (ascii_lower(uri.substr(0, 5)) == "data:") {
             const std::size_t comma = uri.find(',');
             if (comma == std::string::npos || uri.rfind(";base64", comma) == std::string::npos)
                 r.fail(w + ".uri", "a data: URI must be base64");
@@ -452,7 +447,7 @@ GltfAsset read_gltf(const std::string& path) {
         a.bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     }
     a.glb = a.bytes.size() >= 4 && le32(reinterpret_cast<const unsigned char*>(a.bytes.data())) == kGlbMagic;
-    if (a.glb || lower(path.substr(path.size() >= 4 ? path.size() - 4 : 0)) == ".glb") {
+    if (a.glb || ascii_lower(path.substr(path.size() >= 4 ? path.size() - 4 : 0)) == ".glb") {
         a.glb = true;
         split_glb(r, a);
     } else {

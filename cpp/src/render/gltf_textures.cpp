@@ -88,11 +88,6 @@ namespace hbrdf::render::detail {
 
 namespace {
 
-std::string lower(std::string s) {
-    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
-
 const char* signature_type(const std::string& bytes) {
     static const unsigned char png[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
     if (bytes.size() >= 8 && std::memcmp(bytes.data(), png, 8) == 0) return "image/png";
@@ -173,7 +168,7 @@ std::string GltfImages::encoded(const json& im, const std::string& w, std::strin
         return buffers_.at(b).substr(offset, length);
     }
     const std::string uri = r_.string(im.at("uri"), w + ".uri");
-    if (lower(uri.substr(0, 5)) == "data:") {
+    if (ascii_lower(uri.substr(0, 5)) == "data:") {
         const std::size_t comma = uri.find(',');
         if (comma == std::string::npos || uri.rfind(";base64", comma) == std::string::npos)
             r_.fail(w + ".uri", "a data: URI must be base64");

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <cctype>
 #include <cfloat>
 #include <climits>
 #include <cmath>
@@ -243,5 +244,12 @@ GltfAsset read_gltf(const std::string& path);
 /// Turns `mesh`'s tangents by `angle` about their vertex normals, toward the bitangent w n x t. False (the mesh
 /// unchanged) when it has no tangents or no vertex normals.
 bool rotate_tangents(TriangleMesh& mesh, float angle);
+
+/// `s` with its ASCII letters in lower case (glTF's URI schemes and file extensions are
+/// case-insensitive).
+inline std::string ascii_lower(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
 
 }  // namespace hbrdf::render::detail
