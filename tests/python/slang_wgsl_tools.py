@@ -24,7 +24,7 @@ from typing import Optional
 import numpy as np
 import pytest
 
-from helpers import LVP_ICD, skip_without_vulkan
+from helpers import LAVAPIPE_ENV, skip_without_vulkan
 
 SLANGTORCH_PIN = "slangtorch==1.3.22"
 WGPU_PIN = "wgpu==0.32.0"
@@ -104,7 +104,7 @@ def wgpu_device():
     """A wgpu device on lavapipe (the Vulkan backend only, the CPU adapter), made once."""
     global _DEVICE
     if _DEVICE is None:
-        os.environ["VK_DRIVER_FILES"] = LVP_ICD  # before wgpu makes its instance
+        os.environ.update(LAVAPIPE_ENV)  # before wgpu makes its instance (lavapipe reads GALLIVM_PERF once)
         if not os.environ.get("XDG_RUNTIME_DIR"):  # silences libwayland's probe on stderr
             os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="hbrdf-xdg-")
         import wgpu

@@ -15,7 +15,7 @@ from typing import List, Sequence
 
 import numpy as np
 
-from helpers import LVP_ICD, RUNNER, compile_spirv
+from helpers import LAVAPIPE_ENV, RUNNER, compile_spirv
 
 #: Per pair 9 floats in: uv, wi, wo and the level of detail; 6 out: f through hbrdf_texel_lod(lod),
 #: then through hbrdf_texel_grad with derivatives of 2^lod texels along u and v (the same level).
@@ -133,7 +133,7 @@ def run(spv: pathlib.Path, textures: Sequence[pathlib.Path], pairs: np.ndarray, 
     argv += (["--separate-sampler"] if separate_sampler else []) + (["--clamp"] if clamp else []) + \
         (["--nearest-mip"] if nearest_mip else []) + (["--repeat", str(repeat)] if repeat else []) + \
         (["--validation"] if validation else []) + list(extra)
-    r = subprocess.run(argv, capture_output=True, text=True, env=dict(os.environ, VK_DRIVER_FILES=LVP_ICD))
+    r = subprocess.run(argv, capture_output=True, text=True, env=dict(os.environ, **LAVAPIPE_ENV))
     if check:
         assert r.returncode == 0, r.stderr[-3000:]
     got = np.fromfile(out, np.float32).reshape(n, 6) if r.returncode == 0 else None
