@@ -5,7 +5,7 @@ for the hybrid materials of one or more models, on the same scene, as ratios fro
     python bench/raster_frame.py [--models results/rgl54_hybrid_32x2.safetensors results/rgl54_fast.safetensors]
                                  [--material paper_white_rgb.rgl] [--repeat 3] [--rounds 3] [--lights 2]
                                  [--forms per-pixel] [--width 1280 --height 720] [--sphere-segments 256]
-                                 [--tool build/hbrdf_raster] [--device lavapipe|any] [--svbrdf DIR]
+                                 [--tool build/hbrdf_raster] [--device lavapipe|any] [--svbrdf DIR...]
 
 The scene: a sphere (radius 1) on a plane (size 6) filling most of the frame, both of the model's
 material, lit by --lights lights (1: one point; 2: a point and a directional; 4: two of each), one
@@ -14,8 +14,10 @@ BRDF evaluation per covered pixel and light. "f_a only" draws the same material 
 drawn in each of --forms: "generic" (hbrdf_eval per light, the generated code's generic form) and
 "per-pixel" (hbrdf_pixel once per pixel, hbrdf_eval_pixel per light: the latent and wo terms of the
 first layer, and the energy scale at wo.z, shared by the lights). --svbrdf adds a row per light count
-for a textured folder (hbrdf paint) on both objects: its maps through samplers, every texel's layers of positive
-weight evaluated.
+for each textured folder given (hbrdf paint) on both objects: its maps through samplers, every texel's layers of
+positive weight evaluated; the row names the maps' formats (a KTX2 folder's as stored, uploaded as such), and a
+last table gives each folder's frame against the first folder's (e.g. a PNG folder and the same material
+painted with --format ktx2).
 
 Timing: each row is drawn --rounds times, the rows interleaved round by round (so that the machine's
 load falls on all of them alike), each time the best of --repeat frames after one warm-up (host
@@ -65,6 +67,21 @@ def arch(model: str) -> str:
     return f"{a['width']}x{a['depth']}"
 
 
+def map_formats(folder: str) -> str:
+    """The folder's name and its maps' storage: "png", "exr", or each KTX2 map's format."""
+    from hybridbrdf.svbrdf.ktx2 import read_ktx2
+    index = json.loads((pathlib.Path(folder) / "svbrdf.json").read_text())
+    names = []
+    for entry in index["maps"]:
+        ext = os.path.splitext(entry["file"])[1].lower()
+        if ext == ".ktx2":
+            names.append(f"{entry['quantity']} {read_ktx2(os.path.join(folder, entry['file'])).name.removesuffix('_BLOCK')}")
+        elif ext[1:] not in names:
+            names.append(ext[1:])
+    levels = index.get("levels", 1)
+    return f"{os.path.basename(os.path.abspath(folder))}: {', '.join(names)}; {levels} level(s)"
+
+
 def rows_of(args, models) -> list:
     """(label, model, evaluate, lights, per_pixel) of every row: for each light count f_a first, then the
     hybrid rows in each form, then the textured folder's."""
@@ -75,9 +92,8 @@ def rows_of(args, models) -> list:
             for form in args.forms:
                 rows.append((f"hybrid {arch(m)} ({os.path.basename(m)}), {form}, {lights} light(s)", m, "full", lights,
                              form == "per-pixel"))
-        if args.svbrdf:
-            name = os.path.basename(os.path.abspath(args.svbrdf))
-            rows.append((f"textured ({name}), {lights} light(s)", args.svbrdf, "textured", lights, True))
+        for folder in args.svbrdf or []:
+            rows.append((f"textured ({map_formats(folder)}), {lights} light(s)", folder, "textured", lights, True))
     return rows
 
 
@@ -99,7 +115,7 @@ def parse_args():
     ap.add_argument("--tool", default=os.environ.get("HBRDF_RASTER", str(ROOT / "build" / "hbrdf_raster")))
     ap.add_argument("--device", choices=["lavapipe", "any"], default="lavapipe",
                     help="lavapipe: pin Mesa's CPU driver; any: the Vulkan loader's choice (a GPU first)")
-    ap.add_argument("--svbrdf", help="a textured material's folder (hbrdf paint) for one more row per light count")
+    ap.add_argument("--svbrdf", nargs="+", help="textured materials' folders (hbrdf paint): one more row each per light count")
     return ap.parse_args()
 
 
@@ -130,6 +146,13 @@ def main() -> int:
         gpu = s.get("best_gpu_ms", float("nan"))
         print(f"{label:72s} {s['best_ms']:8.1f} {gpu:9.1f} {s['best_cpu_ms']:8.1f} "
               f"{s['best_ms'] / base['best_ms']:12.2f} {s['best_cpu_ms'] / base['best_cpu_ms']:11.2f}")
+    for lights in args.lights if args.svbrdf and len(args.svbrdf) > 1 else []:
+        textured = [label for label, _, evaluate, n, _ in rows if evaluate == "textured" and n == lights]
+        first = best[textured[0]]
+        for label in textured[1:]:
+            s = best[label]
+            print(f"{label} / the first folder's frame: host {s['best_ms'] / first['best_ms']:.2f}x, "
+                  f"CPU {s['best_cpu_ms'] / first['best_cpu_ms']:.2f}x")
     return 0
 
 

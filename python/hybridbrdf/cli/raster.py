@@ -19,7 +19,8 @@ def add_parser(sub) -> None:
                     "materials in the fragment stage, its point and directional lights summed per pixel. No "
                     "shadows, no environment light, one sample at each pixel centre: the tracer's direct-light "
                     "picture (max_depth 1, pixel_jitter 0, shadows 0). Analytic, model and textured materials (one "
-                    "textured folder of 8-bit PNG maps, its maps through samplers); measured materials are refused.")
+                    "textured folder of PNG, EXR or KTX2 maps, its maps through samplers with its mip chain, KTX2 "
+                    "blocks as stored); measured materials are refused.")
     p.add_argument("scene", help="scene file (JSON, docs/RENDERING.md)")
     p.add_argument("--out", required=True, help="linear OpenEXR output (float32 RGB)")
     p.add_argument("--png", help="also an 8-bit sRGB PNG (values clipped to [0, 1])")
