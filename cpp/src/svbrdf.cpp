@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -347,6 +348,72 @@ void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* 
     }
 }
 
+AnisotropicProbes anisotropic_probes(const TexelFootprint& fp, int width, int height) {
+    const double ax = double(fp.duv_dx.x) * width, ay = double(fp.duv_dx.y) * height;
+    const double bx = double(fp.duv_dy.x) * width, by = double(fp.duv_dy.y) * height;
+    double p_max = std::sqrt(ax * ax + ay * ay), p_min = std::sqrt(bx * bx + by * by);
+    Vec2<float> major = fp.duv_dx;
+    if (p_min > p_max) std::swap(p_max, p_min), major = fp.duv_dy;
+    AnisotropicProbes out;
+    if (!std::isfinite(p_max) || !std::isfinite(p_min)) {  // a degenerate hit: the coarsest level
+        out.lod = std::numeric_limits<float>::infinity();
+        return out;
+    }
+    const double count = std::clamp(std::ceil(p_max / std::max(p_min, 1.0)), 1.0, double(std::max(fp.max_probes, 1)));
+    out.count = int(count);
+    out.lod = float(std::log2(std::max(std::max(p_min, p_max / count), 1e-300)));
+    out.step = Vec2<float>(float(double(major.x) / count), float(double(major.y) / count));
+    return out;
+}
+
+void Svbrdf::texel(const Vec2<float>& uv, TexelFilter filter, const TexelFootprint& footprint, Texel* out) const {
+    if (mips_.empty()) return texel(uv, filter, out);
+    texel_probes(uv, filter, anisotropic_probes(footprint, width_, height_), out);
+}
+
+void Svbrdf::texel_probes(const Vec2<float>& uv, TexelFilter filter, const AnisotropicProbes& probes, Texel* out) const {
+    if (probes.count <= 1) return texel(uv, filter, probes.lod, out);
+    const int L = layer_count();
+    const std::size_t l = std::size_t(model_->latent_dim());
+    // Per layer: the sum of its weights, and of its values times the weight (kd 3, eta 3, sqrt
+    // alpha 2, latent l), in double; the normal's x, y summed.
+    double w_sum[spec::kSvbrdfMaxLayers] = {};
+    double sums[spec::kSvbrdfMaxLayers * (8 + spec::kMaxLatent)] = {};
+    double nx = 0.0, ny = 0.0;
+    Texel t;
+    for (int p = 0; p < probes.count; ++p) {
+        const double s = (p + 0.5) - 0.5 * probes.count;  // probe offsets, in steps, symmetric about uv
+        const Vec2<float> at(float(uv.x + s * probes.step.x), float(uv.y + s * probes.step.y));
+        texel(at, filter, probes.lod, &t);
+        nx += t.normal_xy.x, ny += t.normal_xy.y;
+        for (int k = 0; k < L; ++k) {
+            const TexelLayer& tl = t.layers[k];
+            const double w = tl.weight;
+            if (!(w > 0.0)) continue;
+            w_sum[k] += w;
+            double* v = &sums[std::size_t(k) * (8 + l)];
+            for (int c = 0; c < 3; ++c) v[c] += w * tl.params.kd[c], v[3 + c] += w * tl.params.eta[c];
+            for (int c = 0; c < 2; ++c) v[6 + c] += w * std::sqrt(double(tl.params.alpha[c]));
+            for (std::size_t c = 0; c < l; ++c) v[8 + c] += w * t.latent[std::size_t(k) * l + c];
+        }
+    }
+    const double inv = 1.0 / probes.count;
+    *out = t;  // n_layers, materials, has_normal
+    out->normal_xy = Vec2<float>(float(nx * inv), float(ny * inv));
+    for (int k = 0; k < L; ++k) {
+        TexelLayer& o = out->layers[k];
+        o.material = layers_[std::size_t(k)].material;
+        o.latent = out->latent + std::size_t(k) * l;
+        o.weight = float(w_sum[k] * inv);
+        if (!(w_sum[k] > 0.0)) continue;  // weight 0 over the footprint: not evaluated
+        const double* v = &sums[std::size_t(k) * (8 + l)];
+        const double iw = 1.0 / w_sum[k];
+        for (int c = 0; c < 3; ++c) o.params.kd[c] = float(v[c] * iw), o.params.eta[c] = float(v[3 + c] * iw);
+        for (int c = 0; c < 2; ++c) o.params.alpha[c] = float((v[6 + c] * iw) * (v[6 + c] * iw));
+        for (std::size_t c = 0; c < l; ++c) out->latent[std::size_t(k) * l + c] = float(v[8 + c] * iw);
+    }
+}
+
 Vec3<float> Svbrdf::eval(const Vec2<float>& uv, TexelFilter filter, float lod, const Vec3<float>& wi, const Vec3<float>& wo) const {
     Texel t;
     texel(uv, filter, lod, &t);
@@ -372,28 +439,42 @@ Vec2<float> Svbrdf::normal_xy(const Vec2<float>& uv, TexelFilter filter, float l
 
 void Svbrdf::eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
                         float* f, const float* lod) const {
-    if (normal_.empty()) return eval_batch_local(n, uv, wi, wo, filter, f, lod);
+    eval_batch_any(n, uv, wi, wo, filter, f, lod, nullptr);
+}
+
+void Svbrdf::eval_batch_footprints(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
+                                   float* f, const TexelFootprint* footprints) const {
+    if (mips_.empty()) footprints = nullptr;  // no chain: level 0 everywhere
+    eval_batch_any(n, uv, wi, wo, filter, f, nullptr, footprints);
+}
+
+void Svbrdf::eval_batch_any(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
+                            float* f, const float* lod, const TexelFootprint* footprints) const {
+    if (normal_.empty()) return eval_batch_local(n, uv, wi, wo, filter, f, lod, footprints);
     // A normal map: every pair's directions into its texel's shading frame first (the same lookup
     // and arithmetic as texel() and eval_texel()), then the batched layers; the rule zeroes after.
     thread_local std::vector<float> rot_i, rot_o;
     thread_local std::vector<unsigned char> visible;
     rot_i.resize(3 * n), rot_o.resize(3 * n), visible.resize(n);
     const bool mips = lod && !mips_.empty();
+    Texel probed;  // the anisotropic lookup's normal: the mean of its probes'
     for (std::size_t i = 0; i < n; ++i) {
-        const Vec2<float> xy = normal_xy(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, mips ? lod[i] : 0.f);
+        const Vec2<float> at(uv[2 * i], uv[2 * i + 1]);
+        if (footprints) texel(at, filter, footprints[i], &probed);
+        const Vec2<float> xy = footprints ? probed.normal_xy : normal_xy(at, filter, mips ? lod[i] : 0.f);
         const ShadingFrame s = shading_frame(tangent_normal(xy.x, xy.y));
         const Vec3<float> a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         visible[i] = above_both_horizons(s, a, b);
         const Vec3<float> la = s.to_local(a), lb = s.to_local(b);
         for (int c = 0; c < 3; ++c) rot_i[3 * i + std::size_t(c)] = la[c], rot_o[3 * i + std::size_t(c)] = lb[c];
     }
-    eval_batch_local(n, uv, rot_i.data(), rot_o.data(), filter, f, lod);
+    eval_batch_local(n, uv, rot_i.data(), rot_o.data(), filter, f, lod, footprints);
     for (std::size_t i = 0; i < n; ++i)
         if (!visible[i]) std::fill(f + 3 * i, f + 3 * i + 3, 0.f);
 }
 
 void Svbrdf::eval_batch_local(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
-                              float* f, const float* lod) const {
+                              float* f, const float* lod, const TexelFootprint* footprints) const {
     const int L = layer_count();
     const std::size_t l = std::size_t(model_->latent_dim());
     // Per layer, the pairs where it has positive weight, and for a layer with maps its texel values
@@ -428,12 +509,16 @@ void Svbrdf::eval_batch_local(std::size_t n, const float* uv, const float* wi, c
         run_layer = -1;
     };
     double w[spec::kSvbrdfMaxLayers];
-    if (mips_.empty()) lod = nullptr;
+    if (mips_.empty()) lod = nullptr, footprints = nullptr;
     Texel trilinear;
     for (std::size_t i = 0; i < n; ++i) {
-        if (lod && lod[i] > 0.f) {  // between two levels: every layer of positive weight, its values
+        // Several probes, or one between two levels: every layer of positive weight, its values.
+        // One probe at lod <= 0 is level 0 at uv: the path below, bit for bit.
+        const AnisotropicProbes probes = footprints ? anisotropic_probes(footprints[i], width_, height_) : AnisotropicProbes{};
+        if (footprints ? probes.count > 1 || probes.lod > 0.f : lod && lod[i] > 0.f) {
             close_run(i);
-            texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, lod[i], &trilinear);
+            if (footprints) texel_probes(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, probes, &trilinear);
+            else texel(Vec2<float>(uv[2 * i], uv[2 * i + 1]), filter, lod[i], &trilinear);
             for (int k = 0; k < L; ++k) {
                 const TexelLayer& tl = trilinear.layers[k];
                 if (!(tl.weight > 0.f)) continue;

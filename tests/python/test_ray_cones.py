@@ -36,12 +36,14 @@ def _camera(position, look_at):
 
 def _scene(folder, camera, plane_size, plane_center=(0, 0, 0), evaluate="full", **settings):
     """A textured plane y = 0 (normal +y) under a constant white environment, direct light by
-    cosine BSDF sampling alone: a Lambert texel of albedo kd returns kd exactly, per sample."""
+    cosine BSDF sampling alone: a Lambert texel of albedo kd returns kd exactly, per sample. The
+    ray cone's isotropic lookup ("anisotropic": 1; the anisotropic footprints' tests are
+    test_anisotropic_footprints.py)."""
     base = {"camera": camera, "environment": {"type": "constant", "radiance": [1, 1, 1]},
             "materials": {"tex": {"type": "textured", "svbrdf": str(folder), "evaluate": evaluate}},
             "objects": [{"type": "plane", "center": list(plane_center), "normal": [0, 1, 0], "tangent": [1, 0, 0],
                          "size": plane_size, "material": "tex"}],
-            "spp": SPP, "max_depth": 1, "nee": False, "sampler": "cosine", "seed": 7, "threads": 1}
+            "spp": SPP, "max_depth": 1, "nee": False, "sampler": "cosine", "seed": 7, "threads": 1, "anisotropic": 1}
     base.update(settings)
     return base
 

@@ -33,6 +33,30 @@ struct SvbrdfLayer {
     std::vector<float> latent;  ///< latent_dim() components
 };
 
+/// A pixel's footprint on the texture for an anisotropic lookup (docs/RENDERING.md, "Anisotropic
+/// footprints"): the uv derivatives along the pixel's x and y (uv units per pixel, as GLSL's
+/// textureGrad takes them) and the most probes along the footprint's major axis.
+struct TexelFootprint {
+    Vec2<float> duv_dx{0.f, 0.f}, duv_dy{0.f, 0.f};
+    int max_probes = 16;
+};
+
+/// How an anisotropic lookup reads the chain: `count` trilinear probes at level of detail `lod`,
+/// spaced `step` apart in uv along the major axis and centred on the footprint's uv.
+struct AnisotropicProbes {
+    int count = 1;
+    float lod = 0.f;
+    Vec2<float> step{0.f, 0.f};
+};
+
+/// The probes of a footprint on a W x H level 0 (GPU-style anisotropic filtering, as
+/// EXT_texture_filter_anisotropic describes it): with the derivatives' lengths in texels
+/// P_max >= P_min, count = min(max_probes, max(1, ceil(P_max / max(P_min, 1)))) probes spread
+/// evenly over the major axis, each at lod = log2(max(P_min, P_max / count)): the minor axis, raised
+/// where the cap leaves the probes farther apart than it. Lengths below a texel give one probe at
+/// lod <= 0 (level 0: magnification unchanged). Non-finite derivatives: one probe, lod +inf.
+AnisotropicProbes anisotropic_probes(const TexelFootprint& fp, int width, int height);
+
 /// The layers' values at one uv, ready for HybridModel::eval_texel, and its normal map's filtered
 /// tangent-space x, y (normal_map.hpp) when the material has one.
 struct Texel {
@@ -103,6 +127,13 @@ public:
     /// Python's SVBRDF.texels); lod clamped to the chain, lod <= 0 or NaN reads level 0. Every
     /// layer's values are read (a layer of weight 0 on one level may have weight on the other).
     void texel(const Vec2<float>& uv, TexelFilter filter, float lod, Texel* out) const;
+    /// The layers' values over a pixel's footprint (anisotropic_probes): the mean of its probes,
+    /// each texel(uv_k, filter, lod): every layer's weight averaged (a mean of BRDFs, exact: f is
+    /// linear in the weights), its kd, eta and latent code by the weight-weighted mean and its alpha
+    /// by that of sqrt(alpha), as the chain's levels are built (docs/SVBRDF.md, "Mip chains"), the
+    /// normal map's x, y by the mean. One probe is texel(uv, filter, lod) itself; a material
+    /// without a chain reads level 0 at uv.
+    void texel(const Vec2<float>& uv, TexelFilter filter, const TexelFootprint& footprint, Texel* out) const;
     /// f at a level of detail through HybridModel::eval_texel.
     Vec3<float> eval(const Vec2<float>& uv, TexelFilter filter, float lod, const Vec3<float>& wi, const Vec3<float>& wo) const;
     /// f for n pairs at once: uv (n, 2), wi, wo (n, 3) row-major, f (n, 3). Pairs on pure texels of
@@ -115,6 +146,10 @@ public:
     /// (texel(uv, filter, lod)) and join the per-layer lists; the others take the path above.
     void eval_batch(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f,
                     const float* lod = nullptr) const;
+    /// eval_batch with a footprint per pair (n, or nullptr: level 0), read by the anisotropic
+    /// texel(uv, filter, footprint); pairs of one probe at lod <= 0 take level 0's path.
+    void eval_batch_footprints(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter,
+                               float* f, const TexelFootprint* footprints) const;
     /// sum_k w_k f_a(p_k): the analytic part of the texel.
     Vec3<float> eval_analytic(const Vec2<float>& uv, TexelFilter filter, const Vec3<float>& wi,
                               const Vec3<float>& wo) const;
@@ -155,8 +190,14 @@ private:
     // The normal map's x, y at uv and lod (trilinear as texel(uv, filter, lod, out)).
     Vec2<float> normal_xy(const Vec2<float>& uv, TexelFilter filter, float lod) const;
     // eval_batch with the directions already in each pair's shading frame (no normal map: the same).
+    // With `footprints` (not nullptr) the anisotropic lookup replaces `lod`'s trilinear one.
     void eval_batch_local(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f,
-                          const float* lod) const;
+                          const float* lod, const TexelFootprint* footprints = nullptr) const;
+    // eval_batch's normal-map rotation, then eval_batch_local (lod or footprints).
+    void eval_batch_any(std::size_t n, const float* uv, const float* wi, const float* wo, TexelFilter filter, float* f,
+                        const float* lod, const TexelFootprint* footprints) const;
+    // The mean of the probes' texels (texel(uv, filter, footprint)'s arithmetic).
+    void texel_probes(const Vec2<float>& uv, TexelFilter filter, const AnisotropicProbes& probes, Texel* out) const;
     // Every layer's values when `all_layers` (the trilinear lookup mixes two levels' values).
     void texel_at(const Taps& t, Texel* out, bool all_layers = false) const;
 

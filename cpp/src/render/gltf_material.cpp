@@ -152,11 +152,11 @@ void GltfMaterial::eval(std::size_t n, const float* wi, const float* wo, float* 
     eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void GltfMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo,
+void GltfMaterial::eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo,
                            float* f, EvalMode) const {
     for (std::size_t i = 0; i < n; ++i) {
         const Vec2<float> at(uv[2 * i], uv[2 * i + 1]);
-        const float fp = footprint ? footprint[i] : kPointFootprint;
+        const float fp = footprint ? footprint[i].cone_log2 : kPointFootprint;  // glTF textures: the cone's lod
         Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         Vec3f v(0.0f);
         bool above = true;
@@ -170,22 +170,22 @@ void GltfMaterial::eval_at(std::size_t n, const float* uv, const float* footprin
     }
 }
 
-BrdfSample GltfMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
+BrdfSample GltfMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    const AnalyticBrdf proxy(params_at(uv, footprint));
+    const AnalyticBrdf proxy(params_at(uv, footprint.cone_log2));
     if (!normal_) return hbrdf::sample(s ? *s : Strategy::Cosine, proxy, wo, u);
-    const ShadingFrame fr = normal_->frame(uv, footprint);  // drawn in the shading frame; rotations keep solid angle
+    const ShadingFrame fr = normal_->frame(uv, footprint.cone_log2);  // drawn in the shading frame; rotations keep solid angle
     BrdfSample b = hbrdf::sample(s ? *s : Strategy::Cosine, proxy, fr.to_local(wo), u);
     b.wi = fr.to_world(b.wi);
     if (!above_both_horizons(fr, b.wi, wo)) b.pdf = 0.f;
     return b;
 }
 
-float GltfMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
+float GltfMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
-    const AnalyticBrdf proxy(params_at(uv, footprint));
+    const AnalyticBrdf proxy(params_at(uv, footprint.cone_log2));
     if (!normal_) return hbrdf::pdf(s ? *s : Strategy::Cosine, proxy, wi, wo);
-    const ShadingFrame fr = normal_->frame(uv, footprint);
+    const ShadingFrame fr = normal_->frame(uv, footprint.cone_log2);
     if (!above_both_horizons(fr, wi, wo)) return 0.f;
     return hbrdf::pdf(s ? *s : Strategy::Cosine, proxy, fr.to_local(wi), fr.to_local(wo));
 }
@@ -202,14 +202,14 @@ void NormalMappedMaterial::eval(std::size_t n, const float* wi, const float* wo,
     eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void NormalMappedMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi,
+void NormalMappedMaterial::eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi,
                                    const float* wo, float* f, EvalMode mode) const {
     // Every pair turned into its texel's shading frame, then one batch to the inner material (its
     // network runs batched); pairs below a horizon evaluate there too and are zeroed after.
     std::vector<float> a(3 * n), b(3 * n);
     std::vector<char> above(n);
     for (std::size_t i = 0; i < n; ++i) {
-        const ShadingFrame s = normal_.frame(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i] : kPointFootprint);
+        const ShadingFrame s = normal_.frame(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i].cone_log2 : kPointFootprint);
         const Vec3f x(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), y(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         above[i] = above_both_horizons(s, x, y);
         const Vec3f xs = s.to_local(x), ys = s.to_local(y);
@@ -220,16 +220,16 @@ void NormalMappedMaterial::eval_at(std::size_t n, const float* uv, const float* 
         if (!above[i]) f[3 * i] = f[3 * i + 1] = f[3 * i + 2] = 0.0f;
 }
 
-BrdfSample NormalMappedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
-    const ShadingFrame fr = normal_.frame(uv, footprint);
+BrdfSample NormalMappedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const {
+    const ShadingFrame fr = normal_.frame(uv, footprint.cone_log2);
     BrdfSample b = inner_->sample_at(fr.to_local(wo), u, uv, footprint);
     b.wi = fr.to_world(b.wi);
     if (!above_both_horizons(fr, b.wi, wo)) b.pdf = 0.f;
     return b;
 }
 
-float NormalMappedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
-    const ShadingFrame fr = normal_.frame(uv, footprint);
+float NormalMappedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const {
+    const ShadingFrame fr = normal_.frame(uv, footprint.cone_log2);
     if (!above_both_horizons(fr, wi, wo)) return 0.f;
     return inner_->pdf_at(fr.to_local(wi), fr.to_local(wo), uv, footprint);
 }

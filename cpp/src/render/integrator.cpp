@@ -43,7 +43,7 @@ struct Path {
 // What one path needs from its material at this bounce.
 struct Shading {
     SurfaceHit hit;
-    float footprint = kPointFootprint;  // log2 of the ray cone's width in uv units here (ray_cone.hpp)
+    Footprint footprint;  // where the hit reads its textures (ray_cone.hpp): a point past the camera ray
     Vec3f wo;                 // local
     Vec3f wi_light, light_radiance;
     float light_pdf = 0;
@@ -153,9 +153,7 @@ private:
                 // pinhole). Past the first bounce the footprint is a point, level 0: the BSDF lobe
                 // spreads the paths far wider than any cone, and Monte Carlo integration over it
                 // already averages the texels there (docs/RENDERING.md, "Texture footprints").
-                s.footprint = opt_.mip_lod && depth == 0
-                                  ? cone_footprint_log2(cone_spread_ * s.hit.t, dot(s.hit.ng, p.dir), s.hit.uv_scale_log2)
-                                  : kPointFootprint;
+                s.footprint = opt_.mip_lod && depth == 0 ? camera_footprint(p, s.hit) : Footprint();
                 s.light_ok = s.bsdf_ok = false;
                 s.f_light = s.f_bsdf = Vec3f(0.0f);
                 if (!(s.wo.z > 0.0f)) continue;  // shading normal turned away from the viewer: black
@@ -212,6 +210,34 @@ private:
             }
             paths_.resize(alive);
         }
+    }
+
+    // The texture footprint of a camera ray's hit (ray_cone.hpp): the cone's width, and with
+    // "anisotropic" >= 2 the pixel's two axes on the surface in uv from ray differentials (the ray's
+    // unnormalised direction D = dir / (dir . forward) steps by right x spread per pixel across,
+    // -up x spread down; spread is the cone's, so narrowed with spp like it) and the offset to the
+    // footprint's centre: pulled from the sample's point toward the pixel's centre by the footprint's
+    // share of the pixel, (0.5 - jitter) x spread / pixel_spread pixels, so that the footprints of
+    // uniformly jittered samples stay inside their pixel and at 1 spp the lookup is the pixel's own
+    // box (docs/RENDERING.md, "Anisotropic footprints").
+    Footprint camera_footprint(const Path& p, const SurfaceHit& hit) const {
+        Footprint fp;
+        fp.cone_log2 = cone_footprint_log2(cone_spread_ * hit.t, dot(hit.ng, p.dir), hit.uv_scale_log2);
+        if (opt_.anisotropic < 2 || !(fp.cone_log2 > kPointFootprint)) return fp;
+        const PinholeCamera& camera = scene_.camera;
+        const float cos_forward = dot(p.dir, camera.forward());
+        const Vec3f D = p.dir / cos_forward;
+        const float t_D = hit.t * cos_forward;
+        const Vec3f dp_dx = ray_differential_dp(D, t_D, camera.right() * cone_spread_, hit.ng);
+        const Vec3f dp_dy = ray_differential_dp(D, t_D, camera.up() * -cone_spread_, hit.ng);
+        fp.duv_dx = Vec2<float>(dot(hit.du_dp, dp_dx), dot(hit.dv_dp, dp_dx));
+        fp.duv_dy = Vec2<float>(dot(hit.du_dp, dp_dy), dot(hit.dv_dp, dp_dy));
+        fp.max_probes = opt_.anisotropic;
+        if (opt_.pixel_jitter) {
+            const PathRandom rng{opt_.seed, p.pixel, std::uint64_t(p.sample)};
+            fp.centre = fp.duv_dx * (0.5f - rng.camera(0)) + fp.duv_dy * (0.5f - rng.camera(1));
+        }
+        return fp;
     }
 
     // Next-event estimation toward every point and directional light: a direction above both the
@@ -312,7 +338,8 @@ private:
     std::vector<Shading> shading_;
     std::vector<char> hit_;
     const float cone_spread_;  // the camera cone's spread per unit distance (ray_cone.hpp)
-    std::vector<float> wi_, wo_, uv_, footprint_, f_;
+    std::vector<float> wi_, wo_, uv_, f_;
+    std::vector<Footprint> footprint_;
     std::vector<Vec3f*> slots_;
     std::vector<DeltaSample> deltas_;  // this bounce's delta-light samples, each path's a range
     std::vector<std::size_t> bucket_, cursor_, order_;  // the counting sort of evaluate()

@@ -108,41 +108,78 @@ void TexturedMaterial::eval(std::size_t n, const float* wi, const float* wo, flo
     eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void TexturedMaterial::texel_at(const Vec2<float>& uv, float footprint, Texel* out) const {
-    // lod <= 0 (magnified, or a point footprint: -inf) and a material without a chain read level 0.
-    svbrdf_->texel(uv, filter_, footprint + texels_log2_, out);
+namespace {
+
+// The texel of a footprint of `sv`: anisotropic (its probes about uv + centre) or the cone's
+// trilinear lookup (lod <= 0, magnified or a point footprint, and a material without a chain read
+// level 0 at uv).
+void footprint_texel(const Svbrdf& sv, TexelFilter filter, float texels_log2, const Vec2<float>& uv,
+                     const Footprint& footprint, Texel* out) {
+    if (!footprint.anisotropic() || sv.level_count() == 1) return sv.texel(uv, filter, footprint.cone_log2 + texels_log2, out);
+    sv.texel(uv + footprint.centre, filter, TexelFootprint{footprint.duv_dx, footprint.duv_dy, footprint.max_probes}, out);
 }
 
-void TexturedMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo,
+// The footprint sample_at and pdf_at read: any density whose value is known keeps the estimator
+// unbiased, so with anisotropic footprints the draw uses the cone's isotropic texel (one trilinear
+// lookup against up to N probes' worth) and only f, eval_at, reads the anisotropic one. Not with a
+// normal map: its frame decides where the draw can land, and f must be drawn wherever it is not 0.
+Footprint sampling_footprint(const Svbrdf& sv, const Footprint& footprint) {
+    if (!footprint.anisotropic() || sv.has_normal_map()) return footprint;
+    Footprint cone = footprint;
+    cone.max_probes = 1;
+    return cone;
+}
+
+}  // namespace
+
+void TexturedMaterial::texel_at(const Vec2<float>& uv, const Footprint& footprint, Texel* out) const {
+    footprint_texel(*svbrdf_, filter_, texels_log2_, uv, footprint, out);
+}
+
+void TexturedMaterial::eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo,
                                float* f, EvalMode mode) const {
     const bool analytic = analytic_only_ || mode == EvalMode::Analytic;
     const bool mips = footprint && svbrdf_->level_count() > 1;
     if (!analytic) {
         if (!mips) return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f);
+        // "anisotropic" is one setting for the whole render: a batch holds anisotropic footprints
+        // and points (hits without a uv scale), which read level 0 (zero derivatives: one probe).
+        if (std::any_of(footprint, footprint + n, [](const Footprint& fp) { return fp.anisotropic(); })) {
+            thread_local std::vector<float> centred;
+            thread_local std::vector<TexelFootprint> probes;
+            centred.resize(2 * n), probes.resize(n);
+            for (std::size_t i = 0; i < n; ++i) {
+                const Footprint& fp = footprint[i];
+                centred[2 * i] = uv[2 * i] + fp.centre.x, centred[2 * i + 1] = uv[2 * i + 1] + fp.centre.y;
+                probes[i] = fp.anisotropic() ? TexelFootprint{fp.duv_dx, fp.duv_dy, fp.max_probes} : TexelFootprint{};
+            }
+            return svbrdf_->eval_batch_footprints(n, centred.data(), wi, wo, filter_, f, probes.data());
+        }
         std::vector<float> lod(n);
-        for (std::size_t i = 0; i < n; ++i) lod[i] = footprint[i] + texels_log2_;
+        for (std::size_t i = 0; i < n; ++i) lod[i] = footprint[i].cone_log2 + texels_log2_;
         return svbrdf_->eval_batch(n, uv, wi, wo, filter_, f, lod.data());
     }
     Texel t;
+    const Footprint point;
     for (std::size_t i = 0; i < n; ++i) {
-        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), mips ? footprint[i] : kPointFootprint, &t);
+        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), mips ? footprint[i] : point, &t);
         const Vec3f a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), b(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
         const Vec3f v = Svbrdf::eval_analytic(t, a, b);
         f[3 * i] = v.x, f[3 * i + 1] = v.y, f[3 * i + 2] = v.z;
     }
 }
 
-BrdfSample TexturedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
+BrdfSample TexturedMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
     Texel t;
-    texel_at(uv, footprint, &t);
+    texel_at(uv, sampling_footprint(*svbrdf_, footprint), &t);
     return Svbrdf::sample(t, s ? *s : Strategy::Cosine, wo, u);
 }
 
-float TexturedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
+float TexturedMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
     Texel t;
-    texel_at(uv, footprint, &t);
+    texel_at(uv, sampling_footprint(*svbrdf_, footprint), &t);
     return Svbrdf::pdf(t, s ? *s : Strategy::Cosine, wi, wo);
 }
 
@@ -162,8 +199,8 @@ MeasuredMixtureMaterial::MeasuredMixtureMaterial(std::string name, std::vector<B
     texels_log2_ = texels_log2(*weights_);
 }
 
-void MeasuredMixtureMaterial::texel_at(const Vec2<float>& uv, float footprint, Texel* out) const {
-    weights_->texel(uv, filter_, footprint + texels_log2_, out);
+void MeasuredMixtureMaterial::texel_at(const Vec2<float>& uv, const Footprint& footprint, Texel* out) const {
+    footprint_texel(*weights_, filter_, texels_log2_, uv, footprint, out);
 }
 
 AnalyticParams MeasuredMixtureMaterial::base_params() const {
@@ -175,13 +212,13 @@ void MeasuredMixtureMaterial::eval(std::size_t n, const float* wi, const float* 
     eval_at(n, uv.data(), nullptr, wi, wo, f, mode);
 }
 
-void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi,
+void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi,
                                       const float* wo, float* f, EvalMode) const {
     const int L = weights_->layer_count();
     std::vector<float> w(n * std::size_t(L));
     Texel t;
     for (std::size_t i = 0; i < n; ++i) {
-        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i] : kPointFootprint, &t);
+        texel_at(Vec2<float>(uv[2 * i], uv[2 * i + 1]), footprint ? footprint[i] : Footprint(), &t);
         for (int k = 0; k < L; ++k) w[i * std::size_t(L) + std::size_t(k)] = t.layers[k].weight;
     }
     std::fill(f, f + 3 * n, 0.0f);
@@ -207,17 +244,17 @@ void MeasuredMixtureMaterial::eval_at(std::size_t n, const float* uv, const floa
 }
 
 BrdfSample MeasuredMixtureMaterial::sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv,
-                                              float footprint) const {
+                                              const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
     Texel t;
-    texel_at(uv, footprint, &t);
+    texel_at(uv, sampling_footprint(*weights_, footprint), &t);
     return Svbrdf::sample(t, s ? *s : Strategy::Cosine, wo, u);
 }
 
-float MeasuredMixtureMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
+float MeasuredMixtureMaterial::pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const {
     const std::optional<Strategy> s = sampler_strategy(sampler_kind());
     Texel t;
-    texel_at(uv, footprint, &t);
+    texel_at(uv, sampling_footprint(*weights_, footprint), &t);
     return Svbrdf::pdf(t, s ? *s : Strategy::Cosine, wi, wo);
 }
 

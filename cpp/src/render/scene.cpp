@@ -291,6 +291,7 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         const float phi = std::atan2(n.z, n.x);  // increases along the tangent
         hit->uv = Vec2<float>(phi * (0.5f * kInvPi<float>) + 0.5f, std::acos(std::clamp(n.y, -1.0f, 1.0f)) * kInvPi<float>);
         hit->uv_scale_log2 = sphere_uv_scale_log2(s.radius, std::sqrt(std::max(0.0f, 1.0f - n.y * n.y)));
+        sphere_uv_gradients(n, s.radius, &hit->du_dp, &hit->dv_dp);
     } else {
         const TriangleMesh& m = *meshes_[std::size_t(g.index)];
         const std::uint32_t* tri = &m.indices[3 * std::size_t(rh.hit.primID)];
@@ -307,10 +308,12 @@ bool Scene::intersect(const Vec3f& origin, const Vec3f& dir, SurfaceHit* hit, fl
         if (m.uvs.empty()) {
             hit->uv = Vec2<float>(0.0f);
             hit->uv_scale_log2 = kPointFootprint;
+            hit->du_dp = hit->dv_dp = Vec3f(0.0f);
         } else {
             const Vec2<float> &t0 = m.uvs[tri[0]], &t1 = m.uvs[tri[1]], &t2 = m.uvs[tri[2]];
             hit->uv = t0 * w + t1 * u + t2 * v;
             hit->uv_scale_log2 = triangle_uv_scale_log2(p0, p1, p2, t0, t1, t2);
+            triangle_uv_gradients(p0, p1, p2, t0, t1, t2, &hit->du_dp, &hit->dv_dp);
         }
         if (dot(ns, ng) < 0.0f) ns = -ns;  // files whose winding disagrees with their normals
     }

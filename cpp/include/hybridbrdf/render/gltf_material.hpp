@@ -117,10 +117,10 @@ public:
                  std::optional<GltfTexture> metallic_roughness, std::optional<GltfNormalTexture> normal);
     /// At uv (0, 0).
     void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+    void eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo, float* f,
                  EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const override;
     bool isotropic() const override { return isotropic_; }
     bool spatially_varying() const override { return true; }
     const char* type() const override { return "analytic"; }
@@ -151,10 +151,10 @@ class NormalMappedMaterial final : public Material {
 public:
     NormalMappedMaterial(std::string name, const Material* inner, GltfNormalTexture normal);
     void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+    void eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo, float* f,
                  EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const override;
     bool has_analytic_part() const override { return inner_->has_analytic_part(); }
     bool uses_network(EvalMode mode) const override { return inner_->uses_network(mode); }
     bool isotropic() const override { return false; }

@@ -25,6 +25,7 @@
 #include "hybridbrdf/model.hpp"
 #include "hybridbrdf/render/frame.hpp"
 #include "hybridbrdf/render/limits.hpp"
+#include "hybridbrdf/render/ray_cone.hpp"
 #include "hybridbrdf/sampling.hpp"
 #include "hybridbrdf/svbrdf.hpp"
 #include "hybridbrdf/tabulated.hpp"
@@ -81,11 +82,12 @@ public:
     /// local frame of docs/CONVENTIONS.md (+z normal, +x tangent; wi toward the
     /// light, wo toward the viewer), f (n, 3) RGB without the cosine. Thread-safe.
     virtual void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const = 0;
-    /// f at texture coordinates uv (n, 2; SurfaceHit::uv) and footprints (n floats, or nullptr for
-    /// points: log2 of each hit's ray-cone width in uv units, ray_cone.hpp; kPointFootprint or below
-    /// 0 texels reads level 0): a textured material reads its maps there, at level of detail
-    /// footprint + 0.5 log2(W H) of its mip chain; the others ignore both (this default calls eval).
-    virtual void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+    /// f at texture coordinates uv (n, 2; SurfaceHit::uv) and footprints (n, or nullptr for
+    /// points; ray_cone.hpp's Footprint): a textured material reads its maps there, at level of
+    /// detail cone_log2 + 0.5 log2(W H) of its mip chain (kPointFootprint or below 0 texels reads
+    /// level 0), or with an anisotropic footprint (max_probes >= 2) at uv + centre by
+    /// Svbrdf::texel(uv, filter, TexelFootprint); the others ignore both (this default calls eval).
+    virtual void eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo, float* f,
                          EvalMode mode) const {
         (void)uv, (void)footprint;
         eval(n, wi, wo, f, mode);
@@ -122,11 +124,11 @@ public:
     /// sample() and pdf() at texture coordinates uv and footprint (as eval_at's): a textured
     /// material draws from its texel's layers there, at the footprint's level of detail (the same
     /// texel eval_at reads); the others ignore both.
-    virtual BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const {
+    virtual BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const {
         (void)uv, (void)footprint;
         return sample(wo, u);
     }
-    virtual float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const {
+    virtual float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const {
         (void)uv, (void)footprint;
         return pdf(wi, wo);
     }
@@ -192,10 +194,10 @@ public:
     TexturedMaterial(std::string name, std::shared_ptr<const Svbrdf> svbrdf, TexelFilter filter, bool analytic_only);
     /// At uv (0, 0) (callers without texture coordinates).
     void eval(std::size_t n, const float* wi, const float* wo, float* f, EvalMode mode) const override;
-    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+    void eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo, float* f,
                  EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const override;
     bool has_analytic_part() const override { return !analytic_only_; }
     bool uses_network(EvalMode mode) const override { return !(analytic_only_ || mode == EvalMode::Analytic); }
     bool isotropic() const override { return isotropic_; }
@@ -211,7 +213,7 @@ private:
     bool analytic_only_, isotropic_;
     float texels_log2_;  // 0.5 log2(W H) of level 0: a footprint in uv units becomes a level of detail
     // The texel at uv and footprint (level 0 without a mip chain or for a point footprint).
-    void texel_at(const Vec2<float>& uv, float footprint, Texel* out) const;
+    void texel_at(const Vec2<float>& uv, const Footprint& footprint, Texel* out) const;
 };
 
 /// A measured reference behind a batched callback ({"type": "measured"}; the
@@ -248,10 +250,10 @@ public:
     /// non-finite values become 0 (as CallbackMaterial's), then the weighted sum in layer order.
     /// With a mip chain in the folder, the weights at the footprint's level of detail (averaged
     /// weights: the mean of the footprint's measured mixtures, exact).
-    void eval_at(std::size_t n, const float* uv, const float* footprint, const float* wi, const float* wo, float* f,
+    void eval_at(std::size_t n, const float* uv, const Footprint* footprint, const float* wi, const float* wo, float* f,
                  EvalMode mode) const override;
-    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, float footprint) const override;
-    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, float footprint) const override;
+    BrdfSample sample_at(const Vec3f& wo, const Vec2<float>& u, const Vec2<float>& uv, const Footprint& footprint) const override;
+    float pdf_at(const Vec3f& wi, const Vec3f& wo, const Vec2<float>& uv, const Footprint& footprint) const override;
     bool isotropic() const override { return isotropic_; }
     bool spatially_varying() const override { return true; }
     const char* type() const override { return "measured"; }
@@ -264,7 +266,7 @@ private:
     TexelFilter filter_;
     bool isotropic_;
     float texels_log2_;  // 0.5 log2(W H) of the folder's level 0
-    void texel_at(const Vec2<float>& uv, float footprint, Texel* out) const;
+    void texel_at(const Vec2<float>& uv, const Footprint& footprint, Texel* out) const;
 };
 
 }  // namespace hbrdf::render

@@ -54,6 +54,9 @@ struct SurfaceHit {
     /// log2 of uv units per world unit here, 0.5 log2(uv area / world area) (ray_cone.hpp): of the
     /// triangle hit, or of the sphere's uv map at the point; kPointFootprint where uv does not vary
     float uv_scale_log2 = kPointFootprint;
+    /// the gradients of u and v along the surface (world vectors: du = du_dp . dp for dp in the
+    /// tangent plane; ray_cone.hpp), zero where uv does not vary: the anisotropic footprint's
+    Vec3f du_dp{0.0f}, dv_dp{0.0f};
     int material = -1;
 };
 

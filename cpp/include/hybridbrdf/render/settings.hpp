@@ -35,6 +35,7 @@ struct RenderSettings {
     std::uint64_t seed = 0;
     int threads = 0;
     bool mip_lod = true;
+    int anisotropic = 16;
     bool shadows = true;
     bool pixel_jitter = true;
 };
@@ -85,6 +86,8 @@ inline constexpr SettingInfo kRenderSettings[] = {
     {"threads", &RenderSettings::threads, 0, kMaxThreads, "worker threads; 0 = all hardware threads"},
     {"mip_lod", &RenderSettings::mip_lod, 0, 0,
      "textured materials read their mip chains at the camera ray's footprint (ray cones); false = level 0 only"},
+    {"anisotropic", &RenderSettings::anisotropic, 1, 64,
+     "most probes of the anisotropic texture lookup over the pixel's footprint (ray differentials); 1 = the ray cone's isotropic lookup"},
     {"shadows", &RenderSettings::shadows, 0, 0,
      "point and directional lights cast shadows; false = their shadow rays are skipped (a raster frame's lighting)"},
     {"pixel_jitter", &RenderSettings::pixel_jitter, 0, 0,
