@@ -285,15 +285,17 @@ def test_page_matches_tracer_under_the_environment(page, material, analytic, rot
 
 @needs_renderer
 @pytest.mark.parametrize("key,value", [("kd", "0.8,0.2,0.1"), ("alpha", "0.05,0.4")], ids=["kd", "alpha_anisotropic"])
-def test_slider_previews_hbrdf_edit(tmp_path, key, value):
+def test_slider_previews_hbrdf_edit(tmp_path, key, value, page, tmp_path_factory):
     """(2) kd (or an anisotropic alpha: the tangent frame) set through the URL, as the sliders set it,
-    renders as what the page's `hbrdf edit` line writes for it, in the tracer scene the page shows."""
+    renders as what the page's `hbrdf edit` line writes for it, in the tracer scene the page shows.
+    The control, the material unedited, is MODEL's page (``page``: the same bytes as the copy's
+    model), one load for both parameters (shared_page_state)."""
     model = tmp_path / "m.safetensors"
     shutil.copyfile(MODEL, model)
-    page = tmp_path / "p.html"
-    assert view_harness.cli("view", str(model), "--out", str(page)).returncode == 0
+    edited_page = tmp_path / "p.html"
+    assert view_harness.cli("view", str(model), "--out", str(edited_page)).returncode == 0
     material = "cc_ibiza_sunset_rgb.rgl"
-    img, scene, cmd = page_state(page, f"material={material}&light=sun&{key}={value}")
+    img, scene, cmd = page_state(edited_page, f"material={material}&light=sun&{key}={value}")
     argv = shlex.split(cmd)
     assert argv == ["hbrdf", "edit", str(model), material, "--set", f"{key}={value}", "--as", f"{material}_edit",
                     "--out", str(model)], cmd
@@ -302,7 +304,7 @@ def test_slider_previews_hbrdf_edit(tmp_path, key, value):
     assert scene["materials"]["m"] == {"type": "model", "file": str(model), "material": f"{material}_edit",
                                        "evaluate": "full"}
     assert_matches_tracer(img, scene)
-    unedited = page_pixels(page, f"material={material}&light=sun")
+    unedited = shared_page_state(tmp_path_factory, page, f"material={material}&light=sun")[0]
     assert mad(img, unedited, interior_mask()) > 2.0  # the slider changes the image
 
 

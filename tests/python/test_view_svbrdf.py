@@ -34,8 +34,8 @@ from hybridbrdf.svbrdf.entries import SVBRDFError
 from hybridbrdf.viewer.scene import CAMERA, SUN_IRRADIANCE, srgb8, tracer_scene
 from helpers import saved_random_model
 import view_harness
-from test_view import (SIZE as TRACER_SIZE, assert_matches_tracer, needs_renderer, open_page, page_dom, page_state,
-                       read_state)
+from test_view import (BROWSER_FLAGS, SIZE as TRACER_SIZE, assert_matches_tracer, chromium, needs_renderer, open_page,
+                       page_dom, page_state, read_state)
 
 SIZE = 48
 #: The random models' kinds: (output layer, energy bound) of helpers.saved_random_model's "hybrid".
@@ -44,15 +44,33 @@ KINDS = {"shared": ("shared", False), "heads-bounded": ("material", True)}
 SUN = "light=sun&sun_el=40&sun_az=130"
 
 
+@pytest.fixture(scope="module")
+def kind_models(tmp_path_factory):
+    """kind -> (the random model of that kind (KINDS), saved once per module and loaded back; its
+    page, `hbrdf view MODEL`): the constant-maps and two-region tests read both, so the uniform page
+    of a material they both compare with is one page load per run (_shared_pixels)."""
+    built = {}
+
+    def get(kind):
+        if kind not in built:
+            d = tmp_path_factory.mktemp(f"model-{kind}")
+            output_layer, bound = KINDS[kind]
+            path, m = saved_random_model(d, "hybrid", output_layer=output_layer, energy_bound=bound)
+            uniform = d / "uniform.html"
+            assert view_harness.cli("view", str(path), "--out", str(uniform)).returncode == 0
+            built[kind] = (m, uniform)
+        return built[kind]
+    return get
+
+
 @pytest.fixture(params=list(KINDS))
-def model(request, tmp_path):
-    output_layer, bound = KINDS[request.param]
-    path, m = saved_random_model(tmp_path, "hybrid", output_layer=output_layer, energy_bound=bound)
-    return m
+def model(request, kind_models):
+    """The module's model of each kind (kind_models) and its uniform page."""
+    return kind_models(request.param)
 
 
 @pytest.fixture(scope="module")
-def four_layer(tmp_path_factory):
+def four_layer(tmp_path_factory, kind_models):
     """The page of _four_layer_material on a random model of each kind (KINDS), built and opened once
     per module in the sun at TRACER_SIZE with readback (a clean load): the tests that read it share
     the load (SwiftShader compiles a textured page's shader in seconds). kind -> (model, textured
@@ -62,8 +80,7 @@ def four_layer(tmp_path_factory):
     def get(kind):
         if kind not in built:
             d = tmp_path_factory.mktemp("four_layer")
-            output_layer, bound = KINDS[kind]
-            path, m = saved_random_model(d, "hybrid", output_layer=output_layer, energy_bound=bound)
+            m, _ = kind_models(kind)
             sv = _four_layer_material(m, d / "sv")
             page = _view(d, d / "sv")
             built[kind] = (m, sv, d / "sv", page, page_dom(page, f"analytic=0&{SUN}", TRACER_SIZE))
@@ -84,6 +101,18 @@ def _pixels(page, hash_):
     assert title == "hbrdf view: ok", (title, status)
     assert [c for c in console if "GPU stall due to ReadPixels" not in c] == [], console  # as test_view.page_state
     return read_state(dom)[0].astype(np.int32)
+
+
+def _shared_pixels(tmp_path_factory, page, hash_):
+    """_pixels, made once per test run for every test that opens these page bytes with this fragment
+    (view_harness.shared, keyed as test_view.shared_page_state)."""
+    return view_harness.shared(tmp_path_factory, "webgl2-pixels", [view_harness.file_sha256(page), hash_, SIZE,
+                                                                   BROWSER_FLAGS, chromium()], lambda: _pixels(page, hash_))
+
+
+#: The environment map's state of the constant-maps and two-region tests: the uniform page of the
+#: material they both compare with (materials[1]) is one load per run.
+COMMON = "spp=8&rotation=-40"
 
 
 def sphere_pixels(size, sun_el=90.0, sun_az=0.0, dx=0.0, dy=0.0):
@@ -178,7 +207,8 @@ def test_page_matches_tracer_of_the_scene_it_prints(four_layer, analytic):
     assert_matches_tracer(img, scene)
 
 
-def test_constant_maps_are_the_uniform_material(model, tmp_path):
+def test_constant_maps_are_the_uniform_material(model, tmp_path, tmp_path_factory):
+    model, uniform = model
     h, w = 3, 4
     kd, eta, alpha = [0.62, 0.31, 0.12], [1.7, 2.2, 1.4], [0.09, 0.35]
     z = np.asarray(model.tensors["materials.z"][1], dtype=np.float32)
@@ -188,13 +218,10 @@ def test_constant_maps_are_the_uniform_material(model, tmp_path):
             "latent": np.broadcast_to(z, (h, w, len(z))).copy()}
     SVBRDF(model, [model.materials[1]], (w, h), None, [maps]).save(tmp_path / "sv", format="exr")
     textured = _view(tmp_path, tmp_path / "sv")
-    uniform = tmp_path / "uniform.html"
-    assert view_harness.cli("view", str(load_svbrdf(tmp_path / "sv").model.path), "--out", str(uniform)).returncode == 0
-    common = "spp=16&rotation=30"
-    got = _pixels(textured, common)
+    got = _pixels(textured, COMMON)
     f32 = lambda v: ",".join(repr(float(np.float32(x))) for x in v)  # noqa: E731
-    want = _pixels(uniform, f"{common}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}")
-    other = _pixels(uniform, f"{common}&material={model.materials[1]}")
+    want = _pixels(uniform, f"{COMMON}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}")
+    other = _shared_pixels(tmp_path_factory, uniform, f"{COMMON}&material={model.materials[1]}")  # two_regions' too
     diff = np.abs(got - want)
     print(f"constant maps against the uniform page: mean {diff.mean():.4f}, max {diff.max()}; "
           f"against the material without them {np.abs(got - other).mean():.2f}")
@@ -202,17 +229,16 @@ def test_constant_maps_are_the_uniform_material(model, tmp_path):
     assert np.abs(got - other).mean() > 2, "the maps' values change the picture"
 
 
-def test_two_regions_show_each_material(model, tmp_path):
+def test_two_regions_show_each_material(model, tmp_path, tmp_path_factory):
+    model, uniform = model
     h, w = 4, 8
     weights = np.zeros((h, w, 3), np.float32)
     weights[:, 6:, 0] = 1  # u >= 3/4 (the camera sees u from 1/2 to 1, centre 3/4): layer 1
-    SVBRDF(model, [model.materials[0], model.materials[2]], (w, h), weights, addressing="clamp").save(tmp_path / "sv")
+    layers = [model.materials[1], model.materials[2]]  # anisotropic beside isotropic
+    SVBRDF(model, layers, (w, h), weights, addressing="clamp").save(tmp_path / "sv")
     sv = load_svbrdf(tmp_path / "sv")
     textured = _view(tmp_path, tmp_path / "sv")
-    uniform = tmp_path / "uniform.html"
-    assert view_harness.cli("view", str(sv.model.path), "--out", str(uniform)).returncode == 0
-    common = "spp=8&rotation=-40"
-    got = _pixels(textured, common)
+    got = _pixels(textured, COMMON)
     # A pixel reads pure texels of one layer when the corners of its footprint do (the page jitters
     # its samples over the pixel); the layer from libhybridbrdf's texel lookup, not the page's.
     corners = []
@@ -221,10 +247,10 @@ def test_two_regions_show_each_material(model, tmp_path):
             uv, _, wo, hit = sphere_pixels(SIZE, dx=dx, dy=dy)
             weight = sv.texels(uv.reshape(-1, 2))["weight"].reshape(SIZE, SIZE, 2)
             corners.append((weight, hit & (wo[..., 2] > 0.1)))
-    for layer, material in enumerate([model.materials[0], model.materials[2]]):
+    for layer, material in enumerate(layers):
         pure = np.logical_and.reduce([ok & (wt[..., layer] == 1) for wt, ok in corners])
         assert pure.sum() > 100, pure.sum()
-        want = _pixels(uniform, f"{common}&material={material}")
+        want = _shared_pixels(tmp_path_factory, uniform, f"{COMMON}&material={material}")  # [1]: constant_maps' too
         diff = np.abs(got - want)[pure]
         print(f"region of layer {layer}: mean {diff.mean():.4f}, max {diff.max()} over {pure.sum()} pixels")
         assert diff.mean() <= 0.05 and diff.max() <= 1, (layer, diff.mean(), diff.max())
@@ -240,6 +266,7 @@ def test_textured_fragment_shader_compiles_as_es300(model, tmp_path):
     from hybridbrdf.codegen.main import generate
     from hybridbrdf.viewer.page import page_data
 
+    model, _ = model
     sv = _four_layer_material(model, tmp_path / "sv")
     frag = page_data(sv.model, sv.model.path, svbrdf=sv)["fragment"]
     glsl = generate(sv.model, "glsl", materials=[sv.model.materials[0]], model_path=sv.model.path)
