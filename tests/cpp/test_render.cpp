@@ -457,5 +457,19 @@ TEST_CASE("ray cones: a plane's and a sphere's uv scale and a camera ray's footp
         for (int k = 0; k < 3; ++k) REQUIRE(scene.intersect(o, glm::normalize(target + offsets[k] - o), &h[k]));
         const float measured = triangle_uv_scale_log2(h[0].p, h[1].p, h[2].p, h[0].uv, h[1].uv, h[2].uv);
         CHECK(h[0].uv_scale_log2 == doctest::Approx(measured).epsilon(2e-3));
+        // The anisotropic footprint's uv gradients (sphere_uv_gradients) against the same hits' uv
+        // differences: du = du_dp . dp to first order (5 of the 6 v checks fail with its gradient negated).
+        for (int k = 1; k < 3; ++k) {
+            const Vec3f dp = h[k].p - h[0].p;
+            const double du = double(h[k].uv.x) - h[0].uv.x, dv = double(h[k].uv.y) - h[0].uv.y;
+            const double scale = std::max(std::fabs(du), std::fabs(dv));
+            CHECK(std::fabs(double(dot(h[0].du_dp, dp)) - du) <= 2e-2 * scale);
+            CHECK(std::fabs(double(dot(h[0].dv_dp, dp)) - dv) <= 2e-2 * scale);
+        }
     }
+    // The plane's: 0.5 uv units per world unit along its tangent and bitangent, orthogonal, nothing
+    // along its normal (+z).
+    CHECK(std::sqrt(dot(hit.du_dp, hit.du_dp)) == doctest::Approx(0.5f).epsilon(1e-5));
+    CHECK(std::sqrt(dot(hit.dv_dp, hit.dv_dp)) == doctest::Approx(0.5f).epsilon(1e-5));
+    CHECK(std::fabs(dot(hit.du_dp, hit.dv_dp)) + std::fabs(hit.du_dp.z) + std::fabs(hit.dv_dp.z) < 1e-6f);
 }
