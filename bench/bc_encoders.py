@@ -150,14 +150,14 @@ def channels_for(fmt: str, img: np.ndarray) -> list:
 
 def part1(contents: dict, repeat: int) -> None:
     print("\n## 1. Encoders: PSNR dB / max / mean error (8-bit steps) / encode ms per megatexel")
-    print("| content | format | " + " | ".join(f"{e}" for e in ("etcpak", "quicktex", "bc7enc")) + " |")
-    print("|---|---|---|---|---|")
+    print("| content | format | " + " | ".join(f"{e}" for e in ("etcpak", "quicktex", "bc7enc", "hybridbrdf")) + " |")
+    print("|---|---|---|---|---|---|")
     for fmt in bcenc.BLOCK_FORMATS:
         for cname, img in contents.items():
             if (fmt in ("bc1", "bc7")) != (img.shape[2] >= 3) and fmt != "bc7":
                 continue
             cells = []
-            for enc in ("etcpak", "quicktex", "bc7enc"):
+            for enc in ("etcpak", "quicktex", "bc7enc", "hybridbrdf"):
                 if enc not in bcenc.ENCODERS[fmt]:
                     cells.append("-")
                     continue

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What GPU block compression (KTX2: BC4/BC5/BC7) costs a textured material (issue 58;
+"""What GPU block compression (KTX2: BC1/BC4/BC5/BC7) costs a textured material (issue 58;
 docs/SVBRDF.md, "KTX2 maps").
 
 1. Against its measurements: bench/svbrdf_mixture.py's material (three real measurements'
@@ -13,6 +13,12 @@ docs/SVBRDF.md, "KTX2 maps").
    each texel's BRDF against the same material with float maps: the error each format adds,
    beside the layer material's own error against its measurement (what "5% more" is of).
 3. Bytes per texel of each map and format, the mip chain's third on top.
+4. The whole material of the issue's target (weights, kd on the base, alpha on the disc's layer,
+   a normal map: bench/normal_mips.py's bump field) against the exact mixture of the
+   measurements, its maps as float32 EXR, 8-bit PNG and KTX2 with kd in BC1 (the writer's
+   default) and in BC7: median / p95 and the ratio to the float maps'. Its kd, alpha and normal
+   maps move every texel away from the measurements (what a painter asks for); the ratio says
+   what storing those maps adds.
 
     python bench/svbrdf_compression.py [--pairs 20000] [--texels 600] [--shared ../shared/data]
 """
@@ -35,6 +41,7 @@ from hybridbrdf.svbrdf import SVBRDF, load_svbrdf
 from hybridbrdf.svbrdf.ktx2 import read_ktx2
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from normal_mips import bump_normals  # noqa: E402
 from svbrdf_mips import material as noise_maps  # noqa: E402
 from svbrdf_mixture import LAYERS, SIZE, masks, texel_metrics  # noqa: E402
 
@@ -53,6 +60,40 @@ def texel_errors(sv, ref_sv, uv, wi, wo, cos_i):
         f, g = sv.eval(at, wi, wo, filter="nearest"), ref_sv.eval(at, wi, wo, filter="nearest")
         s[t], c[t] = smape(g, f), cmae(g, f, cos_i)
     return s, c
+
+
+def ratios(s, c, base) -> str:
+    return (f"  x{np.median(s) / np.median(base[0]):.4f}, x{np.percentile(s, 95) / np.percentile(base[0], 95):.4f}; "
+            f"x{np.median(c) / np.median(base[1]):.4f}, x{np.percentile(c, 95) / np.percentile(base[1], 95):.4f}")
+
+
+def whole_material(model, names, w_map, full, G, sets, wi, wo, cos_i, tmp) -> None:
+    """Part 4: weights, kd, alpha and normal maps, each format against the measurements' mixture."""
+    _, maps = noise_maps(model, SIZE, np.random.default_rng(11))
+    layer_maps = [{} for _ in names]
+    for q in ("kd", "alpha"):
+        k, values = maps[q]
+        layer_maps[k][q] = values
+    normal = bump_normals(SIZE, np.random.default_rng(5), amplitude=0.2)
+    sv = SVBRDF(model, names, (SIZE, SIZE), w_map, layer_maps, normal=normal)
+    variants = {"exr": ("exr", "bc1"), "png": ("png", "bc1"), "ktx2 kd bc1": ("ktx2", "bc1"), "ktx2 kd bc7": ("ktx2", "bc7")}
+    for label, (fmt, kd_format) in variants.items():
+        sv.save(os.path.join(tmp, "whole_" + label.replace(" ", "_")), format=fmt, kd_format=kd_format)
+    print("\n4. the whole material (weights, kd, alpha, normal map) against the exact mixture of the measurements, "
+          "median / p95 (ratio to float maps: median, p95)")
+    for label, idx in sets.items():
+        idx = idx[:len(idx) // 2]
+        uv = np.stack([(idx % SIZE + 0.5) / SIZE, (idx // SIZE + 0.5) / SIZE], axis=1)
+        base = None
+        for name in variants:
+            loaded = load_svbrdf(os.path.join(tmp, "whole_" + name.replace(" ", "_")))
+            s, c = np.empty(len(idx)), np.empty(len(idx))
+            for t, (p, i) in enumerate(zip(uv, idx)):
+                g = sum(full[i, k] * G[k] for k in range(len(G)) if full[i, k] > 0)
+                f = loaded.eval(np.repeat(p[None], len(wi), axis=0), wi, wo, filter="nearest")
+                s[t], c[t] = smape(g, f), cmae(g, f, cos_i)
+            base = base or (s, c)
+            print(f"  {label:6s} {name:12s} {stats(s, c)}{ratios(s, c, base)}", flush=True)
 
 
 def main() -> int:
@@ -93,9 +134,7 @@ def main() -> int:
             W = sv.texels(uv, "nearest")["weight"].astype(np.float64)
             s, c = texel_metrics(W, F, G, cos_i)
             base = base or (s, c)
-            ratio = (f"  x{np.median(s) / np.median(base[0]):.4f}, x{np.percentile(s, 95) / np.percentile(base[0], 95):.4f}; "
-                     f"x{np.median(c) / np.median(base[1]):.4f}, x{np.percentile(c, 95) / np.percentile(base[1], 95):.4f}")
-            print(f"  {label:6s} {fmt:5s} {stats(s, c)}{ratio}")
+            print(f"  {label:6s} {fmt:5s} {stats(s, c)}{ratios(s, c, base)}")
 
     # 2. Per quantity, against the same material with float maps.
     own = {n: (smape(g, f), cmae(g, f, cos_i)) for n, f, g in zip(names, F, G)}
@@ -118,8 +157,10 @@ def main() -> int:
             print(f"  {q:6s} layer {k} {fmt:5s} ({kind}) {stats(s, c)}   own error of {names[k]}: "
                   f"SMAPE {own[names[k]][0]:.4f}, cMAE {own[names[k]][1]:.5f}", flush=True)
 
-    print("\n3. bytes per texel (level 0; a mip chain adds a third): PNG 3 per map (8-bit RGB); KTX2 BC7, BC5 1, BC4 0.5 "
-          "(weights of 2 layers BC4, of 3 BC5, of 4 BC7; kd BC7 sRGB; alpha BC5; eta BC7; z BC7 per 3 components)")
+    print("\n3. bytes per texel (level 0; a mip chain adds a third): PNG 3 per map (8-bit RGB); KTX2 BC7, BC5 1, BC4, BC1 0.5 "
+          "(weights of 2 layers BC4, of 3 BC5, of 4 BC7; kd BC1 sRGB (default) or BC7 sRGB; alpha BC5; eta BC7; "
+          "z BC7 per 3 components; normal map BC5)")
+    whole_material(model, names, w_map, full, G, sets, wi, wo, cos_i, tmp)
     print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 

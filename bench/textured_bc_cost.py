@@ -7,7 +7,8 @@ The generated WGSL of a textured folder (`hbrdf-codegen DIR --target wgsl`: `hbr
 lavapipe (wgpu, the CPU adapter with `texture-compression-bc`), the same kernel and pairs over three
 uploads of the same maps: today's single uncompressed level (rgba8unorm; kd rgba8unorm-srgb), the
 uncompressed mip chain, and the chain in the KTX2 block formats `SVBRDF.save(format="ktx2")` writes
-(BC5 weights and alpha, sRGB BC7 kd; the blocks encoded as the writer does). The material:
+(BC5 weights and alpha, sRGB BC1 kd; the blocks encoded as the writer does), and that chain with
+kd in sRGB BC7 (`kd_format="bc7"`). The material:
 `results/rgl54_fast.safetensors`' three bench/svbrdf_mixture.py layers, 512x512, with kd and alpha
 maps (bench/svbrdf_mips.py's noise). Printed: Mpairs/s per upload (median of interleaved runs) and
 the ratio to today's; lavapipe decodes blocks in software, so compare ratios of one run, and on a
@@ -17,7 +18,7 @@ The same for the generated GLSL (`--target glsl`; issue 58's cost target names i
 tests/python/textured_vk.py (`hbrdf_texel_lod` and `hbrdf_texel_grad` per pair, `HBRDF_SRGB_TEXTURES`
 1) run by hbrdf_vk_runner, the maps bound as combined image samplers: today's single level and the
 rgba8 chain as hbrdf raster's HBTX files (R8G8B8A8_UNORM, kd R8G8B8A8_SRGB), the chain in the KTX2
-folder's own files (BC blocks as stored), and those with kd in BC1 sRGB instead of BC7. Each variant a runner process of `--repeat 3` dispatches
+folder's own files (BC blocks as stored: kd in BC1 sRGB, the writer's default), and those with kd in BC7 sRGB. Each variant a runner process of `--repeat 3` dispatches
 (the best), the variants interleaved `--runs` times; printed the median of the best host-clock times
 and of the best CPU times of the runner process (lavapipe's threads: the work, whatever else the
 machine runs).
@@ -55,8 +56,12 @@ import textured_vk  # noqa: E402
 
 #: WebGPU's names of the block formats entries.KTX2_FORMATS writes.
 BLOCK = {"BC4_UNORM_BLOCK": ("bc4-r-unorm", "bc4"), "BC5_UNORM_BLOCK": ("bc5-rg-unorm", "bc5"),
-         "BC7_UNORM_BLOCK": ("bc7-rgba-unorm", "bc7"), "BC7_SRGB_BLOCK": ("bc7-rgba-unorm-srgb", "bc7")}
-CHANNELS = {"bc4": 1, "bc5": 2, "bc7": 4}
+         "BC7_UNORM_BLOCK": ("bc7-rgba-unorm", "bc7"), "BC7_SRGB_BLOCK": ("bc7-rgba-unorm-srgb", "bc7"),
+         "BC1_RGB_SRGB_BLOCK": ("bc1-rgba-unorm-srgb", "bc1")}
+CHANNELS = {"bc1": 3, "bc4": 1, "bc5": 2, "bc7": 4}
+#: The KTX2 variants: the folder as SVBRDF.save(format="ktx2") writes it (kd in BC1 sRGB, the
+#: default) and with kd in BC7 sRGB (kd_format="bc7").
+KTX2_VARIANTS = {"KTX2 folder (kd BC1 sRGB)": "ktx2", "KTX2, kd in BC7 sRGB": "ktx2_bc7"}
 
 
 def device():
@@ -114,6 +119,7 @@ def main() -> int:
     SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).save(tmp / "png1", format="png")
     SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "png", format="png")
     SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "ktx2", format="ktx2")
+    SVBRDF(model, names, (SIZE, SIZE), weights, layer_maps).with_mips().save(tmp / "ktx2_bc7", format="ktx2", kd_format="bc7")
     rng = np.random.default_rng(3)
     n = args.pairs
     pairs = np.concatenate([rng.uniform(0, 1, (n, 2)), cosine_directions(rng, n), cosine_directions(rng, n)], axis=1)
@@ -126,28 +132,15 @@ def main() -> int:
     return 0
 
 
-def bc1_kd(tmp: pathlib.Path) -> pathlib.Path:
-    """Layer 0's kd chain (the PNG folder's 8-bit levels) as a BC1 sRGB KTX2 file (half a byte a texel;
-    docs/TEXTURES.md: BC1 holds kd): lavapipe decodes BC1 far faster than BC7."""
-    from hybridbrdf.svbrdf.ktx2 import write_ktx2
-
-    entry = next(e for e in json.loads((tmp / "png" / "svbrdf.json").read_text())["maps"] if e["quantity"] == "kd")
-    chain = [np.rint(read_map(tmp / "png" / f)[0] * 255).astype(np.uint8) for f in [entry["file"]] + entry["mips"]]
-    write_ktx2(tmp / "kd_bc1.ktx2", chain, "BC1_RGB_SRGB_BLOCK")
-    return tmp / "kd_bc1.ktx2"
-
-
 def glsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
     """The generated GLSL under hbrdf_vk_runner over the three uploads (module docstring)."""
     n = len(pairs)
     code = generate_textured(tmp / "png", "glsl")
     spv = textured_vk.compile_kernel(tmp / "glsl", code, "glsl", (SIZE, SIZE), True)
     rows = np.concatenate([pairs, np.full((n, 1), args.lod)], axis=1)
-    blocks = textured_vk.folder_textures(tmp / "ktx2", tmp / "unused")
     variants = {"rgba8, one level (today)": textured_vk.folder_textures(tmp / "png1", tmp / "hbtx1"),
                 "rgba8, mip chain": textured_vk.folder_textures(tmp / "png", tmp / "hbtx"),
-                "KTX2 blocks, mip chain": blocks,
-                "KTX2, kd in BC1 sRGB": [bc1_kd(tmp) if t.name == "layer0_kd.ktx2" else t for t in blocks]}
+                **{v: textured_vk.folder_textures(tmp / d, tmp / "unused") for v, d in KTX2_VARIANTS.items()}}
     times = {v: {"best_ms": [], "best_cpu_ms": []} for v in variants}
     outs = {}
     for _ in range(args.runs):
@@ -164,8 +157,11 @@ def glsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
     for v in variants:
         wall, cpu = np.median(times[v]["best_ms"]), np.median(times[v]["best_cpu_ms"])
         diff = np.abs(outs[v] - ref).max() / np.abs(ref).max()
+        # Each run's own ratio (the variants of one run are interleaved): their spread over runs.
+        per_run = [np.array(times[v][k]) / np.array(times["rgba8, one level (today)"][k]) for k in ("best_ms", "best_cpu_ms")]
         print(f"  {v:28s} {n / wall / 1e3:7.2f} Mpairs/s   {wall / base['best_ms']:5.2f}x today's time, "
-              f"{cpu / base['best_cpu_ms']:5.2f}x its CPU time   (f against the rgba8 chain: max {diff:.3g} of max f)")
+              f"{cpu / base['best_cpu_ms']:5.2f}x its CPU time (per run {per_run[0].min():.2f}-{per_run[0].max():.2f}x, "
+              f"CPU {per_run[1].min():.2f}-{per_run[1].max():.2f}x)   (f against the rgba8 chain: max {diff:.3g} of max f)")
 
 
 def wgsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
@@ -176,7 +172,8 @@ def wgsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
     code = generate_textured(tmp / "png", "wgsl")
     params = map_params(code)
     index = {e["file"].split(".")[0]: e for e in json.loads((tmp / "png" / "svbrdf.json").read_text())["maps"]}
-    ktx2 = {e["file"].split(".")[0]: e for e in json.loads((tmp / "ktx2" / "svbrdf.json").read_text())["maps"]}
+    ktx2 = {d: {e["file"].split(".")[0]: e for e in json.loads((tmp / d / "svbrdf.json").read_text())["maps"]}
+            for d in KTX2_VARIANTS.values()}
     from hybridbrdf.svbrdf.ktx2 import read_ktx2
 
     adapter, dev = device()
@@ -190,7 +187,7 @@ def wgsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
     sampler = dev.create_sampler(address_mode_u="repeat", address_mode_v="repeat", mag_filter="linear",
                                  min_filter="linear", mipmap_filter="linear")
     groups = {}
-    for variant in ("rgba8, one level (today)", "rgba8, mip chain", "KTX2 blocks, mip chain"):
+    for variant in ("rgba8, one level (today)", "rgba8, mip chain", *KTX2_VARIANTS):
         views = []
         for p in params:
             stem = p[len("map_"):]
@@ -199,7 +196,8 @@ def wgsl_times(args, tmp: pathlib.Path, pairs: np.ndarray) -> None:
             chain = [np.rint(read_map(tmp / "png" / f)[0] * 255).astype(np.uint8) for f in files]
             srgb = all(d is None or d["transfer"] == "srgb" for d in entry["decode"])
             if variant.startswith("KTX2"):
-                fmt = BLOCK[read_ktx2(tmp / "ktx2" / ktx2[stem]["file"]).name][0]
+                d = KTX2_VARIANTS[variant]
+                fmt = BLOCK[read_ktx2(tmp / d / ktx2[d][stem]["file"]).name][0]
             else:
                 fmt = "rgba8unorm-srgb" if srgb else "rgba8unorm"
             views.append(upload(dev, chain, fmt))

@@ -1,4 +1,4 @@
-// hybridbrdf._core — the BC block decoders (hybridbrdf/bc.hpp) and the KTX2 reader
+// hybridbrdf._core — the BC block decoders and BC4/BC5 encoder (hybridbrdf/bc.hpp) and the KTX2 reader
 // (render/ktx2.hpp): hybridbrdf.svbrdf.ktx2 decodes its levels with the first, and the tests
 // compare its reading of a file with the second's (tests/python/test_ktx2.py).
 #include <pybind11/numpy.h>
@@ -51,6 +51,29 @@ void bind_ktx2(py::module_& m) {
         py::arg("format"), py::arg("blocks"), py::arg("width"), py::arg("height"),
         "Decodes a width x height level of BC blocks ('bc1', 'bc4', 'bc5', 'bc7'; rows of blocks from the "
         "top) into uint8 (height, width, C), C = 3, 1, 2, 4.");
+    m.def(
+        "bc_encode_level",
+        [](const std::string& format, py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast> texels) {
+            const hbrdf::bc::BlockFormat f = block_format(format);
+            if (f != hbrdf::bc::BlockFormat::BC4 && f != hbrdf::bc::BlockFormat::BC5)
+                throw py::value_error("bc_encode_level encodes bc4 and bc5, not " + format);
+            const int need = hbrdf::bc::block_channels(f);
+            if (texels.ndim() != 3 || texels.shape(2) < need || texels.shape(0) < 1 || texels.shape(1) < 1 ||
+                texels.shape(0) > 65536 || texels.shape(1) > 65536)
+                throw py::value_error(format + ": texels must be uint8 (H, W, C) with H, W in 1..65536 and C >= " +
+                                      std::to_string(need));
+            const auto h = std::uint32_t(texels.shape(0)), w = std::uint32_t(texels.shape(1));
+            std::string out(hbrdf::bc::level_bytes(f, w, h), '\0');
+            {
+                py::gil_scoped_release release;
+                hbrdf::bc::encode_level(f, texels.data(), w, h, int(texels.shape(2)),
+                                        reinterpret_cast<std::uint8_t*>(out.data()));
+            }
+            return py::bytes(out);
+        },
+        py::arg("format"), py::arg("texels"),
+        "A level's BC4 (channel 0) or BC5 (channels 0, 1) blocks from uint8 (H, W, C) texels: this library's "
+        "encoder (squared error of the decode, 0 and 255 kept exact; docs/TEXTURES.md).");
 #ifdef HBRDF_HAVE_RENDERER
     m.def(
         "render_read_ktx2",

@@ -41,4 +41,15 @@ std::size_t level_bytes(BlockFormat format, std::uint32_t width, std::uint32_t h
 void decode_level(BlockFormat format, const std::uint8_t* blocks, std::uint32_t width, std::uint32_t height,
                   std::uint8_t* texels);
 
+/// One BC4 block of 16 values (row-major from the block's top-left texel) minimising the squared
+/// error of its decode_block() under one constraint: a value of 0 or 255 decodes exactly (the
+/// search: bc_encode.cpp; docs/TEXTURES.md, "Encoders").
+void encode_bc4_block(const std::uint8_t values[16], std::uint8_t block[8]);
+
+/// A width x height level of `channels` bytes a texel (row-major) as BC4 (channel 0) or BC5
+/// (channels 0 and 1) blocks, level_bytes(format, width, height) of them; edge blocks repeat the
+/// level's last row and column. std::invalid_argument for another format or too few channels.
+void encode_level(BlockFormat format, const std::uint8_t* texels, std::uint32_t width, std::uint32_t height,
+                  int channels, std::uint8_t* blocks);
+
 }  // namespace hbrdf::bc

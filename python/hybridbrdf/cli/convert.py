@@ -11,7 +11,7 @@ from hybridbrdf.cli import COMMANDS
 def add_parser(sub) -> None:
     p = sub.add_parser("convert", help=COMMANDS["convert"],
                        description="Read a textured material's folder and write it again with its maps as 8-bit PNG, "
-                                   "float32 OpenEXR or KTX2 (GPU block formats: BC4/BC5/BC7, each file holding its "
+                                   "float32 OpenEXR or KTX2 (GPU block formats: BC1/BC4/BC5/BC7, each file holding its "
                                    "mip chain), with the complete mip chain built from level 0 (--mips) or level 0 "
                                    "alone (--no-mips); without either, the chain SRC has. The model and layers are copied unchanged. OUT is replaced "
                                    "only once complete; OUT may be SRC.")
@@ -22,6 +22,10 @@ def add_parser(sub) -> None:
     chain.add_argument("--mips", action="store_true", default=None,
                        help="build the complete mip chain from level 0 (power-of-two sides)")
     chain.add_argument("--no-mips", dest="mips", action="store_false", help="write level 0 alone")
+    p.add_argument("--kd-format", choices=("bc1", "bc7"), default="bc1",
+                   help="with --format ktx2, the block format of kd maps: bc1 (sRGB, half a byte a texel) or bc7 "
+                        "(sRGB, a byte, a third of BC1's error; decoded in software at every tap by CPU Vulkan "
+                        "drivers) (default: %(default)s; docs/SVBRDF.md, KTX2 maps)")
     p.set_defaults(func=run)
 
 
@@ -32,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     level0 = type(sv)(sv.model, sv.layers, sv.size, sv.weights, sv.maps, sv.addressing, sv.path, normal=sv.normal)
     # Neither flag: the chain as it is (levels someone authored stay theirs).
     out = sv if args.mips is None else level0.with_mips() if args.mips else level0
-    out.save(args.out, format=args.format)
+    out.save(args.out, format=args.format, kd_format=args.kd_format)
     w, h = out.size
     chain = f", {out.levels} mip levels" if out.levels > 1 else ""
     print(f"wrote {args.out}: {w}x{h} texels, {len(out.layers)} layer(s), {args.format} maps{chain}")

@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
                         "the normal's x and y as (v + 1) / 2, green up; z reconstructed; docs/SVBRDF.md, Normal maps)")
     p.add_argument("--size", metavar="WxH", help="texels (default: the masks' size; masks and textures must have it)")
     p.add_argument("--format", choices=("png", "exr", "ktx2"), default="png",
-                   help="maps as 8-bit PNG, float32 OpenEXR or KTX2 in GPU block formats (BC4/BC5/BC7; each file "
+                   help="maps as 8-bit PNG, float32 OpenEXR or KTX2 in GPU block formats (BC1/BC4/BC5/BC7; each file "
                         "holds its mip chain) (default: %(default)s)")
     p.add_argument("--mips", action="store_true",
                    help="write the complete mip chain, each quantity filtered as the BRDF asks (docs/SVBRDF.md, "
@@ -39,6 +39,10 @@ def add_parser(sub) -> None:
                    help="how uv outside [0, 1] reads the maps (default: %(default)s)")
     p.add_argument("--out", required=True, help="folder to write (replaced if it is a textured material's folder)")
     p.add_argument("--quiet", action="store_true", help="no progress bar while measured files are fitted")
+    p.add_argument("--kd-format", choices=("bc1", "bc7"), default="bc1",
+                   help="with --format ktx2, the block format of kd maps: bc1 (sRGB, half a byte a texel) or bc7 "
+                        "(sRGB, a byte, a third of BC1's error; decoded in software at every tap by CPU Vulkan "
+                        "drivers) (default: %(default)s; docs/SVBRDF.md, KTX2 maps)")
     p.set_defaults(func=run)
 
 
@@ -65,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
         size = (int(w), int(h))
     sv = paint(args.model, args.base, layers, args.out, size=size, format=args.format, addressing=args.addressing,
                kd=_layer_option(args.kd, "--kd"), roughness=_layer_option(args.roughness, "--roughness"),
-               progress=not args.quiet, log=print, mips=args.mips, normal=args.normal)
+               progress=not args.quiet, log=print, mips=args.mips, normal=args.normal,
+               kd_format=args.kd_format)
     w, h = sv.size
     chain = (f", {sv.levels} mip levels" if sv.levels > 1 else "") + (", a normal map" if sv.normal is not None else "")
     print(f"wrote {args.out}: {w}x{h} texels, {len(sv.layers)} layer(s) ({', '.join(sv.layers)}), {args.format} maps{chain}")

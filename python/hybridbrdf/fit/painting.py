@@ -145,7 +145,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
           kd: Optional[Dict[int, PathLike]] = None, roughness: Optional[Dict[int, PathLike]] = None,
           settings: Optional[FitSettings] = None, progress: bool = False,
           log: Callable[[str], None] = lambda msg: None, mips: bool = False,
-          normal: Optional[PathLike] = None) -> SVBRDF:
+          normal: Optional[PathLike] = None, kd_format: str = "bc1") -> SVBRDF:
     """Write a textured material's folder ``out`` and return it (:class:`SVBRDF`).
 
     ``base``: a material of ``model`` (or a measured file); ``layers``: up to three
@@ -153,7 +153,7 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     default the first mask's (masks of another size are refused); ``kd`` / ``roughness``: layer
     index (0 the base) -> albedo texture (sRGB PNG or linear EXR) / roughness texture (grey r,
     alpha = r^2 on both axes), of the same size. ``format``: 'png' (8-bit maps), 'exr' (float32) or
-    'ktx2' (GPU block formats, :meth:`SVBRDF.save`); ``mips``: with the complete mip chain
+    'ktx2' (GPU block formats, :meth:`SVBRDF.save`: kd maps in ``kd_format`` 'bc1' or 'bc7'); ``mips``: with the complete mip chain
     (:meth:`SVBRDF.with_mips`; power-of-two sides, checked before any fitting). ``normal``: a
     glTF-style 8-bit RGB PNG normal map of the same size (:func:`hybridbrdf.svbrdf.normals.read_normal_map`). ``settings``: the sparse fit's (:class:`FitSettings`; default ``hbrdf add``'s).
     Everything is checked before any fitting; ``out`` is replaced only once complete."""
@@ -203,5 +203,5 @@ def paint(model: PathLike, base: str, layers: Sequence[Tuple[str, PathLike]], ou
     sv = SVBRDF(merged, names, (w, h), weights, maps, addressing, normal=normal_xy)
     if mips:
         sv = sv.with_mips()
-    sv.save(out, format=format)
+    sv.save(out, format=format, kd_format=kd_format)
     return sv

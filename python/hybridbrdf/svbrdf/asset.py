@@ -26,7 +26,7 @@ from hybridbrdf.inputs import loads_json, read_input_text
 from hybridbrdf.limits import pair_arguments
 from hybridbrdf.model.file import HybridModel, load_model
 from hybridbrdf.svbrdf.entries import (LAYER_QUANTITIES, SVBRDFError, FORMATS as MAP_FORMATS, components, plain_name, read_entry,
-                                       write_quantity)
+                                       write_quantity, KTX2_KD_DEFAULT, KTX2_KD_FORMATS)
 from hybridbrdf.svbrdf.mips import TOKSVIG_DEFAULT, build_chain, chain_problem, level_size, lod_levels, tangent_normals
 from hybridbrdf.svbrdf.normals import to_shading
 from hybridbrdf.files import atomic_folder, atomic_write_bytes
@@ -252,17 +252,21 @@ class SVBRDF:
         return f if visible is None else np.where(visible[:, None], f, 0.0)
 
     # ---- persistence ---------------------------------------------------------------------
-    def save(self, folder, format: str = "png", extra: Optional[Dict[str, bytes]] = None) -> None:
+    def save(self, folder, format: str = "png", extra: Optional[Dict[str, bytes]] = None,
+             kd_format: str = KTX2_KD_DEFAULT) -> None:
         """Write the folder (index, model, maps) atomically (:func:`hybridbrdf.files.atomic_folder`):
         into a temporary folder beside it, then renamed over it; SIGTERM or an error leaves the old
         folder, an OSError names ``folder``. ``format``: 'png' (8-bit, the spec's decode; latent scale and offset from
         the values), 'exr' (float32, decoded values stored), each a file per mip level, or 'ktx2'
         (the 8-bit decode in GPU block formats, one file holding the chain:
-        :data:`hybridbrdf.svbrdf.entries.KTX2_FORMATS`). An existing ``folder`` is replaced
+        :data:`hybridbrdf.svbrdf.entries.KTX2_FORMATS`; kd maps in ``kd_format``, 'bc1' (half a byte
+        a texel, the default) or 'bc7': :data:`~hybridbrdf.svbrdf.entries.KTX2_KD_FORMATS`). An existing ``folder`` is replaced
         only when it is a textured material's folder (it holds svbrdf.json) or empty. ``extra``:
         plain file name -> bytes, written into the folder with it (a fit's report)."""
         if format not in MAP_FORMATS:
             raise ValueError(f"format must be one of {', '.join(MAP_FORMATS)}, got {format!r}")
+        if kd_format not in KTX2_KD_FORMATS:
+            raise ValueError(f"kd_format must be one of {', '.join(KTX2_KD_FORMATS)}, got {kd_format!r}")
         folder = os.path.abspath(os.fspath(folder))
         if os.path.lexists(folder):
             if not os.path.isdir(folder):
@@ -285,7 +289,7 @@ class SVBRDF:
             for k in range(len(self.layers)):
                 for q in LAYER_QUANTITIES:
                     if q in self.maps[k]:
-                        entries += write_quantity(tmp, q, k, [c[1][k][q] for c in chain], format)
+                        entries += write_quantity(tmp, q, k, [c[1][k][q] for c in chain], format, kd_format=kd_format)
             index = {"format_version": 1 if self.levels == 1 else SV["format_version"], "model": SV["model_file"],
                      "size": list(self.size), "addressing": self.addressing,
                      **({} if self.levels == 1 else {"levels": self.levels}),

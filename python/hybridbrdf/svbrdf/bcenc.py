@@ -15,7 +15,10 @@ Public names:
 - :func:`encode_decode` ``(texels, fmt, encoder=None) -> uint8``: ``texels`` uint8 (H, W, C)
   or (H, W) through the format and back, the shape it came in: what a map stored as ``fmt`` reads.
 
-Encoders are imported when first used: ``etcpak`` (BC1/BC4/BC5; BC7 through its bundled
+``hybridbrdf`` is libhybridbrdf's own BC4/BC5 encoder (``_core.bc_encode_level``; docs/TEXTURES.md,
+"Encoders"): it searches palettes whose levels extend past the block's range, so a steep ramp's
+values fall on them, and keeps stored 0 and 255 exact (a weight of 0 or 1 stays so). Encoders
+from PyPI are imported when first used: ``etcpak`` (BC1/BC4/BC5; BC7 through its bundled
 bc7enc), ``quicktex`` (BC1/BC4/BC5) and ``bc7enc`` (the ``bc7enc-py`` wheel: rgbcx BC1/BC5 and
 bc7enc_rdo's BC7). BC7 is encoded with linear (not perceptual) channel weights: the maps hold data
 (weights, roughness, latents), and every channel's error counts the same.
@@ -109,6 +112,12 @@ def _bc7enc(fmt: str):
     return encode
 
 
+def _own(fmt: str):
+    def encode(rgba):
+        return _core.bc_encode_level(fmt, np.ascontiguousarray(rgba, dtype=np.uint8))
+    return encode
+
+
 def _pad4(rgba: np.ndarray) -> np.ndarray:
     """etcpak reads whole blocks: a level whose sides are not multiples of 4 is extended by its
     edge texels (what the GPU never samples, and what keeps the edge block's endpoints tight)."""
@@ -118,21 +127,21 @@ def _pad4(rgba: np.ndarray) -> np.ndarray:
 
 
 def _installed(name: str) -> bool:
-    return importlib.util.find_spec(name) is not None
+    return name == "hybridbrdf" or importlib.util.find_spec(name) is not None
 
 
 _CANDIDATES = {
     "bc1": {"etcpak": _etcpak("bc1"), "quicktex": _quicktex("bc1"), "bc7enc": _bc7enc("bc1")},
-    "bc4": {"etcpak": _etcpak("bc4"), "quicktex": _quicktex("bc4"), "bc7enc": _bc7enc("bc4")},
-    "bc5": {"etcpak": _etcpak("bc5"), "quicktex": _quicktex("bc5"), "bc7enc": _bc7enc("bc5")},
+    "bc4": {"etcpak": _etcpak("bc4"), "quicktex": _quicktex("bc4"), "bc7enc": _bc7enc("bc4"), "hybridbrdf": _own("bc4")},
+    "bc5": {"etcpak": _etcpak("bc5"), "quicktex": _quicktex("bc5"), "bc7enc": _bc7enc("bc5"), "hybridbrdf": _own("bc5")},
     "bc7": {"etcpak": _etcpak("bc7"), "bc7enc": _bc7enc("bc7")},
 }
 #: The installed candidates (etcpak and quicktex are dependencies; bc7enc-py is the test extra's).
 ENCODERS = {fmt: {name: enc for name, enc in c.items() if _installed(name)} for fmt, c in _CANDIDATES.items()}
 #: Chosen by bench/bc_encoders.py (docs/TEXTURES.md): rgbcx's BC1 (quicktex; etcpak's is 5-10 dB
-#: worse), quicktex's BC4/BC5 (etcpak's is 3-30 dB worse; bc7enc's same quality, 2-300x slower),
-#: bc7enc's BC7 through etcpak (the same blocks as bc7enc-py's, in half the time).
-DEFAULT_ENCODER = {"bc1": "quicktex", "bc4": "quicktex", "bc5": "quicktex", "bc7": "etcpak"}
+#: worse), libhybridbrdf's BC4/BC5 (the PyPI encoders' min/max endpoints miss steep ramps: a
+#: weights map's mask edges), bc7enc's BC7 through etcpak (the same blocks as bc7enc-py's, in half the time).
+DEFAULT_ENCODER = {"bc1": "quicktex", "bc4": "hybridbrdf", "bc5": "hybridbrdf", "bc7": "etcpak"}
 
 
 def _as_rgba(texels: np.ndarray, fmt: str) -> np.ndarray:

@@ -37,7 +37,13 @@ FORMATS = ("png", "exr", "ktx2")
 #: of two used channels does not promise; measured: BC7 on the three-layer weights of
 #: bench/svbrdf_compression.py has the lower p99 error, 2 steps against BC5's 9, but a nonzero B).
 KTX2_FORMATS = {1: "BC4_UNORM_BLOCK", 2: "BC5_UNORM_BLOCK", 3: "BC7_UNORM_BLOCK"}
-KTX2_SRGB_FORMAT = "BC7_SRGB_BLOCK"
+#: The sRGB block formats a kd map (the one map of the srgb transfer) may be written in, by name
+#: (``SVBRDF.save(kd_format=)``, ``hbrdf paint --kd-format``). BC1, half a byte a texel, is the
+#: default: within the compression bound of the whole material against its measurements, and the
+#: sampler's decode of BC1 is cheap where BC7's is not (lavapipe decodes BC7 in software at every
+#: tap: 3.9x the shader's time; docs/SVBRDF.md, "KTX2 maps"). BC7 keeps a third of BC1's error.
+KTX2_KD_FORMATS = {"bc1": "BC1_RGB_SRGB_BLOCK", "bc7": "BC7_SRGB_BLOCK"}
+KTX2_KD_DEFAULT = "bc1"
 
 
 class SVBRDFError(InputFileError):
@@ -63,11 +69,14 @@ def map_name(quantity: str, layer: Optional[int], first: int, format: str, level
     return f"{stem}{f'.mip{level}' if level else ''}.{format}"
 
 
-def write_quantity(folder, quantity, layer, chain, format, n_layers=None) -> List[Dict]:
+def write_quantity(folder, quantity, layer, chain, format, n_layers=None, kd_format=KTX2_KD_DEFAULT) -> List[Dict]:
     """Encode a quantity's decoded values, (H, W, c) per mip level (level 0 first), into map files
     of 3 channels each (level 0's decode for every level: a coarser level's values are means of
     the finer ones, within their range); their index entries. ``format``: 'png' and 'exr' write a
-    file per level, 'ktx2' one file of the whole chain (:data:`KTX2_FORMATS`)."""
+    file per level, 'ktx2' one file of the whole chain (:data:`KTX2_FORMATS`; three sRGB channels,
+    kd's, in :data:`KTX2_KD_FORMATS` ``[kd_format]``)."""
+    if kd_format not in KTX2_KD_FORMATS:
+        raise ValueError(f"kd_format must be one of {', '.join(KTX2_KD_FORMATS)}, got {kd_format!r}")
     eight_bit = format in ("png", "ktx2")
     entries = []
     for first in range(0, chain[0].shape[2], CHANNELS):
@@ -93,7 +102,7 @@ def write_quantity(folder, quantity, layer, chain, format, n_layers=None) -> Lis
             n = sum(held)
             srgb = all(d["transfer"] == "srgb" for d, h in zip(decodes, held) if h)
             write_ktx2(os.path.join(folder, entry["file"]), [lv[..., :n] for lv in levels],
-                       vk_format(KTX2_SRGB_FORMAT if srgb and n == 3 else KTX2_FORMATS[n]))
+                       vk_format(KTX2_KD_FORMATS[kd_format] if srgb and n == 3 else KTX2_FORMATS[n]))
         else:
             names = [map_name(quantity, layer, first, format, level) for level in range(len(chain))]
             for name, stored in zip(names, levels):
