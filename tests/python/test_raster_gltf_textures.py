@@ -24,7 +24,7 @@ import pytest
 
 import hybridbrdf
 from hybridbrdf.render import render
-from helpers import LVP_ICD, ROOT
+from helpers import LAVAPIPE_ENV, LVP_ICD, ROOT
 import gltf_textured_asset as asset
 
 TOOL = ROOT / "build" / "hbrdf_raster"
@@ -33,6 +33,15 @@ if not (TOOL.exists() and os.path.exists(LVP_ICD)):
         raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
     pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
 pytest.importorskip("pygltflib")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _lavapipe_without_llvm_passes():
+    """hbrdf_raster's lavapipe without LLVM's optimisation passes, as every shader test's
+    (helpers.LAVAPIPE_ENV, issue 56): the frames' draws are small beside compiling their shaders."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("GALLIVM_PERF", LAVAPIPE_ENV["GALLIVM_PERF"])
+        yield
 
 
 def both(tmp_path, s, language="glsl"):
