@@ -116,6 +116,8 @@ class SVBRDF:
             c = 3 if name == "weights" else components(name, model.arch["latent"])
             if arr.shape != (h, w, c):
                 raise ValueError(f"{name} map has shape {arr.shape}, expected {(h, w, c)}")
+            if name == "normal" and not np.isfinite(arr).all():  # a NaN frame would shade every pair 0 silently
+                raise ValueError("normal map is not finite")
         checked = [self._checked_level(level, *entry) for level, entry in enumerate(mips, start=1)]
         self.mips = [(w_l, m_l) for w_l, m_l, _ in checked]
         self.normal_mips = [n_l for _, _, n_l in checked] if self.normal is not None else []
