@@ -67,7 +67,7 @@ KTX2_VARIANTS = {"KTX2 folder (kd BC1 sRGB)": "ktx2", "KTX2, kd in BC7 sRGB": "k
 def device():
     import wgpu
 
-    from slang_wgsl_tools import LVP_ICD
+    from helpers import LVP_ICD
 
     os.environ["VK_DRIVER_FILES"] = LVP_ICD
     os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.mkdtemp(prefix="hbrdf-xdg-"))
