@@ -275,6 +275,19 @@ def skip_without_vulkan(allow_module_level=False):
     pytest.skip("hbrdf_vk_runner or lavapipe not available", allow_module_level=allow_module_level)
 
 
+RASTER_TOOL = ROOT / "build" / "hbrdf_raster"
+
+
+def skip_without_raster_tool() -> None:
+    """A raster test module's guard, at its top: skips the module unless hbrdf_raster and lavapipe are
+    there; under HBRDF_REQUIRE_VULKAN=1 (scripts/test.sh) an error instead, as skip_without_vulkan."""
+    if RASTER_TOOL.exists() and os.path.exists(LVP_ICD):
+        return
+    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
+        raise RuntimeError(f"the raster tests need {RASTER_TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
+    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+
+
 def compile_spirv(src: pathlib.Path, spv: pathlib.Path, target: str = "glsl", include_dir=None) -> None:
     """A compute shader (GLSL, or HLSL through glslang's HLSL front end) to SPIR-V for Vulkan 1.1;
     asserts that glslangValidator and spirv-val both accept it."""

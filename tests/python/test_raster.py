@@ -28,17 +28,14 @@ import numpy as np
 import pytest
 
 import hybridbrdf
-from helpers import LAVAPIPE_ENV, LVP_ICD, ROOT
+from helpers import LAVAPIPE_ENV, LVP_ICD, ROOT, RASTER_TOOL, skip_without_raster_tool
 from textbook_reference import textbook_fa
 
-TOOL = ROOT / "build" / "hbrdf_raster"
+TOOL = RASTER_TOOL
 MODEL = ROOT / "results" / "rgl54_fast.safetensors"
 MATERIAL = "paper_white_rgb.rgl"
 
-if not (TOOL.exists() and os.path.exists(LVP_ICD)):
-    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
-        raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
-    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+skip_without_raster_tool()
 
 W, H = 96, 64
 CAMERA = {"position": [0.3, 1.2, 4.0], "look_at": [0, -0.1, 0], "up": [0, 1, 0], "fov_deg": 40, "width": W,

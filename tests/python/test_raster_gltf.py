@@ -8,22 +8,18 @@ NaN or negative in either image. Also: the frame plan refuses a full model mater
 model file beside a textured folder (the generated files would define the same names)."""
 
 import json
-import os
 import sys
 
 import numpy as np
 import pytest
 
 import hybridbrdf
-from helpers import LVP_ICD, ROOT
+from helpers import ROOT, RASTER_TOOL, skip_without_raster_tool
 
-TOOL = ROOT / "build" / "hbrdf_raster"
+TOOL = RASTER_TOOL
 MODEL = ROOT / "results" / "rgl54_fast.safetensors"
 
-if not (TOOL.exists() and os.path.exists(LVP_ICD)):
-    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
-        raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
-    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+skip_without_raster_tool()
 if not MODEL.exists():
     pytest.skip("results/rgl54_fast.safetensors is not in this checkout", allow_module_level=True)
 pytest.importorskip("trimesh")

@@ -9,22 +9,18 @@ Measured (lavapipe): 1.4e-3 mean, 1.4e-3 at the 99th percentile; the tracer read
 instead ("mip_lod": false: the tracer before the chain) 0.36 mean, 3.5 at the 99th."""
 
 import json
-import os
 
 import numpy as np
 import pytest
 
 import hybridbrdf
 from hybridbrdf.render import render
-from helpers import LVP_ICD, ROOT
+from helpers import RASTER_TOOL, skip_without_raster_tool
 import gltf_textured_asset as asset
 from test_gltf_mips import CHECKER
 
-TOOL = ROOT / "build" / "hbrdf_raster"
-if not (TOOL.exists() and os.path.exists(LVP_ICD)):
-    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
-        raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
-    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+TOOL = RASTER_TOOL
+skip_without_raster_tool()
 pytest.importorskip("pygltflib")
 
 

@@ -17,21 +17,17 @@ fails the sign by hand. Not caught: the normal map's b_s built right-handed (pap
 is near mirror-symmetric, the bound comparison stays at 3.3e-5)."""
 
 import json
-import os
 
 import numpy as np
 import pytest
 
 import hybridbrdf
 from hybridbrdf.render import render
-from helpers import LAVAPIPE_ENV, LVP_ICD, ROOT
+from helpers import LAVAPIPE_ENV, ROOT, RASTER_TOOL, skip_without_raster_tool
 import gltf_textured_asset as asset
 
-TOOL = ROOT / "build" / "hbrdf_raster"
-if not (TOOL.exists() and os.path.exists(LVP_ICD)):
-    if os.environ.get("HBRDF_REQUIRE_VULKAN") == "1":
-        raise RuntimeError(f"the raster tests need {TOOL} (cmake --build build --target hbrdf_raster) and lavapipe")
-    pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
+TOOL = RASTER_TOOL
+skip_without_raster_tool()
 pytest.importorskip("pygltflib")
 
 
