@@ -8,6 +8,18 @@
 
 namespace hbrdf::bc {
 
+void bc4_palette(int e0, int e1, int palette[8]) {
+    palette[0] = e0;
+    palette[1] = e1;
+    if (e0 > e1) {
+        for (int i = 1; i < 7; ++i) palette[i + 1] = ((7 - i) * e0 + i * e1) / 7;
+    } else {
+        for (int i = 1; i < 5; ++i) palette[i + 1] = ((5 - i) * e0 + i * e1) / 5;
+        palette[6] = 0;
+        palette[7] = 255;
+    }
+}
+
 namespace {
 
 // Little-endian bit reader over one 128-bit (or 64-bit) block: BC7 packs its fields from bit 0.
@@ -58,15 +70,8 @@ void decode_bc1(const std::uint8_t* b, std::uint8_t* out) {
 
 // One BC4 block into 16 values `stride` bytes apart.
 void decode_bc4(const std::uint8_t* b, std::uint8_t* out, int stride) {
-    const int r0 = b[0], r1 = b[1];
-    int palette[8] = {r0, r1, 0, 0, 0, 0, 0, 0};
-    if (r0 > r1) {
-        for (int i = 1; i < 7; ++i) palette[i + 1] = ((7 - i) * r0 + i * r1) / 7;
-    } else {
-        for (int i = 1; i < 5; ++i) palette[i + 1] = ((5 - i) * r0 + i * r1) / 5;
-        palette[6] = 0;
-        palette[7] = 255;
-    }
+    int palette[8];
+    bc4_palette(b[0], b[1], palette);
     std::uint64_t indices = 0;
     for (int i = 0; i < 6; ++i) indices |= std::uint64_t(b[2 + i]) << (8 * i);
     for (int t = 0; t < 16; ++t) out[t * stride] = std::uint8_t(palette[(indices >> (3 * t)) & 7u]);

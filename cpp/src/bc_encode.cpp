@@ -26,19 +26,6 @@ namespace hbrdf::bc {
 
 namespace {
 
-// The decoded palette of endpoints (e0, e1): eight levels when e0 > e1, else six and 0, 255.
-void bc4_palette(int e0, int e1, int palette[8]) {
-    palette[0] = e0;
-    palette[1] = e1;
-    if (e0 > e1) {
-        for (int i = 1; i < 7; ++i) palette[i + 1] = ((7 - i) * e0 + i * e1) / 7;
-    } else {
-        for (int i = 1; i < 5; ++i) palette[i + 1] = ((5 - i) * e0 + i * e1) / 5;
-        palette[6] = 0;
-        palette[7] = 255;
-    }
-}
-
 constexpr int kRefinedStarts = 4;
 
 struct Candidate {

@@ -41,6 +41,11 @@ std::size_t level_bytes(BlockFormat format, std::uint32_t width, std::uint32_t h
 void decode_level(BlockFormat format, const std::uint8_t* blocks, std::uint32_t width, std::uint32_t height,
                   std::uint8_t* texels);
 
+/// The eight values a BC4 block's 3-bit indices select, from its endpoints (e0, e1): e0, e1 and six
+/// levels between them when e0 > e1, else four levels between them, 0 and 255 (Khronos Data
+/// Format 1.3, "BC4"). The decoder and the encoder share it.
+void bc4_palette(int e0, int e1, int palette[8]);
+
 /// One BC4 block of 16 values (row-major from the block's top-left texel) minimising the squared
 /// error of its decode_block() under one constraint: a value of 0 or 255 decodes exactly (the
 /// search: bc_encode.cpp; docs/TEXTURES.md, "Encoders").
