@@ -288,6 +288,16 @@ def skip_without_raster_tool() -> None:
     pytest.skip("hbrdf_raster or lavapipe not available", allow_module_level=True)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def lavapipe_without_llvm_passes():
+    """hbrdf_raster's lavapipe without LLVM's optimisation passes, as every shader test's
+    (LAVAPIPE_ENV, issue 56): the frames' draws are small beside compiling their shaders. A raster
+    test module imports it, which makes it autouse there."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("GALLIVM_PERF", LAVAPIPE_ENV["GALLIVM_PERF"])
+        yield
+
+
 def compile_spirv(src: pathlib.Path, spv: pathlib.Path, target: str = "glsl", include_dir=None) -> None:
     """A compute shader (GLSL, or HLSL through glslang's HLSL front end) to SPIR-V for Vulkan 1.1;
     asserts that glslangValidator and spirv-val both accept it."""

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 import hybridbrdf
-from helpers import LAVAPIPE_ENV, LVP_ICD, ROOT, RASTER_TOOL, skip_without_raster_tool
+from helpers import LVP_ICD, ROOT, RASTER_TOOL, skip_without_raster_tool, lavapipe_without_llvm_passes  # noqa: F401 (autouse fixture)
 from textbook_reference import textbook_fa
 
 TOOL = RASTER_TOOL
@@ -46,15 +46,6 @@ SPHERE = {"center": [0.0, 0.0, 0.0], "radius": 1.0}
 PLANE = {"center": [0.0, -1.0, 0.0], "normal": [0.0, 1.0, 0.0], "tangent": [1.0, 0.0, 0.0], "size": 6.0}
 RED = {"type": "analytic", "kd": [0.7, 0.2, 0.1], "eta": [1.5, 1.6, 1.7], "alpha": [0.2, 0.5]}
 FLOOR = {"type": "analytic", "kd": 0.4, "eta": 1.8, "alpha": 0.3}
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _lavapipe_without_llvm_passes():
-    """hbrdf_raster's lavapipe without LLVM's optimisation passes, as every shader test's
-    (helpers.LAVAPIPE_ENV, issue 56): the frames' draws are small beside compiling their shaders."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("GALLIVM_PERF", LAVAPIPE_ENV["GALLIVM_PERF"])
-        yield
 
 
 def scene_dict(sphere_material):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import hybridbrdf
-from helpers import ROOT, RASTER_TOOL, skip_without_raster_tool
+from helpers import ROOT, RASTER_TOOL, skip_without_raster_tool, lavapipe_without_llvm_passes  # noqa: F401 (autouse fixture)
 
 TOOL = RASTER_TOOL
 MODEL = ROOT / "results" / "rgl54_fast.safetensors"

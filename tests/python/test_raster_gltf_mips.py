@@ -15,7 +15,7 @@ import pytest
 
 import hybridbrdf
 from hybridbrdf.render import render
-from helpers import RASTER_TOOL, skip_without_raster_tool
+from helpers import RASTER_TOOL, skip_without_raster_tool, lavapipe_without_llvm_passes  # noqa: F401 (autouse fixture)
 import gltf_textured_asset as asset
 from test_gltf_mips import CHECKER
 

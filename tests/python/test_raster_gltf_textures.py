@@ -23,21 +23,12 @@ import pytest
 
 import hybridbrdf
 from hybridbrdf.render import render
-from helpers import LAVAPIPE_ENV, ROOT, RASTER_TOOL, skip_without_raster_tool
+from helpers import ROOT, RASTER_TOOL, skip_without_raster_tool, lavapipe_without_llvm_passes  # noqa: F401 (autouse fixture)
 import gltf_textured_asset as asset
 
 TOOL = RASTER_TOOL
 skip_without_raster_tool()
 pytest.importorskip("pygltflib")
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _lavapipe_without_llvm_passes():
-    """hbrdf_raster's lavapipe without LLVM's optimisation passes, as every shader test's
-    (helpers.LAVAPIPE_ENV, issue 56): the frames' draws are small beside compiling their shaders."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("GALLIVM_PERF", LAVAPIPE_ENV["GALLIVM_PERF"])
-        yield
 
 
 def both(tmp_path, s, language="glsl"):

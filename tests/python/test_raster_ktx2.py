@@ -30,7 +30,7 @@ import pytest
 
 import hybridbrdf
 import test_raster as raster
-from helpers import run_cli_here
+from helpers import run_cli_here, lavapipe_without_llvm_passes  # noqa: F401 (autouse fixture)
 from hybridbrdf.svbrdf.ktx2 import read_ktx2, write_ktx2
 from test_raster import (MATERIAL, MODEL, POINT, SUN, W, H, draw, interior, near_shading_horizon, surfaces,
                          write_normal_map)
