@@ -31,14 +31,15 @@ ARCHS = [(arch, ACTS[(i + 1) % len(ACTS)]) for i, arch in enumerate(spec.ARCHS)]
 
 CPP_DRIVER = r"""
 #include <cstdio>
-#include <vector>
+#include <cstdlib>
 #include "model.h"
 int main() {
     const hbrdf::HbrdfMaterial mats[] = {MATS};
     unsigned n = 0;
     if (std::fread(&n, 4, 1, stdin) != 1) return 2;
-    std::vector<float> in(FLOATS * n);
-    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 3;
+    const std::size_t count = std::size_t(FLOATS) * n;
+    float* const in = static_cast<float*>(std::calloc(count + 1, 4));  // not <vector>: 0.13 s less g++ a compile
+    if (in == nullptr || std::fread(in, 4, count, stdin) != count) return 3;
     for (const auto& m : mats)
 LOOP
     return 0;

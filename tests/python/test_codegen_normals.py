@@ -106,13 +106,14 @@ def test_texel_functions_run_like_the_library(folder, tmp_path, target):
 
 CPP_DRIVER = r"""
 #include <cstdio>
-#include <vector>
+#include <cstdlib>
 #include "m.h"
 int main() {
     unsigned n = 0, k = 0;
     if (std::fread(&n, 4, 1, stdin) != 1 || std::fread(&k, 4, 1, stdin) != 1) return 1;
-    std::vector<float> in(std::size_t(n) * (8 + 3 * k));
-    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 1;
+    const std::size_t count = std::size_t(n) * (8 + 3 * k);
+    float* const in = static_cast<float*>(std::calloc(count + 1, 4));  // not <vector>: 0.13 s less g++ a compile
+    if (in == nullptr || std::fread(in, 4, count, stdin) != count) return 1;
     for (unsigned i = 0; i < n; ++i) {
         const float* p = &in[std::size_t(i) * (8 + 3 * k)];
         const hbrdf::float3 wi(p[0], p[1], p[2]), wo(p[3], p[4], p[5]);

@@ -124,13 +124,14 @@ def combine_call(rule, o, g, fa):
 
 
 CPP_DRIVER = """#include <cstdio>
-#include <vector>
+#include <cstdlib>
 #include "model.h"
 int main() {
     unsigned n = 0;
     if (std::fread(&n, 4, 1, stdin) != 1) return 1;
-    std::vector<float> in(4 * n);
-    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 1;
+    const std::size_t count = std::size_t(4) * n;
+    float* const in = static_cast<float*>(std::calloc(count + 1, 4));  // not <vector>: 0.13 s less g++ a compile
+    if (in == nullptr || std::fread(in, 4, count, stdin) != count) return 1;
     for (unsigned i = 0; i < n; ++i) {
         const float* data_in = &in[4 * i];
         float out[2] = {hbrdf::hbrdf_activation(data_in[0]), hbrdf::COMBINE};

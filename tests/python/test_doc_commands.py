@@ -295,11 +295,14 @@ BROKEN = [
 @pytest.fixture(scope="module")
 def parsed(tmp_path_factory):
     """(items, broken, complaints) for every argument list of the documents and of BROKEN, in one
-    runner per test run. Both tests that read it are slow, so under pytest-xdist they start first,
-    one on each worker, and each worker ran the runner (10-12 s each in the CI run of 2e7ebb2): the
-    first writes its complaints into the folder the run's workers share (fresh for every run, so
-    no earlier run's answers are read) under a name keyed by every argument list, the other reads
-    them."""
+    runner per test run (7 s of CPU on M2, most of it importing torch and the two pytest
+    collections). Under pytest-xdist each worker ran the runner (10-12 s each in the CI run of
+    2e7ebb2): the first writes its complaints into the folder the run's workers share (fresh for
+    every run, so no earlier run's answers are read) under a name keyed by every argument list, the
+    other reads them. Only the first reader is marked slow: when both were, they started first on
+    the two workers, and one worker sat on the lock, idle, for the whole runner (18 s of wall on
+    M2 under load); the unmarked one runs among the short tests, by when the answers are written
+    (and waits for them otherwise)."""
     import hashlib
 
     items = [(w, c, argv) for w, c in commands() for argv in argument_lists(c)]
@@ -323,8 +326,7 @@ def test_every_documented_command_parses(parsed):
     assert len(items) >= 100, len(items)
 
 
-@pytest.mark.slow
-def test_commands_the_parsers_refuse_are_reported(parsed):
+def test_commands_the_parsers_refuse_are_reported(parsed):  # not slow: reads the runner's answers (above)
     """The same runner refuses each of BROKEN (an unknown flag, a missing required argument, a
     bad value, an unknown bench flag, a pytest -k that selects nothing)."""
     _, broken, complaints = parsed

@@ -107,13 +107,14 @@ def test_generated_texel_functions_match_the_library(tmp_path, case, target):
 
 CPP_DRIVER = r"""
 #include <cstdio>
-#include <vector>
+#include <cstdlib>
 #include "model.h"
 int main() {
     unsigned n = 0;
     if (std::fread(&n, 4, 1, stdin) != 1) return 1;
-    std::vector<float> in(17ull * n);
-    if (std::fread(in.data(), 4, in.size(), stdin) != in.size()) return 1;
+    const std::size_t count = std::size_t(17) * n;
+    float* const in = static_cast<float*>(std::calloc(count + 1, 4));  // not <vector>: 0.13 s less g++ a compile
+    if (in == nullptr || std::fread(in, 4, count, stdin) != count) return 1;
     const hbrdf::HbrdfMaterial mats[] = {MATS};
     for (unsigned i = 0; i < n; ++i) {
         const float* p = &in[17ull * i];
