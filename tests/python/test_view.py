@@ -91,10 +91,13 @@ def chromium():
 needs_renderer = pytest.mark.skipif(not getattr(_core, "HAVE_RENDERER", False), reason="build without the renderer")
 
 
-def open_page(page, hash_="", extra_flags=(), backend="webgl2"):
+def open_page(page, hash_="", extra_flags=(), backend="webgl2", keep=False):
     """(title, status line, dom, the page's console lines) of the page opened from its path, in this
     test process's chromium for these flags (view_harness: one browser, a new tab per page; the
-    document once loaded and titled "hbrdf view: ...", every console message of the tab).
+    document once loaded and titled "hbrdf view: ...", every console message of the tab). ``keep``:
+    in the tab kept open for these page bytes (view_harness.open_url), where a page opened before
+    draws the new fragment without loading again (its shader compiled once; the console lines since
+    the change): for the pages several tests read; a test whose point is the load opens it fresh.
     ``backend``: put ``backend=...`` in front of the URL's fragment (``None``: the fragment as
     given). These tests are the WebGL2 backend's: the page would first ask for a WebGPU adapter,
     and chromium without WebGPU flags answers none and logs "No available adapters." on the console
@@ -102,39 +105,46 @@ def open_page(page, hash_="", extra_flags=(), backend="webgl2"):
     exe = chromium()
     if backend is not None:
         hash_ = f"backend={backend}" + ("&" + hash_ if hash_ else "")
-    title, dom, console = view_harness.open_url(exe, [*BROWSER_FLAGS, *extra_flags], page, hash_, timeout=180)
+    title, dom, console = view_harness.open_url(exe, [*BROWSER_FLAGS, *extra_flags], page, hash_, timeout=180, keep=keep)
     # ANGLE's performance note "GPU stall due to ReadPixels" is no message of the page's: with
     # --disable-gpu-compositing (BROWSER_FLAGS) the browser's software compositor copies the WebGL
     # canvas out with a readPixels of its own, and on a loaded machine that copy waits (CI, a page
     # without readback=1 at size=16, 2026-11-29); the tests' own readback (page_dom) can draw it too.
     # Only that exact note is dropped: any other console line still fails the test that reads it.
-    console = [line for line in console if "GPU stall due to ReadPixels" not in line]
+    console = without_stall_note(console)
     assert re.search(r"<title>(.*?)</title>", dom, re.S).group(1) == title
     status = re.search(r'<div id="status">(.*?)</div>', dom, re.S).group(1)
     return title, status, dom, console
+
+
+def without_stall_note(console):
+    """The console lines but ANGLE's "GPU stall due to ReadPixels" note (open_page says why)."""
+    return [line for line in console if "GPU stall due to ReadPixels" not in line]
 
 
 def unescape(text):
     return text.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&amp;", "&")
 
 
-def page_dom(page, hash_, size=SIZE):
-    """The DOM of the page opened with readback=1 at size x size; asserts a clean load."""
-    title, status, dom, console = open_page(page, f"readback=1&size={size}&" + hash_)
+def page_dom(page, hash_, size=SIZE, keep=False):
+    """The DOM of the page opened with readback=1 at size x size (``keep``: open_page's); asserts a
+    clean load (or change of the fragment)."""
+    title, status, dom, console = open_page(page, f"readback=1&size={size}&" + hash_, keep=keep)
     if any("CONTEXT_LOST_WEBGL" in line for line in console):
         # SwiftShader's WebGL context lost under the shared browser's load (seen once in two clean-
         # clone runs of the suite, the page code unchanged): the page is opened once more, in a new
         # tab, and that one must load clean; a second loss fails below.
+        view_harness.close_kept(page)
         title, status, dom, console = open_page(page, f"readback=1&size={size}&" + hash_)
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console  # ANGLE's "GPU stall due to ReadPixels" note already dropped (open_page)
     return dom
 
 
-def page_state(page, hash_, size=SIZE):
+def page_state(page, hash_, size=SIZE, keep=False):
     """(canvas as (size, size, 3) uint8 top row first, the scene the page shows for the tracer,
-    its hbrdf edit line); asserts a clean load."""
-    return read_state(page_dom(page, hash_, size))
+    its hbrdf edit line); asserts a clean load (``keep``: open_page's)."""
+    return read_state(page_dom(page, hash_, size, keep))
 
 
 def read_state(dom):
@@ -149,9 +159,10 @@ def read_state(dom):
 
 def shared_page_state(tmp_path_factory, page, hash_, size=SIZE):
     """page_state, made once per test run for every test that opens these page bytes with this
-    fragment at this size (view_harness.shared: the load is asserted clean where it is made)."""
+    fragment at this size (view_harness.shared: the load is asserted clean where it is made), in the
+    page's kept tab (open_page's ``keep``)."""
     return view_harness.shared(tmp_path_factory, "webgl2", [view_harness.file_sha256(page), hash_, size, BROWSER_FLAGS,
-                                                            chromium()], lambda: page_state(page, hash_, size))
+                                                            chromium()], lambda: page_state(page, hash_, size, keep=True))
 
 
 def page_pixels(page, hash_):
@@ -249,7 +260,8 @@ def test_page_matches_tracer(page, analytic, tmp_path_factory):
     """(1) The page's sphere against the tracer's image of the scene the page shows for it (the
     renders shared with test_view_webgpu's test of the same scene)."""
     material = "paper_white_rgb.rgl"
-    img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
+    img, scene, _ = page_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130",
+                               keep=True)
     assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
                                         light="sun", elevation=40, azimuth=130)
     assert_matches_tracer(img, scene, shared=tmp_path_factory)
@@ -369,11 +381,11 @@ def test_hostile_text_cannot_inject(tmp_path):
     # size=16: the page's frame after its title drawn at 16 x 16 (the test reads its text, not its picture).
     # An origin, shown for its material, reads back as the text it is (all: the training line): the
     # first material's on the page as opened (the default material; kd set as its slider sets it, for
-    # the edit line below), the fourth's chosen in the URL. Two tabs: each load compiles the page's
-    # shader (2-3 s of CPU), and the edit line is read from the first.
+    # the edit line below), the fourth's chosen in the URL. One tab: the first by a load, the fourth
+    # material's by a change of the fragment (keep: the page's shader compiled once, 2-3 s of CPU).
     doms = []
     for i, chosen in ((0, "&kd=0.5"), (3, f"&material={model.materials[3]}")):
-        title, status, dom, console = open_page(out, "size=16" + chosen)
+        title, status, dom, console = open_page(out, "size=16" + chosen, keep=True)
         assert title == "hbrdf view: ok" and console == [], (title, status, console)
         assert "pwned" not in title
         assert dom.count("<script") == 2 and "<img" not in dom and "<b>" not in dom
@@ -439,14 +451,70 @@ def test_without_webgl2_one_line(page):
     assert title.startswith("hbrdf view: error: This viewer needs WebGL2")
 
 
-@pytest.mark.parametrize("hash_,line", [
-    ("material=nope", 'no material "nope" in the model'),
-    ("kd=2", 'URL parameter kd="2": expected 1 or 3 numbers in [0, 1]'),
-    ("alpha=0.1,", 'URL parameter alpha="0.1,": expected 1 or 2 numbers in [0.0001, 1]'),
+@pytest.mark.parametrize("hash_,line,keep", [
+    ("material=nope", 'no material "nope" in the model', False),
+    ("kd=2", 'URL parameter kd="2": expected 1 or 3 numbers in [0, 1]', True),
+    ("alpha=0.1,", 'URL parameter alpha="0.1,": expected 1 or 2 numbers in [0.0001, 1]', True),
 ])
-def test_bad_url_parameters_one_line(page, hash_, line):
-    title, status, _, _ = open_page(page, hash_)
+def test_bad_url_parameters_one_line(page, hash_, line, keep):
+    """A bad parameter is one line on the page and in its title: at load (the first case, a fresh
+    tab) and on a change of the fragment (the others, in MODEL's kept tab, which the next fragment
+    puts right: test_fragment_change_draws_what_a_fresh_load_draws)."""
+    title, status, _, _ = open_page(page, hash_, keep=keep)
     assert unescape(status) == line and title == "hbrdf view: error: " + line, (title, status)
+
+
+#: Two states of a model's page that differ in every parameter the page reads from its fragment (A
+#: the sun, B the map): the change A -> B leaves A's kd, eta, alpha, exposure, light, sun_el, sun_az
+#: and analytic out (each must fall back to its default) and brings rotation and spp in; B -> A the
+#: reverse; the material and the size change both ways. Small: each is drawn twice per backend.
+FRAGMENT_A = ("readback=1&size=40&material=cc_ibiza_sunset_rgb.rgl&kd=0.8,0.2,0.1&eta=2.5&alpha=0.05,0.4"
+              "&exposure=0.7&light=sun&sun_el=30&sun_az=-60&analytic=1")
+FRAGMENT_B = "readback=1&size=48&material=paper_white_rgb.rgl&rotation=25&spp=8"
+FRAGMENT_BAD = "readback=1&size=40&kd=2"
+
+
+def shown_state(dom):
+    """What a page's DOM shows of its state: the status line, the canvas's size and its read-back
+    pixels, the samples line, the hbrdf edit line, the tracer scene and its command, the info lines."""
+    got = {"canvas": re.search(r'<canvas id="view"[^>]*>', dom).group(0)}
+    for tag, id_ in (("div", "status"), ("pre", "readback"), ("div", "samples"), ("div", "cmd"), ("pre", "scene"),
+                     ("code", "render_cmd"), ("p", "info")):
+        got[id_] = re.search(f'<{tag} id="{id_}">(.*?)</{tag}>', dom, re.S).group(1)
+    return got
+
+
+def check_fragment_changes(page, flags, backend):
+    """Fragments A, a bad one, B and A again in one tab (view_harness.Tab: the page draws each change
+    without loading again) against fresh loads of A and B in tabs of their own: title, status line,
+    pixels and every text the page shows equal, no console line; the bad fragment is the page's one
+    line and the next one puts the page right."""
+    exe = chromium()
+    a, b, bad = (f"backend={backend}&{h}" for h in (FRAGMENT_A, FRAGMENT_B, FRAGMENT_BAD))
+    fresh_b = view_harness.open_url(exe, flags, page, b)
+    tab = view_harness.Tab(view_harness.browser(exe, flags), view_harness.page_url(page, a), 180)
+    try:
+        fresh_a = tab.first
+        for fresh in (fresh_a, fresh_b):
+            assert (fresh[0], without_stall_note(fresh[2])) == ("hbrdf view: ok", []), fresh[::2]
+        title, dom, console = tab.goto(bad, 180)
+        line = 'URL parameter kd="2": expected 1 or 3 numbers in [0, 1]'
+        assert (title, unescape(shown_state(dom)["status"])) == ("hbrdf view: error: " + line, line)
+        assert shown_state(dom)["readback"] == "" and console == [], console
+        for fragment, fresh in ((b, fresh_b), (a, fresh_a)):
+            title, dom, console = tab.goto(fragment, 180)
+            assert (title, without_stall_note(console)) == ("hbrdf view: ok", []), (fragment, title, console)
+            got, want = shown_state(dom), shown_state(fresh[1])
+            assert got == want, (fragment, {k: (got[k][:200], want[k][:200]) for k in got if got[k] != want[k]})
+    finally:
+        tab.close()
+
+
+def test_fragment_change_draws_what_a_fresh_load_draws(page):
+    """A change of the URL's fragment (docs/VIEWER.md, "URL parameters") shows what a fresh load of the
+    new URL shows, pixel for pixel (check_fragment_changes): the redraw the tests drive their kept
+    tabs with (open_page's ``keep``) forgets no parameter, and a bad one is put right."""
+    check_fragment_changes(page, BROWSER_FLAGS, "webgl2")
 
 
 @pytest.mark.parametrize("model_file", [MODEL, HEADS_MODEL, NEURAL_MODEL], ids=["hybrid", "heads", "neural"])

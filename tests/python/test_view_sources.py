@@ -214,7 +214,9 @@ def test_out_over_a_source_of_a_folder_refused(synthetic_model, tmp_path, capsys
 def plastic_dom(synthetic_page):
     # spp=1: the tests read the plots, the image beside the sphere and the scene the page prints (whose
     # sample count the test that renders it sets), not the sphere's converged picture
-    title, status, dom, console = open_page(synthetic_page, f"material=plastic&analytic=1&size={S}&readback=1&spp=1")
+    # keep: the page's tab kept for the other test that reads it (test_view.open_page)
+    title, status, dom, console = open_page(synthetic_page, f"material=plastic&analytic=1&size={S}&readback=1&spp=1",
+                                            keep=True)
     return title, status, dom, console
 
 
@@ -274,10 +276,13 @@ def test_measured_plastic_matches_the_page_scene_of_its_fa(synthetic_page, plast
 
 
 def test_anisotropic_two_rows_and_no_source_hidden(synthetic_page):
-    title, status, dom, console = open_page(synthetic_page, f"material=brushed_aluminium&size={S}&readback=1&spp=1")
+    # in the page's kept tab (plastic_dom's): two changes of the fragment, the plot redrawn for its
+    # material, then hidden for one without a source
+    title, status, dom, console = open_page(synthetic_page, f"material=brushed_aluminium&size={S}&readback=1&spp=1",
+                                            keep=True)
     assert title == "hbrdf view: ok", (title, status)
     assert plot_pixels(dom).shape == (26 + 2 * 230, 900, 3)
-    title, status, dom, console = open_page(synthetic_page, "material=gold&size=16")  # its frame at 16 x 16
+    title, status, dom, console = open_page(synthetic_page, "material=gold&size=16", keep=True)  # its frame at 16 x 16
     assert (title, console) == ("hbrdf view: ok", []), (title, console)
     assert hidden(dom, "figure", "measured") and hidden(dom, "div", "slices")
 

@@ -83,7 +83,7 @@ def four_layer(tmp_path_factory, kind_models):
             m, _ = kind_models(kind)
             sv = _four_layer_material(m, d / "sv")
             page = _view(d, d / "sv")
-            built[kind] = (m, sv, d / "sv", page, page_dom(page, f"analytic=0&{SUN}", TRACER_SIZE))
+            built[kind] = (m, sv, d / "sv", page, page_dom(page, f"analytic=0&{SUN}", TRACER_SIZE, keep=True))
         return built[kind]
     return get
 
@@ -95,9 +95,10 @@ def _view(tmp_path, folder, *extra):
     return out
 
 
-def _pixels(page, hash_):
-    """The page's converged picture (SIZE x SIZE, top row first) after a clean load."""
-    title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_)
+def _pixels(page, hash_, keep=False):
+    """The page's converged picture (SIZE x SIZE, top row first) after a clean load (``keep``: in the
+    page's kept tab, test_view.open_page: for the uniform pages, which several tests read)."""
+    title, status, dom, console = open_page(page, f"readback=1&size={SIZE}&" + hash_, keep=keep)
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console  # ANGLE's "GPU stall due to ReadPixels" note already dropped (test_view.open_page)
     return read_state(dom)[0].astype(np.int32)
@@ -107,7 +108,7 @@ def _shared_pixels(tmp_path_factory, page, hash_):
     """_pixels, made once per test run for every test that opens these page bytes with this fragment
     (view_harness.shared, keyed as test_view.shared_page_state)."""
     return view_harness.shared(tmp_path_factory, "webgl2-pixels", [view_harness.file_sha256(page), hash_, SIZE,
-                                                                   BROWSER_FLAGS, chromium()], lambda: _pixels(page, hash_))
+                                                                   BROWSER_FLAGS, chromium()], lambda: _pixels(page, hash_, True))
 
 
 #: The environment map's state of the constant-maps and two-region tests: the uniform page of the
@@ -200,7 +201,7 @@ def test_page_matches_tracer_of_the_scene_it_prints(four_layer, analytic):
     render of it is the page's picture within test_view.py's bound (two tracer seeds' difference + 1),
     the full model and the layers' f_a alone (``analytic=1``, the tracer's "evaluate": "analytic")."""
     m, _, folder, page, dom = four_layer("shared")
-    img, scene, _ = page_state(page, f"analytic=1&{SUN}") if analytic else read_state(dom)
+    img, scene, _ = page_state(page, f"analytic=1&{SUN}", keep=True) if analytic else read_state(dom)
     assert scene == tracer_scene(str(folder / "model.safetensors"), m.materials[0], width=TRACER_SIZE,
                                  height=TRACER_SIZE, analytic=analytic, spp=64, light="sun", elevation=40, azimuth=130,
                                  svbrdf=str(folder))
@@ -220,7 +221,8 @@ def test_constant_maps_are_the_uniform_material(model, tmp_path, tmp_path_factor
     textured = _view(tmp_path, tmp_path / "sv")
     got = _pixels(textured, COMMON)
     f32 = lambda v: ",".join(repr(float(np.float32(x))) for x in v)  # noqa: E731
-    want = _pixels(uniform, f"{COMMON}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}")
+    want = _pixels(uniform, f"{COMMON}&material={model.materials[1]}&kd={f32(kd)}&eta={f32(eta)}&alpha={f32(alpha)}",
+                   keep=True)
     other = _shared_pixels(tmp_path_factory, uniform, f"{COMMON}&material={model.materials[1]}")  # two_regions' too
     diff = np.abs(got - want)
     print(f"constant maps against the uniform page: mean {diff.mean():.4f}, max {diff.max()}; "

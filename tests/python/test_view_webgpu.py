@@ -42,7 +42,8 @@ from hybridbrdf.codegen.main import generate
 from hybridbrdf.model.file import load_model
 import view_harness
 from test_view import (BROWSER_FLAGS, CHROMIUM_FLAGS, ENV_SIZE, ENV_STATE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE,
-                       assert_matches_tracer, chromium, env_state, interior_mask, mad, needs_renderer, page, page_state,
+                       assert_matches_tracer, check_fragment_changes, chromium, env_state, interior_mask, mad,
+                       needs_renderer, page, page_state,
                        read_state, shared_page_state, shared_tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
 
@@ -55,11 +56,12 @@ WEBGPU_FLAGS = [f for f in CHROMIUM_FLAGS if not f.startswith("--virtual-time-bu
 PAGE_TIMEOUT = 180
 
 
-def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT, fresh=False):
+def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT, fresh=False, keep=False):
     """As test_view.open_page: (title, status line, dom, console lines), the page opened from its
     path, read when its title is "hbrdf view: ..." (ok or an error) or after ``timeout`` seconds.
-    In this test process's chromium for ``flags`` (view_harness: a new tab per page), or with
-    ``fresh`` in a chromium started for this page alone (bench/viewer_load.py: a cold load)."""
+    In this test process's chromium for ``flags`` (view_harness: a new tab per page; ``keep``: in
+    the page's kept tab, as test_view.open_page), or with ``fresh`` in a chromium started for this
+    page alone (bench/viewer_load.py: a cold load)."""
     exe = chromium()
     flags = WEBGPU_FLAGS if flags is None else flags
     if fresh:
@@ -70,7 +72,7 @@ def open_page_devtools(page, hash_="", flags=None, timeout=PAGE_TIMEOUT, fresh=F
         finally:
             b.close()
     else:
-        title, dom, console = view_harness.open_url(exe, flags, page, hash_, timeout=timeout)
+        title, dom, console = view_harness.open_url(exe, flags, page, hash_, timeout=timeout, keep=keep)
     status = re.search(r'<div id="status">(.*?)</div>', dom, re.S)
     return title, status.group(1) if status else "", dom, console
 
@@ -104,10 +106,11 @@ def samples_line(dom):
     return re.search(r'<div id="samples">(.*?)</div>', dom, re.S).group(1)
 
 
-def webgpu_state(page, hash_, size=SIZE):
+def webgpu_state(page, hash_, size=SIZE, keep=False):
     """As test_view.page_state for the WebGPU backend: (canvas (size, size, 3) uint8 top row first,
-    the scene the page shows for the tracer, its hbrdf edit line); asserts a clean load by WebGPU."""
-    title, status, dom, console = open_page_devtools(page, f"backend=webgpu&readback=1&size={size}&" + hash_)
+    the scene the page shows for the tracer, its hbrdf edit line); asserts a clean load (or change of
+    the fragment, ``keep``) by WebGPU."""
+    title, status, dom, console = open_page_devtools(page, f"backend=webgpu&readback=1&size={size}&" + hash_, keep=keep)
     assert title == "hbrdf view: ok", (title, status)
     assert console == [], console
     assert samples_line(dom).endswith("samples per pixel (WebGPU)"), samples_line(dom)
@@ -116,9 +119,10 @@ def webgpu_state(page, hash_, size=SIZE):
 
 def shared_webgpu_state(tmp_path_factory, page, hash_, size=SIZE):
     """webgpu_state, made once per test run for every test that opens these page bytes with this
-    fragment at this size (view_harness.shared: the load is asserted clean where it is made)."""
+    fragment at this size (view_harness.shared: the load is asserted clean where it is made), in the
+    page's kept tab."""
     return view_harness.shared(tmp_path_factory, "webgpu", [view_harness.file_sha256(page), hash_, size, WEBGPU_FLAGS,
-                                                            chromium()], lambda: webgpu_state(page, hash_, size))
+                                                            chromium()], lambda: webgpu_state(page, hash_, size, keep=True))
 
 
 # ---- (1), (2): against the path tracer ----
@@ -146,7 +150,8 @@ def test_webgpu_matches_tracer_under_the_environment(webgpu, page, material, ana
 def test_webgpu_matches_tracer_in_the_sun(webgpu, page, material, analytic, tmp_path_factory):
     """(2) The sun alone (one exact sample per pixel) against the tracer's 64 samples (diffuse_full's
     renders shared with test_view.test_page_matches_tracer[full], the same scene)."""
-    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130")
+    img, scene, _ = webgpu_state(page, f"material={material}&analytic={int(analytic)}&light=sun&sun_el=40&sun_az=130",
+                                 keep=True)
     assert scene == tracer_scene(MODEL, material, width=SIZE, height=SIZE, analytic=analytic, spp=64,
                                         light="sun", elevation=40, azimuth=130)
     assert_matches_tracer(img, scene, shared=tmp_path_factory)
@@ -176,10 +181,16 @@ def test_webgpu_and_webgl2_agree(webgpu, page, tmp_path_factory):
     assert diff <= 0.1, diff
     sun = "material=cc_ibiza_sunset_rgb.rgl&light=sun&sun_el=30&sun_az=-60&alpha=0.05,0.4"
     mask = interior_mask(SIZE)
-    gpu = webgpu_state(page, sun)[0].astype(np.int32)
-    gl = page_state(page, sun)[0].astype(np.int32)
+    gpu = webgpu_state(page, sun, keep=True)[0].astype(np.int32)
+    gl = page_state(page, sun, keep=True)[0].astype(np.int32)
     assert np.abs(gpu - gl)[mask].max() <= 1, np.abs(gpu - gl)[mask].max()
     assert gpu[mask].max() > 50  # a lit sphere
+
+
+def test_webgpu_fragment_change_draws_what_a_fresh_load_draws(webgpu, page):
+    """test_view's check of a change of the fragment against fresh loads, with WebGPU drawing: the
+    sums' buffer and bind groups made again for the new size, the same pixels."""
+    check_fragment_changes(page, WEBGPU_FLAGS, "webgpu")
 
 
 # ---- (4): a clean load; other architectures ----

@@ -10,7 +10,14 @@ program). ``hbrdf view`` as a subprocess took 5-8 s, of which importing torch wa
 test's process (torch already imported) 0.5 s.
 
 Each page gets a tab of its own (a new target), closed after it is read: no state of one page
-(its WebGL2 context, its console) reaches the next. What a page reports is as ``--dump-dom`` and
+(its WebGL2 context, its console) reaches the next. Except where a test asks to ``keep`` it
+(:func:`open_url`, :class:`Tab`): the pages several tests read (a model's page in test_view and
+test_view_webgpu, the uniform and four-layer pages of test_view_svbrdf, the sources page) stay open in
+a tab per page bytes and backend, and the next fragment is drawn there by changing ``location.hash``:
+the page redraws without loading again (docs/VIEWER.md, "URL parameters"), so SwiftShader compiles
+its shaders once per tab instead of once per picture (2-6 s of CPU each); the console lines read
+then are those since the change. test_view's test_fragment_change_draws_what_a_fresh_load_draws
+holds such a change to what a fresh load of the new URL shows, pixel for pixel. What a page reports is as ``--dump-dom`` and
 chromium's log gave it: the document once the window's load event has fired and the page's title
 says "hbrdf view: ..." (ok or an error; WebGPU draws after the load event), and every console
 message of that tab (the console API, uncaught exceptions and the browser's own messages: the
@@ -63,14 +70,14 @@ _KEEP_CONTEXTS = """(function () {
       return requestDevice.apply(this, arguments).then(function (d) { devices.push(d); return d; });
     };
   }
-  let asked = 0, hold = false, afterFrame = null;
+  let asked = 0, hold = false, afterFrame = null, held = [];
   const raf = window.requestAnimationFrame.bind(window);
   window.requestAnimationFrame = function (callback) {
-    if (hold) return 0;
+    if (hold) { held.push(callback); return 0; }
     asked++;
     return raf(function (t) {
       asked--;
-      if (hold) return;
+      if (hold) { held.push(callback); return; }
       try { callback(t); } finally {
         if (afterFrame) { const f = afterFrame; afterFrame = null; hold = true; f(); }
       }
@@ -91,6 +98,15 @@ _KEEP_CONTEXTS = """(function () {
     return new Promise(function (resolve) { if (asked > 0) afterFrame = resolve; else { hold = true; resolve(); } })
       .then(gpuSettled);
   } });
+  // Before a change of the fragment (Tab.goto): the frames the page asked for while held are asked
+  // for again, so that its frame loop runs as a user's page's does until the next __hbrdfSettle.
+  Object.defineProperty(window, "__hbrdfRelease", { value: function () {
+    hold = false;
+    afterFrame = null;
+    const callbacks = held;
+    held = [];
+    callbacks.forEach(function (c) { window.requestAnimationFrame(c); });
+  } });
 })();"""
 
 #: JavaScript: a promise of the title once it says "hbrdf view: ..." (a MutationObserver: the page's
@@ -104,6 +120,19 @@ _WAIT_FOR_TITLE = """new Promise(function (resolve) {
   observer.observe(document, {subtree: true, childList: true, characterData: true});
   setTimeout(function () { observer.disconnect(); resolve(document.title); }, %d);  // the deadline
 })"""
+
+
+#: JavaScript (Tab.goto): the page's frames released (_KEEP_CONTEXTS), its title reset to "hbrdf view"
+#: (the page titles it again once the new fragment's picture is drawn: _WAIT_FOR_TITLE then waits for
+#: that, not for the previous title), a mark that a reload would drop, then the new fragment.
+_CHANGE_FRAGMENT = """window.__hbrdfRelease(); document.title = 'hbrdf view';
+Object.defineProperty(window, '__hbrdfSameDocument', { value: true, configurable: true });
+location.hash = %s; location.hash"""
+
+
+class Reloaded(RuntimeError):
+    """The page loaded itself again on a change of its fragment (viewer.js does for another backend=,
+    or after an error that was not the fragment's): what it shows is a fresh load's, not a change's."""
 
 
 def _die_with_parent():
@@ -140,6 +169,7 @@ class Browser:
         self.buf = b""
         self.next_id = 0
         self.events = []
+        self.sessions = set()  # the open tabs' DevTools sessions
 
     def alive(self):
         return self.proc.poll() is None
@@ -155,7 +185,9 @@ class Browser:
         self.buf += chunk
         while b"\0" in self.buf:
             raw, self.buf = self.buf.split(b"\0", 1)
-            self.events.append(json.loads(raw))
+            m = json.loads(raw)
+            if "id" in m or m.get("sessionId") in self.sessions:  # answers, and events of open tabs
+                self.events.append(m)
 
     def call(self, method, params=None, session=None, timeout=60.0):
         self.next_id += 1
@@ -188,32 +220,23 @@ class Browser:
         return mine
 
     def open(self, url, timeout):
-        """(title, dom, console lines) of ``url`` in a new tab, read as the module docstring says."""
-        target = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
-        try:
-            session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-            for domain in ("Page", "Runtime", "Log"):
-                self.call(f"{domain}.enable", session=session)
-            self.call("Page.addScriptToEvaluateOnNewDocument", {"source": _KEEP_CONTEXTS}, session)
-            self.take_events(session)  # about:blank's
-            deadline = time.monotonic() + timeout
-            nav = self.call("Page.navigate", {"url": url}, session)
-            assert "errorText" not in nav, nav
-            self.wait_event("Page.loadEventFired", session, timeout)
-            left_ms = max(1, int((deadline - time.monotonic()) * 1000))
-            self.call("Runtime.evaluate", {"expression": _WAIT_FOR_TITLE % left_ms, "awaitPromise": True,
-                                           "returnByValue": True}, session, timeout=left_ms / 1000 + 30)
-            r = self.call("Runtime.evaluate", {"expression": "[document.title, document.documentElement.outerHTML]",
-                                               "returnByValue": True}, session)
-            title, dom = r["result"]["value"]
-            console = [_console_line(m) for m in self.take_events(session)]
-            return title, dom, [c for c in console if c is not None]
-        finally:
-            try:
-                self.call("Target.closeTarget", {"targetId": target}, timeout=30)
-            except (RuntimeError, TimeoutError):
-                pass
-            self.events.clear()  # the closed tab's late events (calls are sequential: no answer is pending)
+        """(title, dom, console lines) of ``url`` in a new tab, read as the module docstring says; the
+        tab is closed after."""
+        tab = Tab(self, url, timeout)
+        tab.close()
+        return tab.first
+
+    def read(self, session, deadline):
+        """(title, dom, console lines) of the tab once its title says "hbrdf view: ..." and it has
+        settled (or at ``deadline``); the console lines are those since the last read."""
+        left_ms = max(1, int((deadline - time.monotonic()) * 1000))
+        self.call("Runtime.evaluate", {"expression": _WAIT_FOR_TITLE % left_ms, "awaitPromise": True,
+                                       "returnByValue": True}, session, timeout=left_ms / 1000 + 30)
+        r = self.call("Runtime.evaluate", {"expression": "[document.title, document.documentElement.outerHTML]",
+                                           "returnByValue": True}, session)
+        title, dom = r["result"]["value"]
+        console = [_console_line(m) for m in self.take_events(session)]
+        return title, dom, [c for c in console if c is not None]
 
     def close(self):
         try:
@@ -229,6 +252,69 @@ class Browser:
             os.close(fd)
         self.stderr.close()
         shutil.rmtree(self.profile, ignore_errors=True)
+
+
+class Tab:
+    """A page in a tab of its own: opened by a fresh load of ``url`` (its first read: ``first``), then
+    kept open for :meth:`goto`, which changes the page's fragment in it: the page draws the new
+    fragment's picture without loading again (viewer.js, docs/VIEWER.md "URL parameters"), so the
+    shaders SwiftShader compiled for the first load serve every later picture. Reads are as the module
+    docstring says; a change's console lines are those since the change."""
+
+    def __init__(self, browser, url, timeout):
+        self.browser = browser
+        self.hash = url.partition("#")[2]
+        self.target = browser.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+        self.session = None
+        try:
+            self.session = browser.call("Target.attachToTarget", {"targetId": self.target, "flatten": True})["sessionId"]
+            browser.sessions.add(self.session)
+            for domain in ("Page", "Runtime", "Log"):
+                browser.call(f"{domain}.enable", session=self.session)
+            browser.call("Page.addScriptToEvaluateOnNewDocument", {"source": _KEEP_CONTEXTS}, self.session)
+            browser.take_events(self.session)  # about:blank's
+            deadline = time.monotonic() + timeout
+            nav = browser.call("Page.navigate", {"url": url}, self.session)
+            assert "errorText" not in nav, nav
+            browser.wait_event("Page.loadEventFired", self.session, timeout)
+            self.first = browser.read(self.session, deadline)
+        except BaseException:
+            self.close()
+            raise
+
+    def goto(self, hash_, timeout):
+        """(title, dom, console lines since the change) of the page after its fragment is changed to
+        ``hash_`` in this tab, read once its title says "hbrdf view: ..." again. Raises
+        :class:`Reloaded` when the page loaded itself again instead."""
+        if hash_ == self.hash:
+            raise ValueError(f"the tab shows #{hash_} already: no change of the fragment")
+        b = self.browser
+        b.call("Page.bringToFront", session=self.session)  # a tab in the background draws no frames
+        b.take_events(self.session)  # the previous picture's (read already)
+        deadline = time.monotonic() + timeout
+        b.call("Runtime.evaluate", {"expression": _CHANGE_FRAGMENT % json.dumps("#" + hash_), "returnByValue": True},
+               self.session)
+        self.hash = hash_
+        try:
+            got = b.read(self.session, deadline)
+            same = b.call("Runtime.evaluate", {"expression": "window.__hbrdfSameDocument === true",
+                                               "returnByValue": True}, self.session)["result"]["value"]
+        except RuntimeError as e:
+            if "context" in str(e).lower() or "navigat" in str(e).lower():
+                raise Reloaded(f"#{hash_}: the page loaded again ({e})") from e
+            raise
+        if not same:
+            raise Reloaded(f"#{hash_}: the page loaded again")
+        return got
+
+    def close(self):
+        b = self.browser
+        try:
+            b.call("Target.closeTarget", {"targetId": self.target}, timeout=30)
+        except (RuntimeError, TimeoutError):
+            pass
+        b.sessions.discard(self.session)
+        b.events = [m for m in b.events if m.get("sessionId") != self.session or "id" in m]  # its late events
 
 
 def _console_line(event):
@@ -265,21 +351,75 @@ def browser(exe, flags) -> Browser:
 
 @atexit.register
 def _close_all():
+    _KEPT.clear()  # their browsers close them
     for b in list(_BROWSERS.values()):
         b.close()
     _BROWSERS.clear()
 
 
-def open_url(exe, flags, page, hash_="", timeout=180.0):
-    """(title, dom, console lines) of the page file ``page`` with URL fragment ``hash_``."""
-    url = "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+def page_url(page, hash_=""):
+    return "file://" + urllib.parse.quote(os.path.abspath(page)) + ("#" + hash_ if hash_ else "")
+
+
+def open_url(exe, flags, page, hash_="", timeout=180.0, keep=False):
+    """(title, dom, console lines) of the page file ``page`` with URL fragment ``hash_``: a fresh load in
+    a new tab, closed after; with ``keep``, in this process's kept tab of these page bytes and
+    backend (:func:`_in_kept_tab`): there a change of the fragment where the tab is open already."""
     b = browser(exe, flags)
     try:
-        return b.open(url, timeout)
+        if keep:
+            return _in_kept_tab(b, exe, flags, page, hash_, timeout)
+        return b.open(page_url(page, hash_), timeout)
     except (RuntimeError, TimeoutError):
         if b.alive():
             raise
         raise RuntimeError("chromium died: " + _tail(b))
+
+
+#: Pages kept open for open_url(keep=True), per browser, least recently used first; at most
+#: MAX_KEPT_TABS (each holds its WebGL2 context or WebGPU device, and chromium loses the oldest
+#: WebGL2 context past 16).
+_KEPT: dict = {}
+MAX_KEPT_TABS = 8
+
+
+def _kept_key(exe, flags, page, hash_):
+    backend = urllib.parse.parse_qs(hash_).get("backend")
+    return (exe, tuple(flags), os.path.abspath(page), file_sha256(page), backend[-1] if backend else None)
+
+
+def _in_kept_tab(b, exe, flags, page, hash_, timeout):
+    """open_url(keep=True): the kept tab of (the page's path and bytes, its backend= parameter,
+    chromium and its flags) driven to ``hash_``; a new one (a fresh load) when there is none, when
+    it shows ``hash_`` already, or when the page loaded itself again (view_harness.Reloaded)."""
+    key = _kept_key(exe, flags, page, hash_)
+    tab = _KEPT.pop(key, None)
+    if tab is not None and (tab.browser is not b or not b.alive()):
+        tab = None
+    got = None
+    if tab is not None and tab.hash != hash_:
+        try:
+            got = tab.goto(hash_, timeout)
+        except Reloaded:
+            got = None
+        except BaseException:
+            tab.close()
+            raise
+    if got is None:
+        if tab is not None:
+            tab.close()
+        tab = Tab(b, page_url(page, hash_), timeout)
+        got = tab.first
+    _KEPT[key] = tab
+    for old in [k for k in _KEPT if _KEPT[k].browser is b][:-MAX_KEPT_TABS]:
+        _KEPT.pop(old).close()
+    return got
+
+
+def close_kept(page):
+    """Closes every kept tab of ``page`` (a test that saw its context lost opens it fresh)."""
+    for k in [k for k in _KEPT if k[2] == os.path.abspath(page)]:
+        _KEPT.pop(k).close()
 
 
 def _tail(b):

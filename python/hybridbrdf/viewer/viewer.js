@@ -5,9 +5,10 @@
 (function () {
   const statusEl = document.getElementById("status");
   const readbackEl = document.getElementById("readback");
-  let failed = false;
+  let failed = false, failedByFragment = false;
   function fail(message) {
     failed = true;
+    failedByFragment = false;
     const line = String(message).split("\n")[0];
     statusEl.textContent = line;
     document.title = "hbrdf view: error: " + line;
@@ -15,7 +16,9 @@
   window.addEventListener("error", function (e) { fail("script error: " + e.message); });
 
   const data = JSON.parse(document.getElementById("hbrdf-data").textContent);
-  const params = new URLSearchParams(location.hash.replace(/^#/, ""));
+  // The URL's fragment: read at load and again on every change of it (below, "hashchange").
+  function fragment() { return new URLSearchParams(location.hash.replace(/^#/, "")); }
+  let params = fragment();
   const $ = function (id) { return document.getElementById(id); };
 
   // A textured material (hbrdf view --svbrdf; docs/VIEWER.md "A textured material"): its layers are
@@ -26,7 +29,8 @@
       textured.layers.join(", ") + "; " + data.arch + ")"
     : "hbrdf view: " + data.model_path + " (" + data.arch + ", " + data.materials.length + " materials)";
 
-  const size = Math.max(16, Math.min(2048, parseInt(params.get("size") || "320", 10) || 320));
+  function sizeOf(p) { return Math.max(16, Math.min(2048, parseInt(p.get("size") || "320", 10) || 320)); }
+  let size = sizeOf(params);
   const canvas = $("view");
   canvas.width = size;
   canvas.height = size;
@@ -35,6 +39,7 @@
   const backendWanted = params.get("backend");
   if (backendWanted !== null && backendWanted !== "webgpu" && backendWanted !== "webgl2") {
     fail("URL parameter backend=" + JSON.stringify(backendWanted) + ": expected webgpu or webgl2");
+    window.addEventListener("hashchange", function () { location.reload(); });  // another backend=: load again
     return;
   }
 
@@ -136,7 +141,16 @@
     state.edited = { kd: false, eta: false, alpha: false };
     select.value = String(i);
   }
+  // The state the fragment names; every parameter it leaves out at its default, so that a change of
+  // the fragment shows what a fresh load of the new URL shows.
   function fromHash() {
+    state.analytic = false;
+    state.exposure = 0;
+    state.el = data.sun.elevation;
+    state.az = data.sun.azimuth;
+    state.light = "environment";
+    state.rotation = 0;
+    targetSamples = 256;
     loadMaterial(0);
     if (params.has("material") && textured) throw new Error("URL parameter material: this page shows a textured material");
     if (params.has("material")) {
@@ -285,8 +299,8 @@
   }
 
   // ---- the WebGL2 backend: sums in float textures, a draw per sample, the display pass ----
-  // The interface of viewer_webgpu.js's backend (name, begin, restart, accumulate, present, settle,
-  // readback); here everything is synchronous: settle gives null and readback the pixels.
+  // The interface of viewer_webgpu.js's backend (name, begin, resize, restart, accumulate, present,
+  // settle, readback); here everything is synchronous: settle gives null and readback the pixels.
   function createWebGL2() {
     const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
     if (!gl) throw new Error("This viewer needs WebGL2, which this browser does not provide (or has turned off).");
@@ -366,19 +380,23 @@
       if (gl.getError() !== gl.NO_ERROR) throw new Error("the textured material's maps do not fit this browser's WebGL2 textures");
     }
 
-    // Two sum textures, read one and write the other (a float target cannot be blended into without
-    // EXT_float_blend).
-    const targets = [0, 1].map(function () {
-      const tex = floatTexture(4, gl.RGBA32F, gl.RGBA, size, size, null);
-      const fbo = gl.createFramebuffer();
-      gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
-      if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) {
-        throw new Error("float framebuffer incomplete");
-      }
-      return { tex: tex, fbo: fbo };
-    });
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    // Two sum textures of the canvas's size, read one and write the other (a float target cannot be
+    // blended into without EXT_float_blend); made again when the size changes (the programs stay).
+    function sumTargets() {
+      const made = [0, 1].map(function () {
+        const tex = floatTexture(4, gl.RGBA32F, gl.RGBA, size, size, null);
+        const fbo = gl.createFramebuffer();
+        gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
+        gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+        if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) {
+          throw new Error("float framebuffer incomplete");
+        }
+        return { tex: tex, fbo: fbo };
+      });
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      return made;
+    }
+    let targets = sumTargets();
 
     let current = 0;  // targets[current] holds the sums
     function setUniforms(v) {
@@ -424,6 +442,11 @@
     return {
       name: "WebGL2",
       begin: function () {},
+      resize: function () {  // the canvas is size x size now (the fragment's size=): new sums, the same programs
+        targets.forEach(function (t) { gl.deleteFramebuffer(t.fbo); gl.deleteTexture(t.tex); });
+        targets = sumTargets();
+        current = 0;
+      },
       restart: function () {  // the picture changed: start the sums again
         targets.forEach(function (t) {
           gl.bindFramebuffer(gl.FRAMEBUFFER, t.fbo);
@@ -484,10 +507,11 @@
     samples += n;
   }
   function restart() { backend.restart(); samples = 0; }
-  let pending = false, dirty = true, busy = false, again = false;
+  // drawing: a picture of the fragment is being drawn (picture(), below); the frame loop waits for it.
+  let pending = false, dirty = true, busy = false, again = false, drawing = false;
   function frame() {
     pending = false;
-    if (failed) return;
+    if (failed || drawing) return;
     let settled;
     try {
       backend.begin();
@@ -540,14 +564,28 @@
     $("reset").addEventListener("click", function () { loadMaterial(state.index); redraw(); });
   }
 
-  // The first picture at load; with readback=1 every sample (the tests compare the converged picture
-  // with the tracer's), then the pixels into #readback (RGBA, bottom row first), then the title.
-  function firstPicture(b) {
-    backend = b;
-    fromHash();
+  // The picture of the URL's fragment, at load and after every change of the fragment: the state
+  // it names (fromHash), the canvas at its size, and with readback=1 every sample (the tests compare
+  // the converged picture with the tracer's), then the pixels into #readback (RGBA, bottom row
+  // first). A bad parameter is the page's one line; a later fragment can put it right.
+  function picture() {
+    params = fragment();
+    readbackEl.textContent = "";
+    try {
+      fromHash();
+    } catch (e) {
+      fail(e.message);
+      failedByFragment = true;
+      return null;
+    }
+    if (sizeOf(params) !== size) {
+      size = canvas.width = canvas.height = sizeOf(params);
+      backend.begin();
+      backend.resize(size);
+    } else {
+      backend.begin();
+    }
     show();
-    listen();
-    backend.begin();
     restart();
     dirty = false;
     const readback = params.get("readback") === "1";
@@ -555,8 +593,8 @@
     const gain = Math.pow(2, state.exposure);
     backend.present(gain);
     showSamples();
+    drawing = true;
     return then(backend.settle(), function () {
-      if (samples < samplesWanted()) schedule();
       if (!readback) return null;
       return then(backend.readback(gain), function (px) {
         let bin = "";
@@ -565,12 +603,46 @@
       });
     });
   }
-  function loaded() {
-    if (failed) return;
+  // After the picture (and its readback): the frame loop goes on refining it, the title says ok.
+  function pictureDone() {
+    drawing = false;
+    if (failed) return false;
+    if (dirty || samples < samplesWanted()) schedule();  // dirty: a control moved while it was drawn
     statusEl.textContent = "";
     document.title = "hbrdf view: ok";
+    return true;
+  }
+  function firstPicture(b) {
+    backend = b;
+    listen();
+    return picture();
+  }
+  function loaded() {
+    if (!pictureDone()) return;
     // Milliseconds from navigation to the first picture (bench/viewer_load.py reads it).
     document.body.dataset.loadMs = performance.now().toFixed(0);
+  }
+  // A new fragment (the user edits the URL, follows a link to #..., or the tests drive one tab): the
+  // page shows what a fresh load of the new URL shows, without compiling its shaders again (they do
+  // not depend on the fragment; docs/VIEWER.md, "URL parameters"). The title is "hbrdf view" until
+  // the new picture (and its readback) is drawn, then "hbrdf view: ok" or the error. Another
+  // backend=, or an error that was not the fragment's (a lost context, a refused shader, no WebGL2),
+  // loads the page again; while WebGPU starts, the first picture reads the fragment it finds.
+  function fragmentChanged() {
+    if (!backend && !failed) return;
+    if (!backend || fragment().get("backend") !== backendWanted || (failed && !failedByFragment)) {
+      location.reload();
+      return;
+    }
+    failed = failedByFragment = false;
+    statusEl.textContent = "";
+    document.title = "hbrdf view";
+    try {
+      const drawn = then(picture(), pictureDone);
+      if (drawn && typeof drawn.catch === "function") drawn.catch(function (e) { fail(e.message); });
+    } catch (e) {
+      fail(e.message);
+    }
   }
   function startWebGL2() {
     try {
@@ -579,6 +651,7 @@
       fail(e.message);
     }
   }
+  window.addEventListener("hashchange", fragmentChanged);
   const NO_WEBGPU = "backend=webgpu: this browser gives no WebGPU device";
   if (textured && backendWanted === "webgpu") {
     fail("backend=webgpu: the WebGPU backend does not draw textured materials (hbrdf view --svbrdf) yet; use backend=webgl2");

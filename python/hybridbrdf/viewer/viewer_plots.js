@@ -12,8 +12,9 @@ window.hbrdfPlots = (function () {
   const DEG = "\u00b0", THETA = "\u03b8", PHI = "\u03c6";
   const CELL_W = 300, CELL_H = 230, LEGEND_H = 26;
   const M = { left: 54, right: 10, top: 22, bottom: 38 };  // margins of one plot inside its cell
-  const readback = new URLSearchParams(location.hash.replace(/^#/, "")).get("readback") === "1";
-  let shown = null;  // [index, channel mode] last drawn
+  // readback=1 in the URL's fragment, read at each draw: the fragment can change (viewer.js redraws).
+  function readback() { return new URLSearchParams(location.hash.replace(/^#/, "")).get("readback") === "1"; }
+  let shown = null;  // [index, channel mode, readback, the sphere's canvas width] last drawn
 
   function $(id) { return document.getElementById(id); }
 
@@ -190,7 +191,8 @@ window.hbrdfPlots = (function () {
       const col = panel.theta_i.indexOf(s.theta_i), r = planes.indexOf(s.phi_i);
       drawCell(ctx, col * CELL_W, LEGEND_H + r * CELL_H, s, panel.theta_o, range, channels, hasAnalytic);
     });
-    if (readback) {  // the tests read the plot back (RGBA, top row first, base64)
+    canvas.removeAttribute("data-readback");
+    if (readback()) {  // the tests read the plot back (RGBA, top row first, base64)
       const px = ctx.getImageData(0, 0, canvas.width, canvas.height).data;
       let bin = "";
       for (let i = 0; i < px.length; i += 0x8000) bin += String.fromCharCode.apply(null, px.subarray(i, i + 0x8000));
@@ -236,8 +238,9 @@ window.hbrdfPlots = (function () {
       return;
     }
     const mode = $("slices_channel").value;
-    if (shown && shown[0] === index && shown[1] === mode) return;
-    shown = [index, mode];
+    const now = [index, mode, readback(), $("view").width];
+    if (shown && now.every(function (v, k) { return v === shown[k]; })) return;
+    shown = now;
     showImage(data, row);
     box.hidden = false;
     drawPlots(data, row, mode);

@@ -3,6 +3,8 @@
 // draws through a backend of this small interface, which its WebGL2 backend has too:
 //   name                     "WebGPU"
 //   begin()                  before a frame's calls (here: error scopes)
+//   resize(n)                the canvas is n x n pixels now (the fragment's size=): new sums, the
+//                            same compiled pipelines
 //   restart()                the sums of samples back to zero
 //   accumulate(first, n, u)  n more samples per pixel (sample indices first .. first + n - 1), one
 //                            compute dispatch each; u: viewer.js's viewUniforms()
@@ -61,7 +63,8 @@ window.hbrdfWebGPU = (function () {
   async function create(opts) {
     const got = await requestDevice();
     if (!got.device) return { backend: null, why: got.why };
-    const device = got.device, size = opts.size;
+    const device = got.device;
+    let size = opts.size;
     let lost = false;
     device.lost.then(function (info) {
       lost = true;
@@ -114,20 +117,25 @@ window.hbrdfWebGPU = (function () {
     const paramsBuffer = buffer(paramsData.byteLength, U.UNIFORM | U.COPY_DST);
     const frameData = new Uint32Array(SLOT / 4 * SLOTS);
     const frameBuffer = buffer(frameData.byteLength, U.UNIFORM | U.COPY_DST);
-    const accum = buffer(16 * size * size, U.STORAGE | U.COPY_DST);
+    let accum = buffer(16 * size * size, U.STORAGE | U.COPY_DST);
     const texels = buffer(opts.env.texels.byteLength, U.STORAGE | U.COPY_DST, opts.env.texels);
     const cdf = buffer(opts.env.cdf.byteLength, U.STORAGE | U.COPY_DST, opts.env.cdf);
     const displayData = new ArrayBuffer(16);
     const displayBuffer = buffer(16, U.UNIFORM | U.COPY_DST);
-    const computeGroup = device.createBindGroup({ layout: computeLayout, entries: [
-      { binding: 0, resource: { buffer: paramsBuffer } },
-      { binding: 1, resource: { buffer: frameBuffer, size: 16 } },
-      { binding: 2, resource: { buffer: accum } },
-      { binding: 3, resource: { buffer: texels } },
-      { binding: 4, resource: { buffer: cdf } }] });
-    const displayGroup = device.createBindGroup({ layout: displayLayout, entries: [
-      { binding: 0, resource: { buffer: accum } },
-      { binding: 1, resource: { buffer: displayBuffer } }] });
+    // The bind groups of the sums' buffer (made again with it when the size changes).
+    function groups() {
+      return {
+        compute: device.createBindGroup({ layout: computeLayout, entries: [
+          { binding: 0, resource: { buffer: paramsBuffer } },
+          { binding: 1, resource: { buffer: frameBuffer, size: 16 } },
+          { binding: 2, resource: { buffer: accum } },
+          { binding: 3, resource: { buffer: texels } },
+          { binding: 4, resource: { buffer: cdf } }] }),
+        display: device.createBindGroup({ layout: displayLayout, entries: [
+          { binding: 0, resource: { buffer: accum } },
+          { binding: 1, resource: { buffer: displayBuffer } }] }) };
+    }
+    let bound = groups();
     await popScopes(device);
 
     function writeParams(u) {
@@ -158,16 +166,24 @@ window.hbrdfWebGPU = (function () {
       const pass = encoder.beginRenderPass({ colorAttachments: [{ view: view, clearValue: [0, 0, 0, 1], loadOp: "clear",
                                                                    storeOp: "store" }] });
       pass.setPipeline(displayPipelines[f]);
-      pass.setBindGroup(0, displayGroup);
+      pass.setBindGroup(0, bound.display);
       pass.draw(3);
       pass.end();
     }
     let readTexture = null, readBuffer = null;
-    const bytesPerRow = Math.ceil(4 * size / 256) * 256;
+    let bytesPerRow = Math.ceil(4 * size / 256) * 256;
 
     return { backend: {
       name: "WebGPU",
       begin: function () { pushScopes(device); },
+      resize: function (n) {  // within a frame's error scopes (begin)
+        accum.destroy();
+        if (readTexture) { readTexture.destroy(); readBuffer.destroy(); readTexture = readBuffer = null; }
+        size = n;
+        bytesPerRow = Math.ceil(4 * size / 256) * 256;
+        accum = buffer(16 * size * size, U.STORAGE | U.COPY_DST);
+        bound = groups();
+      },
       restart: function () {
         const encoder = device.createCommandEncoder();
         encoder.clearBuffer(accum);
@@ -184,7 +200,7 @@ window.hbrdfWebGPU = (function () {
           for (let i = 0; i < k; ++i) {  // a pass each: the next sample reads the sums this one wrote
             const pass = encoder.beginComputePass();
             pass.setPipeline(computePipeline);
-            pass.setBindGroup(0, computeGroup, [i * SLOT]);
+            pass.setBindGroup(0, bound.compute, [i * SLOT]);
             pass.dispatchWorkgroups(groups, groups, 1);
             pass.end();
           }
