@@ -63,14 +63,16 @@ def check_output(out: str, capture: str) -> None:
 
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
-            log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None) -> HybridMaps:
+            log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
+            refit_heads: bool = False) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
     (:mod:`~hybridbrdf.acquire.cluster_report`: its lines go to ``log`` once the clusters are known,
     a warning per cluster no prior material explains to ``warn``). ``resume`` continues the
     checkpoint of an interrupted run with the same settings; ``force`` starts afresh over one.
-    Returns the fit, its report as ``maps.report``."""
+    ``refit_heads``: each cluster's output layer refitted to its rows (:func:`fit_hybrid_texels`;
+    docs/ACQUISITION_GAP.md). Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.capture import load_capture
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
@@ -86,7 +88,7 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
         raise checkpoint.CheckpointError(ckpt, "no checkpoint to resume (run without --resume)")
     model = load_prior() if prior is None else load_model(prior)
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
-                "steps": int(steps), "seed": int(seed)}
+                "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {})}
     rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
     masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture, saturated=saturated)
     if report["saturated"]:
@@ -123,7 +125,7 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
             report_logger(log, warn)(chosen)
 
         maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
-                                 save_state=save_state, log=log, on_clusters=on_clusters)
+                                 save_state=save_state, log=log, on_clusters=on_clusters, refit_heads=refit_heads)
         layer = maps.layer.reshape(-1)
         maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "layers": maps.layers,
                        "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}

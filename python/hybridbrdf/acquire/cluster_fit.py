@@ -8,7 +8,11 @@ fits run the same three stages, on a *family* (the model's network and its per-m
    standardised features; per cluster, every material of the prior scored with its own values
    on a subsample of the cluster's rows, the best :data:`CANDIDATES` fitted (all of the family's
    per-texel values, one set for the cluster, on the frozen network), the lowest loss kept.
-3. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
+3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
+   its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
+   material share one BRDF, so a cluster pools every texel's observations for the one shape a
+   material the prior never saw needs (an option: docs/ACQUISITION_GAP.md).
+4. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
    material (output layer, energy table), a Gaussian pull toward the cluster's values (below).
 
 The pull is the MAP estimate's prior: a texel's rows have log residuals of variance sigma^2 (the
@@ -37,6 +41,14 @@ MAX_CLUSTERS = 4
 CANDIDATES = 2
 #: Rows of a cluster its materials are scored and fitted on, and the steps of each candidate's fit.
 CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
+#: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
+HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
+#: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
+HEAD_PULL = 1.0
+#: A refit starts a gated head's f_c biases at -HEAD_START or above and its f_g biases at HEAD_START
+#: or below: the guard's f_t = f_a head (weights 0, biases -200 and 200: exp(-200) + sigmoid(200) f_a)
+#: has no gradient; from -8 and 8 it has, and f_t differs from f_a by about 3e-4 of f_a + 3e-4.
+HEAD_START = 8.0
 
 
 def kmeans(features: np.ndarray, k: int, seed: int, iterations: int = 30) -> np.ndarray:
@@ -150,6 +162,59 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             "sigma2": torch.tensor(sigma2), "candidates": candidates}
 
 
+def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
+                seed: int, progress: Optional[Progress] = None) -> Dict[str, object]:
+    """Per cluster, its material's output layer (head weight and bias) and the cluster's values fitted
+    together (Adam, :data:`HEAD_STEPS` steps from the prior's head and the cluster stage's values)
+    on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen. Returns {"weight" (K, o, w),
+    "bias" (K, o), "centres" {name: (K, c)}, "sigma2" (K,)}: what the texel stage then uses per
+    cluster instead of the material's head and the cluster stage's values.
+
+    The head is pulled toward the prior's as the texel stage pulls a texel's values toward its
+    cluster's (a MAP prior): each element a Gaussian draw around the prior material's with the
+    variance of that element over the prior's materials, weighed against the rows' residual
+    variance sigma^2 (the cluster stage's) over 3 n_eff, n_eff the photographs the rows come from:
+    a texel's rows in one photograph see one direction pair, so the cluster's rows hold about one
+    independent pair per photograph, and a head on a few photographs stays near the prior's."""
+    t = family.tensors
+    tau2 = {n: t["materials." + n].var(dim=0).clamp_min(1e-6) for n in ("head_weight", "head_bias")}
+    k = len(clusters["material"])
+    weights, biases, sigma2 = [], [], []
+    centres = {n: [] for n in clusters["centres"]}
+    for c in range(k):
+        m = int(clusters["material"][c])
+        bias = t["materials.head_bias"][m:m + 1].clone()
+        if getattr(family.module, "combine_rule", None) == "gated":
+            bias[:, :3], bias[:, 3:] = bias[:, :3].clamp_min(-HEAD_START), bias[:, 3:].clamp_max(HEAD_START)
+        params = {"head_weight": t["materials.head_weight"][m:m + 1].clone().requires_grad_(),
+                  "head_bias": bias.requires_grad_(),
+                  **{"raw_" + n: v[c:c + 1].clone().requires_grad_() for n, v in clusters["centres"].items()}}
+        rows = _cluster_rows(obs, labels, c, HEAD_ROWS, seed)
+        prior_head = {"head_weight": t["materials.head_weight"][m:m + 1], "head_bias": bias.detach().clone()}
+        pull = HEAD_PULL * float(clusters["sigma2"][c]) / (3 * max(1, len(np.unique(obs.shot[rows.numpy()]))))
+
+        def loss(gen, params=params, rows=rows, m=m, prior_head=prior_head, pull=pull):
+            own = family.with_heads(torch.tensor([m]), params["head_weight"], params["head_bias"])
+            raw = {n: params["raw_" + n].expand(len(rows), -1) for n in clusters["centres"]}
+            d2 = _loss_rows(own, data, torch.zeros(len(rows), dtype=torch.long), raw, rows)
+            if gen is None:  # the residual alone (sigma^2 for the texel stage)
+                return d2
+            return d2 + pull * sum((((params[n] - prior_head[n]) ** 2) / tau2[n]).sum() for n in tau2)
+
+        if len(rows):
+            adam_texels(params, loss, HEAD_STEPS, HEAD_LR, seed, f"head{c}")
+        if progress is not None:
+            progress("heads", c + 1, k)
+        with torch.no_grad():
+            sigma2.append(max(float(loss(None)), 1e-8) if len(rows) else float(clusters["sigma2"][c]))
+        weights.append(params["head_weight"].detach()[0])
+        biases.append(params["head_bias"].detach()[0])
+        for n in centres:
+            centres[n].append(params["raw_" + n].detach()[0])
+    return {"weight": torch.stack(weights), "bias": torch.stack(biases),
+            "centres": {n: torch.stack(v) for n, v in centres.items()}, "sigma2": torch.tensor(sigma2)}
+
+
 def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
                   steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL, lr: float = 0.01,
                   progress: Optional[Progress] = None, state: Optional[dict] = None,
@@ -183,8 +248,11 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
-                 on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None) -> Tuple[np.ndarray, Dict, Dict]:
-    """The three stages (module docstring): (labels (n_texels,), clusters, per-texel raw values).
+                 on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None,
+                 refit_heads: bool = False) -> Tuple[np.ndarray, Dict, Dict]:
+    """The stages (module docstring): (labels (n_texels,), clusters, per-texel raw values); with
+    ``refit_heads`` (a family with material output layers) the heads stage too, and clusters["heads"]
+    holds what :func:`refit_heads_of` returned (the texel stage's per-cluster heads and centres).
     ``state`` (what ``save_state`` was last given) resumes after the last finished stage or within
     the analytic and texel stages at their last checkpoint (every 50 steps). ``on_clusters(labels,
     clusters)`` is called once the clusters are known (fitted or restored), before the texel stage."""
@@ -217,7 +285,17 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     clusters = state["clusters"]
     if on_clusters is not None:
         on_clusters(labels, clusters)
-    raw = refine_texels(family, obs, data, labels, clusters, steps, seed, rows_per_texel, progress=progress,
-                        state=state.get("texels_partial"), save_state=saver("texels_partial"))
+    stage_family, stage_clusters = family, clusters
+    if refit_heads and "materials.head_weight" in getattr(family, "tensors", {}):
+        if "heads" not in state:
+            finish("heads", refit_heads_of(family, obs, data, labels, clusters, seed, progress))
+        heads = state["heads"]
+        # The texel stage's "materials" are then the clusters: cluster k's head and its material's energy table.
+        stage_family = family.with_heads(clusters["material"], heads["weight"], heads["bias"])
+        stage_clusters = {**clusters, "material": torch.arange(len(clusters["material"])),
+                          "centres": heads["centres"], "sigma2": heads["sigma2"]}
+        clusters = {**clusters, "heads": heads}
+    raw = refine_texels(stage_family, obs, data, labels, stage_clusters, steps, seed, rows_per_texel,
+                        progress=progress, state=state.get("texels_partial"), save_state=saver("texels_partial"))
     return labels, clusters, raw
 

@@ -10,8 +10,9 @@ assignment, and each layer's kd, eta, alpha and latent maps the texels' values.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 import torch
@@ -22,6 +23,7 @@ from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
 from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.fit.painting import bound_bright_kd
+from hybridbrdf.model import energy
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import alpha_from_raw, energy_bound_scale, eta_from_raw, kd_from_raw, raw_from_analytic
 from hybridbrdf.svbrdf.asset import SVBRDF
@@ -47,6 +49,16 @@ class HybridFamily:
         t = self.tensors
         kd, eta, alpha = raw_from_analytic(t["materials.kd"], t["materials.eta"], t["materials.alpha"])
         return {"kd": kd, "eta": eta, "alpha": alpha, "z": t["materials.z"].clone()}
+
+    def with_heads(self, materials: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> "HybridFamily":
+        """The same family whose material k evaluates with output layer (``weight[k]``, ``bias[k]``)
+        and material ``materials[k]``'s energy table (the refitted heads of
+        :func:`~hybridbrdf.acquire.cluster_fit.refit_heads_of`); ``raw_of_materials`` stays the prior's."""
+        view = copy.copy(self)
+        view.tensors = dict(self.tensors, **{"materials.head_weight": weight, "materials.head_bias": bias})
+        if "materials.energy_bound" in self.tensors:
+            view.tensors["materials.energy_bound"] = self.tensors["materials.energy_bound"][materials]
+        return view
 
     @staticmethod
     def decode(raw: Dict[str, torch.Tensor]):
@@ -131,29 +143,59 @@ class HybridMaps:
         return sv
 
 
+def with_cluster_heads(model: HybridModel, family: HybridFamily, clusters: Dict) -> Tuple[HybridModel, List[str]]:
+    """The prior plus one material per cluster of a fit with refitted heads: the cluster's material
+    with its refitted output layer and the cluster's values, named ``<material>.acq<k>``, its energy
+    table fitted for that head (hbrdf add's bound: :func:`hybridbrdf.model.energy.with_bound`)."""
+    heads, chosen = clusters["heads"], clusters["material"].tolist()
+    with torch.no_grad():
+        values = dict(zip(("kd", "eta", "alpha", "z"), (v.numpy() for v in family.decode(heads["centres"]))))
+    values.update(head_weight=heads["weight"].numpy(), head_bias=heads["bias"].numpy())
+    names = [f"{model.materials[m][:52]}.acq{k}" for k, m in enumerate(chosen)]
+    plain = energy.unbounded(model)
+    tensors = {key: (np.concatenate([v, values[key.split(".", 1)[1]].astype(np.float32)]) if key.startswith("materials.")
+                     else v.copy()) for key, v in plain.tensors.items()}
+    infos = [dict(i) for i in plain.material_info] + [
+        {"name": n, "origin": f"{model.materials[m]} with its output layer refitted to a capture (hbrdf acquire fit)",
+         "isotropic": bool(values["alpha"][k][0] == values["alpha"][k][1]), "metrics": {}}
+        for k, (n, m) in enumerate(zip(names, chosen))]
+    grown = type(model)(dict(plain.arch), infos, tensors, dict(model.training) if isinstance(model.training, dict) else {})
+    old = model.tensors.get("materials.energy_bound", np.ones((len(model.materials), energy.NODES), np.float32))
+    table = np.concatenate([old, np.ones((len(names), energy.NODES), np.float32)])
+    return energy.with_bound(energy.attach(grown, table), names), names
+
+
 def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, seed: int = 0,
                       progress: Optional[Progress] = None, rows_per_texel: int = ROWS_PER_TEXEL,
                       state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
                       log: Callable[[str], None] = lambda msg: None,
-                      on_clusters: Optional[Callable[[HybridFamily, np.ndarray, Dict], None]] = None) -> HybridMaps:
+                      on_clusters: Optional[Callable[[HybridFamily, np.ndarray, Dict], None]] = None,
+                      refit_heads: bool = False) -> HybridMaps:
     """Fit (p, z) per texel on ``model``'s frozen network (a hybrid prior with its materials):
     the stages of :func:`hybridbrdf.acquire.cluster_fit.fit_on_prior` (analytic ``steps // 2``
     steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each), then the
     energy tables of the layers whose kd map is brighter than their material (stage "energy
     tables", one step a layer: about 5 s each). ``progress`` gets (stage, done, total) after each
     step; ``save_state`` a resumable state, ``state`` resumes; ``on_clusters(family, labels,
-    clusters)`` runs once the clusters are known (:mod:`~hybridbrdf.acquire.cluster_report`)."""
+    clusters)`` runs once the clusters are known (:mod:`~hybridbrdf.acquire.cluster_report`).
+    ``refit_heads``: each cluster's output layer refitted to its rows (the heads stage of
+    :func:`~hybridbrdf.acquire.cluster_fit.fit_on_prior`); each cluster is then a layer of its own,
+    a material of the prior with that head (:func:`with_cluster_heads`)."""
     family = HybridFamily(model)
     hook = None if on_clusters is None else (lambda labels, clusters: on_clusters(family, labels, clusters))
-    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook)
+    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook,
+                                         refit_heads=refit_heads)
     w, h = obs.size
     with torch.no_grad():
         kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))
-    # Clusters that chose the same material share its layer (p and z are per texel anyway).
-    cluster_material = clusters["material"].tolist()
-    chosen = list(dict.fromkeys(cluster_material))
-    layer = np.array([chosen.index(m) for m in cluster_material])[labels]
-    names = [model.materials[m] for m in chosen]
+    if "heads" in clusters:  # a layer per cluster: its own head
+        model, names = with_cluster_heads(model, family, clusters)
+        layer = labels
+    else:  # clusters that chose the same material share its layer (p and z are per texel anyway)
+        cluster_material = clusters["material"].tolist()
+        chosen = list(dict.fromkeys(cluster_material))
+        layer = np.array([chosen.index(m) for m in cluster_material])[labels]
+        names = [model.materials[m] for m in chosen]
     for k in range(len(names)):  # one layer at a time: a step of the "energy tables" bar each
         model, names = bound_bright_kd(model, names, {k: kd[layer == k]}, log)
         if progress is not None:

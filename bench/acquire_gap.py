@@ -1,0 +1,225 @@
+#!/usr/bin/env python3
+"""The gap between a light-stage acquisition and a full measurement (issue 61, part 2;
+docs/ACQUISITION_GAP.md).
+
+Samples painted from the five raw RGL files that results/prior132_minus_rgl5_32x2_l8_heads_20k
+(the held-out prior) never saw, photographed by a light stage (acquire.rigs.light_stage_rig, K
+lights x V cameras, Poisson-Gaussian noise at two levels, 1 mm light jitter), fitted on the
+held-out prior by acquire.hybrid_fit.fit_hybrid_texels in each configuration (--configs), and
+scored per material: the cMAE (CONVENTIONS' metric pairs) of every sampled **pure** texel (one
+weight above 0.99) against the truth at its centre, median over the texels. The reference is the
+same material fitted from its full measurement: ``hbrdf add`` of the raw file onto the held-out
+prior (hybridbrdf.fit.adding.add with its defaults, as bench/prior_heldout.py does), scored on
+the same pairs against the file. The ratio hybrid / full measurement is issue 61's target
+(at most 1.5 at N >= 32, both noise levels).
+
+    python bench/acquire_gap.py [--stage 8x4] [--photo 96] [--map 24] [--pairs 20000]
+        [--configs base,heads] [--seeds 0] [--noise low,high] [--samples paper3,napoli2]
+        [--refs /tmp/acquire_gap_refs] [--out results/acquire_gap_MACHINE]
+    python bench/acquire_gap.py --budget [--configs heads]   # a 512x512 capture of 16x4 photographs
+                                                             # onto 128x128: the fit's seconds
+
+Configurations (CONFIGS): ``base`` the fit before issue 61 part 2 (refit_heads=False), ``heads``
+each cluster's output layer refitted on its rows with the pull toward the prior's head
+(refit_heads=True), ``heads_free`` the same without the pull (cluster_fit.HEAD_PULL = 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import sys
+import time
+
+import numpy as np
+import torch
+
+import hybridbrdf as hb
+import hybridbrdf.acquire.cluster_fit as cluster_fit
+from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
+from hybridbrdf.acquire.mixture import Mixture
+from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.observations import texel_observations
+from hybridbrdf.acquire.rigs import light_stage_rig
+from hybridbrdf.acquire.simulation import simulate
+from hybridbrdf.evaluate.metrics import cmae
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+from acquire_compare import HELD_OUT_PRIOR, NOISE, PURE, Truth, machine_key  # noqa: E402
+from svbrdf_mixture import smoothstep  # noqa: E402
+
+#: Samples: the base, then the layers under the disc (and the band) of :func:`sample_masks`.
+SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_sunset_rgb"),
+           "napoli2": ("colodur_napoli_4f_rgb", "cg_sunflower_rgb")}
+#: Per configuration: fit_hybrid_texels keywords and the head refit's pull (cluster_fit.HEAD_PULL; None: its default).
+CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
+           "heads_free": ({"refit_heads": True}, 0.0)}
+
+
+def fit_config(obs, prior, config: str, steps: int, seed: int):
+    """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after."""
+    keywords, pull = CONFIGS[config]
+    default = cluster_fit.HEAD_PULL
+    cluster_fit.HEAD_PULL = default if pull is None else pull
+    try:
+        return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, **keywords)
+    finally:
+        cluster_fit.HEAD_PULL = default
+#: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
+JITTER = 0.001
+
+
+def sample_masks(size: int):
+    """A disc (right of centre, radius 0.25) and a band (x < 0.3), soft over about a texel of a
+    24-texel map, (size, size) each: regions wide enough for texels pure over their whole cell
+    (bench/svbrdf_mixture.py's stripes leave none at 24x24)."""
+    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size
+    disc = 1 - smoothstep(0.23, 0.27, np.hypot(x - 0.65, y - 0.5))
+    band = 1 - smoothstep(0.28, 0.32, x)
+    return [disc, band]
+
+
+def reference(name: str, shared: pathlib.Path, cache: pathlib.Path):
+    """The full-measurement fit of raw RGL ``name``: ``hbrdf add`` onto the held-out prior (its
+    defaults), kept in ``cache`` (NAME.safetensors) and reused."""
+    path = cache / f"{name}.safetensors"
+    if not path.exists():
+        from hybridbrdf.fit.adding import add
+        from hybridbrdf.fit.settings import ADD_LOSS_EPS, ADD_STEPS, FitSettings
+
+        cache.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        add([hb.open_source(str(shared / "rgl" / f"{name}.bsdf"))], out=str(path), progress=False,
+            settings=FitSettings(steps=ADD_STEPS, loss_eps=ADD_LOSS_EPS), prior=str(HELD_OUT_PRIOR))
+        print(f"reference {name}: hbrdf add onto the held-out prior in {time.perf_counter() - t0:.0f} s", flush=True)
+    return hb.load_model(str(path))
+
+
+def pure_texels(weights: np.ndarray, layer: int, count: int, seed: int = 0) -> np.ndarray:
+    """Up to ``count`` texels (j * W + i) pure over their whole cell, drawn with ``seed``: the weight
+    of ``layer`` above PURE at the texel and its 8 neighbours (the weights map is looked up
+    bilinearly, so a pixel off the texel's centre mixes in its neighbours' weights, and a texel
+    pure at its centre only, beside a stripe, was photographed 6% darker than its centre's truth)."""
+    w = weights[..., layer] > PURE
+    padded = np.pad(w, 1, mode="edge")  # clamp addressing
+    h, wd = w.shape
+    inner = np.all([padded[1 + dj:1 + dj + h, 1 + di:1 + di + wd] for dj in (-1, 0, 1) for di in (-1, 0, 1)], axis=0)
+    pure = np.nonzero(inner.reshape(-1))[0]
+    if len(pure) > count:
+        pure = np.sort(np.random.default_rng(seed).choice(pure, count, replace=False))
+    return pure
+
+
+def median_cmae(fit, truth: Truth) -> float:
+    """Median over ``truth``'s texels of the cMAE of ``fit.eval`` against the truth at each."""
+    n = len(truth.wi)
+    return float(np.median([cmae(truth.at(s), fit.eval(np.full(n, t, dtype=np.int64), truth.wi, truth.wo),
+                                 truth.wi[:, 2]) for s, t in enumerate(truth.texels)]))
+
+
+def run_sweep(args) -> int:
+    shared, size = pathlib.Path(args.shared), (args.map, args.map)
+    prior = hb.load_model(str(HELD_OUT_PRIOR))
+    k, v = (int(x) for x in args.stage.split("x"))
+    rig = light_stage_rig(k, v, size=(args.photo, args.photo))
+    lines = [f"acquire_gap: light stage {k}x{v} = {k * v} photographs of {args.photo}x{args.photo}, light jitter "
+             f"{JITTER}, {args.map}x{args.map} map, fit_hybrid_texels steps {args.steps} on {HELD_OUT_PRIOR.name}; "
+             f"pure texels (weight > {PURE}, up to {args.texels} a material) x {args.pairs} metric pairs; "
+             f"full measurement = hbrdf add of the raw file onto the same prior; machine {args.machine}, "
+             f"torch threads {torch.get_num_threads()}"]
+    header = f"{'sample':8s} {'material':24s} {'noise':5s} {'seed':>4s} {'full':>8s} " + " ".join(
+        f"{c:>8s} {'ratio':>6s}" for c in args.configs) + "  fit CPU s (" + ", ".join(args.configs) + ")"
+    out = open(args.out + ".txt.partial", "w")
+
+    def say(text):
+        print(text, flush=True)
+        out.write(text + "\n")
+        out.flush()
+
+    for line in lines + [header]:
+        say(line)
+    for sample in args.samples:
+        names = SAMPLES[sample]
+        sources = [hb.open_source(str(shared / "rgl" / f"{n}.bsdf")) for n in names]
+        mixture = Mixture.painted(sources[0], sources[1:], sample_masks(args.map)[:len(names) - 1])
+        truths = [Truth(mixture, pure_texels(mixture.weights, i, args.texels), size, args.pairs) for i in range(len(names))]
+        wi, wo = truths[0].wi, truths[0].wo
+        full = [cmae(np.maximum(src.eval(wi, wo), 0.0), reference(n, shared, pathlib.Path(args.refs)).eval(wi, wo, n),
+                     wi[:, 2]) for n, src in zip(names, sources)]
+        for label, photons, read in [x for x in NOISE if x[0] in args.noise]:
+            for seed in args.seeds:
+                cap = simulate(rig, mixture, NoiseModel(photons=photons, read_noise=read), light_jitter=JITTER,
+                               seed=100 * seed + (label == "high"))
+                obs = texel_observations(rig, cap.photos, size)
+                errors, seconds = {}, {}
+                for config in args.configs:
+                    t0 = time.process_time()  # CPU seconds: the machine is shared, wall time is not the fit's
+                    fit = fit_config(obs, prior, config, args.steps, seed)
+                    seconds[config] = time.process_time() - t0
+                    errors[config] = [median_cmae(fit, t) for t in truths]
+                for i, n in enumerate(names):
+                    cells = " ".join(f"{errors[c][i]:8.5f} {errors[c][i] / full[i]:6.2f}" for c in args.configs)
+                    say(f"{sample:8s} {n:24s} {label:5s} {seed:4d} {full[i]:8.5f} {cells}  "
+                        + ", ".join(f"{seconds[c]:.0f}" for c in args.configs))
+    out.close()
+    os.replace(args.out + ".txt.partial", args.out + ".txt")
+    return 0
+
+
+def run_budget(args) -> int:
+    """Issue 61's budget: a 512x512 capture of 16 x 4 = 64 light-stage photographs (the paper3 sample,
+    low noise, jitter) onto a 128x128 map: the seconds of the observations and of each configuration's fit."""
+    shared = pathlib.Path(args.shared)
+    names = SAMPLES["paper3"]
+    sources = [hb.open_source(str(shared / "rgl" / f"{n}.bsdf")) for n in names]
+    mixture = Mixture.painted(sources[0], sources[1:], sample_masks(512))
+    rig = light_stage_rig(16, 4, size=(512, 512))
+    cap = simulate(rig, mixture, NoiseModel(photons=NOISE[0][1], read_noise=NOISE[0][2]), light_jitter=JITTER, seed=1)
+    prior = hb.load_model(str(HELD_OUT_PRIOR))
+    t0 = time.perf_counter()
+    obs = texel_observations(rig, cap.photos, (128, 128))
+    t_obs = time.perf_counter() - t0
+    print(f"budget: 64 light-stage photographs of 512x512 onto 128x128, {len(obs.value):,} observations in "
+          f"{t_obs:.1f} s; machine {args.machine}, torch threads {torch.get_num_threads()}", flush=True)
+    for config in args.configs:
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        fit_config(obs, prior, config, args.steps, 0)
+        print(f"budget {config}: fit {time.perf_counter() - t0:.0f} s wall, {time.process_time() - cpu0:.0f} s CPU "
+              f"(+ {t_obs:.1f} s observations)", flush=True)
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--stage", default="8x4", help="KxV lights x cameras (default 8x4: 32 photographs)")
+    ap.add_argument("--photo", type=int, default=96, help="photograph side (default 96)")
+    ap.add_argument("--map", type=int, default=24, help="texel map side, = the weights map's (default 24)")
+    ap.add_argument("--pairs", type=int, default=20_000, help="metric pairs per texel (default 20000)")
+    ap.add_argument("--texels", type=int, default=16, help="pure texels scored per material at most (default 16)")
+    ap.add_argument("--steps", type=int, default=300, help="fit_hybrid_texels steps (default 300, hbrdf acquire fit's)")
+    ap.add_argument("--configs", default="base,heads", help=f"comma-separated, of {', '.join(CONFIGS)}")
+    ap.add_argument("--seeds", default="0", help="capture and fit seeds, comma-separated (default 0)")
+    ap.add_argument("--noise", default="low,high", help="noise levels of acquire_compare.NOISE (default low,high)")
+    ap.add_argument("--samples", default=",".join(SAMPLES), help=f"comma-separated, of {', '.join(SAMPLES)}")
+    ap.add_argument("--refs", default="/tmp/acquire_gap_refs", help="folder caching the hbrdf add references")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    ap.add_argument("--budget", action="store_true", help="time the 512x512, 64-photograph, 128x128 fit instead")
+    ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
+    ap.add_argument("--machine", default=machine_key(), help="machine key (default: detected)")
+    ap.add_argument("--out", help="write PREFIX.txt (default results/acquire_gap_MACHINE)")
+    args = ap.parse_args()
+    args.configs = args.configs.split(",")
+    unknown = [c for c in args.configs if c not in CONFIGS]
+    if unknown:
+        ap.error(f"--configs: unknown {', '.join(unknown)}; expected {', '.join(CONFIGS)}")
+    args.seeds = [int(s) for s in args.seeds.split(",")]
+    args.noise, args.samples = args.noise.split(","), args.samples.split(",")
+    args.out = args.out or str(ROOT / "results" / f"acquire_gap_{args.machine}")
+    torch.set_num_threads(args.threads)
+    return run_budget(args) if args.budget else run_sweep(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
