@@ -13,11 +13,14 @@ compared with the mean over its footprint of the level-0 texels' BRDFs (libhybri
 nearest texel: 4^L texels each, the same --pairs cosine-weighted direction pairs). Printed:
 median and p95 over footprints of SMAPE and cMAE (CONVENTIONS), per quantity, and the alpha map's
 three rules (perceptual: the chain's; value: plain averaging of alpha; mean_square: Toksvig/LEAN's
-second moment). First, f_a alone: one GGX lobe of each rule's alpha against the mean of lobes
-of several alphas, and the best single alpha (what no rule can beat).
+second moment) and a fitted rule (each level texel's alpha, Fresnel amplitude and kd fitted to
+its footprint's mean f_a: `fit_lobe`). First, f_a alone: one GGX lobe of each rule's alpha
+against the mean of lobes of several alphas; then what the best single lobe of 1, 2 or 3 fitted
+quantities reaches (fitted on the metric's own pairs: what no rule of those quantities can beat)
+and the fitted rule (fitted on other pairs, as a chain would be).
 
     python bench/svbrdf_mips.py [--model results/rgl54_fast.safetensors] [--pairs 500]
-        [--footprints 256] [--size 512] [--out DIR] [--lobes-only]
+        [--footprints 256] [--size 512] [--out DIR] [--lobes-only] [--alpha-only]
 """
 
 from __future__ import annotations
@@ -29,8 +32,10 @@ import tempfile
 import time
 
 import numpy as np
+from scipy.optimize import minimize
 
 import hybridbrdf as hb
+from hybridbrdf.brdf.microfacet import fresnel_dielectric, ggx_microfacet
 from hybridbrdf.evaluate.metrics import cmae, metric_directions, smape
 from hybridbrdf.fit.painting import composite
 from hybridbrdf.svbrdf import SVBRDF, load_svbrdf
@@ -119,6 +124,80 @@ def footprint_errors(core, size, wi, wo, cos_i, levels, picks):
     return out
 
 
+def one_lobe(wi, wo, kd, eta, alpha):
+    """f_a (N, C) of one texel (kd, eta (C,), isotropic alpha), float64."""
+    lobe, c = ggx_microfacet(wi, wo, alpha, alpha)
+    return np.asarray(kd, np.float64) / np.pi + fresnel_dielectric(c, np.asarray(eta, np.float64)) * lobe[:, None]
+
+
+def f0(eta):
+    """Fresnel reflectance at normal incidence of a dielectric of index eta."""
+    return ((eta - 1) / (eta + 1)) ** 2
+
+
+def fit_lobe(target, wi, wo, kd, eta, alpha0, free=("alpha", "eta", "kd"), objective="cmae"):
+    """(alpha, eta (C,), kd (C,)) of the one f_a lobe nearest ``target`` (N, C) on (wi, wo) in
+    ``objective`` ('cmae' or 'smape'), starting from (kd, eta, alpha0): Nelder-Mead over the
+    ``free`` quantities, each one number for all channels: log alpha; log of a factor on F0 (each
+    channel's eta from its F0 times it, so that the lobe's amplitude scales and its Fresnel curve
+    stays a dielectric's); a kd offset."""
+    kd, eta = np.asarray(kd, np.float64), np.asarray(eta, np.float64)
+    cos_i = wi[:, 2:3]
+
+    def unpack(x):
+        it = iter(x)
+        a = float(np.clip(np.exp(next(it)), 1e-4, 1)) if "alpha" in free else alpha0
+        e = eta
+        if "eta" in free:
+            r = np.sqrt(np.clip(f0(eta) * np.exp(next(it)), 0, f0(10.0)))
+            e = (1 + r) / (1 - r)
+        k = np.clip(kd + next(it), 0, 1) if "kd" in free else kd
+        return a, e, k
+
+    def cost(x):
+        a, e, k = unpack(x)
+        g = one_lobe(wi, wo, k, e, a)
+        return smape(target, g) if objective == "smape" else float(np.mean(np.abs(g - target) * cos_i))
+    best = None
+    for s in (1.0, 0.5, 0.25):
+        x0 = ([np.log(alpha0 * s)] if "alpha" in free else []) + [0.0] * (("eta" in free) + ("kd" in free))
+        r = minimize(cost, x0, method="Nelder-Mead", options=dict(xatol=1e-4, fatol=1e-10, maxiter=1500))
+        if best is None or r.fun < best.fun:
+            best = r
+        if "alpha" not in free:
+            break
+    return unpack(best.x)
+
+
+def fitted_lobes(cases, f, wi, wo, cos_i):
+    """The lobe table's second part: per case, against averaging alpha by value, the best lobe of
+    each set of fitted quantities on the metric's own pairs, and the fitted rule (fit on 20,000
+    other pairs, seed 7)."""
+    fwi, fwo = metric_directions(20_000, 7)
+    sets = {"alpha": ("alpha",), "alpha, eta": ("alpha", "eta"), "alpha, kd": ("alpha", "kd"),
+            "alpha, eta, kd": ("alpha", "eta", "kd"), "same, SMAPE fit": ("alpha", "eta", "kd")}
+    print("Fitted lobes: cMAE / SMAPE of the best lobe of the fitted quantities (in cMAE; the last in SMAPE), as a "
+          "ratio to averaging alpha by value (fitted on the metric's pairs: a bound for every rule); the fitted rule: "
+          "fitted in cMAE on other pairs")
+    print(f"{'alphas':28s} {'value':>18s} " + " ".join(f"{k:>15s}" for k in sets) + f" {'fitted rule':>15s}"
+          + "  (its alpha, eta, kd)")
+    for name, alphas in cases:
+        alphas = np.asarray(alphas, np.float64)
+        ref = np.mean([f(wi, wo, a) for a in alphas], axis=0)
+        v = f(wi, wo, alphas.mean())
+        base = cmae(ref, v, cos_i), smape(ref, v)
+        cells = []
+        for key, free in sets.items():
+            a, e, k = fit_lobe(ref, wi, wo, [0.1], [1.5], alphas.mean(), free, "smape" if "SMAPE" in key else "cmae")
+            g = one_lobe(wi, wo, k, e, a)
+            cells.append(f"{cmae(ref, g, cos_i) / base[0]:.2f} / {smape(ref, g) / base[1]:.2f}")
+        a, e, k = fit_lobe(np.mean([f(fwi, fwo, x) for x in alphas], axis=0), fwi, fwo, [0.1], [1.5], alphas.mean())
+        g = one_lobe(wi, wo, k, e, a)
+        cells.append(f"{cmae(ref, g, cos_i) / base[0]:.2f} / {smape(ref, g) / base[1]:.2f}")
+        print(f"{name:28s} {f'{base[0]:.5f} ({base[1]:.4f})':>18s} " + " ".join(f"{c:>15s}" for c in cells)
+              + f"  ({a:.3f}, {e[0]:.3f}, {k[0]:.4f})", flush=True)
+
+
 def lobe_mixtures(pairs: int = 100_000):
     """f_a alone (kd 0.1, eta 1.5): the mean of GGX lobes of several alphas against one lobe of each
     rule's alpha, and against the best single alpha on a grid (what no rule can beat)."""
@@ -151,6 +230,81 @@ def lobe_mixtures(pairs: int = 100_000):
         errs = [cmae(ref, f(g), cos_i) for g in grid]
         best = int(np.argmin(errs))
         print(f"{name:28s} " + " ".join(f"{c:>18s}" for c in cells) + f" {errs[best]:.5f} at {grid[best]:.3f}".rjust(27))
+    fitted_lobes(cases, lambda wi_, wo_, a: one_lobe(wi_, wo_, [0.1], [1.5], a), wi, wo, cos_i)
+
+
+def footprint_mean(wi, wo, kd, eta, alpha, w):
+    """(N, C) mean of the f_a of texels (kd, eta, alpha[t]) weighted by w[t], on (wi, wo)."""
+    n, total = len(wi), 0.0
+    for j in range(0, len(alpha), 64):  # 64 texels' lobes at a time
+        a = np.repeat(alpha[j:j + 64], n)
+        lobe, c = ggx_microfacet(np.tile(wi, (len(a) // n, 1)), np.tile(wo, (len(a) // n, 1)), a, a)
+        total = total + (w[j:j + 64, None] * lobe.reshape(-1, n)).sum(axis=0)
+    return kd / np.pi + fresnel_dielectric(c[:n], eta) * (total / w.sum())[:, None]
+
+
+def footprint_bounds(model, weights, alpha, layer, picks, level, pairs=20_000):
+    """The material's own footprints at ``level`` (``picks``), f_a of ``layer`` alone: the best
+    lobe of (alpha, eta, kd) fitted in cMAE and in SMAPE on the metric's pairs (seed 5) themselves,
+    each as a ratio (cMAE / SMAPE) to averaging alpha by value: what no rule for a texel can beat."""
+    t, i = model.tensors, model.index(LAYERS[layer])
+    kd, eta = (np.asarray(t[f"materials.{q}"][i], np.float64) for q in ("kd", "eta"))
+    w = np.concatenate([1 - weights[..., :2].sum(axis=2, keepdims=True), weights[..., :2]], axis=2)[..., layer]
+    wi, wo = metric_directions(pairs, 5)
+    print(f"Level {level}'s footprints, f_a of {LAYERS[layer]} alone ({pairs} pairs): best lobe against value, "
+          "cMAE / SMAPE ratios")
+    for col, row in picks:
+        block = np.s_[row << level:(row + 1) << level, col << level:(col + 1) << level]
+        a, wt = alpha[block][..., 0].ravel().astype(np.float64), w[block].ravel().astype(np.float64)
+        ref = footprint_mean(wi, wo, kd, eta, a, wt)
+        value = one_lobe(wi, wo, kd, eta, float((a * wt).sum() / wt.sum()))
+        cells = []
+        for objective in ("cmae", "smape"):
+            fa, fe, fk = fit_lobe(ref, wi, wo, kd, eta, float((a * wt).sum() / wt.sum()), objective=objective)
+            g = one_lobe(wi, wo, fk, fe, fa)
+            cells.append(f"{objective} fit {cmae(ref, g, wi[:, 2]) / cmae(ref, value, wi[:, 2]):.2f} / "
+                         f"{smape(ref, g) / smape(ref, value):.2f}")
+        print(f"  texel ({col}, {row}), alpha {a.min():.3f}-{a.max():.3f}: " + ", ".join(cells), flush=True)
+
+
+def fitted_alpha_material(model, weights, alpha, layer, picks, size, fit_pairs=2000):
+    """The alpha variant's material whose level texels in ``picks`` hold the fitted rule: alpha, eta
+    and kd of ``layer`` fitted (:func:`fit_lobe`) to the mean over the texel's level-0 footprint
+    of the layer's f_a, weighted by the layer's weight (its term of the mixture), on ``fit_pairs``
+    pairs other than the metric's (seed 7). The layer gains kd and eta maps, its material's values
+    at level 0; the texels the measurement does not read keep averaging by value."""
+    t, i = model.tensors, model.index(LAYERS[layer])
+    kd, eta = (np.asarray(t[f"materials.{q}"][i], np.float64) for q in ("kd", "eta"))
+    maps = [{} for _ in LAYERS]
+    maps[layer] = {"alpha": alpha, "kd": np.broadcast_to(kd, (size, size, 3)).astype(np.float32),
+                   "eta": np.broadcast_to(eta, (size, size, 3)).astype(np.float32)}
+    sv = SVBRDF(model, LAYERS, (size, size), weights, maps).with_mips("value")
+    w = np.concatenate([1 - weights[..., :2].sum(axis=2, keepdims=True), weights[..., :2]], axis=2)[..., layer]
+    fwi, fwo = metric_directions(fit_pairs, 7)
+    for L in LEVELS:
+        level_maps = sv.mips[L - 1][1][layer]
+        for col, row in picks[L]:
+            block = np.s_[row << L:(row + 1) << L, col << L:(col + 1) << L]
+            a, wt = alpha[block][..., 0].ravel().astype(np.float64), w[block].ravel().astype(np.float64)
+            keep = wt > 0
+            if not keep.any():
+                continue
+            a, wt = a[keep], wt[keep]
+            target = footprint_mean(fwi, fwo, kd, eta, a, wt)
+            fa, fe, fk = fit_lobe(target, fwi, fwo, kd, eta, float(level_maps["alpha"][row, col, 0]))
+            level_maps["alpha"][row, col] = fa
+            level_maps["eta"][row, col] = fe
+            level_maps["kd"][row, col] = fk
+    return sv
+
+
+def level_stats(errors):
+    """Per level, (median SMAPE, p95 SMAPE, median cMAE, p95 cMAE) over its footprints (None: none)."""
+    out = []
+    for L in LEVELS:
+        s, c = np.array(errors[L]).T if errors[L] else (None, None)
+        out.append(None if s is None else (np.median(s), np.percentile(s, 95), np.median(c), np.percentile(c, 95)))
+    return out
 
 
 def main() -> int:
@@ -160,10 +314,14 @@ def main() -> int:
     ap.add_argument("--footprints", type=int, default=256)
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--out", help="keep the chained folders here")
-    ap.add_argument("--lobes-only", action="store_true", help="only the GGX-lobe table (f_a alone, ~20 s)")
+    ap.add_argument("--lobes-only", action="store_true", help="only the GGX-lobe tables (f_a alone: minutes)")
+    ap.add_argument("--alpha-only", action="store_true",
+                    help="only the material's alpha-map variants, its four rules (value, perceptual, mean_square, "
+                         "fitted), without the lobe tables")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    lobe_mixtures()
+    if not args.alpha_only:
+        lobe_mixtures()
     if args.lobes_only:
         return 0
     model = hb.load_model(args.model)
@@ -187,16 +345,20 @@ def main() -> int:
     tmp = args.out or tempfile.mkdtemp(prefix="svbrdf_mips_")
     variants = [("weights only", (), "perceptual", None), ("+ kd (base)", ("kd",), "perceptual", 0),
                 ("+ alpha (disc), perceptual", ("alpha",), "perceptual", 1), ("+ alpha (disc), value", ("alpha",), "value", 1),
-                ("+ alpha (disc), mean_square", ("alpha",), "mean_square", 1), ("+ eta (stripes)", ("eta",), "perceptual", 2),
+                ("+ alpha (disc), mean_square", ("alpha",), "mean_square", 1),
+                ("+ alpha (disc), fitted", ("alpha",), "fitted", 1), ("+ eta (stripes)", ("eta",), "perceptual", 2),
                 ("+ z (stripes)", ("latent",), "perceptual", 2),
                 ("all maps", ("kd", "alpha", "eta", "latent"), "perceptual", None),
                 ("all maps, alpha by value", ("kd", "alpha", "eta", "latent"), "value", None)]
+    if args.alpha_only:
+        variants = [v for v in variants if v[0].startswith("+ alpha")]
     picks_of = {layer: picks_for(layer) for layer in (None, 0, 1, 2)}
     print(f"model {args.model}; {args.size}x{args.size}, {args.pairs} pairs (seed 5), footprints per level "
           f"{ {k: [len(p[L]) for L in LEVELS] for k, p in picks_of.items()} } (by layer of at least half the weight; "
           f"None: any); hybridbrdf {hb.__version__}, simd {hb.simd_path()}")
     print(f"{'variant':32s} " + " ".join(f"{f'{2 ** L}x (level {L}) SMAPE med/p95  cMAE med/p95':>48s}"
                                         for L in LEVELS))
+    stats = {}
     for name, quantities, rule, layer in variants:
         picks = picks_of[layer]
         layer_maps = [{} for _ in LAYERS]
@@ -204,17 +366,22 @@ def main() -> int:
             k, values = maps[q]
             layer_maps[k][q] = values
         folder = os.path.join(tmp, name.replace(" ", "_").replace("(", "").replace(")", "").replace(",", "").replace("+", "p"))
-        SVBRDF(model, LAYERS, (args.size, args.size), weights, layer_maps).with_mips(rule).save(folder, format="exr")
+        if rule == "fitted":
+            sv = fitted_alpha_material(model, weights, maps["alpha"][1], layer, picks, args.size)
+        else:
+            sv = SVBRDF(model, LAYERS, (args.size, args.size), weights, layer_maps).with_mips(rule)
+        sv.save(folder, format="exr")
         core = hb._core.Svbrdf(load_svbrdf(folder).path)
-        errors = footprint_errors(core, args.size, wi, wo, cos_i, LEVELS, picks)
-        cells = []
-        for L in LEVELS:
-            if not errors[L]:
-                cells.append("no footprint")
-                continue
-            s, c = np.array(errors[L]).T
-            cells.append(f"{np.median(s):.4f}/{np.percentile(s, 95):.4f}  {np.median(c):.5f}/{np.percentile(c, 95):.5f}")
+        stats[name] = level_stats(footprint_errors(core, args.size, wi, wo, cos_i, LEVELS, picks))
+        cells = ["no footprint" if st is None else "{:.3g}/{:.3g}  {:.3g}/{:.3g}".format(*st) for st in stats[name]]
         print(f"{name:32s} " + " ".join(f"{cell:>48s}" for cell in cells), flush=True)
+    value = stats.get("+ alpha (disc), value")
+    for name in [n for n in stats if n.startswith("+ alpha") and not n.endswith(", value") and value is not None]:
+        cells = ["-" if st is None else "x{:.2f}/x{:.2f}  x{:.2f}/x{:.2f}".format(*np.divide(st, v))
+                 for st, v in zip(stats[name], value)]
+        print(f"{name + ' / value':32s} " + " ".join(f"{cell:>48s}" for cell in cells), flush=True)
+    if args.alpha_only:
+        footprint_bounds(model, weights, maps["alpha"][1], 1, picks_of[1][LEVELS[-1]], LEVELS[-1])
     print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 
