@@ -191,6 +191,34 @@ def run_budget(args) -> int:
     return 0
 
 
+def run_footprint(args) -> int:
+    """Why the bench scores texels pure over their whole cell: paper3's materials under
+    bench/svbrdf_mixture.py's disc and stripes, photographed without noise; per kind of texel, the
+    mean over its observations of observed value / the truth at the texel's centre, same directions."""
+    from svbrdf_mixture import masks  # noqa: PLC0415
+
+    shared, size = pathlib.Path(args.shared), (args.map, args.map)
+    sources = [hb.open_source(str(shared / "rgl" / f"{n}.bsdf")) for n in SAMPLES["paper3"]]
+    k, v = (int(x) for x in args.stage.split("x"))
+    rig = light_stage_rig(k, v, size=(args.photo, args.photo))
+    for layout, layers in (("svbrdf_mixture disc and stripes", masks(args.map)), ("disc and band", sample_masks(args.map))):
+        mixture = Mixture.painted(sources[0], sources[1:], layers)
+        obs = texel_observations(rig, simulate(rig, mixture).photos, size)
+        centre = mixture.weights.reshape(-1, 3)[:, 0] > PURE
+        whole = np.zeros_like(centre)
+        whole[pure_texels(mixture.weights, 0, 10 ** 9)] = True
+        for label, kind in (("pure at the centre only", centre & ~whole), ("pure over the whole cell", whole)):
+            ratios = []
+            for t in np.nonzero(kind)[0]:
+                r = obs.rows(int(t))
+                truth = np.maximum(sources[0].eval(obs.wi[r].astype(np.float64), obs.wo[r].astype(np.float64)), 0.0)
+                ratios.append(obs.value[r].mean() / truth.mean())
+            print(f"footprint, {layout}: {SAMPLES['paper3'][0]} texels {label}: {len(ratios)}, observed / centre "
+                  f"truth mean {np.mean(ratios) if ratios else float('nan'):.3f}, min {min(ratios, default=float('nan')):.3f}",
+                  flush=True)
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stage", default="8x4", help="KxV lights x cameras (default 8x4: 32 photographs)")
@@ -206,6 +234,8 @@ def main() -> int:
     ap.add_argument("--refs", default="/tmp/acquire_gap_refs", help="folder caching the hbrdf add references")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--budget", action="store_true", help="time the 512x512, 64-photograph, 128x128 fit instead")
+    ap.add_argument("--footprint", action="store_true",
+                    help="print why texels are scored pure over their whole cell (no fits) instead")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
     ap.add_argument("--machine", default=machine_key(), help="machine key (default: detected)")
     ap.add_argument("--out", help="write PREFIX.txt (default results/acquire_gap_MACHINE)")
@@ -218,6 +248,8 @@ def main() -> int:
     args.noise, args.samples = args.noise.split(","), args.samples.split(",")
     args.out = args.out or str(ROOT / "results" / f"acquire_gap_{args.machine}")
     torch.set_num_threads(args.threads)
+    if args.footprint:
+        return run_footprint(args)
     return run_budget(args) if args.budget else run_sweep(args)
 
 
