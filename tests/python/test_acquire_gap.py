@@ -12,7 +12,7 @@ import torch
 
 import hybridbrdf as hb
 from hybridbrdf.acquire import cluster_fit
-from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
+from hybridbrdf.acquire.hybrid_fit import HybridFamily, fit_hybrid_texels, with_cluster_heads
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
@@ -107,3 +107,23 @@ def test_refitted_heads_are_layers_of_their_own_that_libhybridbrdf_evaluates_as_
     got = lib.eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), "nearest")
     np.testing.assert_allclose(got, ours, rtol=2e-4, atol=1e-6)
     np.testing.assert_allclose(hb.load_svbrdf(str(tmp_path / "sv")).eval(uv, wi, wo), ours, rtol=2e-4, atol=1e-6)
+
+
+def test_a_cluster_layer_never_takes_a_name_its_prior_holds():
+    # The prior may itself be an acquisition's model, holding <material>.acq0 already.
+    prior = load_prior()
+    m = prior.index(SHAPE)
+    t = prior.tensors
+
+    def one_cluster(model):
+        family = HybridFamily(model)
+        i = model.index(SHAPE)
+        heads = {"weight": torch.from_numpy(t["materials.head_weight"][[m]]),
+                 "bias": torch.from_numpy(t["materials.head_bias"][[m]]),
+                 "centres": {n: v[[i]] for n, v in family.raw_of_materials().items()}}
+        return with_cluster_heads(model, family, {"material": torch.tensor([i]), "heads": heads})
+
+    first, (name,) = one_cluster(prior)
+    second, (again,) = one_cluster(first)
+    assert name not in prior.materials and again not in first.materials and again != name
+    assert second.materials[:len(first.materials)] == first.materials

@@ -151,7 +151,13 @@ def with_cluster_heads(model: HybridModel, family: HybridFamily, clusters: Dict)
     with torch.no_grad():
         values = dict(zip(("kd", "eta", "alpha", "z"), (v.numpy() for v in family.decode(heads["centres"]))))
     values.update(head_weight=heads["weight"].numpy(), head_bias=heads["bias"].numpy())
-    names = [f"{model.materials[m][:52]}.acq{k}" for k, m in enumerate(chosen)]
+    names, taken = [], set(model.materials)
+    for k, m in enumerate(chosen):  # a prior that is itself an acquisition's model may hold <material>.acq<k>
+        j = k
+        while f"{model.materials[m][:50]}.acq{j}" in taken:
+            j += len(chosen)
+        names.append(f"{model.materials[m][:50]}.acq{j}")
+        taken.add(names[-1])
     plain = energy.unbounded(model)
     tensors = {key: (np.concatenate([v, values[key.split(".", 1)[1]].astype(np.float32)]) if key.startswith("materials.")
                      else v.copy()) for key, v in plain.tensors.items()}
