@@ -21,7 +21,8 @@ the same pairs against the file. The ratio hybrid / full measurement is issue 61
 
 Configurations (CONFIGS): ``base`` the fit before issue 61 part 2 (refit_heads=False), ``heads``
 each cluster's output layer refitted on its rows with the pull toward the prior's head
-(refit_heads=True), ``heads_free`` the same without the pull (cluster_fit.HEAD_PULL = 0).
+(refit_heads=True), ``heads_free`` the same without the pull (cluster_fit.HEAD_PULL = 0),
+``heads_pull10`` with 10 times the pull.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_suns
            "napoli2": ("colodur_napoli_4f_rgb", "cg_sunflower_rgb")}
 #: Per configuration: fit_hybrid_texels keywords and the head refit's pull (cluster_fit.HEAD_PULL; None: its default).
 CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
-           "heads_free": ({"refit_heads": True}, 0.0)}
+           "heads_free": ({"refit_heads": True}, 0.0), "heads_pull10": ({"refit_heads": True}, 10.0)}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int):
