@@ -127,7 +127,8 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
         maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
                                  save_state=save_state, log=log, on_clusters=on_clusters, refit_heads=refit_heads)
         layer = maps.layer.reshape(-1)
-        maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "layers": maps.layers,
+        maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "refit_heads": bool(refit_heads),
+                       "layers": maps.layers,
                        "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}
                                     for c in chosen if c["texels"]]}
         log(f"writing {out}: the model (its energy-bound checks) and {len(maps.layers)} layer(s) of maps")

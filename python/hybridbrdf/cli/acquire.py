@@ -135,13 +135,14 @@ def run_fit(args: argparse.Namespace) -> int:
     try:
         maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
                        resume=args.resume, force=args.force, progress=progress, log=say,
-                       warn=lambda msg: tqdm.write(msg, file=sys.stderr))
+                       warn=lambda msg: tqdm.write(msg, file=sys.stderr), refit_heads=args.refit_heads)
     finally:
         for bar in bars.values():
             bar.close()
     h, w = maps.layer.shape
     print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
-          f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}; the clusters and "
+          f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}"
+          f"{', each cluster with its head refitted' if args.refit_heads else ''}; the clusters and "
           f"their materials in {REPORT_FILE}")
     return 0
 
@@ -222,6 +223,10 @@ def add_parser(sub) -> None:
     f.add_argument("--threads", type=_count(1, 1024), default=1, metavar="N",
                    help="torch threads (default 1: on a busy 2-core machine two threads made a step 15-35x slower, "
                         "docs/ACQUISITION.md)")
+    f.add_argument("--refit-heads", action="store_true",
+                   help="refit each cluster's output layer (its material's head) to the cluster's photographs: each "
+                        "cluster becomes a layer <material>.acq<k> of its own; an option, not a clear win "
+                        "(docs/ACQUISITION_GAP.md); recorded in OUT/acquisition.json")
     f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
     f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
     f.add_argument("--quiet", action="store_true", help="no progress bars or messages (warnings still go to stderr)")
