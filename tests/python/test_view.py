@@ -217,7 +217,7 @@ def _sha256(path):
         return hashlib.sha256(f.read()).hexdigest()
 
 
-_PAGES = {}  # (model path, its bytes' sha256) -> (its page, the page's sha256)
+_PAGES = {}  # (model path, its bytes' sha256), or ("model_page", ...) -> (its page, the page's sha256)
 
 
 @pytest.fixture(scope="module")
@@ -297,19 +297,31 @@ def test_page_matches_tracer_under_the_environment(page, material, analytic, rot
         assert mad(img, shared_tracer_pixels(tmp_path_factory, mirrored), interior_mask(ENV_SIZE)) > noise + 4.0
 
 
+@pytest.fixture(scope="module")
+def copy_page(tmp_path_factory):
+    """(a copy of MODEL, its page): written once per module for both of the slider test's parameters,
+    whose pictures are changes of the fragment in the page's kept tab (one load, one shader compiled:
+    2-3 s of CPU). The page names the copy in its edit line; each test puts the copy's bytes back to
+    MODEL's before running that line (the previous test's edit wrote a material into it)."""
+    d = tmp_path_factory.mktemp("slider")
+    model, out = d / "m.safetensors", d / "p.html"
+    shutil.copyfile(MODEL, model)
+    assert view_harness.cli("view", str(model), "--out", str(out)).returncode == 0
+    return model, out
+
+
 @needs_renderer
 @pytest.mark.parametrize("key,value", [("kd", "0.8,0.2,0.1"), ("alpha", "0.05,0.4")], ids=["kd", "alpha_anisotropic"])
-def test_slider_previews_hbrdf_edit(tmp_path, key, value, page, tmp_path_factory):
+def test_slider_previews_hbrdf_edit(copy_page, key, value, page, tmp_path_factory):
     """(2) kd (or an anisotropic alpha: the tangent frame) set through the URL, as the sliders set it,
     renders as what the page's `hbrdf edit` line writes for it, in the tracer scene the page shows.
-    The control, the material unedited, is MODEL's page (``page``: the same bytes as the copy's
-    model), one load for both parameters (shared_page_state)."""
-    model = tmp_path / "m.safetensors"
-    shutil.copyfile(MODEL, model)
-    edited_page = tmp_path / "p.html"
-    assert view_harness.cli("view", str(model), "--out", str(edited_page)).returncode == 0
+    The page is the copy's (copy_page: one load for both parameters, in its kept tab). The control,
+    the material unedited, is MODEL's page (``page``: the same bytes as the copy's model), one load
+    for both parameters (shared_page_state)."""
+    model, edited_page = copy_page
+    shutil.copyfile(MODEL, model)  # the copy as the page was written for it: no edit of an earlier test in it
     material = "cc_ibiza_sunset_rgb.rgl"
-    img, scene, cmd = page_state(edited_page, f"material={material}&light=sun&{key}={value}")
+    img, scene, cmd = page_state(edited_page, f"material={material}&light=sun&{key}={value}", keep=True)
     argv = shlex.split(cmd)
     assert argv == ["hbrdf", "edit", str(model), material, "--set", f"{key}={value}", "--as", f"{material}_edit",
                     "--out", str(model)], cmd
@@ -337,11 +349,24 @@ def test_page_is_self_contained_and_logs_nothing(page):
     assert (title, status.strip(), console) == ("hbrdf view: ok", "", [])
 
 
+def model_page(tmp_path_factory, model_file):
+    """``hbrdf view MODEL_FILE``'s page (in this process: view_harness.cli), written once per test
+    process for the tests that open it (the other architectures' in this module and in
+    test_view_webgpu.py, each a fresh load in its own backend); written again if the model's bytes or
+    the page's have changed since."""
+    key = ("model_page", model_file, _sha256(model_file))
+    got = _PAGES.get(key)
+    if got is None or not os.path.exists(got[0]) or _sha256(got[0]) != got[1]:
+        out = tmp_path_factory.mktemp("model_page") / "p.html"
+        r = view_harness.cli("view", model_file, "--out", str(out))
+        assert r.returncode == 0, r.stderr
+        got = _PAGES[key] = (out, _sha256(out))
+    return got[0]
+
+
 @pytest.mark.parametrize("model", [HEADS_MODEL, NEURAL_MODEL], ids=["heads", "neural"])
-def test_other_architectures_load(tmp_path, model):
-    out = tmp_path / "p.html"
-    r = view_harness.cli("view", model, "--out", str(out))
-    assert r.returncode == 0, r.stderr
+def test_other_architectures_load(tmp_path_factory, model):
+    out = model_page(tmp_path_factory, model)  # a fresh load of it (the load is the point), not a kept tab
     img = page_pixels(out, "spp=4")  # the map's one frame: the network evaluated and sampled
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
 

@@ -43,7 +43,7 @@ from hybridbrdf.model.file import load_model
 import view_harness
 from test_view import (BROWSER_FLAGS, CHROMIUM_FLAGS, ENV_SIZE, ENV_STATE, HEADS_MODEL, MODEL, NEURAL_MODEL, SIZE,
                        assert_matches_tracer, check_fragment_changes, chromium, env_state, interior_mask, mad,
-                       needs_renderer, page, page_state,
+                       model_page, needs_renderer, page, page_state,
                        read_state, shared_page_state, shared_tracer_pixels,
                        unescape)  # noqa: F401 (page: the module-scoped page fixture)
 
@@ -207,11 +207,10 @@ def test_webgpu_is_chosen_and_logs_nothing(webgpu, page):
 
 
 @pytest.mark.parametrize("model", [HEADS_MODEL, NEURAL_MODEL], ids=["heads", "neural"])
-def test_webgpu_other_architectures_load(webgpu, tmp_path, model):
-    """(4) A model with material output layers (the head from the uniform buffer) and the neural baseline."""
-    out = tmp_path / "p.html"
-    r = view_harness.cli("view", model, "--out", str(out))
-    assert r.returncode == 0, r.stderr
+def test_webgpu_other_architectures_load(webgpu, tmp_path_factory, model):
+    """(4) A model with material output layers (the head from the uniform buffer) and the neural baseline:
+    a fresh load of the model's page (test_view.model_page: written once per process for both backends)."""
+    out = model_page(tmp_path_factory, model)
     img = webgpu_state(out, "spp=16")[0]
     assert img[SIZE // 2 - 10:SIZE // 2 + 10, SIZE // 2 - 10:SIZE // 2 + 10].max() > 10  # the sphere is lit
 
