@@ -152,6 +152,12 @@ def add_parser(sub) -> None:
     p = sub.add_parser("acquire", help=COMMANDS["acquire"],
                        description="SVBRDF acquisition from photographs (docs/ACQUISITION.md).")
     commands = p.add_subparsers(dest="acquire_command", required=True, metavar="{simulate,fit}")
+    _add_simulate_parser(commands)
+    _add_fit_parser(commands)
+
+
+def _add_simulate_parser(commands) -> None:
+    """``hbrdf acquire simulate``."""
     s = commands.add_parser(
         "simulate", help="photograph a flat sample, an exact mixture of measured BRDFs under masks",
         description="Photograph a flat sample whose SVBRDF is an exact mixture of measured BRDFs under grey masks "
@@ -194,6 +200,9 @@ def add_parser(sub) -> None:
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=run_simulate)
 
+
+def _add_fit_parser(commands) -> None:
+    """``hbrdf acquire fit``."""
     f = commands.add_parser(
         "fit", help="fit per-texel maps on a frozen prior to a capture's photographs; write a textured material",
         description="Fit per-texel maps (analytic parameters p and latent code z per texel) on a frozen hybrid prior "

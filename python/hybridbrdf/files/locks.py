@@ -122,8 +122,7 @@ def _release_all_locks() -> None:
         entry[0] = None  # the blocks that took it release nothing more
 
 
-@contextlib.contextmanager
-def file_lock(path, wait: float = None):
+class file_lock:
     """Hold the advisory lock of the file ``path`` for the block (``fcntl.flock`` on
     ".<name>.hbrdf-lock" beside it, removed on release; the kernel drops it when the process
     dies, even by SIGKILL). A read-modify-write of ``path`` inside the block cannot lose another
@@ -131,25 +130,43 @@ def file_lock(path, wait: float = None):
     takes it. Waits up to ``wait`` seconds (default :data:`LOCK_WAIT_SECONDS`) for another
     process's lock (one line on stderr while it waits), then raises
     :class:`~hybridbrdf.errors.OutputFileError` naming ``path`` and the holder's pid.
-    Re-entrant within a process."""
-    path = os.fspath(path)
-    lock = _lock_name(path)
-    # ``counted``: this block's share of the lock is recorded, set in the same signal-deferred
-    # statements that record it, so that whatever stops the block releases exactly that share.
-    state = {"counted": False}
-    try:
-        with _signals_deferred():
-            with _held_guard:
-                held = _held_locks.get(lock)
-                if held is not None:
-                    held[1] += 1
-                    state["counted"] = True
-        if not state["counted"]:
-            _acquire(path, lock, LOCK_WAIT_SECONDS if wait is None else wait, state)
-        yield
-    finally:
-        if state["counted"]:
-            _release(lock)
+    Re-entrant within a process.
+
+    A class, not a generator context manager: with ``contextlib.contextmanager`` a Ctrl-C that
+    Python raised in contextlib's ``__enter__`` after the generator had taken the lock and
+    yielded (the check for signals after its ``next(gen)`` call) left the ``with`` statement
+    unentered, so no ``__exit__`` ran and the suspended generator kept the lock file until the
+    interpreter's shutdown, which did not remove it (CI, 2026-11-29: `.out.bin.hbrdf-lock` left
+    by a SIGINT, test_fit_hostile). Here every exception raised while entering passes through
+    :meth:`__enter__`'s own handler, which gives back what it took."""
+
+    def __init__(self, path, wait: float = None):
+        self.path = os.fspath(path)
+        self.lock = _lock_name(self.path)
+        self.wait = LOCK_WAIT_SECONDS if wait is None else wait
+        # ``counted``: this block's share of the lock is recorded, set in the same signal-deferred
+        # statements that record it, so that whatever stops the block releases exactly that share.
+        self.state = {"counted": False}
+
+    def __enter__(self) -> None:
+        try:
+            with _signals_deferred():
+                with _held_guard:
+                    held = _held_locks.get(self.lock)
+                    if held is not None:
+                        held[1] += 1
+                        self.state["counted"] = True
+            if not self.state["counted"]:
+                _acquire(self.path, self.lock, self.wait, self.state)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+
+    def __exit__(self, *exc) -> bool:
+        if self.state["counted"]:
+            self.state["counted"] = False
+            _release(self.lock)
+        return False
 
 
 def _release(lock: str) -> None:
