@@ -1,7 +1,8 @@
 """CPU seconds of test files (issue 56): each FILE of tests/python run by pytest in a process of its own
-(``-n 0``), with the CPU seconds of the children it reaped (pytest and what it waits for: g++, slangc,
-glslang, hbrdf_vk_runner; lavapipe under wgpu runs in pytest's own process), the wall seconds and the
-sum of pytest's per-test durations. Mesa's shader cache is off (``MESA_SHADER_CACHE_DISABLE=true``), as
+(``-n 0``), with the CPU seconds of its whole process tree (pytest and what it starts: g++, slangc,
+glslang, hbrdf_vk_runner, chromium's GPU and renderer processes; a cpuacct cgroup of its own where
+/sys/fs/cgroup/cpuacct is writable, else the reaped children's rusage, which misses processes nobody
+waits for, such as chromium's, and says so), the wall seconds and the sum of pytest's per-test durations. Mesa's shader cache is off (``MESA_SHADER_CACHE_DISABLE=true``), as
 on CI's fresh machine, unless ``--mesa-cache``.
 
 With ``--before REV`` the whole tree of the commit REV (``git archive``; this checkout's build/ linked,
@@ -22,6 +23,7 @@ import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CGROUPS = "/sys/fs/cgroup/cpuacct"
 
 
 def checkout(rev, into):
@@ -31,24 +33,59 @@ def checkout(rev, into):
     os.symlink(os.path.join(REPO, "build"), os.path.join(into, "build"))
 
 
-def run(label, root, files, select, mesa_cache):
-    """One pytest process over ``files`` under ``root``: (its line of figures, exit status)."""
-    env = dict(os.environ)
+def run(label, root, files, select, mesa_cache, env_extra=None):
+    """One pytest process over ``files`` under ``root`` (``env_extra`` added to its environment):
+    (its line of figures, exit status)."""
+    env = dict(os.environ, **(env_extra or {}))
     if not mesa_cache:
         env["MESA_SHADER_CACHE_DISABLE"] = "true"
     cmd = [sys.executable, "-m", "pytest", "-q", "-n", "0", "-p", "no:cacheprovider", "--durations=0",
            *(["-k", select] if select else []), *[os.path.join("tests", "python", f) for f in files]]
+    group = os.path.join(CGROUPS, f"hbrdf-test-time-{os.getpid()}")
+    try:
+        os.mkdir(group)
+    except OSError:
+        group = None
+
+    def enter():  # in the child: into the cgroup before pytest starts anything
+        if group:
+            with open(os.path.join(group, "cgroup.procs"), "w") as f:
+                f.write(str(os.getpid()))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.monotonic()
-    r = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
+    r = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, preexec_fn=enter)
     wall = time.monotonic() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    if group:
+        with open(os.path.join(group, "cpuacct.usage")) as f:
+            cpu, how = int(f.read()) / 1e9, "process tree"
+        os.rmdir(group)
+    else:
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu, how = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime, "reaped children only"
     durations = sum(float(m.group(1)) for m in re.finditer(r"^([\d.]+)s (?:call|setup|teardown) ", r.stdout, re.M))
     summary = r.stdout.strip().splitlines()[-1] if r.stdout.strip() else r.stderr.strip()[-300:]
     load = open("/proc/loadavg").read().split()[:3]
-    return (f"{label}: {' '.join(files)}: {summary} | CPU {cpu:.1f} s | test time {durations:.1f} s | "
+    return (f"{label}: {' '.join(files)}: {summary} | CPU {cpu:.1f} s ({how}) | test time {durations:.1f} s | "
             f"wall {wall:.1f} s | load {' '.join(load)} | {time.strftime('%H:%M', time.gmtime())} UTC"), r.returncode
+
+
+def interleaved(before, rounds, groups, run_group):
+    """``run_group(label, root, files)`` for each group of files, round after round, REV ``before``'s
+    tree (when given) before this one's; prints each line; 1 if any run failed, else 0."""
+    # beside this checkout, so that REV's tests find ../shared/data as this tree's do
+    with tempfile.TemporaryDirectory(prefix="hbrdf-test-time-", dir=os.path.dirname(REPO)) as scratch:
+        roots = [("this tree", REPO)]
+        if before:
+            checkout(before, scratch)
+            roots.insert(0, (before, scratch))
+        failed = 0
+        for k in range(rounds):
+            for files in groups:
+                for label, root in roots:
+                    line, code = run_group(f"round {k + 1}, {label}", root, files)
+                    print(line, flush=True)
+                    failed |= code
+    return 1 if failed else 0
 
 
 def main(argv=None):
@@ -66,20 +103,8 @@ def main(argv=None):
     if missing:
         p.error(f"no such file in tests/python: {', '.join(missing)}")
     groups = [a.files] if a.together else [[f] for f in a.files]
-    # beside this checkout, so that REV's tests find ../shared/data as this tree's do
-    with tempfile.TemporaryDirectory(prefix="hbrdf-test-time-", dir=os.path.dirname(REPO)) as scratch:
-        roots = [("this tree", REPO)]
-        if a.before:
-            checkout(a.before, scratch)
-            roots.insert(0, (a.before, scratch))
-        failed = 0
-        for k in range(a.rounds):
-            for files in groups:
-                for label, root in roots:
-                    line, code = run(f"round {k + 1}, {label}", root, files, a.select, a.mesa_cache)
-                    print(line, flush=True)
-                    failed |= code
-    return 1 if failed else 0
+    return interleaved(a.before, a.rounds, groups,
+                       lambda label, root, files: run(label, root, files, a.select, a.mesa_cache))
 
 
 if __name__ == "__main__":
