@@ -83,6 +83,7 @@ NOT_RUN = {
     "../shared/data/nbrdf/rgl/ilm_l3_37_metallic_rgb.h5=M/mask2.png --photons 1000 --read-noise 2 "
     "--light-jitter 0.001 --seed 1 --out capture --quiet": "16 photographs of 512x512: 13.5 s, after the masks above",
     "python bench/acquire_compare.py": "the acquisition sweep: an hour",
+    "python bench/acquire_verdict.py --machine M2": "the acquisition sweep on three rigs with seeds: 40 minutes on M2",
     "python bench/acquire_compare.py --plot results/acquire_compare_X1.jsonl":
         "overwrites the tracked figure docs/figures/acquire_compare.png",
     "hbrdf fit --frozen results/rgl54_hybrid_32x2_e09_120k.safetensors ../shared/data/rgl ../shared/data/nbrdf/rgl "

@@ -1,0 +1,312 @@
+#!/usr/bin/env python3
+"""The acquisition comparison in the paper's own setting, with seeds (issue 61 step 1;
+docs/ACQUISITION_GAP.md, "Hybrid against analytic-only and neural-only on three rigs").
+
+bench/acquire_compare.py's sample (three raw RGL measurements under the disc and stripes), its
+errors (per-texel SMAPE and cMAE against the exact mixture over all directions, medians over the
+sampled texels; the novel-view re-render's relative MAE) and its models, photographed by three
+rigs instead of the phone flash alone:
+
+- ``flash``: acquire.rigs.flash_rig(N), every photograph on the collocated slice (wi ~ wo);
+- ``flash-multiview``: V phones at flash_rig(V)'s positions; each fires its flash in turn and all
+  V photograph the sample under it (V x V shots: V collocated, V (V - 1) with wi != wo);
+- ``light-stage``: acquire.rigs.light_stage_rig(K, V), K lights x V cameras (no shot collocated).
+
+Each point (rig, N, noise level) is measured with several seeds (--seeds): seed s draws the
+sensor noise and the light jitter (--jitter, rig length units), the sampled texels and the fits'
+own seed. A row reports each metric's mean over the seeds and its spread (min-max). The verdict
+of hybrid against another model on a metric (:func:`verdict`): the gap between the two models'
+seed means counts only when it exceeds both models' seed ranges (max - min); inside them: tie.
+
+    python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
+        [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout]
+        [--steps 150] [--photo 48] [--map 16] [--texels 16] [--pairs 5000] [--out results/acquire_verdict_MACHINE]
+    python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+import zlib
+
+import numpy as np
+import torch
+
+import hybridbrdf as hb
+from hybridbrdf.acquire.geometry import pixel_geometry
+from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.observations import texel_observations
+from hybridbrdf.acquire.rig import Rig, Shot, check_rig, photo_name
+from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
+from hybridbrdf.acquire.simulation import radiance, simulate
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
+from hybridbrdf.model.prior import prior_path
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+import acquire_compare as ac  # noqa: E402
+
+RIGS = ("flash", "flash-multiview", "light-stage")
+#: Model key -> (label, held out, fit function name, weights file or None).
+MODELS = {"analytic": ("analytic only (f_a p per texel)", True, "fit_analytic_texels", None),
+          "hybrid_heldout": ("hybrid, prior that never saw them", True, "fit_hybrid_texels", ac.HELD_OUT_PRIOR),
+          "neural_heldout": ("neural only, rgl44_heldout_neural_32x3 (never saw them)", True, "fit_neural_texels",
+                             ac.HELD_OUT_NEURAL),
+          "hybrid_shipped": ("hybrid, shipped prior (NOT held out)", False, "fit_hybrid_texels", None),
+          "neural": ("neural only, rgl54_neural_32x3 (NOT held out)", False, "fit_neural_texels", ac.NEURAL)}
+#: The hybrid of the verdict and the models it is compared with.
+HYBRID, OTHERS = "hybrid_heldout", ("analytic", "neural_heldout")
+METRICS = ac.VERDICT_METRICS
+
+
+# --- The rigs ----------------------------------------------------------------------------------
+
+def multiview_flash_rig(v: int, size=(256, 256)) -> Rig:
+    """V phones at flash_rig(V)'s positions, each flash fired in turn and photographed by every
+    phone: V x V shots (camera-major), the V with camera == light on the collocated slice."""
+    base = flash_rig(v, size=size)
+    shots = [Shot(c, l, photo_name(c * v + l)) for c in range(v) for l in range(v)]
+    return check_rig(Rig(base.image_size, base.sample_extent, base.cameras, base.lights, shots))
+
+
+def build_rig(kind: str, point: str, photo: int) -> Rig:
+    """The rig ``kind`` at size ``point``: N (flash), V (flash-multiview: V x V shots) or KxV (light-stage)."""
+    size = (photo, photo)
+    if kind == "flash":
+        return flash_rig(int(point), size=size)
+    if kind == "flash-multiview":
+        return multiview_flash_rig(int(point), size=size)
+    if kind == "light-stage":
+        k, v = (int(x) for x in point.split("x"))
+        return light_stage_rig(k, v, size=size)
+    raise ValueError(f"unknown rig {kind!r}; expected one of {', '.join(RIGS)}")
+
+
+def shot_angles(rig: Rig) -> np.ndarray:
+    """(shots,) median angle in degrees between wi and wo over each shot's pixels that see the sample."""
+    out = []
+    for k in range(len(rig.shots)):
+        g = pixel_geometry(rig, k)
+        out.append(np.degrees(np.median(np.arccos(np.clip((g.wi * g.wo).sum(axis=1), -1.0, 1.0)))))
+    return np.array(out)
+
+
+# --- The verdict -------------------------------------------------------------------------------
+
+def spread(values) -> float:
+    """The seed range max - min of ``values``."""
+    return float(np.max(values) - np.min(values))
+
+
+def verdict(hybrid, other) -> str:
+    """"better" / "worse" / "tie" for the hybrid's seed values against another model's, lower is
+    better: the gap of the means counts only when it exceeds both seed ranges (max - min);
+    fewer than two seeds on either side: "n/a" (no spread to compare with)."""
+    hybrid, other = np.asarray(hybrid, dtype=float), np.asarray(other, dtype=float)
+    if len(hybrid) < 2 or len(other) < 2:
+        return "n/a"
+    gap = float(other.mean() - hybrid.mean())
+    if abs(gap) <= max(spread(hybrid), spread(other)):
+        return "tie"
+    return "better" if gap > 0 else "worse"
+
+
+def verdict_lines(rows) -> list:
+    """The verdict table from the per-seed rows: one line per (rig, noise, N), a word per other
+    model and metric, then the counts."""
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["rig"], r["noise"], r["n"], r["point"]), {}).setdefault(r["model"], []).append(r)
+    head = " | ".join(f"vs {o}: " + "/".join(label.split()[0] for _, label in METRICS) for o in OTHERS)
+    lines = [f"verdict table (hybrid = {HYBRID}; lower is better; rule: a gap of seed means beyond both "
+             f"models' seed ranges (max-min) counts, inside them a tie)",
+             f"{'rig':16s} {'noise':5s} {'N':>4s} {'point':>6s} | {head}"]
+    counts = {o: {"better": 0, "worse": 0, "tie": 0, "n/a": 0} for o in OTHERS}
+    for (rig, noise, n, point), by in sorted(groups.items(), key=lambda kv: (RIGS.index(kv[0][0]), kv[0][1], kv[0][2])):
+        cells = []
+        for o in OTHERS:
+            if HYBRID not in by or o not in by:
+                cells.append("not measured")
+                continue
+            words = [verdict([r[key] for r in by[HYBRID]], [r[key] for r in by[o]]) for key, _ in METRICS]
+            for w in words:
+                counts[o][w] += 1
+            cells.append("/".join(words))
+        lines.append(f"{rig:16s} {noise:5s} {n:4d} {point:>6s} | " + " | ".join(f"{c:30s}" for c in cells))
+    for o in OTHERS:
+        lines.append(f"verdict counts, {HYBRID} vs {o}: " + ", ".join(f"{w} {c}" for w, c in counts[o].items() if c))
+    return lines
+
+
+# --- The sweep ---------------------------------------------------------------------------------
+
+def fitters(keys, steps: int, rows_per_texel):
+    """{key: fit(obs, seed)} of the models ``keys`` with the same budget (a fit function not in
+    hybridbrdf.acquire: skipped, printed)."""
+    out = {}
+    for key in keys:
+        label, held, fn_name, path = MODELS[key]
+        fn = ac.find_fit(fn_name)
+        if fn is None:
+            print(f"model {key}: {fn_name} not in hybridbrdf.acquire; skipped", flush=True)
+            continue
+        kw = ac.budget(fn, steps, rows_per_texel)
+        if path is None and key != "analytic":
+            path = pathlib.Path(prior_path())
+        if path is None:
+            out[key] = (lambda f, k: lambda obs, seed: f(obs, seed=seed, **k))(fn, kw)
+        else:
+            model = hb.load_model(str(path))
+            out[key] = (lambda f, m, k: lambda obs, seed: f(obs, m, seed=seed, **k))(fn, model, kw)
+    return out
+
+
+def points(args):
+    """[(rig kind, size point)] of the run, in the order measured."""
+    sizes = {"flash": args.flash_ns, "flash-multiview": args.views, "light-stage": args.stages}
+    return [(kind, p) for kind in args.rig for p in sizes[kind]]
+
+
+def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
+    """Simulate one capture and fit and score every model: the rows of one (point, noise, seed)."""
+    label, photons, read = noise
+    rig = build_rig(kind, point, args.photo)
+    capture_seed = zlib.crc32(f"{kind} {point} {label} {seed}".encode())
+    cap = simulate(rig, mixture, NoiseModel(photons=photons, read_noise=read), light_jitter=args.jitter,
+                   seed=capture_seed)
+    size = (args.map, args.map)
+    obs = texel_observations(rig, cap.photos, size)
+    true_render, mask = novel
+    rows = []
+    for key, fit_fn in fits.items():
+        t0 = time.process_time()
+        fit = fit_fn(obs, seed)
+        cpu = time.process_time() - t0
+        s_err, c_err = ac.texel_errors(fit, truth)
+        render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, size), true_render, mask)
+        rows.append({"machine": args.machine, "rig": kind, "point": point, "n": len(rig.shots), "noise": label,
+                     "photons": photons, "read_noise": read, "seed": seed, "capture_seed": capture_seed,
+                     "model": key, "held_out": MODELS[key][1], "observations": int(len(obs.value)),
+                     "fit_cpu_s": round(cpu, 2), "smape_median": float(np.median(s_err)),
+                     "cmae_median": float(np.median(c_err)), "render": render, "steps": args.steps,
+                     "photo": args.photo, "map": args.map, "texels": len(truth.texels), "pairs": args.pairs,
+                     "jitter": args.jitter})
+    return rows
+
+
+def summary_line(kind, point, noise, model, rs) -> str:
+    """One point's model over its seeds: each metric's mean and min-max."""
+    cells = []
+    for key, _ in METRICS:
+        v = np.array([r[key] for r in rs])
+        cells.append(f"{v.mean():8.4f} [{v.min():.4f}-{v.max():.4f}]")
+    cpu = np.mean([r["fit_cpu_s"] for r in rs])
+    return f"{kind:16s} {point:>6s} {rs[0]['n']:4d} {noise:5s} {model:15s} {len(rs):2d} {cpu:6.1f} " + " ".join(cells)
+
+
+def header(args, out, floor, fits):
+    out.line(f"acquire_verdict: {', '.join(ac.LAYERS)} under the disc/stripes masks, {args.map}x{args.map} texel map; "
+             f"{args.photo}x{args.photo} photographs, light jitter {args.jitter} (rig units); {args.steps} Adam steps "
+             f"per model, {args.rows_per_texel or 'every'} rows per texel per step; {args.texels} sampled texels per seed "
+             f"(half pure, half mixed, drawn with the seed) x {args.pairs} metric pairs; seeds {args.seeds} (noise, "
+             f"jitter, texels, fit); torch threads {torch.get_num_threads()}; machine {args.machine}")
+    out.line("rigs: flash = flash_rig(N) (collocated slice); flash-multiview V = V phones, each flash photographed by "
+             "all V (V x V shots); light-stage KxV = light_stage_rig(K, V)")
+    out.line("noise: " + "; ".join(f"{l}: photons {p:g}, read noise {r:g}" for l, p, r in ac.NOISE))
+    out.line(f"re-render: acquire_compare.novel_rig ({args.photo}x{args.photo}); rel. MAE floor (truth at texel "
+             f"centres) {floor:.4f}")
+    for key in fits:
+        out.line(f"model {key}: {MODELS[key][0]}")
+    out.line(f"{'rig':16s} {'point':>6s} {'N':>4s} {'noise':5s} {'model':15s} {'S':>2s} {'cpu s':>6s} "
+             + " ".join(f"{label + ' mean [min-max]':>24s}" for _, label in METRICS))
+
+
+def sweep(args) -> int:
+    torch.set_num_threads(args.threads)
+    t_start = time.perf_counter()
+    size = (args.map, args.map)
+    mixture = ac.sample_mixture(pathlib.Path(args.shared), args.map)
+    truths = {s: ac.Truth(mixture, ac.sampled_texels(mixture.weights, args.texels, seed=s), size, args.pairs)
+              for s in args.seeds}
+    args.novel_rig = ac.novel_rig(args.photo)
+    novel = (radiance(args.novel_rig, 0, mixture), pixel_geometry(args.novel_rig, 0).mask)
+    floor = ac.relative_mae(ac.render_fit(ac.CentreTruth(mixture, size), args.novel_rig, size), *novel)
+    fits = fitters(args.models, args.steps, args.rows_per_texel)
+    out = ac.Output(args.out)
+    header(args, out, floor, fits)
+    rows = []
+    for kind, point in points(args):
+        for noise in ac.NOISE:
+            got = []
+            for seed in args.seeds:
+                for r in measure(args, kind, point, noise, seed, truths[seed], mixture, novel, fits):
+                    out.row(r)
+                    got.append(r)
+            for key in fits:
+                out.line(summary_line(kind, point, noise[0], key, [r for r in got if r["model"] == key]))
+            rows += got
+    for line in verdict_lines(rows):
+        out.line(line)
+    out.line(f"total {time.perf_counter() - t_start:.0f} s wall")
+    out.close()
+    return 0
+
+
+def parse(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rig", default=",".join(RIGS), help=f"comma-separated rigs, of {', '.join(RIGS)} (default all)")
+    ap.add_argument("--flash-ns", default="8,32", help="flash rig photograph counts N (default 8,32)")
+    ap.add_argument("--views", default="3,6", help="flash-multiview phone counts V, V x V shots each (default 3,6)")
+    ap.add_argument("--stages", default="4x2,8x4,16x8", help="light-stage sizes KxV (default 4x2,8x4,16x8)")
+    ap.add_argument("--seeds", type=int, default=3, help="seeds per point, 0..S-1 (default 3)")
+    ap.add_argument("--models", default="analytic,hybrid_heldout,neural_heldout",
+                    help=f"comma-separated, of {', '.join(MODELS)} (default the held-out three)")
+    ap.add_argument("--steps", type=int, default=150, help="Adam steps per fit, the same for every model (default 150)")
+    ap.add_argument("--rows-per-texel", type=int, default=ROWS_PER_TEXEL,
+                    help=f"rows of each texel every step reads (default {ROWS_PER_TEXEL}; 0: every observation)")
+    ap.add_argument("--photo", type=int, default=48, help="photograph side in pixels (default 48)")
+    ap.add_argument("--map", type=int, default=16, help="texel map side (= the weights map's; default 16)")
+    ap.add_argument("--texels", type=int, default=16, help="sampled texels per seed, half pure, half mixed (default 16)")
+    ap.add_argument("--pairs", type=int, default=5000, help="metric direction pairs per sampled texel (default 5000)")
+    ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
+    ap.add_argument("--machine", default=ac.machine_key(), help="machine key of docs/BENCHMARKS.md (default: detected)")
+    ap.add_argument("--out", help="write PREFIX.txt and PREFIX.jsonl (default results/acquire_verdict_MACHINE)")
+    ap.add_argument("--table", metavar="JSONL", help="only print the verdict table of a run's jsonl")
+    args = ap.parse_args(argv)
+    args.rig = args.rig.split(",")
+    args.models = args.models.split(",")
+    for name, given, known in (("--rig", args.rig, RIGS), ("--models", args.models, MODELS)):
+        bad = [g for g in given if g not in known]
+        if bad:
+            ap.error(f"{name}: unknown {', '.join(bad)}; expected {', '.join(known)}")
+    try:
+        args.flash_ns = [str(int(v)) for v in args.flash_ns.split(",")]
+        args.views = [str(int(v)) for v in args.views.split(",")]
+        args.stages = [f"{int(k)}x{int(v)}" for k, v in (s.split("x") for s in args.stages.split(","))]
+    except ValueError as e:
+        ap.error(f"--flash-ns / --views / --stages: {e}")
+    if args.seeds < 1:
+        ap.error(f"--seeds must be at least 1, got {args.seeds}")
+    args.seeds = list(range(args.seeds))
+    args.rows_per_texel = args.rows_per_texel or None
+    args.out = args.out or str(ROOT / "results" / f"acquire_verdict_{args.machine}")
+    return args
+
+
+def table(jsonl: str) -> int:
+    """Print the verdict table of a run's rows."""
+    rows = [json.loads(line) for line in open(jsonl) if line.strip()]
+    for line in verdict_lines(rows):
+        print(line)
+    return 0
+
+
+if __name__ == "__main__":
+    ARGS = parse()
+    sys.exit(table(ARGS.table) if ARGS.table else sweep(ARGS))

@@ -1,0 +1,88 @@
+"""bench/acquire_verdict.py (issue 61 step 1): its verdict rule on constructed seed values (a gap
+of the seed means inside either model's seed range is a tie, outside both a win or a loss), and
+its rigs' directions: the flash rig sees only the collocated slice, the multi-view flash rig and
+the light stage mostly other slices (wi far from wo)."""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "bench"))
+try:
+    import acquire_verdict as av
+finally:
+    sys.path.pop(0)
+
+#: A shot is on the collocated slice when its pixels' median angle between wi and wo is below this.
+COLLOCATED_DEG = 5.0
+
+
+@pytest.mark.parametrize("hybrid, other, expect", [
+    # Means 1.0 and 2.0, ranges 0.2 and 0.2: the gap 1.0 is beyond both: better (lower is better).
+    ([0.9, 1.0, 1.1], [1.9, 2.0, 2.1], "better"),
+    ([1.9, 2.0, 2.1], [0.9, 1.0, 1.1], "worse"),
+    # Means 1.0 and 1.1 (gap 0.1), the hybrid's range 0.4: inside it: a tie, whichever side is lower.
+    ([0.8, 1.0, 1.2], [1.1, 1.1, 1.1], "tie"),
+    ([1.1, 1.1, 1.1], [0.8, 1.0, 1.2], "tie"),
+    # The other model's range alone (0.6) holds the gap 0.5: a tie.
+    ([1.0, 1.0, 1.0], [1.2, 1.5, 1.8], "tie"),
+    # Gap 0.5 against ranges 0.4 and 0.2: beyond both.
+    ([0.8, 1.0, 1.2], [1.4, 1.5, 1.6], "better"),
+    # No spread on either side: any gap counts, none is a tie.
+    ([1.0, 1.0], [1.0, 1.0], "tie"),
+    ([1.0, 1.0], [1.0 + 1e-9, 1.0 + 1e-9], "better"),
+    # One seed: no spread to compare the gap with.
+    ([1.0], [2.0, 2.1], "n/a"),
+])
+def test_verdict_rule(hybrid, other, expect):
+    assert av.verdict(hybrid, other) == expect
+
+
+def test_verdict_table_counts_each_point_and_metric():
+    """Two points; hybrid better than analytic on every metric at the first, tied at the second;
+    worse than the neural model on cMAE only at the first."""
+    def row(point, model, seed, smape, cmae, render):
+        return {"rig": "light-stage", "point": point, "n": 8, "noise": "low", "model": model, "seed": seed,
+                "smape_median": smape, "cmae_median": cmae, "render": render}
+
+    rows = []
+    for s, d in enumerate((-0.01, 0.0, 0.01)):
+        rows += [row("4x2", "hybrid_heldout", s, 1 + d, 1 + d, 1 + d), row("4x2", "analytic", s, 2 + d, 2 + d, 2 + d),
+                 row("4x2", "neural_heldout", s, 2 + d, 0.5 + d, 2 + d)]
+    for s, d in enumerate((-0.1, 0.0, 0.1)):
+        rows += [row("8x1", "hybrid_heldout", s, 1 + d, 1 + d, 1 + d), row("8x1", "analytic", s, 1.05, 1.05, 1.05),
+                 row("8x1", "neural_heldout", s, 1.05, 1.05, 1.05)]
+    lines = av.verdict_lines(rows)
+    body = [[cell.strip() for cell in line.split("|")[1:]] for line in lines if line.startswith("light-stage")]
+    assert body == [["better/better/better", "better/worse/better"], ["tie/tie/tie", "tie/tie/tie"]]
+    assert lines[-2].endswith("better 3, tie 3")
+    assert lines[-1].endswith("better 2, worse 1, tie 3")
+
+
+def collocated(kind: str, point: str) -> tuple:
+    """(shots on the collocated slice, shots) of the bench's rig ``kind`` at ``point``."""
+    angles = av.shot_angles(av.build_rig(kind, point, 16))
+    return int((angles < COLLOCATED_DEG).sum()), len(angles)
+
+
+def test_flash_rig_sees_only_the_collocated_slice():
+    assert collocated("flash", "8") == (8, 8)
+
+
+def test_multiview_flash_rig_sees_v_collocated_shots_of_v_squared():
+    # Each phone's own flash is collocated; the other V - 1 flashes it photographs under are not.
+    assert collocated("flash-multiview", "3") == (3, 9)
+    assert collocated("flash-multiview", "4") == (4, 16)
+
+
+def test_light_stage_sees_other_slices_than_the_collocated():
+    # acquire.rigs.light_stage_rig puts its first camera and its first light both at the zenith
+    # (the golden-angle turn of the cameras' cap leaves +z where it is): one collocated shot.
+    for point, shots in (("4x2", 8), ("8x4", 32)):
+        on_slice, n = collocated("light-stage", point)
+        assert n == shots and on_slice <= 1, (point, on_slice)
