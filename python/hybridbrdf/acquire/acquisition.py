@@ -64,7 +64,7 @@ def check_output(out: str, capture: str) -> None:
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
             log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
-            refit_heads: bool = False) -> HybridMaps:
+            refit_heads: bool = False, finetune_network: int = 0) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
@@ -72,7 +72,9 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     a warning per cluster no prior material explains to ``warn``). ``resume`` continues the
     checkpoint of an interrupted run with the same settings; ``force`` starts afresh over one.
     ``refit_heads``: each cluster's output layer refitted to its rows (:func:`fit_hybrid_texels`;
-    docs/ACQUISITION_GAP.md). Returns the fit, its report as ``maps.report``."""
+    docs/ACQUISITION_GAP.md). ``finetune_network`` > 0: that many steps fine-tuning the prior's
+    network on the capture, its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`); the
+    report then holds the replay's drift. Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.capture import load_capture
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
@@ -88,7 +90,8 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
         raise checkpoint.CheckpointError(ckpt, "no checkpoint to resume (run without --resume)")
     model = load_prior() if prior is None else load_model(prior)
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
-                "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {})}
+                "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {}),
+                **({"finetune_network": int(finetune_network)} if finetune_network else {})}
     rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
     masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture, saturated=saturated)
     if report["saturated"]:
@@ -125,10 +128,16 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
             report_logger(log, warn)(chosen)
 
         maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
-                                 save_state=save_state, log=log, on_clusters=on_clusters, refit_heads=refit_heads)
+                                 save_state=save_state, log=log, on_clusters=on_clusters, refit_heads=refit_heads,
+                                 finetune_network=finetune_network)
         layer = maps.layer.reshape(-1)
+        if finetune_network:
+            drift = maps.model.training["acquisition_finetune"]["drift"]
+            log(f"network fine-tune: the prior's {len(model.materials)} materials replayed moved by SMAPE "
+                f"{drift['median_smape']:.4f} (median), {drift['worst_smape']:.4f} at worst ({drift['worst_material']})")
         maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "refit_heads": bool(refit_heads),
-                       "layers": maps.layers,
+                       "finetune_network": int(finetune_network), "layers": maps.layers,
+                       **({"replay_drift": maps.model.training["acquisition_finetune"]["drift"]} if finetune_network else {}),
                        "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}
                                     for c in chosen if c["texels"]]}
         log(f"writing {out}: the model (its energy-bound checks) and {len(maps.layers)} layer(s) of maps")

@@ -12,7 +12,10 @@ fits run the same three stages, on a *family* (the model's network and its per-m
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
    material share one BRDF, so a cluster pools every texel's observations for the one shape a
    material the prior never saw needs (an option: docs/ACQUISITION_GAP.md).
-4. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
+4. **network** (``finetune_network`` steps): the hidden layers, each cluster's head and values
+   trained on the clusters' pure texels with the prior's materials replayed
+   (:mod:`~hybridbrdf.acquire.network_tune`); the texel stage then runs on the tuned network.
+5. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
    material (output layer, energy table), a Gaussian pull toward the cluster's values (below).
 
 The pull is the MAP estimate's prior: a texel's rows have log residuals of variance sigma^2 (the
@@ -31,6 +34,7 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 import torch
 
+from hybridbrdf.acquire import network_tune
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
@@ -162,6 +166,25 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             "sigma2": torch.tensor(sigma2), "candidates": candidates}
 
 
+def start_bias(family, bias: torch.Tensor) -> torch.Tensor:
+    """A copy of head biases ``bias`` (K, o) to refit from: a gated head's f_c biases at
+    -:data:`HEAD_START` or above, its f_g biases at :data:`HEAD_START` or below."""
+    bias = bias.clone()
+    if getattr(family.module, "combine_rule", None) == "gated":
+        bias[:, :3], bias[:, 3:] = bias[:, :3].clamp_min(-HEAD_START), bias[:, 3:].clamp_max(HEAD_START)
+    return bias
+
+
+def start_heads(family, clusters: Dict) -> Tuple[torch.Tensor, torch.Tensor, Dict[str, torch.Tensor]]:
+    """Each cluster's head (weight (K, o, w), bias (K, o)) and values to fine-tune from: the head
+    refit's when it ran, else the cluster's material's head (:func:`start_bias`) and the cluster's values."""
+    if "heads" in clusters:
+        h = clusters["heads"]
+        return h["weight"], h["bias"], h["centres"]
+    t, m = family.tensors, clusters["material"]
+    return t["materials.head_weight"][m], start_bias(family, t["materials.head_bias"][m]), clusters["centres"]
+
+
 def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
                 seed: int, progress: Optional[Progress] = None) -> Dict[str, object]:
     """Per cluster, its material's output layer (head weight and bias) and the cluster's values fitted
@@ -183,9 +206,7 @@ def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: 
     centres = {n: [] for n in clusters["centres"]}
     for c in range(k):
         m = int(clusters["material"][c])
-        bias = t["materials.head_bias"][m:m + 1].clone()
-        if getattr(family.module, "combine_rule", None) == "gated":
-            bias[:, :3], bias[:, 3:] = bias[:, :3].clamp_min(-HEAD_START), bias[:, 3:].clamp_max(HEAD_START)
+        bias = start_bias(family, t["materials.head_bias"][m:m + 1])
         params = {"head_weight": t["materials.head_weight"][m:m + 1].clone().requires_grad_(),
                   "head_bias": bias.requires_grad_(),
                   **{"raw_" + n: v[c:c + 1].clone().requires_grad_() for n, v in clusters["centres"].items()}}
@@ -249,10 +270,14 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
                  on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None,
-                 refit_heads: bool = False) -> Tuple[np.ndarray, Dict, Dict]:
+                 refit_heads: bool = False, finetune_network: int = 0) -> Tuple[np.ndarray, Dict, Dict]:
     """The stages (module docstring): (labels (n_texels,), clusters, per-texel raw values); with
     ``refit_heads`` (a family with material output layers) the heads stage too, and clusters["heads"]
     holds what :func:`refit_heads_of` returned (the texel stage's per-cluster heads and centres).
+    ``finetune_network`` > 0 (material output layers): that many steps of the network stage after
+    them (:func:`hybridbrdf.acquire.network_tune.finetune_network`): clusters["heads"] then holds
+    its heads and centres, clusters["network"] its tuned hidden layers and the replay's drift, and
+    the texel stage runs on the tuned network.
     ``state`` (what ``save_state`` was last given) resumes after the last finished stage or within
     the analytic and texel stages at their last checkpoint (every 50 steps). ``on_clusters(labels,
     clusters)`` is called once the clusters are known (fitted or restored), before the texel stage."""
@@ -295,6 +320,18 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
         stage_clusters = {**clusters, "material": torch.arange(len(clusters["material"])),
                           "centres": heads["centres"], "sigma2": heads["sigma2"]}
         clusters = {**clusters, "heads": heads}
+    if finetune_network > 0 and "materials.head_weight" in getattr(family, "tensors", {}):
+        if "network" not in state:
+            finish("network", network_tune.finetune_network(family, obs, data, labels, clusters,
+                                                            start_heads(family, clusters), finetune_network, seed,
+                                                            progress))
+        tuned = state["network"]
+        stage_family = network_tune.tuned_family(family, tuned["network"]).with_heads(
+            clusters["material"], tuned["weight"], tuned["bias"])
+        stage_clusters = {**clusters, "material": torch.arange(len(clusters["material"])),
+                          "centres": tuned["centres"], "sigma2": tuned["sigma2"]}
+        clusters = {**clusters, "heads": {n: tuned[n] for n in ("weight", "bias", "centres", "sigma2")},
+                    "network": tuned}
     raw = refine_texels(stage_family, obs, data, labels, stage_clusters, steps, seed, rows_per_texel,
                         progress=progress, state=state.get("texels_partial"), save_state=saver("texels_partial"))
     return labels, clusters, raw

@@ -171,12 +171,28 @@ def with_cluster_heads(model: HybridModel, family: HybridFamily, clusters: Dict)
     return energy.with_bound(energy.attach(grown, table), names), names
 
 
+def with_network(model: HybridModel, tuned: Dict) -> HybridModel:
+    """``model`` with the fine-tuned hidden layers ``tuned["network"]`` (state-dict tensors by name)
+    and the fine-tune recorded in its training record (the capture loss at its first and last step, the
+    replay's median and worst drift).
+    Its materials' (p, z), heads and energy tables are kept: the fine-tune replayed them on this network."""
+    tensors = {k: (tuned["network"][k].numpy().astype(np.float32) if k in tuned["network"] else v)
+               for k, v in model.tensors.items()}
+    training = dict(model.training) if isinstance(model.training, dict) else {}
+    smape, cmae = (np.asarray(tuned["drift"][k], np.float64) for k in ("smape", "cmae"))
+    worst = int(np.argmax(smape))
+    drift = {"median_smape": float(np.median(smape)), "median_cmae": float(np.median(cmae)),
+             "worst_smape": float(smape[worst]), "worst_cmae": float(cmae[worst]), "worst_material": model.materials[worst]}
+    training["acquisition_finetune"] = {"capture_loss": [float(x) for x in tuned["loss"]], "drift": drift}
+    return type(model)(dict(model.arch), [dict(i) for i in model.material_info], tensors, training)
+
+
 def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, seed: int = 0,
                       progress: Optional[Progress] = None, rows_per_texel: int = ROWS_PER_TEXEL,
                       state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
                       log: Callable[[str], None] = lambda msg: None,
                       on_clusters: Optional[Callable[[HybridFamily, np.ndarray, Dict], None]] = None,
-                      refit_heads: bool = False) -> HybridMaps:
+                      refit_heads: bool = False, finetune_network: int = 0) -> HybridMaps:
     """Fit (p, z) per texel on ``model``'s frozen network (a hybrid prior with its materials):
     the stages of :func:`hybridbrdf.acquire.cluster_fit.fit_on_prior` (analytic ``steps // 2``
     steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each), then the
@@ -186,14 +202,19 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     clusters)`` runs once the clusters are known (:mod:`~hybridbrdf.acquire.cluster_report`).
     ``refit_heads``: each cluster's output layer refitted to its rows (the heads stage of
     :func:`~hybridbrdf.acquire.cluster_fit.fit_on_prior`); each cluster is then a layer of its own,
-    a material of the prior with that head (:func:`with_cluster_heads`)."""
+    a material of the prior with that head (:func:`with_cluster_heads`). ``finetune_network`` > 0:
+    that many steps of the network stage (:mod:`~hybridbrdf.acquire.network_tune`), a layer per
+    cluster as with ``refit_heads``, and the written model carries the tuned network
+    (:func:`with_network`)."""
     family = HybridFamily(model)
     hook = None if on_clusters is None else (lambda labels, clusters: on_clusters(family, labels, clusters))
     labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook,
-                                         refit_heads=refit_heads)
+                                         refit_heads=refit_heads, finetune_network=finetune_network)
     w, h = obs.size
     with torch.no_grad():
         kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))
+    if "network" in clusters:
+        model = with_network(model, clusters["network"])
     if "heads" in clusters:  # a layer per cluster: its own head
         model, names = with_cluster_heads(model, family, clusters)
         layer = labels

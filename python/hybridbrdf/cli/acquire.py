@@ -135,14 +135,16 @@ def run_fit(args: argparse.Namespace) -> int:
     try:
         maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
                        resume=args.resume, force=args.force, progress=progress, log=say,
-                       warn=lambda msg: tqdm.write(msg, file=sys.stderr), refit_heads=args.refit_heads)
+                       warn=lambda msg: tqdm.write(msg, file=sys.stderr), refit_heads=args.refit_heads,
+                       finetune_network=args.finetune_network)
     finally:
         for bar in bars.values():
             bar.close()
     h, w = maps.layer.shape
     print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
           f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}"
-          f"{', each cluster with its head refitted' if args.refit_heads else ''}; the clusters and "
+          f"{', each cluster with its head refitted' if args.refit_heads else ''}"
+          f"{f', the network fine-tuned {args.finetune_network} steps' if args.finetune_network else ''}; the clusters and "
           f"their materials in {REPORT_FILE}")
     return 0
 
@@ -236,6 +238,12 @@ def _add_fit_parser(commands) -> None:
                    help="refit each cluster's output layer (its material's head) to the cluster's photographs: each "
                         "cluster becomes a layer <material>.acq<k> of its own; an option, not a clear win "
                         "(docs/ACQUISITION_GAP.md); recorded in OUT/acquisition.json")
+    f.add_argument("--finetune-network", type=_count(0, 1000000), default=0, metavar="N",
+                   help="after the clusters, fine-tune the prior's network, each cluster's head and values on the "
+                        "clusters' pure texels for N steps, the prior's materials replayed against its own output; "
+                        "the texels are then fitted on the tuned network, which OUT's model carries; each cluster a "
+                        "layer <material>.acq<k> (default 0: off; docs/ACQUISITION_GAP.md); the replay's drift "
+                        "recorded in OUT/acquisition.json")
     f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
     f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
     f.add_argument("--quiet", action="store_true", help="no progress bars or messages (warnings still go to stderr)")

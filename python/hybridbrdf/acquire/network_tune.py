@@ -1,0 +1,165 @@
+"""The acquisition fit's network fine-tune (issue 61 part 2; docs/ACQUISITION_GAP.md): after the
+cluster stage, the prior's shared network (its hidden layers), each cluster's output layer (head)
+and each cluster's values trained together on the capture's observations of each cluster's
+purest texels, with the prior's own materials replayed against the prior's output so that the
+network cannot forget them, as ``hbrdf add --refine`` replays a base's materials
+(:class:`~hybridbrdf.sources.model.ModelMaterialSource`). The texel stage then fits every texel's
+(p, z) on the tuned network, and the written model carries it.
+
+Per step, with d the paper's residual log(1 + cos g) - log(1 + cos f) (docs/CONVENTIONS.md):
+
+    L = (1/K) sum_c mean_{rows of c's pure texels} d^2  +  REPLAY_WEIGHT mean_{replayed rows} d^2,
+
+the replayed rows :data:`REPLAY_MATERIALS` of the prior's materials a step (their (p, z) and head
+fixed at the prior's), each on :data:`REPLAY_PAIRS` fixed cosine-distributed direction pairs with
+the prior's own f as the target. Each cluster starts from its head and values as the head refit
+leaves them, or from its material's (cluster_fit.start_heads). A texel is *pure* when its 8 neighbours share its cluster: the
+fit sees one material there, where a texel on a boundary is photographed as a mix (the bench's
+footprint, docs/ACQUISITION_GAP.md). The drift is what the fine-tune cost the prior: per prior
+material, SMAPE and cMAE of the tuned network against the prior on :data:`DRIFT_PAIRS` pairs."""
+
+from __future__ import annotations
+
+import copy
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+import torch
+
+from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress, step_generator
+from hybridbrdf.evaluate.metrics import cmae, smape
+
+#: Capture rows of each cluster per step (drawn from its pure texels' rows, with replacement).
+CAPTURE_ROWS = 2048
+#: Prior materials replayed per step, and the fixed direction pairs each is replayed on.
+REPLAY_MATERIALS, REPLAY_PAIRS = 16, 256
+#: The replay term's weight against the capture's (both are a mean squared residual per row and channel).
+REPLAY_WEIGHT = 1.0
+#: Adam rates at the first step (decaying linearly to a tenth): the hidden layers', and the heads'
+#: and cluster values' (the head refit's and cluster stage's order of rate).
+NETWORK_LR, HEAD_LR = 2e-3, 1e-2
+#: Direction pairs of the drift report per prior material.
+DRIFT_PAIRS = 2000
+
+
+def cosine_pairs(n: int, seed: int) -> tuple:
+    """``n`` (wi, wo) pairs, each direction cosine-distributed over the upper hemisphere, (n, 3) float32."""
+    rng = np.random.default_rng(seed)
+
+    def directions():
+        u = rng.random((n, 2))
+        r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
+        return torch.from_numpy(np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], 1).astype(np.float32))
+    return directions(), directions()
+
+
+def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
+    """The rows of cluster ``c``'s pure texels (the texel and its 8 neighbours in ``c``, the map's
+    edges clamped); all of ``c``'s rows when it has no pure texel."""
+    w, h = obs.size
+    mine = (labels == c).reshape(h, w)
+    padded = np.pad(mine, 1, mode="edge")
+    inner = np.all([padded[1 + dj:1 + dj + h, 1 + di:1 + di + w] for dj in (-1, 0, 1) for di in (-1, 0, 1)], axis=0)
+    texels = np.nonzero(inner.reshape(-1))[0]
+    if not len(np.nonzero(np.diff(obs.offsets)[texels])[0]):
+        texels = np.nonzero(mine.reshape(-1))[0]
+    return torch.from_numpy(np.concatenate([np.arange(obs.offsets[t], obs.offsets[t + 1]) for t in texels]
+                                           + [np.zeros(0, np.int64)]).astype(np.int64))
+
+
+def _log_f(family, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+    """log(1 + cos(theta_i) f) of rows (the paper's loss domain)."""
+    return torch.log1p(wi[:, 2:3].clamp_min(0) * family.evaluate(material, raw, wi, wo))
+
+
+def _replay_pool(family, seed: int) -> Dict[str, torch.Tensor]:
+    """Every prior material's fixed replay pairs and the prior's log(1 + cos f) on them."""
+    every = family.raw_of_materials()
+    n_mat = len(every["kd"])
+    wi, wo = cosine_pairs(n_mat * REPLAY_PAIRS, seed)
+    material = torch.arange(n_mat).repeat_interleave(REPLAY_PAIRS)
+    raw = {n: v[material] for n, v in every.items()}
+    with torch.no_grad():
+        target = _log_f(family, material, raw, wi, wo)
+    return {"wi": wi, "wo": wo, "material": material, "raw": raw, "target": target, "n": n_mat}
+
+
+def tuned_family(family, network: Dict[str, torch.Tensor]):
+    """``family`` evaluating with the hidden layers ``network`` (state-dict tensors by name)."""
+    view = copy.copy(family)
+    view.module = copy.deepcopy(family.module)
+    view.module.load_state_dict(network, strict=False)
+    return view
+
+
+def finetune_network(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
+                     start: Tuple, steps: int, seed: int, progress: Optional[Progress] = None) -> Dict[str, object]:
+    """``steps`` Adam steps of the module docstring's loss from ``start`` = (head weight (K, o, w),
+    head bias (K, o), values {name: (K, c)}) per cluster (cluster_fit.start_heads). Returns {"network" {name: tensor} (the
+    tuned hidden layers), "weight" (K, o, w), "bias" (K, o), "centres" {name: (K, c)}, "sigma2" (K,),
+    "drift" (:func:`replay_drift`), "loss" [first, last] capture term}: what the texel stage then
+    uses per cluster, as after the head refit (cluster_fit.fit_on_prior)."""
+    k = len(clusters["material"])
+    tuned = tuned_family(family, {})
+    hidden = [p for p in tuned.module.mlp.hidden.parameters()]
+    for p in hidden:
+        p.requires_grad_(True)
+    weight, bias = (v.clone() for v in start[:2])
+    centres = {n: v.clone() for n, v in start[2].items()}
+    heads = {"weight": weight.requires_grad_(), "bias": bias.requires_grad_(),
+             **{"raw_" + n: v.requires_grad_() for n, v in centres.items()}}
+    rows = [pure_rows(obs, labels, c) for c in range(k)]
+    pool = _replay_pool(family, seed)
+    opt = torch.optim.Adam([{"params": hidden, "lr": NETWORK_LR}, {"params": list(heads.values()), "lr": HEAD_LR}])
+    rates = [NETWORK_LR, HEAD_LR]
+
+    def capture_term(gen, c, n=CAPTURE_ROWS):
+        r = rows[c] if gen is None else rows[c][torch.randint(len(rows[c]), (n,), generator=gen)]
+        own = tuned.with_heads(clusters["material"][c:c + 1], heads["weight"][c:c + 1], heads["bias"][c:c + 1])
+        raw = {n_: heads["raw_" + n_][c:c + 1].expand(len(r), -1) for n_ in centres}
+        d = data.residual(r, own.evaluate(torch.zeros(len(r), dtype=torch.long), raw, data.wi[r], data.wo[r]))
+        return (d * d).mean()
+
+    seen = [c for c in range(k) if len(rows[c])]
+    losses = []
+    for step in range(steps):
+        gen = step_generator(seed, "network", step)
+        for group, rate in zip(opt.param_groups, rates):
+            group["lr"] = rate * (1.0 - 0.9 * step / steps)
+        opt.zero_grad()
+        fit = sum(capture_term(gen, c) for c in seen) / max(1, len(seen))
+        pick = torch.randperm(pool["n"], generator=gen)[:REPLAY_MATERIALS]
+        r = (pick[:, None] * REPLAY_PAIRS + torch.arange(REPLAY_PAIRS)).reshape(-1)
+        d = pool["target"][r] - _log_f(tuned, pool["material"][r], {n: v[r] for n, v in pool["raw"].items()},
+                                       pool["wi"][r], pool["wo"][r])
+        (fit + REPLAY_WEIGHT * (d * d).mean()).backward()
+        opt.step()
+        losses.append(float(fit.detach()))
+        if progress is not None:
+            progress("network", step + 1, steps)
+    with torch.no_grad():
+        sigma2 = [max(float(capture_term(None, c)), 1e-8) if len(rows[c]) else float(clusters["sigma2"][c])
+                  for c in range(k)]
+    network = {n: v.detach().clone() for n, v in tuned.module.state_dict().items() if n.startswith("mlp.")}
+    return {"network": network, "weight": heads["weight"].detach(), "bias": heads["bias"].detach(),
+            "centres": {n: heads["raw_" + n].detach() for n in centres}, "sigma2": torch.tensor(sigma2),
+            "drift": replay_drift(family, tuned_family(family, network), seed),
+            "loss": [losses[0], losses[-1]] if losses else []}
+
+
+def replay_drift(prior, tuned, seed: int) -> Dict[str, object]:
+    """Per prior material, SMAPE and cMAE (docs/CONVENTIONS.md) of ``tuned`` against ``prior`` (two
+    families of one model's materials) on :data:`DRIFT_PAIRS` cosine-distributed pairs:
+    {"smape" [M floats], "cmae" [M floats]}, in the model's material order."""
+    every = prior.raw_of_materials()
+    wi, wo = cosine_pairs(DRIFT_PAIRS, seed + 1)
+    out = {"smape": [], "cmae": []}
+    with torch.no_grad():
+        for m in range(len(every["kd"])):
+            mat = torch.full((DRIFT_PAIRS,), m)
+            raw = {n: v[m:m + 1].expand(DRIFT_PAIRS, -1) for n, v in every.items()}
+            a, b = (f.evaluate(mat, raw, wi, wo).double().numpy() for f in (prior, tuned))
+            out["smape"].append(float(smape(a, b)))
+            out["cmae"].append(float(cmae(a, b, wi[:, 2].double().numpy())))
+    return out
