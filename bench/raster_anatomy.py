@@ -202,7 +202,9 @@ def jit_counts(args, row) -> dict:
             g = subprocess.run(["gdb", "-p", str(proc.pid), "-batch", "-ex", "thread apply all x/i $pc", "-ex",
                                 "info proc mappings"], capture_output=True, text=True, timeout=120).stdout
             pcs = [int(m, 16) for m in re.findall(r"=> (0x[0-9a-f]+):\s", g)]
-            maps = [(int(a, 16), int(b, 16)) for a, b, perm in re.findall(r"(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+0x\w+\s+0x0\s+(\S*x\S*)\s*$", g, re.M)]
+            # "info proc mappings": start end size offset perms [file]; JIT code is anonymous and executable
+            mapping = r"(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+0x\w+\s+0x0\s+\S*x\S*\s*$"
+            maps = [(int(a, 16), int(b, 16)) for a, b in re.findall(mapping, g, re.M)]
             hits = sorted({m for m in maps for pc in pcs if m[0] <= pc < m[1]}, key=lambda m: m[0] - m[1])
             if hits and hits[0][1] - hits[0][0] >= 16384:
                 break

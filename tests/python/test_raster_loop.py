@@ -3,8 +3,8 @@ docs/RASTER.md "Cost"): llvmpipe runs a loop body under a lane mask and leaves t
 no lane is left, so a loop whose exit test comes first (a ``for`` loop's, or the test a ``continue``
 jumps to, which NIR moves to the top) runs its whole body, every BRDF evaluation in it, once more
 than there are lights, all lanes off: on M2 the 32x2 frame's CPU time was 1.58x at one light and
-1.35x at two (``bench/raster_frame.py`` before and after; ``bench/raster_anatomy.py``'s loop-test-top). The fragment stage therefore tests at the end of the body and has
-no ``continue``; what the loop computes is unchanged (test_raster.py's frames against the library
+1.35x at two (``bench/raster_frame.py`` before and after; ``bench/raster_anatomy.py``'s
+loop-test-top). The fragment stage therefore tests at the end of the body and has no ``continue``; what the loop computes is unchanged (test_raster.py's frames against the library
 and the tracer, one and two lights). Seen failing with the template's former ``for`` loop."""
 
 import json
