@@ -49,11 +49,15 @@ def main() -> int:
     ap.add_argument("--leave-out", action="append", default=[], metavar="NAME",
                     help="leave this material out in every form (repeatable)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"))
-    ap.add_argument("--out", default=str(ROOT / "python" / "hybridbrdf" / "data" / "prior.safetensors"))
+    ap.add_argument("--out", help="the model file (default: the package's prior.safetensors, or with --arch "
+                                  "hybrid-reciprocal its prior_reciprocal.safetensors)")
     ap.add_argument("--checkpoint", help="checkpoint file (resumed if it exists)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the training steps")
     ap.add_argument("--arch", default="hybrid", help="model architecture (hybrid, or hybrid-reciprocal: issue 60)")
     args = ap.parse_args()
+    if args.out is None:
+        name = "prior_reciprocal.safetensors" if args.arch == "hybrid-reciprocal" else "prior.safetensors"
+        args.out = str(ROOT / "python" / "hybridbrdf" / "data" / name)
     folders = tuple(f for f in args.folders.split(",") if f)
     specs = [p for p in hb.expand_sources([os.path.join(args.shared, f) for f in folders])
              if pathlib.Path(p).stem not in set(args.leave_out)]

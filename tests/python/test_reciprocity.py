@@ -212,3 +212,56 @@ def test_the_shipped_reciprocal_rgl_model_is_exactly_reciprocal_on_every_materia
     for m in (0, 27, 53):
         assert np.array_equal(torch_model.eval(wi, wo, m), torch_model.eval(wo, wi, m)), m
     assert asymmetric == 54
+
+
+def test_the_shipped_reciprocal_prior_is_exactly_reciprocal_on_the_priors_materials():
+    """python/hybridbrdf/data/prior_reciprocal.safetensors (issue 60): installed with the package bit
+    for bit, the plain prior's materials in its order, energy tables on, and every material
+    bit-equal under the exchange in libhybridbrdf; the plain prior is the control."""
+    from hybridbrdf.model.prior import RECIPROCAL_PRIOR_FILE
+    from helpers import ROOT
+
+    source = ROOT / "python" / "hybridbrdf" / "data" / "prior_reciprocal.safetensors"
+    assert RECIPROCAL_PRIOR_FILE.read_bytes() == source.read_bytes(), "the wheel did not carry the reciprocal prior"
+    prior, plain = hb.load_prior(reciprocal=True), hb.load_prior()
+    assert prior.arch["kind"] == "hybrid-reciprocal" and prior.arch.get("energy_bound")
+    assert prior.materials == plain.materials and len(prior.materials) >= 100
+    wi, wo = pairs()
+    shipped, control = _core.Model(hb.prior_path(reciprocal=True)), _core.Model(hb.prior_path())
+    asymmetric = 0
+    for m in range(len(prior.materials)):
+        f = shipped.eval(wi, wo, m)
+        assert np.array_equal(f, shipped.eval(wo, wi, m)), prior.materials[m]
+        assert (f > 0).any(), prior.materials[m]
+        asymmetric += not np.array_equal(control.eval(wi, wo, m), control.eval(wo, wi, m))
+    # The control: a material whose correction the guard removed is its f_a, reciprocal in either
+    # prior (3 of the plain prior's 142); every other one is not.
+    assert asymmetric >= 0.9 * len(prior.materials), asymmetric
+
+
+def test_add_reciprocal_fits_onto_the_reciprocal_prior_and_stays_reciprocal(tmp_path, monkeypatch):
+    """hbrdf add --reciprocal: the sparse fit and the fine-tune start from the reciprocal prior's
+    network, so the model is reciprocal bit for bit; without the flag, the plain prior (the
+    control: not reciprocal); with --to, refused in one line before any training."""
+    import hybridbrdf.model.prior as prior_module
+    from hybridbrdf.fit import fit
+    from hybridbrdf.fit.settings import FitSettings
+    from hybridbrdf.sources import open_source
+
+    tiny = dict(steps=30, batch=256, pool=2048, eval_pairs=2000, energy_bound=False)
+    for arch, name in (("hybrid-reciprocal", "RECIPROCAL_PRIOR_FILE"), ("hybrid", "PRIOR_FILE")):
+        path = tmp_path / f"{arch}.safetensors"
+        fit([open_source("synthetic:gold"), open_source("synthetic:plastic")],
+            FitSettings(arch=arch, width=8, depth=1, latent=2, **tiny), progress=False, log=lambda m: None).save(path)
+        monkeypatch.setattr(prior_module, name, path)
+    wi, wo = pairs()
+    for reciprocal in (True, False):
+        out = tmp_path / f"added_{reciprocal}.safetensors"
+        model = hb.add(["synthetic:brushed_aluminium"], out=out, settings=FitSettings(**tiny), progress=False,
+                       finetune_steps=20, reciprocal=reciprocal)
+        assert model.training["mode"] == "fine-tune"
+        f, g = _core.Model(str(out)).eval(wi, wo, 0), _core.Model(str(out)).eval(wo, wi, 0)
+        assert (model.arch["kind"] == "hybrid-reciprocal") == reciprocal
+        assert np.array_equal(f, g) == reciprocal, reciprocal
+    with pytest.raises(ValueError, match="--reciprocal adds onto the shipped reciprocal prior"):
+        hb.add(["synthetic:velvet"], to=tmp_path / "hybrid.safetensors", reciprocal=True, progress=False)

@@ -26,6 +26,10 @@ def add_parser(sub) -> None:
                                                 "materials only)")
     p.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
     add_fit_flags(p, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
+    p.add_argument("--reciprocal", action="store_true",
+                   help="onto the shipped reciprocal prior (its network reads wi + wo and the products of wi - wo): "
+                        "the model is reciprocal bit for bit, f(wi, wo) = f(wo, wi) (docs/RECIPROCITY.md); not "
+                        "with --to")
     p.add_argument("--keep-network", action="store_true",
                    help="onto the shipped prior: fit only the sources' parameters and latent codes, the network "
                         "bit-identical to the prior's (for engines that already ship it)")
@@ -61,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         model = add(args.sources, to=args.to, out=args.out, settings=settings, progress=not args.quiet, log=log,
                     keep_network=args.keep_network, finetune_steps=args.finetune_steps, refine=args.refine,
+                    reciprocal=args.reciprocal,
                     **({} if args.max_drift is None else {"max_drift": args.max_drift}))
     except MemoryError:
         raise ValueError("out of memory; lower --pool, --batch or --eval-pairs") from None
@@ -84,13 +89,15 @@ def _report(args, settings, model) -> None:
     elif model.training.get("mode") == "fine-tune":
         new = model.material_info
         seconds = model.training["sparse_fit"].get("train_seconds", 0.0) + model.training.get("train_seconds", 0.0)
-        how = (f"fine-tuned the shipped prior's network with them ({settings.steps} sparse + "
+        how = (f"fine-tuned the shipped {'reciprocal ' if args.reciprocal else ''}prior's network with them "
+               f"({settings.steps} sparse + "
                f"{model.training['steps']} fine-tune steps)")
     else:
         added = set(model.training["additions"][-1]["materials"])
         new = [m for m in model.material_info if m["name"] in added]
         seconds = model.training["additions"][-1].get("train_seconds", 0.0)
-        how = f"sparse fit on {args.to or 'the shipped prior'}'s network, kept bit-exact"
+        prior = "the shipped reciprocal prior" if args.reciprocal else "the shipped prior"
+        how = f"sparse fit on {args.to or prior}'s network, kept bit-exact"
     print(format_table([dict(material=m["name"], origin=m.get("origin", ""), **m["metrics"]) for m in new],
                        settings.eval_pairs))
     print(f"added {len(new)} material(s) in {seconds:.1f} s of training: {how}; wrote {args.out} "

@@ -101,7 +101,7 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         progress: bool = True, log: Callable[[str], None] = lambda msg: None,
         keep_network: bool = False, finetune_steps: Optional[int] = None,
         prior: Optional[Union[str, os.PathLike]] = None, refine: bool = False,
-        max_drift: float = MAX_DRIFT) -> HybridModel:
+        max_drift: float = MAX_DRIFT, reciprocal: bool = False) -> HybridModel:
     """Add ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects) to a
     fitted network and return the model; with ``out``, also write it there (atomically; ``out``
     may be ``to`` itself, which is then replaced only once the fit has succeeded).
@@ -123,7 +123,10 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     naming the material, and nothing is written.
 
     ``prior``: another prior's file in place of the shipped one (a prior trained without the
-    materials being added, for an honest hold-out: bench/prior_heldout.py).
+    materials being added, for an honest hold-out: bench/prior_heldout.py). ``reciprocal``: onto
+    the shipped reciprocal prior (``hybridbrdf.model.prior.RECIPROCAL_PRIOR_FILE``, architecture
+    ``hybrid-reciprocal``), so the model is reciprocal bit for bit, fine-tuned or not; ValueError
+    with ``to`` or ``prior`` (their architecture is their own).
 
     ``settings``: the fit's training, loss and sparse settings (:class:`FitSettings`; its
     network fields are taken from ``to``); default: the default recipe with
@@ -136,6 +139,11 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     # ``out`` may be ``to``: the base is read under out's lock and the merged model written
     # before it is released, so a concurrent update of the same file is never lost (it waits for
     # this one, or refuses after LOCK_WAIT_SECONDS; docs/CONVENTIONS.md, "Writing files").
+    if reciprocal:
+        if to is not None or prior is not None:
+            raise ValueError("--reciprocal adds onto the shipped reciprocal prior; a --to BASE or another prior "
+                             "keeps its own architecture (a base fitted with --arch hybrid-reciprocal is reciprocal)")
+        prior = prior_path(reciprocal=True)
     with file_lock(out) if out is not None else contextlib.nullcontext():
         return _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine,
                            max_drift)

@@ -19,17 +19,23 @@ from hybridbrdf.model.file import load_model
 
 #: Where the package keeps the prior.
 PRIOR_FILE = pathlib.Path(__file__).resolve().parents[1] / "data" / "prior.safetensors"
+#: The reciprocal prior (issue 60): the same materials and recipe with ``--arch hybrid-reciprocal``,
+#: so that every model added onto it is reciprocal bit for bit, f(wi, wo) = f(wo, wi)
+#: (docs/RECIPROCITY.md, "The reciprocal prior").
+RECIPROCAL_PRIOR_FILE = PRIOR_FILE.with_name("prior_reciprocal.safetensors")
 
 
-def prior_path() -> str:
-    """The shipped prior's model file; InputFileError if this installation lacks it (a source
-    checkout before ``bench/train_prior.py`` has run)."""
-    if not PRIOR_FILE.is_file():
-        raise InputFileError(os.fspath(PRIOR_FILE), "the shipped prior is missing from this installation; "
-                                                    "pass --to BASE (or train one: python bench/train_prior.py)")
-    return os.fspath(PRIOR_FILE)
+def prior_path(reciprocal: bool = False) -> str:
+    """The shipped prior's model file (``reciprocal``: the reciprocal prior's); InputFileError if
+    this installation lacks it (a source checkout before ``bench/train_prior.py`` has run)."""
+    path = RECIPROCAL_PRIOR_FILE if reciprocal else PRIOR_FILE
+    if not path.is_file():
+        raise InputFileError(os.fspath(path), "the shipped prior is missing from this installation; "
+                                              "pass --to BASE (or train one: python bench/train_prior.py)")
+    return os.fspath(path)
 
 
-def load_prior():
-    """The shipped prior as a :class:`~hybridbrdf.model.file.HybridModel`."""
-    return load_model(prior_path())
+def load_prior(reciprocal: bool = False):
+    """The shipped prior as a :class:`~hybridbrdf.model.file.HybridModel` (``reciprocal``: the
+    reciprocal prior)."""
+    return load_model(prior_path(reciprocal))
