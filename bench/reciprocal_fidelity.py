@@ -14,8 +14,8 @@ recipe) and each source, on the CONVENTIONS metric pairs (cosine-weighted, seed 
     ref           SMAPE / cMAE against the measurement (what ``hbrdf eval`` prints)
     sym           SMAPE / cMAE against the reference's symmetric part
 
-and the means over all sources and over those whose reference is nearly reciprocal
-(recip ref <= --reciprocal-bound).
+and the means over all sources, over those whose reference is nearly reciprocal
+(recip ref <= --reciprocal-bound), and with several source arguments over each one's sources.
 
     python bench/reciprocal_fidelity.py results/rgl54_fast.safetensors \
         results/rgl54_fast_reciprocal.safetensors ../shared/data/nbrdf/rgl [--pairs 200000]
@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     rows = []
     print(f"{'material':30s} {'recip ref':>9s}   {'plain: ref SMAPE':>16s} {'cMAE':>8s} {'sym SMAPE':>9s} "
           f"{'cMAE':>8s}   {'recip: ref SMAPE':>16s} {'cMAE':>8s} {'sym SMAPE':>9s} {'cMAE':>8s}")
-    for src in (open_source(s) for s in expand_sources(args.sources)):
+    for group, src in ((arg, open_source(s)) for arg in args.sources for s in expand_sources([arg])):
         names = [source_material(m, src) for m in models]
         if None in names:
             print(f"{src.name}: not in both models, skipped", file=sys.stderr)
@@ -66,14 +66,16 @@ def main(argv=None) -> int:
         recip_ref = smape(ref, ref_swapped)
         a = score(models[0], names[0], wi, wo, ref, ref_sym)
         b = score(models[1], names[1], wi, wo, ref, ref_sym)
-        rows.append((recip_ref, a, b))
+        rows.append((recip_ref, a, b, group))
         print(f"{names[0]:30s} {recip_ref:9.4f}   {a[0]:16.4f} {a[1]:8.5f} {a[2]:9.4f} {a[3]:8.5f}   "
               f"{b[0]:16.4f} {b[1]:8.5f} {b[2]:9.4f} {b[3]:8.5f}")
     if not rows:
         print("no source is in both models", file=sys.stderr)
         return 1
+    groups = list(dict.fromkeys(r[3] for r in rows)) if len(args.sources) > 1 else []
     for label, keep in (("all", lambda r: True),
-                        (f"recip ref <= {args.reciprocal_bound}", lambda r: r[0] <= args.reciprocal_bound)):
+                        (f"recip ref <= {args.reciprocal_bound}", lambda r: r[0] <= args.reciprocal_bound),
+                        *((g, lambda r, g=g: r[3] == g) for g in groups)):
         sel = [r for r in rows if keep(r)]
         if not sel:
             continue

@@ -248,7 +248,8 @@ def test_add_reciprocal_fits_onto_the_reciprocal_prior_and_stays_reciprocal(tmp_
     from hybridbrdf.fit.settings import FitSettings
     from hybridbrdf.sources import open_source
 
-    tiny = dict(steps=30, batch=256, pool=2048, eval_pairs=2000, energy_bound=False)
+    # 5 steps: what is checked is which network the fit starts from and keeps, not how well it fits.
+    tiny = dict(steps=5, batch=256, pool=2048, eval_pairs=2000, energy_bound=False, analytic_guard=False)
     for arch, name in (("hybrid-reciprocal", "RECIPROCAL_PRIOR_FILE"), ("hybrid", "PRIOR_FILE")):
         path = tmp_path / f"{arch}.safetensors"
         fit([open_source("synthetic:gold"), open_source("synthetic:plastic")],
@@ -258,7 +259,7 @@ def test_add_reciprocal_fits_onto_the_reciprocal_prior_and_stays_reciprocal(tmp_
     for reciprocal in (True, False):
         out = tmp_path / f"added_{reciprocal}.safetensors"
         model = hb.add(["synthetic:brushed_aluminium"], out=out, settings=FitSettings(**tiny), progress=False,
-                       finetune_steps=20, reciprocal=reciprocal)
+                       finetune_steps=5, reciprocal=reciprocal)
         assert model.training["mode"] == "fine-tune"
         f, g = _core.Model(str(out)).eval(wi, wo, 0), _core.Model(str(out)).eval(wo, wi, 0)
         assert (model.arch["kind"] == "hybrid-reciprocal") == reciprocal
