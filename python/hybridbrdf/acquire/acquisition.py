@@ -61,6 +61,28 @@ def check_output(out: str, capture: str) -> None:
             raise InputFileError(out, f"is a folder without {spec.SVBRDF['index_file']}; refusing to replace it")
 
 
+def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None]):
+    """(rig, observations, index, usable-pixel report) of ``capture`` onto a ``size`` map: its
+    photographs read, saturated, non-finite and under-exposed pixels left out (each count logged)."""
+    from hybridbrdf.acquire.capture import load_capture
+
+    rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
+    masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture, saturated=saturated)
+    if report["saturated"]:
+        log(f"{report['saturated']} pixels saturated (a channel at the encoding's largest code): left out")
+    if report["not finite"]:
+        log(f"{report['not finite']} pixels not finite: left out")
+    if report["under-exposed"]:
+        log(f"{len(report['under-exposed'])} of {len(photos)} photographs under-exposed (most sample pixels below "
+            f"3x the noise floor): left out ({', '.join(rig.shots[k].image for k in report['under-exposed'])})")
+    obs = texel_observations(rig, photos, size, usable=masks)
+    counts = obs.counts()
+    log(f"{len(obs.value):,} observations, {int(counts.min())} to {int(counts.max())} per texel "
+        f"({int((counts == 0).sum())} texels unseen); left out: "
+        + (", ".join(f"{n} {why}" for why, n in obs.dropped.items() if n) or "none"))
+    return rig, obs, index, report
+
+
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
             log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
@@ -75,7 +97,6 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     docs/ACQUISITION_GAP.md). ``finetune_network`` > 0: that many steps fine-tuning the prior's
     network on the capture, its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`); the
     report then holds the replay's drift. Returns the fit, its report as ``maps.report``."""
-    from hybridbrdf.acquire.capture import load_capture
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
     from hybridbrdf.fit import checkpoint
@@ -92,20 +113,7 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
                 "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {}),
                 **({"finetune_network": int(finetune_network)} if finetune_network else {})}
-    rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
-    masks, report = usable_pixels(rig, photos, stated_noise_floor(index), where=capture, saturated=saturated)
-    if report["saturated"]:
-        log(f"{report['saturated']} pixels saturated (a channel at the encoding's largest code): left out")
-    if report["not finite"]:
-        log(f"{report['not finite']} pixels not finite: left out")
-    if report["under-exposed"]:
-        log(f"{len(report['under-exposed'])} of {len(photos)} photographs under-exposed (most sample pixels below "
-            f"3x the noise floor): left out ({', '.join(rig.shots[k].image for k in report['under-exposed'])})")
-    obs = texel_observations(rig, photos, size, usable=masks)
-    counts = obs.counts()
-    log(f"{len(obs.value):,} observations, {int(counts.min())} to {int(counts.max())} per texel "
-        f"({int((counts == 0).sum())} texels unseen); left out: "
-        + (", ".join(f"{n} {why}" for why, n in obs.dropped.items() if n) or "none"))
+    rig, obs, index, report = _observations(capture, size, log)
     with file_lock(ckpt, wait=0):
         state = None
         if resume:
