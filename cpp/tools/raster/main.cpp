@@ -133,6 +133,25 @@ double process_cpu_ms() {
     return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
+// The uniform block at binding 0: the camera. Built as hbrdf_raster_bench_uniform (EXCLUDE_FROM_ALL,
+// bench/raster_anatomy.py's uniform weight forms, docs/RASTER.md "The floor under lavapipe") the
+// float32 values of the file HBRDF_BENCH_UNIFORM names follow it, which the shader reads as more of
+// the block (the network's weights at constant offsets, against literals; Mesa 22.3's llvmpipe reads
+// each as a bounds-tested 8-lane gather, not a load and a broadcast).
+std::vector<float> camera_block(const FrameScene& fs) {
+    std::vector<float> block(std::begin(fs.camera), std::end(fs.camera));
+#ifdef HBRDF_RASTER_BENCH_UNIFORM
+    if (const char* path = std::getenv("HBRDF_BENCH_UNIFORM")) {
+        std::ifstream in(path, std::ios::binary);
+        const std::vector<char> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+        if (!in.good() && !in.eof()) throw std::runtime_error(std::string(path) + ": cannot be read");
+        block.resize(block.size() + bytes.size() / 4);
+        std::memcpy(block.data() + 20, bytes.data(), bytes.size() / 4 * 4);
+    }
+#endif
+    return block;
+}
+
 int run(int argc, char** argv) {
     const Args a = parse(argc, argv);
     const std::vector<char> vert = read_spirv(a.vert), frag = read_spirv(a.frag);
@@ -149,7 +168,8 @@ int run(int argc, char** argv) {
     Device device(a.validation);
     Buffer vertices = device.upload(fs.vertices.data(), fs.vertices.size() * sizeof(Vertex), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
     Buffer indices = device.upload(fs.indices.data(), fs.indices.size() * 4, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
-    Buffer camera = device.upload(fs.camera, sizeof fs.camera, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
+    const std::vector<float> uniform_block = camera_block(fs);
+    Buffer camera = device.upload(uniform_block.data(), uniform_block.size() * 4, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
     Buffer materials = device.upload(fs.materials.data(), fs.materials.size() * sizeof(GpuMaterial),
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
     Buffer lights = device.upload(fs.lights.data(), fs.lights.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
