@@ -90,6 +90,15 @@ def random_params(rng: np.random.Generator, alpha_min: float = 1e-3) -> hb.Analy
     )
 
 
+def seeded_cosine_directions(n: int, seed: int) -> np.ndarray:
+    """n cosine-distributed unit directions of the upper hemisphere (Malley's method: uniform on the
+    unit disc, lifted), reproducible from ``seed``."""
+    rng = np.random.default_rng(seed)
+    u = rng.random((n, 2))
+    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], axis=1)
+
+
 def spherical(theta: float, phi: float) -> np.ndarray:
     return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
 

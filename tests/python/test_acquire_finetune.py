@@ -13,7 +13,7 @@ import os
 import numpy as np
 import pytest
 import torch
-from helpers import run_cli_here
+from helpers import run_cli_here, seeded_cosine_directions
 from test_acquire_report import _capture
 
 import hybridbrdf as hb
@@ -40,13 +40,6 @@ MEDIAN_DRIFT, WORST_DRIFT = 0.05, MAX_DRIFT
 @pytest.fixture(autouse=True)
 def one_thread():
     torch.set_num_threads(1)
-
-
-def _cosine_directions(n, seed):
-    rng = np.random.default_rng(seed)
-    u = rng.random((n, 2))
-    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], axis=1)
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +89,7 @@ def test_the_finetune_keeps_the_prior_materials_within_the_stated_drift(fits):
     model = maps[100].model
     assert not np.array_equal(model.tensors["mlp.hidden.1.weight"], prior.tensors["mlp.hidden.1.weight"])
     assert np.array_equal(maps[0].model.tensors["mlp.hidden.1.weight"], prior.tensors["mlp.hidden.1.weight"])
-    wi, wo = _cosine_directions(1000, 7), _cosine_directions(1000, 8)
+    wi, wo = seeded_cosine_directions(1000, 7), seeded_cosine_directions(1000, 8)
     drift = np.array([smape(prior.eval(wi, wo, name), model.eval(wi, wo, name)) for name in prior.materials])
     assert np.median(drift) < MEDIAN_DRIFT and drift.max() < WORST_DRIFT, (np.median(drift), drift.max(),
                                                                           prior.materials[int(drift.argmax())])

@@ -29,6 +29,8 @@ from hybridbrdf.model.file import load_model
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.sources.model import ModelMaterialSource
 
+from helpers import seeded_cosine_directions
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 A, B = "paper_white_rgb.rgl", "vch_golden_yellow_rgb.rgl"
 
@@ -42,13 +44,6 @@ def _halves(prior, w=8):
     weights = np.zeros((2, w, 2))
     weights[:, : w // 2, 0], weights[:, w // 2:, 1] = 1, 1
     return Mixture([ModelMaterialSource(prior, A), ModelMaterialSource(prior, B)], weights)
-
-
-def _cosine_directions(n, seed):
-    rng = np.random.default_rng(seed)
-    u = rng.random((n, 2))
-    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], axis=1)
 
 
 def _cmae(f, g, wi):
@@ -78,7 +73,7 @@ def test_the_hybrid_fit_recovers_prior_materials_on_pure_texels_in_every_directi
     assert maps.layer[0, 0] != maps.layer[0, 3]
     analytic = fit_analytic_texels(obs, steps=120)
     n = 20000
-    wi, wo = _cosine_directions(n, 1), _cosine_directions(n, 2)
+    wi, wo = seeded_cosine_directions(n, 1), seeded_cosine_directions(n, 2)
     for texel, name, within in ((0, A, 0.05), (4, A, 0.05), (3, B, 0.1), (7, B, 0.1)):
         truth = prior.eval(wi, wo, name, dtype=torch.float64)
         f = maps.eval(np.full(n, texel), wi, wo)
@@ -105,7 +100,7 @@ def test_the_written_folder_evaluates_in_libhybridbrdf_as_eval_does(halves_obser
     n = 4000
     texel = np.random.default_rng(3).integers(0, 8, n)
     uv = np.stack([(texel % 4 + 0.5) / 4, (texel // 4 + 0.5) / 2], axis=1)
-    wi, wo = _cosine_directions(n, 4), _cosine_directions(n, 5)
+    wi, wo = seeded_cosine_directions(n, 4), seeded_cosine_directions(n, 5)
     ours = maps.eval(texel, wi, wo)
     for filt in ("nearest", "bilinear"):  # at texel centres bilinear reads the texel alone
         got = lib.eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), filt)
@@ -117,7 +112,7 @@ def test_eval_of_uniform_maps_is_the_prior_materials_own_evaluation():
     # Every texel holding a material's own (p, z): eval must be the model's own f_t (head, energy table).
     prior = load_prior()
     n = 3000
-    wi, wo = _cosine_directions(n, 6), _cosine_directions(n, 7)
+    wi, wo = seeded_cosine_directions(n, 6), seeded_cosine_directions(n, 7)
     i, j = prior.index(A), prior.index(B)
     t = prior.tensors
     layer = np.array([[0, 1]])

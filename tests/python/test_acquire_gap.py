@@ -22,6 +22,8 @@ from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.sources.model import ModelMaterialSource
 
+from helpers import seeded_cosine_directions
+
 SHAPE, OTHER = "vch_golden_yellow_rgb.rgl", "paper_white_rgb.rgl"
 
 
@@ -43,13 +45,6 @@ def _novel(prior) -> HybridModel:
     return HybridModel(dict(prior.arch), infos, tensors, dict(prior.training))
 
 
-def _cosine_directions(n, seed):
-    rng = np.random.default_rng(seed)
-    u = rng.random((n, 2))
-    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], axis=1)
-
-
 @pytest.fixture(scope="module")
 def novel_capture():
     prior = load_prior()
@@ -69,7 +64,7 @@ def test_a_refitted_head_fits_a_shape_no_prior_head_holds_better_where_photograp
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
     prior, novel, obs = novel_capture
     n = 20000
-    wi, wo = _cosine_directions(n, 1), _cosine_directions(n, 2)
+    wi, wo = seeded_cosine_directions(n, 1), seeded_cosine_directions(n, 2)
     truth = novel.eval(wi, wo, "novel", dtype=torch.float64)
     rows_truth = novel.eval(obs.wi.astype(np.float64), obs.wo.astype(np.float64), "novel", dtype=torch.float64)
     texel = np.repeat(np.arange(4), np.diff(obs.offsets))
@@ -102,7 +97,7 @@ def test_refitted_heads_are_layers_of_their_own_that_libhybridbrdf_evaluates_as_
     n = 4000
     texel = np.random.default_rng(3).integers(0, 4, n)
     uv = np.stack([(texel % 2 + 0.5) / 2, (texel // 2 + 0.5) / 2], axis=1)
-    wi, wo = _cosine_directions(n, 4), _cosine_directions(n, 5)
+    wi, wo = seeded_cosine_directions(n, 4), seeded_cosine_directions(n, 5)
     ours = maps.eval(texel, wi, wo)
     got = lib.eval(uv.astype(np.float32), wi.astype(np.float32), wo.astype(np.float32), "nearest")
     np.testing.assert_allclose(got, ours, rtol=2e-4, atol=1e-6)
