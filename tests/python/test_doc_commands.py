@@ -153,7 +153,10 @@ NOT_RUN.update({  # docs/RECIPROCITY.md's RGL 54 block: a long fit and 10^6-pair
     "python bench/rgl_paper_comparison.py results/rgl54_fast_reciprocal.safetensors":
         "10^6 pairs on five raw files: minutes (the same script runs on rgl54_fast elsewhere)",
     "python bench/reciprocal_fidelity.py results/rgl54_fast.safetensors results/rgl54_fast_reciprocal.safetensors "
-    "../shared/data/nbrdf/rgl ../shared/data/rgl": "54 sources, both models, both orders: about 4 minutes"})
+    "../shared/data/nbrdf/rgl ../shared/data/rgl": "54 sources, both models, both orders: about 4 minutes",
+    "python bench/reciprocal_fidelity.py --pairs 100000 python/hybridbrdf/data/prior.safetensors "
+    "python/hybridbrdf/data/prior_reciprocal.safetensors ../shared/data/rgl ../shared/data/nbrdf/rgl "
+    "../shared/data/nbrdf/merl ../shared/data/nbrdf/nielsen": "142 sources, both priors, both orders: 10 minutes"})
 NOT_RUN.update({f"hbrdf-codegen out/textured --target {target} -o material.{target}": (
     "needs the folder scenes/textured.json's paint command writes; test_codegen_textured.py runs these as printed")
     for target in ("glsl", "hlsl", "slang", "wgsl")})
