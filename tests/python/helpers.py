@@ -91,12 +91,11 @@ def random_params(rng: np.random.Generator, alpha_min: float = 1e-3) -> hb.Analy
 
 
 def seeded_cosine_directions(n: int, seed: int) -> np.ndarray:
-    """n cosine-distributed unit directions of the upper hemisphere (Malley's method: uniform on the
-    unit disc, lifted), reproducible from ``seed``."""
-    rng = np.random.default_rng(seed)
-    u = rng.random((n, 2))
-    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], axis=1)
+    """n cosine-distributed unit directions of the upper hemisphere, reproducible from ``seed``
+    (the library's sampler on a fresh generator)."""
+    from hybridbrdf.evaluate.directions import cosine_directions
+
+    return cosine_directions(np.random.default_rng(seed), n)
 
 
 def spherical(theta: float, phi: float) -> np.ndarray:

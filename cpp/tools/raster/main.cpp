@@ -146,7 +146,7 @@ std::vector<float> camera_block(const FrameScene& fs) {
         const std::vector<char> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
         if (!in.good() && !in.eof()) throw std::runtime_error(std::string(path) + ": cannot be read");
         block.resize(block.size() + bytes.size() / 4);
-        std::memcpy(block.data() + 20, bytes.data(), bytes.size() / 4 * 4);
+        std::memcpy(block.data() + std::size(fs.camera), bytes.data(), bytes.size() / 4 * 4);
     }
 #endif
     return block;

@@ -28,6 +28,7 @@ import torch
 
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress, step_generator
+from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.evaluate.metrics import cmae, smape
 
 #: Capture rows of each cluster per step (drawn from its pure texels' rows, with replacement).
@@ -46,12 +47,8 @@ DRIFT_PAIRS = 2000
 def cosine_pairs(n: int, seed: int) -> tuple:
     """``n`` (wi, wo) pairs, each direction cosine-distributed over the upper hemisphere, (n, 3) float32."""
     rng = np.random.default_rng(seed)
-
-    def directions():
-        u = rng.random((n, 2))
-        r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
-        return torch.from_numpy(np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], 1).astype(np.float32))
-    return directions(), directions()
+    wi, wo = cosine_directions(rng, n), cosine_directions(rng, n)
+    return torch.from_numpy(wi.astype(np.float32)), torch.from_numpy(wo.astype(np.float32))
 
 
 def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
