@@ -68,7 +68,10 @@ def light_stage_rig(k: int, v: int, light_distance: float = 1.0, camera_distance
     photographs the sample under every light, one light at a time (k * v shots, camera-major)."""
     if not light_distance > 0 or not camera_distance > 0:
         raise ValueError(f"distances must be positive, got {light_distance}, {camera_distance}")
-    # The cameras' cap is turned by half a golden angle so that no camera sits on a light.
+    # The cameras' cap is turned by half a golden angle so that no camera off the zenith sits on a
+    # light. Both caps start at +z, which the turn leaves where it is: at equal distances the first
+    # camera and the first light coincide, one collocated (retro-reflection) shot of the k * v, as a
+    # light stage's top camera beside its top light sees (tests/python/test_acquire_verdict.py).
     cam_dirs = cap_directions(v, camera_theta_deg)
     turn = GOLDEN_ANGLE / 2
     rot = np.array([[math.cos(turn), -math.sin(turn), 0], [math.sin(turn), math.cos(turn), 0], [0, 0, 1]])
