@@ -24,7 +24,9 @@ each cluster's output layer refitted on its rows with the pull toward the prior'
 (refit_heads=True), ``heads_free`` the same without the pull (cluster_fit.HEAD_PULL = 0),
 ``heads_pull10`` with 10 times the pull, ``finetune`` the network, the cluster heads and values
 fine-tuned on the clusters' pure texels with the prior's materials replayed, 500 steps
-(finetune_network=500; acquire.network_tune), the texels then fitted on the tuned network.
+(finetune_network=500; acquire.network_tune), the texels then fitted on the tuned network;
+``select`` each cluster's prior material chosen among the training shots' best 3 on held-out
+photographs (select=True; acquire.select).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_suns
 #: Per configuration: fit_hybrid_texels keywords and the head refit's pull (cluster_fit.HEAD_PULL; None: its default).
 CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
            "heads_free": ({"refit_heads": True}, 0.0), "heads_pull10": ({"refit_heads": True}, 10.0),
-           "finetune": ({"finetune_network": 500}, None)}
+           "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None)}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int):
@@ -157,23 +159,25 @@ def run_sweep(args) -> int:
                 cap = simulate(rig, mixture, NoiseModel(photons=photons, read_noise=read), light_jitter=JITTER,
                                seed=100 * seed + (label == "high"))
                 obs = texel_observations(rig, cap.photos, size)
-                errors, seconds, drifts = {}, {}, []
+                errors, seconds, notes = {}, {}, []
                 for config in args.configs:
                     t0 = time.process_time()  # CPU seconds: the machine is shared, wall time is not the fit's
                     fit = fit_config(obs, prior, config, args.steps, seed)
                     seconds[config] = time.process_time() - t0
                     errors[config] = [median_cmae(fit, t) for t in truths]
+                    if "select" in args.configs:  # what the held-out choice changed: each config's layers
+                        notes.append(f"layers {config} {sample} {label} {seed}: {', '.join(fit.layers)}")
                     tuned = fit.model.training.get("acquisition_finetune")
                     if tuned:  # what the network fine-tune cost the prior's materials (network_tune.replay_drift)
                         d = tuned["drift"]
-                        drifts.append(f"replay drift {config} {sample} {label} {seed}: SMAPE median {d['median_smape']:.4f}, "
-                                      f"worst {d['worst_smape']:.4f} ({d['worst_material']}); cMAE median "
-                                      f"{d['median_cmae']:.5f}")
+                        notes.append(f"replay drift {config} {sample} {label} {seed}: SMAPE median {d['median_smape']:.4f}, "
+                                     f"worst {d['worst_smape']:.4f} ({d['worst_material']}); cMAE median "
+                                     f"{d['median_cmae']:.5f}")
                 for i, n in enumerate(names):
                     cells = " ".join(f"{errors[c][i]:8.5f} {errors[c][i] / full[i]:6.2f}" for c in args.configs)
                     say(f"{sample:8s} {n:24s} {label:5s} {seed:4d} {full[i]:8.5f} {cells}  "
                         + ", ".join(f"{seconds[c]:.0f}" for c in args.configs))
-                for line in drifts:
+                for line in notes:
                     say(line)
     out.close()
     os.replace(args.out + ".txt.partial", args.out + ".txt")

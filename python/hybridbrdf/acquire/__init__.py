@@ -12,7 +12,8 @@
 - per-texel fits, each with ``.eval(texel, wi, wo)`` (:mod:`~hybridbrdf.acquire.evaluation`) and ``.counts``:
   :mod:`~hybridbrdf.acquire.texel_fit` (analytic only), :mod:`~hybridbrdf.acquire.hybrid_fit` (p, z on a
   frozen prior; the textured material), :mod:`~hybridbrdf.acquire.neural_fit` (a latent per texel), their
-  shared stages in :mod:`~hybridbrdf.acquire.cluster_fit`;
+  shared stages in :mod:`~hybridbrdf.acquire.cluster_fit` (the cluster stage's choice on held-out
+  photographs: :mod:`~hybridbrdf.acquire.select`);
 - :mod:`~hybridbrdf.acquire.acquisition`: ``hbrdf acquire fit``'s run (checks, masking, checkpoint, output).
 
     rig = flash_rig(16, size=(512, 512))

@@ -86,7 +86,7 @@ def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
             log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
-            refit_heads: bool = False, finetune_network: int = 0) -> HybridMaps:
+            refit_heads: bool = False, finetune_network: int = 0, select: bool = False) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
@@ -96,7 +96,9 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     ``refit_heads``: each cluster's output layer refitted to its rows (:func:`fit_hybrid_texels`;
     docs/ACQUISITION_GAP.md). ``finetune_network`` > 0: that many steps fine-tuning the prior's
     network on the capture, its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`); the
-    report then holds the replay's drift. Returns the fit, its report as ``maps.report``."""
+    report then holds the replay's drift. ``select``: each cluster's prior material chosen among the
+    training shots' best 3 on held-out photographs, then refitted on all (:mod:`~hybridbrdf.acquire.select`);
+    the report then holds every candidate's held-out loss. Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
     from hybridbrdf.fit import checkpoint
@@ -112,7 +114,8 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     model = load_prior() if prior is None else load_model(prior)
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
                 "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {}),
-                **({"finetune_network": int(finetune_network)} if finetune_network else {})}
+                **({"finetune_network": int(finetune_network)} if finetune_network else {}),
+                **({"select": True} if select else {})}
     rig, obs, index, report = _observations(capture, size, log)
     with file_lock(ckpt, wait=0):
         state = None
@@ -133,18 +136,23 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
             chosen[:] = cluster_report(family, model.materials, obs, rig, labels, clusters, seed,
                                        stated_noise_model(index), report["floor"])
             labelled[:] = [labels]
+            if clusters.get("held_out_shots") is not None:
+                held = clusters["held_out_shots"]
+                log(f"held-out choice: {len(held)} of {len(rig.shots)} photographs held out (shots "
+                    f"{', '.join(str(k) for k in held) or 'none: too few to hold any out'}); each cluster's material "
+                    f"chosen on them, then refitted on all")
             report_logger(log, warn)(chosen)
 
         maps = fit_hybrid_texels(obs, model, steps=steps, seed=seed, progress=progress, state=state,
                                  save_state=save_state, log=log, on_clusters=on_clusters, refit_heads=refit_heads,
-                                 finetune_network=finetune_network)
+                                 finetune_network=finetune_network, select=select)
         layer = maps.layer.reshape(-1)
         if finetune_network:
             drift = maps.model.training["acquisition_finetune"]["drift"]
             log(f"network fine-tune: the prior's {len(model.materials)} materials replayed moved by SMAPE "
                 f"{drift['median_smape']:.4f} (median), {drift['worst_smape']:.4f} at worst ({drift['worst_material']})")
         maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "refit_heads": bool(refit_heads),
-                       "finetune_network": int(finetune_network), "layers": maps.layers,
+                       "finetune_network": int(finetune_network), "select": bool(select), "layers": maps.layers,
                        **({"replay_drift": maps.model.training["acquisition_finetune"]["drift"]} if finetune_network else {}),
                        "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}
                                     for c in chosen if c["texels"]]}

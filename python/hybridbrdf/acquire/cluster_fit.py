@@ -7,7 +7,8 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 2. **clusters**: k-means (K <= 4: a textured material holds a base and up to 3 layers) on the
    standardised features; per cluster, every material of the prior scored with its own values
    on a subsample of the cluster's rows, the best :data:`CANDIDATES` fitted (all of the family's
-   per-texel values, one set for the cluster, on the frozen network), the lowest loss kept.
+   per-texel values, one set for the cluster, on the frozen network), the lowest loss kept; or
+   (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
    material share one BRDF, so a cluster pools every texel's observations for the one shape a
@@ -113,18 +114,35 @@ def _cluster_rows(obs: Observations, labels: np.ndarray, c: int, n: int, seed: i
     return torch.from_numpy(rows)
 
 
+def fit_material(family, data: ObservationTensors, rows: torch.Tensor, m: int, start: Dict[str, torch.Tensor],
+                 seed: int, stage: str) -> Dict[str, object]:
+    """Material ``m``'s values (one set, from ``start`` {name: (c,)}) fitted to ``rows`` on the frozen
+    network, :data:`CLUSTER_STEPS` Adam steps: {"material", "loss" (its mean squared residual after),
+    "raw" {name: (c,)}}."""
+    raw = {name: v.reshape(1, -1).clone().requires_grad_() for name, v in start.items()}
+    mats = torch.full((len(rows),), m)
+
+    def loss(gen):
+        return _loss_rows(family, data, mats, {n: v.expand(len(rows), -1) for n, v in raw.items()}, rows)
+
+    adam_texels(raw, loss, CLUSTER_STEPS, 0.03, seed, stage)
+    with torch.no_grad():
+        final = float(loss(None))
+    return {"material": m, "loss": final, "raw": {n: v.detach()[0] for n, v in raw.items()}}
+
+
 def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, seed: int,
-                 progress: Optional[Progress] = None) -> Dict[str, object]:
+                 progress: Optional[Progress] = None, candidates: int = CANDIDATES) -> Dict[str, object]:
     """Per cluster: the prior's material that explains its rows best after fitting (see the module
-    docstring), its fitted values and the fit's residual variance. Returns {"material" (K,),
-    "centres" {name: (K, c)}, "sigma2" (K,), "candidates": per cluster the fitted candidates, best
-    first, each {"material", "loss", "raw" {name: (c,)}} (what :mod:`~hybridbrdf.acquire.cluster_report`
-    prints)}."""
+    docstring; the best ``candidates`` by score fitted), its fitted values and the fit's residual
+    variance. Returns {"material" (K,), "centres" {name: (K, c)}, "sigma2" (K,), "candidates": per
+    cluster the fitted candidates, best first, each {"material", "loss", "raw" {name: (c,)}} (what
+    :mod:`~hybridbrdf.acquire.cluster_report` prints)}."""
     k = int(labels.max()) + 1
     every = family.raw_of_materials()
     n_mat = len(next(iter(every.values())))
-    materials, centres, sigma2, candidates = [], {name: [] for name in every}, [], []
-    total = k * CANDIDATES * CLUSTER_STEPS
+    materials, centres, sigma2, fitted_all = [], {name: [] for name in every}, [], []
+    total = k * candidates * CLUSTER_STEPS
     done = 0
     for c in range(k):
         rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
@@ -133,7 +151,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             for name in every:
                 centres[name].append(centres[name][0] if centres[name] else every[name][0])
             sigma2.append(sigma2[0] if sigma2 else 1.0)
-            candidates.append([])
+            fitted_all.append([])
             continue
         score_rows = rows[::max(1, len(rows) // 1024)][:1024]  # spread over the cluster (rows are sorted by texel)
         with torch.no_grad():
@@ -141,29 +159,21 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
                                              {name: v[m].expand(len(score_rows), -1) for name, v in every.items()},
                                              score_rows) for m in range(n_mat)])
         fitted = []
-        for m in torch.argsort(scores)[:CANDIDATES].tolist():
-            raw = {name: v[m:m + 1].clone().requires_grad_() for name, v in every.items()}
-            mats = torch.full((len(rows),), m)
-
-            def loss(gen, raw=raw, mats=mats):
-                return _loss_rows(family, data, mats, {n: v.expand(len(rows), -1) for n, v in raw.items()}, rows)
-
-            adam_texels(raw, loss, CLUSTER_STEPS, 0.03, seed, f"cluster{c}-{m}")
+        for m in torch.argsort(scores)[:candidates].tolist():
+            fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in every.items()}, seed,
+                                       f"cluster{c}-{m}"))
             done += CLUSTER_STEPS
             if progress is not None:
                 progress("clusters", done, total)
-            with torch.no_grad():
-                final = float(loss(None))
-            fitted.append({"material": m, "loss": final, "raw": {n: v.detach()[0] for n, v in raw.items()}})
         fitted.sort(key=lambda cand: cand["loss"])  # stable: a tie keeps the better-scored material
         best = fitted[0]
         materials.append(best["material"])
         for name in every:
             centres[name].append(best["raw"][name])
         sigma2.append(max(best["loss"], 1e-8))
-        candidates.append(fitted)
+        fitted_all.append(fitted)
     return {"material": torch.tensor(materials), "centres": {n: torch.stack(v) for n, v in centres.items()},
-            "sigma2": torch.tensor(sigma2), "candidates": candidates}
+            "sigma2": torch.tensor(sigma2), "candidates": fitted_all}
 
 
 def start_bias(family, bias: torch.Tensor) -> torch.Tensor:
@@ -270,7 +280,8 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
                  on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None,
-                 refit_heads: bool = False, finetune_network: int = 0) -> Tuple[np.ndarray, Dict, Dict]:
+                 refit_heads: bool = False, finetune_network: int = 0,
+                 choose: Optional[Callable] = None) -> Tuple[np.ndarray, Dict, Dict]:
     """The stages (module docstring): (labels (n_texels,), clusters, per-texel raw values); with
     ``refit_heads`` (a family with material output layers) the heads stage too, and clusters["heads"]
     holds what :func:`refit_heads_of` returned (the texel stage's per-cluster heads and centres).
@@ -280,7 +291,9 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     the texel stage runs on the tuned network.
     ``state`` (what ``save_state`` was last given) resumes after the last finished stage or within
     the analytic and texel stages at their last checkpoint (every 50 steps). ``on_clusters(labels,
-    clusters)`` is called once the clusters are known (fitted or restored), before the texel stage."""
+    clusters)`` is called once the clusters are known (fitted or restored), before the texel stage.
+    ``choose``: the cluster stage, called as :func:`fit_clusters` is (None: :func:`fit_clusters`;
+    :func:`hybridbrdf.acquire.select.select_on_held_out` chooses on held-out shots)."""
     state = dict(state or {})
 
     def saver(key):
@@ -306,7 +319,7 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     labels = texel_clusters(maps, MAX_CLUSTERS, seed)
     data = ObservationTensors(obs)
     if "clusters" not in state:
-        finish("clusters", fit_clusters(family, obs, data, labels, seed, progress))
+        finish("clusters", (choose or fit_clusters)(family, obs, data, labels, seed, progress))
     clusters = state["clusters"]
     if on_clusters is not None:
         on_clusters(labels, clusters)

@@ -70,7 +70,8 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
                    seed: int, noise: Optional[NoiseModel] = None,
                    floors: Optional[Sequence[float]] = None) -> List[dict]:
     """Per cluster: {"cluster", "texels", "share", "candidates": [{"material" (name), "loss",
-    "relative_error", "noise", "excess"}, best first], "poor"}. ``family`` evaluates the prior
+    "relative_error", "noise", "excess"} (and "held_out_loss", "training_loss" when the choice was
+    made on held-out photographs), best first], "poor"}. ``family`` evaluates the prior
     (:class:`~hybridbrdf.acquire.hybrid_fit.HybridFamily`), ``names`` its materials; ``noise`` the
     capture's stated model, ``floors`` each photograph's floor when it states none. The rows are
     the ones the cluster stage fitted (the same seeded draw)."""
@@ -89,7 +90,8 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
                 f = family.evaluate(torch.full((len(data_rows),), m), raw, wi, wo).double().numpy()
             err, sigma = _photometric(data_rows, obs, rig, f, noise, floors)
             entry["candidates"].append({"material": names[m], "loss": float(cand["loss"]), "relative_error": err,
-                                        "noise": sigma, "excess": float(np.sqrt(max(0.0, err * err - sigma * sigma)))})
+                                        "noise": sigma, "excess": float(np.sqrt(max(0.0, err * err - sigma * sigma))),
+                                        **{k: cand[k] for k in ("held_out_loss", "training_loss") if k in cand}})
         entry["poor"] = bool(entry["candidates"]) and entry["candidates"][0]["excess"] > POOR_EXCESS
         report.append(entry)
     return report
@@ -97,7 +99,8 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
 
 def report_lines(report: Sequence[dict]) -> List[str]:
     """One line per cluster: its texels and share, the chosen material with its loss and relative
-    error (and the noise's), the runner-up with its own."""
+    error (and the noise's), the runner-up with its own; when the choice was made on held-out
+    photographs, every candidate's held-out loss, the chosen first."""
     lines = []
     for e in report:
         if not e["candidates"]:
@@ -112,6 +115,10 @@ def report_lines(report: Sequence[dict]) -> List[str]:
             second = e["candidates"][1]
             line += (f"; runner-up {second['material']}, loss {second['loss']:.3g}, "
                      f"relative error {100 * second['relative_error']:.1f}%")
+        if best.get("held_out_loss") is not None:  # the choice made on held-out photographs (acquire/select.py)
+            line += "; held-out losses: " + ", ".join(
+                f"{c['material']} {c['held_out_loss']:.3g}" + (" (chosen)" if i == 0 else "")
+                for i, c in enumerate(e["candidates"]))
         lines.append(line)
     return lines
 

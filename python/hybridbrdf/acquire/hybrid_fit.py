@@ -20,6 +20,7 @@ import torch
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.select import select_on_held_out
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
 from hybridbrdf.brdf.torch_brdf import _normalize
 from hybridbrdf.fit.painting import bound_bright_kd
@@ -192,7 +193,7 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
                       state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
                       log: Callable[[str], None] = lambda msg: None,
                       on_clusters: Optional[Callable[[HybridFamily, np.ndarray, Dict], None]] = None,
-                      refit_heads: bool = False, finetune_network: int = 0) -> HybridMaps:
+                      refit_heads: bool = False, finetune_network: int = 0, select: bool = False) -> HybridMaps:
     """Fit (p, z) per texel on ``model``'s frozen network (a hybrid prior with its materials):
     the stages of :func:`hybridbrdf.acquire.cluster_fit.fit_on_prior` (analytic ``steps // 2``
     steps, the clusters, ``steps`` per-texel steps of ``rows_per_texel`` rows each), then the
@@ -205,11 +206,13 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     a material of the prior with that head (:func:`with_cluster_heads`). ``finetune_network`` > 0:
     that many steps of the network stage (:mod:`~hybridbrdf.acquire.network_tune`), a layer per
     cluster as with ``refit_heads``, and the written model carries the tuned network
-    (:func:`with_network`)."""
+    (:func:`with_network`). ``select``: each cluster's material chosen on held-out photographs
+    (:mod:`~hybridbrdf.acquire.select`)."""
     family = HybridFamily(model)
     hook = None if on_clusters is None else (lambda labels, clusters: on_clusters(family, labels, clusters))
     labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook,
-                                         refit_heads=refit_heads, finetune_network=finetune_network)
+                                         refit_heads=refit_heads, finetune_network=finetune_network,
+                                         choose=select_on_held_out if select else None)
     w, h = obs.size
     with torch.no_grad():
         kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))

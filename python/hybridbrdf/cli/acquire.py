@@ -136,7 +136,7 @@ def run_fit(args: argparse.Namespace) -> int:
         maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
                        resume=args.resume, force=args.force, progress=progress, log=say,
                        warn=lambda msg: tqdm.write(msg, file=sys.stderr), refit_heads=args.refit_heads,
-                       finetune_network=args.finetune_network)
+                       finetune_network=args.finetune_network, select=args.select)
     finally:
         for bar in bars.values():
             bar.close()
@@ -144,7 +144,8 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
           f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}"
           f"{', each cluster with its head refitted' if args.refit_heads else ''}"
-          f"{f', the network fine-tuned {args.finetune_network} steps' if args.finetune_network else ''}; the clusters and "
+          f"{f', the network fine-tuned {args.finetune_network} steps' if args.finetune_network else ''}"
+          f"{', each cluster its material chosen on held-out photographs' if args.select else ''}; the clusters and "
           f"their materials in {REPORT_FILE}")
     return 0
 
@@ -244,6 +245,12 @@ def _add_fit_parser(commands) -> None:
                         "the texels are then fitted on the tuned network, which OUT's model carries; each cluster a "
                         "layer <material>.acq<k> (default 0: off; docs/ACQUISITION_GAP.md); the replay's drift "
                         "recorded in OUT/acquisition.json")
+    f.add_argument("--select", action="store_true",
+                   help="choose each cluster's prior material on held-out photographs: about a fifth of the shots "
+                        "held out, the training shots' best 3 materials each fitted to the cluster's purest texels "
+                        "on the rest, the lowest loss on the held-out shots kept and refitted on all; every "
+                        "candidate's held-out loss printed and recorded in OUT/acquisition.json "
+                        "(docs/ACQUISITION_GAP.md)")
     f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
     f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
     f.add_argument("--quiet", action="store_true", help="no progress bars or messages (warnings still go to stderr)")
