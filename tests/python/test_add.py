@@ -127,7 +127,8 @@ def test_add_takes_only_the_settings_that_apply():
 def test_keep_network_on_the_prior_writes_the_new_materials_only_on_its_network(base_file, tmp_path, monkeypatch):
     import hybridbrdf.model.prior as prior_module
 
-    monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)  # a small stand-in for the shipped prior
+    # a small stand-in for the shipped prior hbrdf add takes by default (the reciprocal one since issue 60)
+    monkeypatch.setattr(prior_module, "RECIPROCAL_PRIOR_FILE", base_file)
     out = tmp_path / "mine.safetensors"
     added = hb.add(["synthetic:velvet", "synthetic:gold"], out=out, settings=FitSettings(**TINY), progress=False,
                    keep_network=True)
@@ -160,7 +161,7 @@ def test_add_on_the_prior_fine_tunes_its_network_and_leaves_the_prior_file_alone
     freedom is used), and the prior's file is never written."""
     import hybridbrdf.model.prior as prior_module
 
-    monkeypatch.setattr(prior_module, "PRIOR_FILE", base_file)
+    monkeypatch.setattr(prior_module, "RECIPROCAL_PRIOR_FILE", base_file)  # the default prior's stand-in
     before = _file_digest(base_file)
     settings = FitSettings(**{**TINY, "steps": 300, "eval_pairs": 20_000})
     sparse = hb.add(["synthetic:velvet"], settings=settings, progress=False, keep_network=True)
@@ -235,7 +236,7 @@ def test_warm_started_fit_resumes_its_checkpoint_exactly(base_file, tmp_path):
 def test_add_without_a_prior_installed_says_so_in_one_line(tmp_path, monkeypatch):
     import hybridbrdf.model.prior as prior_module
 
-    monkeypatch.setattr(prior_module, "PRIOR_FILE", tmp_path / "absent" / "prior.safetensors")
+    monkeypatch.setattr(prior_module, "RECIPROCAL_PRIOR_FILE", tmp_path / "absent" / "prior_reciprocal.safetensors")
     out = tmp_path / "mine.safetensors"
     with pytest.raises(hb.InputFileError, match="shipped prior is missing") as err:
         hb.add(["synthetic:velvet"], out=out, settings=FitSettings(**TINY), progress=False)

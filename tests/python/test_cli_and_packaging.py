@@ -83,7 +83,8 @@ def test_fit_eval_info_on_synthetic_materials(tmp_path):
     smape_a, smape_m = (float(x) for x in row.split()[-4:-2])
     assert 0 <= smape_m <= 2 and 0 <= smape_a <= 2
     r = run_cli_here("info", str(out))
-    assert r.returncode == 0 and "hybrid, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
+    # the default architecture since issue 60: reciprocal
+    assert r.returncode == 0 and "hybrid-reciprocal, MLP 16x2 hardgelu, latent 4" in r.stdout and "gold" in r.stdout
     assert "lr 0.005, lr_schedule cosine, lr_final 0.01, clip 0.01, weight_decay 0.0, seed 0," in r.stdout, r.stdout
     assert "recipe hybridbrdf" in r.stdout, r.stdout
     assert "sparse_init" not in r.stdout  # a joint fit: no sparse settings

@@ -143,7 +143,9 @@ def damaged_checkpoints(data: bytes, state):
         ("other settings", _edited(state, _set(["settings", "lr"], 1e-3)), "other settings (lr: 0.001"),
         ("settings hold a tensor", _edited(state, _set(["settings", "lr"], torch.ones(2))), "not plain values"),
         ("NaN weights", _edited(state, _nan_weight), "'mlp.hidden.0.weight' holds NaN"),
-        ("Inf moment", _edited(state, _set(["optimizer", "state", 0, "exp_avg"], torch.full((8, 10), float("inf")))),
+        # the first layer's moment at its own shape (8 x (direction inputs + latent): 6 or 9 + 4)
+        ("Inf moment", _edited(state, _set(["optimizer", "state", 0, "exp_avg"],
+                                           torch.full_like(state["optimizer"]["state"][0]["exp_avg"], float("inf")))),
          "exp_avg 0 holds NaN or Inf"),
         ("negative second moment", _edited(state, _set(["optimizer", "state", 1, "exp_avg_sq"], -torch.ones(8))),
          "negative"),

@@ -249,7 +249,10 @@ def test_sparse_fitting_starts_from_the_best_fitting_frozen_material(fitted, tmp
                 frozen.index(twin_of)], rtol=0.02, atol=0.02), key
         joint = fitted.material_info[fitted.index(twin_of)]["metrics"]
         got = near.material_info[0]["metrics"]
-        assert got["smape"] < 1.1 * joint["smape"] + 0.005, (got, joint)
+        # One Adam step moves every raw parameter by about lr = 5e-3 whatever its start, which costs an
+        # absolute ~0.01 in SMAPE here (the reciprocal default: retro 0.0403 -> 0.0521, plain 0.0012 ->
+        # 0.0035; --arch hybrid: 0.1152 -> 0.1209); a wrong start costs far more (the neutral one below).
+        assert got["smape"] < joint["smape"] + 0.02, (got, joint)
         # The model records the start: the twin's own material, scoring what the joint fit did on it
         # (same BRDF, so the same error up to the metric's sampling).
         start = near.material_info[0]["sparse_start"]

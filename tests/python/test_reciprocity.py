@@ -240,9 +240,10 @@ def test_the_shipped_reciprocal_prior_is_exactly_reciprocal_on_the_priors_materi
 
 
 def test_add_reciprocal_fits_onto_the_reciprocal_prior_and_stays_reciprocal(tmp_path, monkeypatch):
-    """hbrdf add --reciprocal: the sparse fit and the fine-tune start from the reciprocal prior's
-    network, so the model is reciprocal bit for bit; without the flag, the plain prior (the
-    control: not reciprocal); with --to, refused in one line before any training."""
+    """hbrdf add onto the shipped priors: by default (and with --reciprocal) the sparse fit and the
+    fine-tune start from the reciprocal prior's network, so the model is reciprocal bit for bit;
+    --no-reciprocal, the plain prior (the control: not reciprocal); either flag with --to is
+    refused in one line before any training."""
     import hybridbrdf.model.prior as prior_module
     from hybridbrdf.fit import fit
     from hybridbrdf.fit.settings import FitSettings
@@ -256,13 +257,14 @@ def test_add_reciprocal_fits_onto_the_reciprocal_prior_and_stays_reciprocal(tmp_
             FitSettings(arch=arch, width=8, depth=1, latent=2, **tiny), progress=False, log=lambda m: None).save(path)
         monkeypatch.setattr(prior_module, name, path)
     wi, wo = pairs()
-    for reciprocal in (True, False):
+    for reciprocal, expected in ((None, True), (True, True), (False, False)):  # None: the default
         out = tmp_path / f"added_{reciprocal}.safetensors"
         model = hb.add(["synthetic:brushed_aluminium"], out=out, settings=FitSettings(**tiny), progress=False,
                        finetune_steps=5, reciprocal=reciprocal)
         assert model.training["mode"] == "fine-tune"
         f, g = _core.Model(str(out)).eval(wi, wo, 0), _core.Model(str(out)).eval(wo, wi, 0)
-        assert (model.arch["kind"] == "hybrid-reciprocal") == reciprocal
-        assert np.array_equal(f, g) == reciprocal, reciprocal
-    with pytest.raises(ValueError, match="--reciprocal adds onto the shipped reciprocal prior"):
-        hb.add(["synthetic:velvet"], to=tmp_path / "hybrid.safetensors", reciprocal=True, progress=False)
+        assert (model.arch["kind"] == "hybrid-reciprocal") == expected, reciprocal
+        assert np.array_equal(f, g) == expected, reciprocal
+    for reciprocal in (True, False):
+        with pytest.raises(ValueError, match="--reciprocal and --no-reciprocal choose between the shipped priors"):
+            hb.add(["synthetic:velvet"], to=tmp_path / "hybrid.safetensors", reciprocal=reciprocal, progress=False)

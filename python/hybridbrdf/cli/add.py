@@ -26,10 +26,11 @@ def add_parser(sub) -> None:
                                                 "materials only)")
     p.add_argument("--out", required=True, help="model file to write (may be BASE itself)")
     add_fit_flags(p, sections=("training", "loss", "sparse", "run"), skip=("frozen_from", "init_from"))
-    p.add_argument("--reciprocal", action="store_true",
-                   help="onto the shipped reciprocal prior (its network reads wi + wo and the products of wi - wo): "
-                        "the model is reciprocal bit for bit, f(wi, wo) = f(wo, wi) (docs/RECIPROCITY.md); not "
-                        "with --to")
+    p.add_argument("--reciprocal", action=argparse.BooleanOptionalAction, default=None,
+                   help="onto the shipped reciprocal prior (its network reads wi + wo and the products of wi - wo), "
+                        "the default: the model is reciprocal bit for bit, f(wi, wo) = f(wo, wi) "
+                        "(docs/RECIPROCITY.md); --no-reciprocal: onto the plain prior (architecture hybrid); "
+                        "neither with --to")
     p.add_argument("--keep-network", action="store_true",
                    help="onto the shipped prior: fit only the sources' parameters and latent codes, the network "
                         "bit-identical to the prior's (for engines that already ship it)")
@@ -89,14 +90,14 @@ def _report(args, settings, model) -> None:
     elif model.training.get("mode") == "fine-tune":
         new = model.material_info
         seconds = model.training["sparse_fit"].get("train_seconds", 0.0) + model.training.get("train_seconds", 0.0)
-        how = (f"fine-tuned the shipped {'reciprocal ' if args.reciprocal else ''}prior's network with them "
+        how = (f"fine-tuned the shipped {'plain ' if args.reciprocal is False else 'reciprocal '}prior's network with them "
                f"({settings.steps} sparse + "
                f"{model.training['steps']} fine-tune steps)")
     else:
         added = set(model.training["additions"][-1]["materials"])
         new = [m for m in model.material_info if m["name"] in added]
         seconds = model.training["additions"][-1].get("train_seconds", 0.0)
-        prior = "the shipped reciprocal prior" if args.reciprocal else "the shipped prior"
+        prior = "the shipped plain prior" if args.reciprocal is False else "the shipped reciprocal prior"
         how = f"sparse fit on {args.to or prior}'s network, kept bit-exact"
     print(format_table([dict(material=m["name"], origin=m.get("origin", ""), **m["metrics"]) for m in new],
                        settings.eval_pairs))

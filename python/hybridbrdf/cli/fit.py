@@ -78,7 +78,10 @@ def _start_models(settings):
         raise ValueError("--frozen keeps MODEL's network and --init trains it further: give one of them")
     init = None
     if settings.init_from:
-        init = load_model(prior_path() if settings.init_from == "prior" else settings.init_from)
+        # "prior": the shipped prior of the fit's architecture (the reciprocal one by default, the plain
+        # one with --arch hybrid); the fit then takes that prior's network settings.
+        prior = prior_path(reciprocal=settings.arch == "hybrid-reciprocal")
+        init = load_model(prior if settings.init_from == "prior" else settings.init_from)
     for start_model in (frozen, init):
         if start_model is not None:
             frozen_arch_settings(settings, start_model)

@@ -101,7 +101,7 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
         progress: bool = True, log: Callable[[str], None] = lambda msg: None,
         keep_network: bool = False, finetune_steps: Optional[int] = None,
         prior: Optional[Union[str, os.PathLike]] = None, refine: bool = False,
-        max_drift: float = MAX_DRIFT, reciprocal: bool = False) -> HybridModel:
+        max_drift: float = MAX_DRIFT, reciprocal: Optional[bool] = None) -> HybridModel:
     """Add ``sources`` (paths, folders, globs, ``synthetic:NAME`` or BRDFSource objects) to a
     fitted network and return the model; with ``out``, also write it there (atomically; ``out``
     may be ``to`` itself, which is then replaced only once the fit has succeeded).
@@ -123,10 +123,12 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     naming the material, and nothing is written.
 
     ``prior``: another prior's file in place of the shipped one (a prior trained without the
-    materials being added, for an honest hold-out: bench/prior_heldout.py). ``reciprocal``: onto
-    the shipped reciprocal prior (``hybridbrdf.model.prior.RECIPROCAL_PRIOR_FILE``, architecture
-    ``hybrid-reciprocal``), so the model is reciprocal bit for bit, fine-tuned or not; ValueError
-    with ``to`` or ``prior`` (their architecture is their own).
+    materials being added, for an honest hold-out: bench/prior_heldout.py). ``reciprocal`` (the
+    default onto the shipped priors, issue 60): onto the shipped reciprocal prior
+    (``hybridbrdf.model.prior.RECIPROCAL_PRIOR_FILE``, architecture ``hybrid-reciprocal``), so the
+    model is reciprocal bit for bit, fine-tuned or not; ``False``: onto the plain prior
+    (``PRIOR_FILE``, architecture ``hybrid``). With ``to`` or ``prior`` the architecture is theirs:
+    ``reciprocal`` is then left None, and True or False is a ValueError.
 
     ``settings``: the fit's training, loss and sparse settings (:class:`FitSettings`; its
     network fields are taken from ``to``); default: the default recipe with
@@ -139,20 +141,20 @@ def add(sources: Sequence[SourceLike], to: Optional[Union[str, os.PathLike]] = N
     # ``out`` may be ``to``: the base is read under out's lock and the merged model written
     # before it is released, so a concurrent update of the same file is never lost (it waits for
     # this one, or refuses after LOCK_WAIT_SECONDS; docs/CONVENTIONS.md, "Writing files").
-    if reciprocal:
-        if to is not None or prior is not None:
-            raise ValueError("--reciprocal adds onto the shipped reciprocal prior; a --to BASE or another prior "
-                             "keeps its own architecture (a base fitted with --arch hybrid-reciprocal is reciprocal)")
-        prior = prior_path(reciprocal=True)
+    if (to is not None or prior is not None) and reciprocal is not None:
+        raise ValueError("--reciprocal and --no-reciprocal choose between the shipped priors; a --to BASE or "
+                         "another prior keeps its own architecture (a base fitted with --arch hybrid-reciprocal "
+                         "is reciprocal)")
     with file_lock(out) if out is not None else contextlib.nullcontext():
         return _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine,
-                           max_drift)
+                           max_drift, reciprocal is not False)
 
 
-def _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine, max_drift):
+def _add_locked(sources, to, out, settings, progress, log, keep_network, finetune_steps, prior, refine, max_drift,
+                reciprocal):
     """The body of :func:`add`, run under the lock of ``out``."""
     on_prior = to is None
-    to = _resolve_base(to, prior)
+    to = _resolve_base(to, prior, reciprocal)
     finetune, finetune_steps = _check_options(on_prior, refine, keep_network, finetune_steps, max_drift)
     base = load_model(to)
     settings = _sparse_settings(settings, base, to)
@@ -174,11 +176,13 @@ def _add_locked(sources, to, out, settings, progress, log, keep_network, finetun
     return merged
 
 
-def _resolve_base(to: Optional[Union[str, os.PathLike]], prior: Optional[Union[str, os.PathLike]]):
-    """The base model's path: ``to``, or without it ``prior`` or the shipped prior's file."""
+def _resolve_base(to: Optional[Union[str, os.PathLike]], prior: Optional[Union[str, os.PathLike]],
+                  reciprocal: bool):
+    """The base model's path: ``to``, or without it ``prior`` or the shipped prior's file (the
+    reciprocal one unless ``reciprocal`` is False)."""
     if to is not None:
         return to
-    return prior if prior is not None else prior_path()
+    return prior if prior is not None else prior_path(reciprocal)
 
 
 def _check_options(on_prior: bool, refine: bool, keep_network: bool, finetune_steps: Optional[int],
