@@ -179,7 +179,7 @@ def _add_locked(sources, to, out, settings, progress, log, keep_network, finetun
 def _resolve_base(to: Optional[Union[str, os.PathLike]], prior: Optional[Union[str, os.PathLike]],
                   reciprocal: bool):
     """The base model's path: ``to``, or without it ``prior`` or the shipped prior's file (the
-    reciprocal one unless ``reciprocal`` is False)."""
+    reciprocal prior's when ``reciprocal``, the plain one's otherwise)."""
     if to is not None:
         return to
     return prior if prior is not None else prior_path(reciprocal)
