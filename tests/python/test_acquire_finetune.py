@@ -13,11 +13,11 @@ import os
 import numpy as np
 import pytest
 import torch
-from helpers import run_cli_here, seeded_cosine_directions
+from helpers import run_cli_here, seeded_cosine_directions, shorten_acquire_fit
 from test_acquire_report import _capture
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit, hybrid_fit, network_tune, simulate
+from hybridbrdf.acquire import cluster_fit, network_tune, simulate
 from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -100,10 +100,8 @@ def test_the_finetune_keeps_the_prior_materials_within_the_stated_drift(fits):
 def test_finetune_network_on_the_command_line_writes_the_tuned_network_and_its_drift(tmp_path, monkeypatch):
     # `hbrdf acquire fit --finetune-network STEPS`: a short fit on the 2x2 capture fixture; what is
     # checked is that the flag reaches the fit and the written folder, not what the fine-tune buys.
-    monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
-    monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    shorten_acquire_fit(monkeypatch)
     monkeypatch.setattr(network_tune, "DRIFT_PAIRS", 200)
-    monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))
     prior = load_prior()
     out = tmp_path / "out"
     res = run_cli_here("acquire", "fit", _capture(tmp_path, prior), "--out", out, "--size", "2x2", "--steps", "10",

@@ -22,7 +22,7 @@ from hybridbrdf.acquire.rigs import flash_rig
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.sources.model import ModelMaterialSource
 
-from helpers import run_cli_here
+from helpers import run_cli_here, shorten_acquire_fit
 
 PAPER = "paper_white_rgb.rgl"
 
@@ -132,10 +132,8 @@ def test_refit_heads_on_the_command_line_gives_each_cluster_its_head_and_is_reco
     # `hbrdf acquire fit --refit-heads` (docs/ACQUISITION_GAP.md): each cluster a layer <material>.acq<k>
     # whose head is not its prior material's, and acquisition.json says the refit ran. A short fit:
     # what is checked is that the flag reaches the fit, not what the refit buys (test_acquire_gap.py).
-    monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
+    shorten_acquire_fit(monkeypatch)
     monkeypatch.setattr(cluster_fit, "HEAD_STEPS", 10)
-    monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
-    monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))
     prior = load_prior()
     out = tmp_path / "out"
     res = run_cli_here("acquire", "fit", _capture(tmp_path, prior), "--out", out, "--size", "2x2", "--steps", "10",

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybridbrdf.acquire import cluster_fit, hybrid_fit, select, simulate
+from hybridbrdf.acquire import select, simulate
 from hybridbrdf.acquire.capture import write_capture
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
 from hybridbrdf.acquire.mixture import Mixture
@@ -19,7 +19,7 @@ from hybridbrdf.acquire.texel_rows import ObservationTensors
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.sources.model import ModelMaterialSource
 
-from helpers import run_cli_here
+from helpers import run_cli_here, shorten_acquire_fit
 
 #: The material photographed, and its near twin in the shipped prior (the same paper's neural fit).
 TRUE, TWIN = "paper_white_rgb.rgl", "paper_white_rgb.nbrdf"
@@ -84,10 +84,8 @@ def test_selection_on_held_out_shots_picks_the_true_material_the_training_shots_
 def test_select_on_the_command_line_prints_each_clusters_held_out_losses_and_records_them(tmp_path, monkeypatch):
     # `hbrdf acquire fit --select`: a short fit of a stage of 4x2 photographs; what is checked is that
     # the flag reaches the fit, prints and records the choice, not what it buys (the test above).
-    monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
-    monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    shorten_acquire_fit(monkeypatch)
     monkeypatch.setattr(select, "SELECT_STEPS", 10)
-    monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))
     prior = load_prior()
     rig = light_stage_rig(4, 2, size=(16, 16))
     write_capture(simulate(rig, Mixture([ModelMaterialSource(prior, TRUE)], np.ones((2, 2, 1)))), tmp_path / "capture")

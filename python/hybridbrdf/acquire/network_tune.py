@@ -51,16 +51,22 @@ def cosine_pairs(n: int, seed: int) -> tuple:
     return torch.from_numpy(wi.astype(np.float32)), torch.from_numpy(wo.astype(np.float32))
 
 
-def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
-    """The rows of cluster ``c``'s pure texels (the texel and its 8 neighbours in ``c``, the map's
-    edges clamped); all of ``c``'s rows when it has no pure texel."""
-    w, h = obs.size
+def pure_texels(labels: np.ndarray, size, c: int) -> np.ndarray:
+    """Cluster ``c``'s pure texels: those whose 8 neighbours are in it too (the map's edges clamped),
+    where the photographs show one material (a boundary texel is photographed as a mix)."""
+    w, h = size
     mine = (labels == c).reshape(h, w)
     padded = np.pad(mine, 1, mode="edge")
     inner = np.all([padded[1 + dj:1 + dj + h, 1 + di:1 + di + w] for dj in (-1, 0, 1) for di in (-1, 0, 1)], axis=0)
-    texels = np.nonzero(inner.reshape(-1))[0]
+    return np.nonzero(inner.reshape(-1))[0]
+
+
+def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
+    """The rows of cluster ``c``'s pure texels (:func:`pure_texels`); all of ``c``'s rows when no
+    pure texel was photographed."""
+    texels = pure_texels(labels, obs.size, c)
     if not len(np.nonzero(np.diff(obs.offsets)[texels])[0]):
-        texels = np.nonzero(mine.reshape(-1))[0]
+        texels = np.nonzero((labels == c).reshape(-1))[0]
     return torch.from_numpy(np.concatenate([np.arange(obs.offsets[t], obs.offsets[t + 1]) for t in texels]
                                            + [np.zeros(0, np.int64)]).astype(np.int64))
 

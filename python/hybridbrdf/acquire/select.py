@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from hybridbrdf.acquire.cluster_fit import CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material, refine_texels
+from hybridbrdf.acquire.network_tune import pure_texels
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress
 
@@ -66,16 +67,6 @@ def split_shots(obs: Observations) -> tuple:
     held = held_out_shots(int(obs.shot.max()) + 1 if len(obs.shot) else 0)
     rows = held[obs.shot] if len(held) else np.zeros(0, dtype=bool)
     return subset(obs, ~rows), subset(obs, rows), np.nonzero(held)[0]
-
-
-def pure_texels(labels: np.ndarray, size, c: int) -> np.ndarray:
-    """Cluster ``c``'s texels whose 8 neighbours are in it too (the map's edges clamped): where the
-    photographs show one material (a boundary texel is photographed as a mix)."""
-    w, h = size
-    mine = (labels == c).reshape(h, w)
-    padded = np.pad(mine, 1, mode="edge")
-    inner = np.all([padded[1 + dj:1 + dj + h, 1 + di:1 + di + w] for dj in (-1, 0, 1) for di in (-1, 0, 1)], axis=0)
-    return np.nonzero(inner.reshape(-1))[0]
 
 
 def _held_out_loss(family, train: Observations, held: Observations, texels: np.ndarray, cand: Dict,
