@@ -61,18 +61,20 @@ SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_suns
 #: Per configuration: fit_hybrid_texels keywords and the head refit's pull (cluster_fit.HEAD_PULL; None: its default).
 CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
            "heads_free": ({"refit_heads": True}, 0.0), "heads_pull10": ({"refit_heads": True}, 10.0),
-           "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None)}
+           "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None),
+           "texels_pull10": ({}, ("TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("TEXEL_PULL", 100.0))}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int):
     """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after."""
     keywords, pull = CONFIGS[config]
-    default = cluster_fit.HEAD_PULL
-    cluster_fit.HEAD_PULL = default if pull is None else pull
+    name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
+    default = getattr(cluster_fit, name)
+    setattr(cluster_fit, name, default if value is None else value)
     try:
         return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, **keywords)
     finally:
-        cluster_fit.HEAD_PULL = default
+        setattr(cluster_fit, name, default)
 #: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
 JITTER = 0.001
 

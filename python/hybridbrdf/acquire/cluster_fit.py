@@ -5,9 +5,10 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 1. **analytic**: the analytic-only fit (:func:`fit_analytic_texels`), half the steps: per-texel
    features (log kd, log alpha, log(eta - 1) per channel) cheap to get and good enough to group texels by.
 2. **clusters**: k-means (K <= 4: a textured material holds a base and up to 3 layers) on the
-   standardised features; per cluster, every material of the prior scored with its own values
-   on a subsample of the cluster's rows, the best :data:`CANDIDATES` fitted (all of the family's
-   per-texel values, one set for the cluster, on the frozen network), the lowest loss kept; or
+   standardised features; per cluster, on rows of its pure texels (:func:`_cluster_rows`), every
+   material of the prior screened by a short fit of its values (:func:`screen_materials`), the
+   best :data:`CANDIDATES` fitted (all of the family's per-texel values, one set for the cluster,
+   on the frozen network), the lowest loss kept; or
    (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
@@ -35,10 +36,12 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 import torch
 
+from hybridbrdf import spec
 from hybridbrdf.acquire import network_tune
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
+from hybridbrdf.model.networks import raw_from_analytic
 
 #: Clusters of texels at most (a textured material's base and 3 layers).
 MAX_CLUSTERS = 4
@@ -46,8 +49,14 @@ MAX_CLUSTERS = 4
 CANDIDATES = 2
 #: Rows of a cluster its materials are scored and fitted on, and the steps of each candidate's fit.
 CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
+#: Rows, steps and Adam rate of the screen that fits every material's values briefly to rank them
+#: (:func:`screen_materials`): a rate above the candidates' fit's (0.03) because a colour far from
+#: the material's own is many logits away (red to blue: about 4 in each of kd's channels).
+SCREEN_ROWS, SCREEN_STEPS, SCREEN_LR = 256, 40, 0.1
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
+#: The texel stage's pull toward the cluster's values, a multiple of its MAP weight (module docstring).
+TEXEL_PULL = 1.0
 #: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
 HEAD_PULL = 1.0
 #: A refit starts a gated head's f_c biases at -HEAD_START or above and its f_g biases at HEAD_START
@@ -98,6 +107,19 @@ def texel_clusters(maps: AnalyticMaps, k: int, seed: int) -> np.ndarray:
     return labels
 
 
+def cluster_colours(maps: AnalyticMaps, labels: np.ndarray) -> torch.Tensor:
+    """(K, 3) each cluster's colour as a raw kd (the hybrid's reparameterisation): the median of
+    its pure texels' analytic kd (every texel's when none is pure), the screen's second start."""
+    kd = maps.kd.reshape(-1, 3).astype(np.float64)
+    colours = []
+    for c in range(int(labels.max()) + 1):
+        texels = network_tune.pure_texels(labels, maps.kd.shape[1::-1], c)
+        texels = texels if len(texels) else np.nonzero(labels == c)[0]
+        colours.append(np.median(kd[texels], axis=0))
+    kd = torch.tensor(np.array(colours), dtype=torch.float32).clamp(spec.KD_MIN + 1e-4, 1 - 1e-4)
+    return raw_from_analytic(kd, torch.full_like(kd, 1.5), torch.full((len(kd), 2), 0.3))[0]
+
+
 def _loss_rows(family, data: ObservationTensors, materials: torch.Tensor, raw: Dict[str, torch.Tensor],
                rows: torch.Tensor) -> torch.Tensor:
     """Mean squared residual per row and channel of ``family`` with per-row values ``raw``."""
@@ -106,43 +128,136 @@ def _loss_rows(family, data: ObservationTensors, materials: torch.Tensor, raw: D
 
 
 def _cluster_rows(obs: Observations, labels: np.ndarray, c: int, n: int, seed: int) -> torch.Tensor:
-    """Up to ``n`` rows of cluster ``c``'s texels, drawn without replacement (seeded)."""
-    per_row = np.repeat(labels, np.diff(obs.offsets))
-    rows = np.nonzero(per_row == c)[0]
+    """Up to ``n`` rows of cluster ``c``'s pure texels (:func:`~hybridbrdf.acquire.network_tune.pure_rows`:
+    its 8 neighbours in the cluster too; every texel of ``c`` when none is pure), drawn without
+    replacement (seeded). Why pure texels: a texel on a layer's boundary is photographed as a mix
+    that no material of the prior explains, and a few of them dominate a cluster's squared log
+    residual (paper3's paper_white cluster, 289 texels of which 107 on the disc's and band's rims:
+    fitted on all of them its best material's residual was 1.4e-3 per row and channel and its values
+    5.2x the full measurement's cMAE; on its pure texels 1.5e-5, the right material, 1.6x;
+    docs/ACQUISITION_GAP.md)."""
+    rows = network_tune.pure_rows(obs, labels, c).numpy()
     if len(rows) > n:
         rows = np.sort(np.random.default_rng([seed, c]).choice(rows, n, replace=False))
     return torch.from_numpy(rows)
 
 
+def value_spread(every: Dict[str, torch.Tensor]) -> Dict[str, torch.Tensor]:
+    """tau^2 per value component: its variance over the prior's materials (how far materials differ),
+    the MAP prior's variance of the texel stage and of the cluster stage's score."""
+    return {n: v.var(dim=0).clamp_min(1e-4) for n, v in every.items()}
+
+
+def map_objective(loss: torch.Tensor, raw: Dict[str, torch.Tensor], own: Dict[str, torch.Tensor],
+                  tau2: Dict[str, torch.Tensor], shots: int) -> torch.Tensor:
+    """The cluster stage's objective per fit, (F,) from mean squared residuals ``loss`` (F,) of values
+    ``raw`` {name: (F, c)} of materials whose own values are ``own`` {name: (F, c)}: the negative log
+    posterior of the module docstring's model divided by 3 n / sigma^2, with sigma^2 the fit's own
+    residual (held fixed) and n the photographs the rows come from (a cluster's rows in one
+    photograph see about one direction pair), so L (1 + sum_j (theta_j - own_j)^2 / tau_j^2 / (3 n)).
+    Why the move counts: a material fitted far from its own values is less likely than one that
+    explains the rows as they are (a flash capture's collocated slice is explained by almost any
+    shape once its colour is refitted, and only the move tells the white paper photographed from
+    a red one painted white)."""
+    move = sum((((raw[n] - own[n]) ** 2) / tau2[n]).sum(-1) for n in raw)
+    return loss + loss.detach() * move / (3 * max(1, shots))
+
+
+def _has_pure_texels(obs: Observations, labels: np.ndarray, c: int) -> bool:
+    """Whether cluster ``c`` has a photographed pure texel (:func:`~hybridbrdf.acquire.network_tune.pure_texels`)."""
+    texels = network_tune.pure_texels(labels, obs.size, c)
+    return bool((np.diff(obs.offsets)[texels] > 0).any())
+
+
 def fit_material(family, data: ObservationTensors, rows: torch.Tensor, m: int, start: Dict[str, torch.Tensor],
-                 seed: int, stage: str) -> Dict[str, object]:
+                 seed: int, stage: str, own: Optional[Dict[str, torch.Tensor]] = None, shots: int = 1
+                 ) -> Dict[str, object]:
     """Material ``m``'s values (one set, from ``start`` {name: (c,)}) fitted to ``rows`` on the frozen
     network, :data:`CLUSTER_STEPS` Adam steps: {"material", "loss" (its mean squared residual after),
-    "raw" {name: (c,)}}."""
+    "score" (:func:`map_objective` after, given ``own`` = the material's own values and their spread
+    ``own["tau2"]``; else the loss), "raw" {name: (c,)}}; with ``own`` the fit minimises the objective."""
     raw = {name: v.reshape(1, -1).clone().requires_grad_() for name, v in start.items()}
     mats = torch.full((len(rows),), m)
 
-    def loss(gen):
+    def data_loss():
         return _loss_rows(family, data, mats, {n: v.expand(len(rows), -1) for n, v in raw.items()}, rows)
 
-    adam_texels(raw, loss, CLUSTER_STEPS, 0.03, seed, stage)
+    def objective(gen):
+        loss = data_loss()
+        if own is None:
+            return loss
+        return map_objective(loss[None], raw, {n: own[n][None] for n in raw}, own["tau2"], shots)[0]
+
+    adam_texels(raw, objective, CLUSTER_STEPS, 0.03, seed, stage)
     with torch.no_grad():
-        final = float(loss(None))
-    return {"material": m, "loss": final, "raw": {n: v.detach()[0] for n, v in raw.items()}}
+        final, score = float(data_loss()), float(objective(None))
+    return {"material": m, "loss": final, "score": score, "raw": {n: v.detach()[0] for n, v in raw.items()}}
+
+
+def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every: Dict[str, torch.Tensor], seed: int,
+                     stage: str, colour: Optional[torch.Tensor] = None, shots: int = 1
+                     ) -> Tuple[torch.Tensor, Dict[str, torch.Tensor], torch.Tensor]:
+    """Every material's :func:`map_objective` on ``rows`` (``shots`` photographs) after
+    :data:`SCREEN_STEPS` Adam steps of its values on it, (M,), the values reached {name: (M, c)},
+    and its loss with its own values (M,) (the rule before the screen):
+    all materials in one batched problem (their objectives are separate, so one Adam over all of
+    them is an Adam per material). Each material starts twice, from its own values and, given
+    ``colour`` (a raw kd (3,): the cluster's analytic fit), from its own values with that kd; the
+    lower of the two counts.
+
+    Why fitted and not scored with its own values: a material's values (its colour, above all) are
+    what the texel fit changes anyway, so the material to choose is the one whose *shape* explains
+    the rows. Scored with its own values, paper3's paper_white cluster left spectralon (the prior's
+    best after fitting, by 2.3x the runner-up's residual) outside the two it fitted; and a red
+    material photographed blue ranks far down (tests/python/test_acquire_cluster_stage.py). Why the
+    second start: from its own red, 40 steps do not bring that material to blue (about 4 logits in
+    each of kd's channels) before materials already blue overtake it."""
+    n_mat, n_rows = len(next(iter(every.values()))), len(rows)
+    starts = [every] if colour is None or "kd" not in every else [every, {**every, "kd": colour.expand_as(every["kd"])}]
+    raw = {name: torch.cat([s[name] for s in starts]).clone().requires_grad_() for name in every}
+    n_fit = n_mat * len(starts)
+    material = torch.arange(n_mat).repeat(len(starts)).repeat_interleave(n_rows)
+    batch = rows.repeat(n_fit)
+    evaluate = getattr(family, "evaluate_batched", family.evaluate)
+    own, tau2 = {n: v.repeat(len(starts), 1) for n, v in every.items()}, value_spread(every)
+
+    best = {"objective": torch.full((n_fit,), float("inf")), **{n: v.detach().clone() for n, v in raw.items()}}
+
+    def per_fit(gen):
+        d = data.residual(batch, evaluate(material, {n: v.repeat_interleave(n_rows, 0) for n, v in raw.items()},
+                                          data.wi[batch], data.wo[batch]))
+        objective = map_objective((d * d).reshape(n_fit, -1).mean(1), raw, own, tau2, shots)
+        # Each fit's best values so far: at this rate Adam's first steps move every value by about the
+        # rate whatever its gradient, so a material photographed exactly as it is leaves its optimum.
+        best.setdefault("as_is", objective.detach()[:n_mat].clone())  # the first start's first step: own values
+        better = objective.detach() < best["objective"]
+        best["objective"] = torch.where(better, objective.detach(), best["objective"])
+        for n, v in raw.items():
+            best[n] = torch.where(better[:, None], v.detach(), best[n])
+        return objective
+
+    adam_texels(raw, lambda gen: per_fit(gen).sum(), SCREEN_STEPS, SCREEN_LR, seed, stage)
+    with torch.no_grad():
+        per_fit(None)
+    objective = best["objective"].reshape(len(starts), n_mat)
+    pick = torch.argmin(objective, dim=0) * n_mat + torch.arange(n_mat)  # the start that reached the lower
+    return objective.min(dim=0).values, {n: best[n][pick] for n in raw}, best["as_is"]
 
 
 def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, seed: int,
-                 progress: Optional[Progress] = None, candidates: int = CANDIDATES) -> Dict[str, object]:
+                 progress: Optional[Progress] = None, candidates: int = CANDIDATES,
+                 colour: Optional[torch.Tensor] = None) -> Dict[str, object]:
     """Per cluster: the prior's material that explains its rows best after fitting (see the module
-    docstring; the best ``candidates`` by score fitted), its fitted values and the fit's residual
+    docstring; the best ``candidates`` of :func:`screen_materials` fitted from the values the screen
+    reached, ``colour`` (K, 3) each cluster's raw kd for the screen's second start), its fitted values and the fit's residual
     variance. Returns {"material" (K,), "centres" {name: (K, c)}, "sigma2" (K,), "candidates": per
     cluster the fitted candidates, best first, each {"material", "loss", "raw" {name: (c,)}} (what
     :mod:`~hybridbrdf.acquire.cluster_report` prints)}."""
     k = int(labels.max()) + 1
     every = family.raw_of_materials()
-    n_mat = len(next(iter(every.values())))
+    tau2 = value_spread(every)
     materials, centres, sigma2, fitted_all = [], {name: [] for name in every}, [], []
-    total = k * candidates * CLUSTER_STEPS
+    total = k * (candidates + 1) * CLUSTER_STEPS
     done = 0
     for c in range(k):
         rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
@@ -153,19 +268,36 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             sigma2.append(sigma2[0] if sigma2 else 1.0)
             fitted_all.append([])
             continue
-        score_rows = rows[::max(1, len(rows) // 1024)][:1024]  # spread over the cluster (rows are sorted by texel)
-        with torch.no_grad():
-            scores = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
-                                             {name: v[m].expand(len(score_rows), -1) for name, v in every.items()},
-                                             score_rows) for m in range(n_mat)])
+        shots = len(np.unique(obs.shot[rows.numpy()]))
+        if _has_pure_texels(obs, labels, c):
+            score_rows = rows[::max(1, len(rows) // SCREEN_ROWS)][:SCREEN_ROWS]  # spread over the cluster's texels
+            scores, screened, as_is = screen_materials(family, data, score_rows, every, seed, f"screen{c}",
+                                                       None if colour is None else colour[c], shots)
+            # The screen's best, and the best with its own values: where the photographs cannot tell
+            # shapes apart (a flash capture's collocated slice), the screen's order among near-ties is
+            # chance, and a material photographed as it is keeps its lead as it is.
+            ranked = torch.argsort(scores)[:candidates].tolist()
+            ranked += [m for m in torch.argsort(as_is)[:1].tolist() if m not in ranked]
+            starts, owns = screened, {**every, "tau2": tau2}
+        else:  # only texels on a boundary: rows of mixes, which the screen would explain with whichever
+            # material's refitted values imitate the mix best, a layer of its own for a boundary
+            # (tests/python/test_acquire_fit.py's halves: a white paper's rim took cm_white, a third
+            # layer); so the rule before the screen, the materials as they are, by their loss alone.
+            score_rows = rows[::max(1, len(rows) // 1024)][:1024]
+            with torch.no_grad():
+                as_is = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
+                                                {n: v[m].expand(len(score_rows), -1) for n, v in every.items()},
+                                                score_rows) for m in range(len(every["z"]))])
+            ranked, starts, owns = torch.argsort(as_is)[:candidates].tolist(), every, None
         fitted = []
-        for m in torch.argsort(scores)[:candidates].tolist():
-            fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in every.items()}, seed,
-                                       f"cluster{c}-{m}"))
+        for m in ranked:
+            own = None if owns is None else {n: v[m] if n != "tau2" else v for n, v in owns.items()}
+            fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in starts.items()}, seed,
+                                       f"cluster{c}-{m}", own, shots))
             done += CLUSTER_STEPS
             if progress is not None:
                 progress("clusters", done, total)
-        fitted.sort(key=lambda cand: cand["loss"])  # stable: a tie keeps the better-scored material
+        fitted.sort(key=lambda cand: cand["score"])  # stable: a tie keeps the better-screened material
         best = fitted[0]
         materials.append(best["material"])
         for name in every:
@@ -255,8 +387,8 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
     lab = torch.from_numpy(labels)
     counts = torch.from_numpy(np.diff(obs.offsets)).double()
     every = family.raw_of_materials()
-    tau2 = {n: v.var(dim=0).clamp_min(1e-4) for n, v in every.items()}
-    weight = (clusters["sigma2"][lab].double() / (3 * counts.clamp_min(1))).float()  # sigma^2 / (3 n_t)
+    tau2 = value_spread(every)
+    weight = (TEXEL_PULL * clusters["sigma2"][lab].double() / (3 * counts.clamp_min(1))).float()  # sigma^2 / (3 n_t)
     centre = {n: v[lab] for n, v in clusters["centres"].items()}
     raw = {n: v.clone().requires_grad_() for n, v in centre.items()}
     material_of_texel = clusters["material"][lab]
@@ -319,7 +451,8 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     labels = texel_clusters(maps, MAX_CLUSTERS, seed)
     data = ObservationTensors(obs)
     if "clusters" not in state:
-        finish("clusters", (choose or fit_clusters)(family, obs, data, labels, seed, progress))
+        finish("clusters", (choose or fit_clusters)(family, obs, data, labels, seed, progress,
+                                                    colour=cluster_colours(maps, labels)))
     clusters = state["clusters"]
     if on_clusters is not None:
         on_clusters(labels, clusters)

@@ -86,6 +86,23 @@ class HybridFamily:
         return out
 
 
+    def evaluate_batched(self, material, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+        """What :meth:`evaluate` gives, in one pass over rows of many materials: each row's output
+        layer and energy table gathered (rows x 6 x width floats), not a pass per material (the
+        screen of every prior material, :func:`~hybridbrdf.acquire.cluster_fit.screen_materials`)."""
+        t = self.tensors
+        kd, eta, alpha, z = self.decode(raw)
+        wi, wo = wi.to(torch.float32), wo.to(torch.float32)
+        head = (t["materials.head_weight"][material], t["materials.head_bias"][material]) \
+            if "materials.head_weight" in t else None
+        f, _ = self.module.evaluate_pairs(wi, wo, kd, eta, alpha, z, head)
+        if "materials.energy_bound" in t:
+            table = t["materials.energy_bound"][material]
+            ci, co = (_normalize(w)[0][:, 2] for w in (wi, wo))
+            f = f * (energy_bound_scale(table, ci) * energy_bound_scale(table, co))[:, None]
+        return f
+
+
 @dataclass
 class HybridMaps:
     """A hybrid fit: ``model`` (the prior, with an edit per layer whose kd map is brighter than its

@@ -91,7 +91,7 @@ def _held_out_loss(family, train: Observations, held: Observations, texels: np.n
 
 
 def select_on_held_out(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, seed: int,
-                       progress: Optional[Progress] = None) -> Dict[str, object]:
+                       progress: Optional[Progress] = None, colour: Optional[torch.Tensor] = None) -> Dict[str, object]:
     """The cluster stage with its choice made on held-out shots (module docstring): what
     :func:`~hybridbrdf.acquire.cluster_fit.fit_clusters` returns, the candidates ordered by held-out
     loss (the chosen first, its values and "loss" refitted on all shots from the prior's; the others' on the
@@ -99,8 +99,9 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
     indices). ``data`` holds all of ``obs``."""
     train, held, shots = split_shots(obs)
     if not len(shots):  # too few shots to hold any out: the training choice on all of them
-        return {**fit_clusters(family, obs, data, labels, seed, progress), "held_out_shots": []}
-    clusters = fit_clusters(family, train, ObservationTensors(train), labels, seed, progress, SELECT_CANDIDATES)
+        return {**fit_clusters(family, obs, data, labels, seed, progress, colour=colour), "held_out_shots": []}
+    clusters = fit_clusters(family, train, ObservationTensors(train), labels, seed, progress, SELECT_CANDIDATES,
+                            colour)
     chosen, done, total = [], 0, sum(len(f) for f in clusters["candidates"])
     every = family.raw_of_materials()
     for c, fitted in enumerate(clusters["candidates"]):
