@@ -18,6 +18,7 @@ the same pairs against the file. The ratio hybrid / full measurement is issue 61
         [--refs /tmp/acquire_gap_refs] [--out results/acquire_gap_MACHINE]
     python bench/acquire_gap.py --budget [--configs heads]   # a 512x512 capture of 16x4 photographs
                                                              # onto 128x128: the fit's seconds
+    python bench/acquire_gap.py --ceiling                    # the frozen network fitted to each truth
 
 Configurations (CONFIGS): ``base`` the fit before issue 61 part 2 (refit_heads=False), ``heads``
 each cluster's output layer refitted on its rows with the pull toward the prior's head
@@ -237,6 +238,61 @@ def run_footprint(args) -> int:
     return 0
 
 
+def run_ceiling(args) -> int:
+    """What the frozen network can reach at best: per material of the samples, the prior's 4
+    materials that explain it best as they are (2,000 metric pairs), each with its values fitted to
+    the truth itself on 20,000 other pairs (the paper's loss, 400 Adam steps of 4,096 pairs), then
+    also its output layer; scored as the sweep scores (the median texel's pairs) against the full
+    measurement's cMAE. No photographs: the bound no capture on this prior gets past without
+    changing the network."""
+    from hybridbrdf.acquire.hybrid_fit import HybridFamily  # noqa: PLC0415
+    from hybridbrdf.evaluate.metrics import metric_directions  # noqa: PLC0415
+
+    shared = pathlib.Path(args.shared)
+    prior = hb.load_model(str(HELD_OUT_PRIOR))
+    family = HybridFamily(prior)
+    every = family.raw_of_materials()
+    wi, wo = (torch.from_numpy(x).float() for x in metric_directions(args.pairs))
+    tw, to = (torch.from_numpy(x).float() for x in metric_directions(20_000, seed=777))
+    print(f"ceiling: the held-out prior's frozen network fitted to each truth on 20,000 pairs; machine {args.machine}",
+          flush=True)
+    for name in dict.fromkeys(n for s in args.samples for n in SAMPLES[s]):
+        src = hb.open_source(str(shared / "rgl" / f"{name}.bsdf"))
+        truth = np.maximum(src.eval(wi.double().numpy(), wo.double().numpy()), 0.0)
+        full = cmae(truth, reference(name, shared, pathlib.Path(args.refs)).eval(wi.numpy(), wo.numpy(), name),
+                    wi[:, 2].numpy())
+        target = torch.log1p(tw[:, 2:3] * torch.from_numpy(np.maximum(src.eval(tw.double().numpy(), to.double().numpy()),
+                                                                       0.0)).float())
+        with torch.no_grad():
+            as_is = [float(((target[:2000] - torch.log1p(tw[:2000, 2:3] * family.evaluate(
+                torch.full((2000,), m), {k: v[m][None].expand(2000, -1) for k, v in every.items()},
+                tw[:2000], to[:2000]))) ** 2).mean()) for m in range(len(prior.materials))]
+        cells = []
+        for m in np.argsort(as_is)[:4].tolist():
+            for heads in (False, True):
+                raw = {k: v[m][None].clone().requires_grad_() for k, v in every.items()}
+                head = [family.tensors[k][m:m + 1].clone().requires_grad_(heads) for k in ("materials.head_weight",
+                                                                                         "materials.head_bias")]
+                opt = torch.optim.Adam(list(raw.values()) + (head if heads else []), lr=0.03)
+                gen = torch.Generator().manual_seed(0)
+                for step in range(400):
+                    opt.param_groups[0]["lr"] = 0.03 * (1 - 0.9 * step / 400)
+                    i = torch.randint(0, len(tw), (4096,), generator=gen)
+                    f = family.with_heads(torch.tensor([m]), *head).evaluate(
+                        torch.zeros(4096, dtype=torch.long), {k: v.expand(4096, -1) for k, v in raw.items()}, tw[i], to[i])
+                    opt.zero_grad()
+                    ((target[i] - torch.log1p(tw[i, 2:3] * f)) ** 2).mean().backward()
+                    opt.step()
+                with torch.no_grad():
+                    f = family.with_heads(torch.tensor([m]), *head).evaluate(
+                        torch.zeros(len(wi), dtype=torch.long), {k: v.expand(len(wi), -1) for k, v in raw.items()}, wi, wo)
+                cells.append(f"{prior.materials[m]}{' +head' if heads else ''} "
+                             f"{cmae(truth, f.double().numpy(), wi[:, 2].numpy()) / full:.2f}")
+        print(f"ceiling {name}: full measurement cMAE {full:.5f}; ratio to it, values (+head) fitted to the truth: "
+              + ", ".join(cells), flush=True)
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stage", default="8x4", help="KxV lights x cameras (default 8x4: 32 photographs)")
@@ -254,6 +310,8 @@ def main() -> int:
     ap.add_argument("--budget", action="store_true", help="time the 512x512, 64-photograph, 128x128 fit instead")
     ap.add_argument("--footprint", action="store_true",
                     help="print why texels are scored pure over their whole cell (no fits) instead")
+    ap.add_argument("--ceiling", action="store_true",
+                    help="print what the frozen network reaches fitted to each truth itself (no photographs) instead")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
     ap.add_argument("--machine", default=machine_key(), help="machine key (default: detected)")
     ap.add_argument("--out", help="write PREFIX.txt (default results/acquire_gap_MACHINE)")
@@ -268,6 +326,8 @@ def main() -> int:
     torch.set_num_threads(args.threads)
     if args.footprint:
         return run_footprint(args)
+    if args.ceiling:
+        return run_ceiling(args)
     return run_budget(args) if args.budget else run_sweep(args)
 
 

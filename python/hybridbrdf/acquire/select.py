@@ -16,14 +16,13 @@ that overfits the directions it sees.
    training shots only): the fit the texel stage will run, on the texels that show one material.
 3. **Choice.** Each candidate's *held-out loss*: the paper's mean squared log residual of those
    texels' fitted values on their held-out rows. The lowest wins.
-4. **Refit.** The winner's values fitted again on all of the cluster's rows (all shots) from the
-   prior's values, the cluster stage's own fit (the same rows, steps and draws): the cluster's
-   values and residual variance for the stages after. A cluster whose choice the held-out shots
-   do not change thus gets what it gets without selection, bit for bit, and the texel stage fits
-   each texel on its own: what selection changes is where it chose another material, nothing else
-   (a refit continued from the training shots' values instead moved the texels of clusters whose
-   choice had not changed, as much as the seed spread: the values the cluster stage's 100 steps
-   reach depend on where they start)."""
+4. **Refit.** The winner's values fitted again on all of the cluster's rows (all shots), from its
+   training-shot values, by the cluster stage's objective (cluster_fit.map_objective): the
+   cluster's values and residual variance for the stages after. From the training values, not the
+   prior's: the cluster stage's screen starts a material at the cluster's colour, and 100 steps
+   from a green material's own values do not reach a white paper (paper_white 10-12x the full
+   measurement's cMAE when this refit started from the prior's). A cluster whose choice does not
+   change thus moves a little (where its 100 steps end depends on where they start)."""
 
 from __future__ import annotations
 
@@ -32,7 +31,8 @@ from typing import Dict, Optional
 import numpy as np
 import torch
 
-from hybridbrdf.acquire.cluster_fit import CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material, refine_texels
+from hybridbrdf.acquire.cluster_fit import (CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material, refine_texels,
+                                            value_spread)
 from hybridbrdf.acquire.network_tune import pure_texels
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress
@@ -94,7 +94,7 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
                        progress: Optional[Progress] = None, colour: Optional[torch.Tensor] = None) -> Dict[str, object]:
     """The cluster stage with its choice made on held-out shots (module docstring): what
     :func:`~hybridbrdf.acquire.cluster_fit.fit_clusters` returns, the candidates ordered by held-out
-    loss (the chosen first, its values and "loss" refitted on all shots from the prior's; the others' on the
+    loss (the chosen first, its values and "loss" refitted on all shots from its training values; the others' on the
     training shots), each with "held_out_loss" and "training_loss", and "held_out_shots" (the
     indices). ``data`` holds all of ``obs``."""
     train, held, shots = split_shots(obs)
@@ -123,8 +123,10 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
             rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
             best = fitted[0]
             m = int(best["material"])
-            refit = fit_material(family, data, rows, m, {n: v[m] for n, v in every.items()}, seed, f"cluster{c}-{m}")
-            best.update(loss=refit["loss"], raw=refit["raw"])
+            own = {**{n: v[m] for n, v in every.items()}, "tau2": value_spread(every)}
+            refit = fit_material(family, data, rows, m, best["raw"], seed, f"cluster{c}-{m}", own,
+                                 len(np.unique(obs.shot[rows.numpy()])))
+            best.update(loss=refit["loss"], score=refit["score"], raw=refit["raw"])
         chosen.append(fitted)
     first = [f[0] if f else None for f in chosen]
     fallback = next(f for f in first if f is not None)  # fit_clusters gives the first cluster rows
