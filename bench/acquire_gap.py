@@ -20,14 +20,18 @@ the same pairs against the file. The ratio hybrid / full measurement is issue 61
                                                              # onto 128x128: the fit's seconds
     python bench/acquire_gap.py --ceiling                    # the frozen network fitted to each truth
 
-Configurations (CONFIGS): ``base`` the fit before issue 61 part 2 (refit_heads=False), ``heads``
+Configurations (CONFIGS): ``base`` the fit with hbrdf acquire fit's defaults, ``heads``
 each cluster's output layer refitted on its rows with the pull toward the prior's head
 (refit_heads=True), ``heads_free`` the same without the pull (cluster_fit.HEAD_PULL = 0),
 ``heads_pull10`` with 10 times the pull, ``finetune`` the network, the cluster heads and values
 fine-tuned on the clusters' pure texels with the prior's materials replayed, 500 steps
 (finetune_network=500; acquire.network_tune), the texels then fitted on the tuned network;
 ``select`` each cluster's prior material chosen among the training shots' best 3 on held-out
-photographs (select=True; acquire.select).
+photographs (select=True; acquire.select); ``texels_pull10`` / ``texels_pull100`` the texel
+stage's pull toward its cluster's values 10 / 100 times the MAP weight (cluster_fit.TEXEL_PULL);
+``finetune200`` the fine-tune for 200 steps, ``finetune_lr_half`` for 500 at half the network's
+rate (network_tune.NETWORK_LR). ``base`` is the fit of today's defaults (the cluster stage on pure
+texels with every material screened since issue 61's second round: docs/ACQUISITION_GAP.md).
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ import torch
 
 import hybridbrdf as hb
 import hybridbrdf.acquire.cluster_fit as cluster_fit
+import hybridbrdf.acquire.network_tune as network_tune
 from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -63,19 +68,23 @@ SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_suns
 CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
            "heads_free": ({"refit_heads": True}, 0.0), "heads_pull10": ({"refit_heads": True}, 10.0),
            "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None),
-           "texels_pull10": ({}, ("TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("TEXEL_PULL", 100.0))}
+           "texels_pull10": ({}, ("TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("TEXEL_PULL", 100.0)),
+           "finetune200": ({"finetune_network": 200}, None),
+           "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3))}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int):
     """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after."""
     keywords, pull = CONFIGS[config]
     name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
-    default = getattr(cluster_fit, name)
-    setattr(cluster_fit, name, default if value is None else value)
+    module = network_tune if name.startswith("network_tune.") else cluster_fit
+    name = name.split(".")[-1]
+    default = getattr(module, name)
+    setattr(module, name, default if value is None else value)
     try:
         return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, **keywords)
     finally:
-        setattr(cluster_fit, name, default)
+        setattr(module, name, default)
 #: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
 JITTER = 0.001
 

@@ -131,11 +131,10 @@ def _cluster_rows(obs: Observations, labels: np.ndarray, c: int, n: int, seed: i
     """Up to ``n`` rows of cluster ``c``'s pure texels (:func:`~hybridbrdf.acquire.network_tune.pure_rows`:
     its 8 neighbours in the cluster too; every texel of ``c`` when none is pure), drawn without
     replacement (seeded). Why pure texels: a texel on a layer's boundary is photographed as a mix
-    that no material of the prior explains, and a few of them dominate a cluster's squared log
-    residual (paper3's paper_white cluster, 289 texels of which 107 on the disc's and band's rims:
-    fitted on all of them its best material's residual was 1.4e-3 per row and channel and its values
-    5.2x the full measurement's cMAE; on its pure texels 1.5e-5, the right material, 1.6x;
-    docs/ACQUISITION_GAP.md)."""
+    that no material of the prior explains (bench/acquire_gap.py --footprint), and a few of them
+    dominate a cluster's squared log residual: fitted on all its texels, paper3's paper_white cluster
+    chose a material that explains the rims and its own texels worse (docs/ACQUISITION_GAP.md, "The
+    cluster stage on pure texels, every material screened")."""
     rows = network_tune.pure_rows(obs, labels, c).numpy()
     if len(rows) > n:
         rows = np.sort(np.random.default_rng([seed, c]).choice(rows, n, replace=False))
@@ -207,9 +206,11 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
 
     Why fitted and not scored with its own values: a material's values (its colour, above all) are
     what the texel fit changes anyway, so the material to choose is the one whose *shape* explains
-    the rows. Scored with its own values, paper3's paper_white cluster left spectralon (the prior's
-    best after fitting, by 2.3x the runner-up's residual) outside the two it fitted; and a red
-    material photographed blue ranks far down (tests/python/test_acquire_cluster_stage.py). Why the
+    the rows: scored with its own values, a red material photographed blue ranks far down
+    (tests/python/test_acquire_cluster_stage.py), and paper3's paper_white cluster chose cm_white_rgb
+    in one capture (results/acquire_gap_M2.txt's layers), which the frozen network extrapolates worse
+    than spectralon (bench/acquire_gap.py --ceiling: fitted to the truth itself, 2.30x the full
+    measurement's cMAE against 1.38x). Why the
     second start: from its own red, 40 steps do not bring that material to blue (about 4 logits in
     each of kd's channels) before materials already blue overtake it."""
     n_mat, n_rows = len(next(iter(every.values()))), len(rows)
