@@ -7,8 +7,9 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 2. **clusters**: k-means (K <= 4: a textured material holds a base and up to 3 layers) on the
    standardised features; per cluster, on rows of its pure texels (:func:`_cluster_rows`), every
    material of the prior screened by a short fit of its values (:func:`screen_materials`), the
-   best :data:`CANDIDATES` fitted (all of the family's per-texel values, one set for the cluster,
-   on the frozen network), the lowest loss kept; or
+   screen's best :data:`CANDIDATES` and the best as photographed fitted (all of the family's
+   per-texel values, one set for the cluster, on the frozen network), the lowest
+   :func:`map_objective` kept; or
    (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
@@ -305,6 +306,8 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             centres[name].append(best["raw"][name])
         sigma2.append(max(best["loss"], 1e-8))
         fitted_all.append(fitted)
+    if progress is not None and done < total:  # fewer fits than the bar allows (the best as photographed
+        progress("clusters", total, total)      # among the screen's, a cluster without rows): its end
     return {"material": torch.tensor(materials), "centres": {n: torch.stack(v) for n, v in centres.items()},
             "sigma2": torch.tensor(sigma2), "candidates": fitted_all}
 
