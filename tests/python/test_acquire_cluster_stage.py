@@ -78,13 +78,15 @@ def test_every_material_is_screened_with_fitted_values_so_a_recoloured_shape_is_
     assert kd[2] > 2 * kd[0], kd
 
 
-def test_the_batched_evaluation_is_the_per_material_one():
+def test_the_shared_evaluation_is_the_per_material_one():
     prior = load_prior()
     family = HybridFamily(prior)
     every = family.raw_of_materials()
-    m = torch.arange(len(prior.materials)).repeat_interleave(8)
-    wi, wo = cosine_pairs(len(m), 1)
-    raw = {k: v[m] for k, v in every.items()}
+    m = torch.arange(len(prior.materials))
+    wi, wo = cosine_pairs(16, 1)
     with torch.no_grad():
-        a, b = family.evaluate(m, raw, wi, wo), family.evaluate_batched(m, raw, wi, wo)
-    assert torch.allclose(a, b, rtol=1e-5, atol=1e-7), float((a - b).abs().max())
+        shared = family.evaluate_shared(m, every, wi, wo)  # (M, 16, 3)
+        one = torch.stack([family.evaluate(torch.full((16,), k), {n: v[k][None].expand(16, -1) for n, v in every.items()},
+                                           wi, wo) for k in m.tolist()])
+    assert shared.shape == one.shape and torch.allclose(shared, one, rtol=1e-5, atol=1e-7), \
+        float((shared - one).abs().max())

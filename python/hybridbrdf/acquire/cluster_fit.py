@@ -218,16 +218,23 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
     starts = [every] if colour is None or "kd" not in every else [every, {**every, "kd": colour.expand_as(every["kd"])}]
     raw = {name: torch.cat([s[name] for s in starts]).clone().requires_grad_() for name in every}
     n_fit = n_mat * len(starts)
-    material = torch.arange(n_mat).repeat(len(starts)).repeat_interleave(n_rows)
+    material = torch.arange(n_mat).repeat(len(starts))
+    wi, wo = data.wi[rows], data.wo[rows]
+    if hasattr(family, "evaluate_shared"):  # every fit on the same rows: one pass
+        def evaluate():
+            return family.evaluate_shared(material, raw, wi, wo).reshape(n_fit * n_rows, -1)
+    else:
+        def evaluate():
+            per_row = material.repeat_interleave(n_rows)
+            return family.evaluate(per_row, {n: v.repeat_interleave(n_rows, 0) for n, v in raw.items()},
+                                   wi.repeat(n_fit, 1), wo.repeat(n_fit, 1))
     batch = rows.repeat(n_fit)
-    evaluate = getattr(family, "evaluate_batched", family.evaluate)
     own, tau2 = {n: v.repeat(len(starts), 1) for n, v in every.items()}, value_spread(every)
 
     best = {"objective": torch.full((n_fit,), float("inf")), **{n: v.detach().clone() for n, v in raw.items()}}
 
     def per_fit(gen):
-        d = data.residual(batch, evaluate(material, {n: v.repeat_interleave(n_rows, 0) for n, v in raw.items()},
-                                          data.wi[batch], data.wo[batch]))
+        d = data.residual(batch, evaluate())
         objective = map_objective((d * d).reshape(n_fit, -1).mean(1), raw, own, tau2, shots)
         # Each fit's best values so far: at this rate Adam's first steps move every value by about the
         # rate whatever its gradient, so a material photographed exactly as it is leaves its optimum.

@@ -86,20 +86,22 @@ class HybridFamily:
         return out
 
 
-    def evaluate_batched(self, material, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
-        """What :meth:`evaluate` gives, in one pass over rows of many materials: each row's output
-        layer and energy table gathered (rows x 6 x width floats), not a pass per material (the
-        screen of every prior material, :func:`~hybridbrdf.acquire.cluster_fit.screen_materials`)."""
+    def evaluate_shared(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+        """f (G, R, 3): G fits, fit g material ``material[g]`` with values ``raw`` {name: (G, c)}, all
+        on the same R direction pairs ``wi``, ``wo`` (R, 3), in one pass (the network's own
+        many-materials evaluation, as the joint fit runs it: one batched product per output layer,
+        not a pass per material); what :meth:`evaluate` gives for each fit's rows. The screen of
+        every prior material, :func:`~hybridbrdf.acquire.cluster_fit.screen_materials`."""
         t = self.tensors
         kd, eta, alpha, z = self.decode(raw)
         wi, wo = wi.to(torch.float32), wo.to(torch.float32)
         head = (t["materials.head_weight"][material], t["materials.head_bias"][material]) \
             if "materials.head_weight" in t else None
-        f, _ = self.module.evaluate_pairs(wi, wo, kd, eta, alpha, z, head)
+        f, _ = self.module.evaluate(wi, wo, kd, eta, alpha, z, head)
         if "materials.energy_bound" in t:
-            table = t["materials.energy_bound"][material]
+            table = t["materials.energy_bound"][material][:, None]  # (G, 1, K) against (R,) cosines
             ci, co = (_normalize(w)[0][:, 2] for w in (wi, wo))
-            f = f * (energy_bound_scale(table, ci) * energy_bound_scale(table, co))[:, None]
+            f = f * (energy_bound_scale(table, ci[None]) * energy_bound_scale(table, co[None]))[..., None]
         return f
 
 

@@ -305,9 +305,8 @@ class HybridBRDF(nn.Module):
         """(f_t, f_a), each (N, 3), where pair i has its own values: kd, eta (N, 3), alpha (N, 2),
         z (N, l) on directions wi, wo (N, 3), and with material output layers one ``head`` =
         (weight (n_out, width), bias (n_out)) for every pair: the texels of one layer of a
-        textured material (docs/SVBRDF.md); or a head per pair, weight (N, n_out, width) and bias
-        (N, n_out) (pairs of many materials in one pass: the acquisition fit's screen). Same
-        function as :meth:`evaluate`, rounded alike up to the order of the first layer's sums."""
+        textured material (docs/SVBRDF.md). Same function as :meth:`evaluate`, rounded alike
+        up to the order of the first layer's sums."""
         wi_n, wo_n, valid = _unit_pair(wi, wo)
         f_a = eval_analytic(wi_n, wo_n, kd, eta, alpha)  # (N, 3)
         kind = spec.ARCHS[self.arch]["directions"]
@@ -323,11 +322,7 @@ class HybridBRDF(nn.Module):
         if self.output_layer == "material":
             if head is None:
                 raise ValueError("a model with material output layers needs the layer's head")
-            features = self.mlp.features_from(pre)
-            if head[0].dim() == 3:  # a head per pair: (N, n_out, width), (N, n_out)
-                o = torch.einsum("nw,now->no", features, head[0]) + head[1]
-            else:
-                o = features @ head[0].t() + head[1]
+            o = self.mlp.features_from(pre) @ head[0].t() + head[1]
         else:
             o = self.mlp.forward_from(pre)
         f_t = self.combine(o, f_a)
