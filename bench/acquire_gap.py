@@ -30,7 +30,8 @@ fine-tuned on the clusters' pure texels with the prior's materials replayed, 500
 photographs (select=True; acquire.select); ``texels_pull10`` / ``texels_pull100`` the texel
 stage's pull toward its cluster's values 10 / 100 times the MAP weight (cluster_fit.TEXEL_PULL);
 ``finetune200`` the fine-tune for 200 steps, ``finetune_lr_half`` for 500 at half the network's
-rate (network_tune.NETWORK_LR). ``base`` is the fit of today's defaults (the cluster stage on pure
+rate (network_tune.NETWORK_LR), ``finetune_pull`` for 500 with the heads pulled toward their start
+(network_tune.HEAD_PULL = 1). ``base`` is the fit of today's defaults (the cluster stage on pure
 texels with every material screened since issue 61's second round: docs/ACQUISITION_GAP.md).
 """
 
@@ -70,7 +71,8 @@ CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": Tru
            "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None),
            "texels_pull10": ({}, ("TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("TEXEL_PULL", 100.0)),
            "finetune200": ({"finetune_network": 200}, None),
-           "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3))}
+           "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3)),
+           "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0))}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int):

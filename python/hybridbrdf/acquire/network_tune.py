@@ -40,6 +40,9 @@ REPLAY_WEIGHT = 1.0
 #: Adam rates at the first step (decaying linearly to a tenth): the hidden layers', and the heads'
 #: and cluster values' (the head refit's and cluster stage's order of rate).
 NETWORK_LR, HEAD_LR = 2e-3, 1e-2
+#: The heads' pull toward their start, a multiple of its MAP weight (0: none, the default measured in
+#: docs/ACQUISITION_GAP.md; the bench's finetune_pull sets 1).
+HEAD_PULL = 0.0
 #: Direction pairs of the drift report per prior material.
 DRIFT_PAIRS = 2000
 
@@ -125,6 +128,21 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
         return (d * d).mean()
 
     seen = [c for c in range(k) if len(rows[c])]
+    # The heads' MAP pull toward where they started (the head refit's, cluster_fit.refit_heads_of):
+    # each element a draw around its start with the spread of that element over the prior's materials,
+    # weighed against the cluster's residual variance over 3 x its photographs; HEAD_PULL times that.
+    t = family.tensors
+    tau2 = [t["materials." + n].var(dim=0).clamp_min(1e-6) for n in ("head_weight", "head_bias")]
+    start_head = [weight.detach().clone(), bias.detach().clone()]
+    shots = [max(1, len(np.unique(obs.shot[rows[c].numpy()]))) if len(rows[c]) else 1 for c in range(k)]
+    pull = torch.tensor([HEAD_PULL * float(clusters["sigma2"][c]) / (3 * shots[c]) / max(1, len(seen))
+                         for c in range(k)])
+
+    def head_pull():
+        if HEAD_PULL == 0:
+            return 0.0
+        return ((pull[:, None, None] * (heads["weight"] - start_head[0]) ** 2 / tau2[0]).sum()
+                + (pull[:, None] * (heads["bias"] - start_head[1]) ** 2 / tau2[1]).sum())
     losses = []
     for step in range(steps):
         gen = step_generator(seed, "network", step)
@@ -136,7 +154,7 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
         r = (pick[:, None] * REPLAY_PAIRS + torch.arange(REPLAY_PAIRS)).reshape(-1)
         d = pool["target"][r] - _log_f(tuned, pool["material"][r], {n: v[r] for n, v in pool["raw"].items()},
                                        pool["wi"][r], pool["wo"][r])
-        (fit + REPLAY_WEIGHT * (d * d).mean()).backward()
+        (fit + REPLAY_WEIGHT * (d * d).mean() + head_pull()).backward()
         opt.step()
         losses.append(float(fit.detach()))
         if progress is not None:
