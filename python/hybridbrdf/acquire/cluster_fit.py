@@ -52,7 +52,7 @@ CANDIDATES = 2
 CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
 #: Rows, steps and Adam rate of the screen that fits every material's values briefly to rank them
 #: (:func:`screen_materials`): a rate above the candidates' fit's (0.03) because a colour far from
-#: the material's own is many logits away (red to blue: about 4 in each of kd's channels).
+#: the material's own is several logits away in each of kd's channels (red to blue).
 SCREEN_ROWS, SCREEN_STEPS, SCREEN_LR = 256, 40, 0.1
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
@@ -212,8 +212,8 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
     in one capture (results/acquire_gap_M2.txt's layers), which the frozen network extrapolates worse
     than spectralon (bench/acquire_gap.py --ceiling: fitted to the truth itself, 2.30x the full
     measurement's cMAE against 1.38x). Why the
-    second start: from its own red, 40 steps do not bring that material to blue (about 4 logits in
-    each of kd's channels) before materials already blue overtake it."""
+    second start: from its own red, 40 steps do not bring that material to blue (several logits in
+    each of kd's channels) before materials already blue overtake it (the test, seen failing)."""
     n_mat, n_rows = len(next(iter(every.values()))), len(rows)
     starts = [every] if colour is None or "kd" not in every else [every, {**every, "kd": colour.expand_as(every["kd"])}]
     raw = {name: torch.cat([s[name] for s in starts]).clone().requires_grad_() for name in every}
@@ -287,7 +287,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             # chance, and a material photographed as it is keeps its lead as it is.
             ranked = torch.argsort(scores)[:candidates].tolist()
             ranked += [m for m in torch.argsort(as_is)[:1].tolist() if m not in ranked]
-            starts, owns = screened, {**every, "tau2": tau2}
+            starts, by_objective = screened, True
         else:  # only texels on a boundary: rows of mixes, which the screen would explain with whichever
             # material's refitted values imitate the mix best, a layer of its own for a boundary
             # (tests/python/test_acquire_fit.py's halves: a white paper's rim took cm_white, a third
@@ -297,10 +297,10 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
                 as_is = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
                                                 {n: v[m].expand(len(score_rows), -1) for n, v in every.items()},
                                                 score_rows) for m in range(len(every["z"]))])
-            ranked, starts, owns = torch.argsort(as_is)[:candidates].tolist(), every, None
+            ranked, starts, by_objective = torch.argsort(as_is)[:candidates].tolist(), every, False
         fitted = []
         for m in ranked:
-            own = None if owns is None else {n: v[m] if n != "tau2" else v for n, v in owns.items()}
+            own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2} if by_objective else None
             fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in starts.items()}, seed,
                                        f"cluster{c}-{m}", own, shots))
             done += CLUSTER_STEPS

@@ -85,7 +85,6 @@ class HybridFamily:
             out = out.index_copy(0, rows, f.to(out.dtype))
         return out
 
-
     def evaluate_shared(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
         """f (G, R, 3): G fits, fit g material ``material[g]`` with values ``raw`` {name: (G, c)}, all
         on the same R direction pairs ``wi``, ``wo`` (R, 3), in one pass (the network's own

@@ -104,6 +104,7 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
                             colour)
     chosen, done, total = [], 0, sum(len(f) for f in clusters["candidates"])
     every = family.raw_of_materials()
+    tau2 = value_spread(every)
     for c, fitted in enumerate(clusters["candidates"]):
         texels = pure_texels(labels, obs.size, c)
         texels = texels[np.diff(held.offsets)[texels] > 0]
@@ -123,7 +124,7 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
             rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
             best = fitted[0]
             m = int(best["material"])
-            own = {**{n: v[m] for n, v in every.items()}, "tau2": value_spread(every)}
+            own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2}
             refit = fit_material(family, data, rows, m, best["raw"], seed, f"cluster{c}-{m}", own,
                                  len(np.unique(obs.shot[rows.numpy()])))
             best.update(loss=refit["loss"], score=refit["score"], raw=refit["raw"])
