@@ -28,7 +28,8 @@ fine-tuned on the clusters' pure texels with the prior's materials replayed, 500
 (finetune_network=500; acquire.network_tune), the texels then fitted on the tuned network;
 ``select`` each cluster's prior material chosen among the training shots' best 3 on held-out
 photographs (select=True; acquire.select); ``texels_pull10`` / ``texels_pull100`` the texel
-stage's pull toward its cluster's values 10 / 100 times the MAP weight (cluster_fit.TEXEL_PULL);
+stage's pull toward its cluster's values 10 / 100 times the MAP weight (texel_stage.TEXEL_PULL);
+``no_shrink`` the texel stage without the shrink toward the clusters' values (texel_stage.SHRINK);
 ``finetune200`` the fine-tune for 200 steps, ``finetune_lr_half`` for 500 at half the network's
 rate (network_tune.NETWORK_LR), ``finetune_pull`` for 500 with the heads pulled toward their start
 (network_tune.HEAD_PULL = 1). ``base`` is the fit of today's defaults (the cluster stage on pure
@@ -49,6 +50,7 @@ import torch
 import hybridbrdf as hb
 import hybridbrdf.acquire.cluster_fit as cluster_fit
 import hybridbrdf.acquire.network_tune as network_tune
+import hybridbrdf.acquire.texel_stage as texel_stage
 from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -69,7 +71,8 @@ SAMPLES = {"paper3": ("paper_white_rgb", "vch_golden_yellow_rgb", "cc_ibiza_suns
 CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": True}, None),
            "heads_free": ({"refit_heads": True}, 0.0), "heads_pull10": ({"refit_heads": True}, 10.0),
            "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None),
-           "texels_pull10": ({}, ("TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("TEXEL_PULL", 100.0)),
+           "texels_pull10": ({}, ("texel_stage.TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("texel_stage.TEXEL_PULL", 100.0)),
+           "no_shrink": ({}, ("texel_stage.SHRINK", False)),
            "finetune200": ({"finetune_network": 200}, None),
            "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3)),
            "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0))}
@@ -79,7 +82,7 @@ def fit_config(obs, prior, config: str, steps: int, seed: int):
     """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after."""
     keywords, pull = CONFIGS[config]
     name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
-    module = network_tune if name.startswith("network_tune.") else cluster_fit
+    module = {"network_tune": network_tune, "texel_stage": texel_stage}.get(name.split(".")[0], cluster_fit)
     name = name.split(".")[-1]
     default = getattr(module, name)
     setattr(module, name, default if value is None else value)

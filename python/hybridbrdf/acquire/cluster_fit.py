@@ -18,17 +18,10 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 4. **network** (``finetune_network`` steps): the hidden layers, each cluster's head and values
    trained on the clusters' pure texels with the prior's materials replayed
    (:mod:`~hybridbrdf.acquire.network_tune`); the texel stage then runs on the tuned network.
-5. **texels**: every texel's values refined from its cluster's, each texel with its cluster's
-   material (output layer, energy table), a Gaussian pull toward the cluster's values (below).
-
-The pull is the MAP estimate's prior: a texel's rows have log residuals of variance sigma^2 (the
-cluster fit's mean squared residual per row and channel) and its values are a draw around the
-cluster's with variance tau_j^2 per component (the spread of that component over the prior's
-materials: how far materials differ). Dividing the negative log posterior by 3 n_t / sigma^2:
-
-    L_t = mean_{rows, channels} d^2 + sigma^2 / (3 n_t) sum_j (theta_tj - theta_cj)^2 / tau_j^2,
-
-so a texel seen once stays near its cluster, one seen 100 times follows its own rows."""
+5. **texels** (:mod:`~hybridbrdf.acquire.texel_stage`): every texel's values refined from its
+   cluster's, each texel with its cluster's material (output layer, energy table) and a Gaussian
+   pull toward the cluster's values, then shrunk toward them by as much as the cluster's texels
+   say their differences are noise."""
 
 from __future__ import annotations
 
@@ -41,7 +34,8 @@ from hybridbrdf import spec
 from hybridbrdf.acquire import network_tune
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
-from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
+from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, adam_texels
+from hybridbrdf.acquire.texel_stage import refine_texels
 from hybridbrdf.model.networks import raw_from_analytic
 
 #: Clusters of texels at most (a textured material's base and 3 layers).
@@ -56,8 +50,6 @@ CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
 SCREEN_ROWS, SCREEN_STEPS, SCREEN_LR = 256, 40, 0.1
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
-#: The texel stage's pull toward the cluster's values, a multiple of its MAP weight (module docstring).
-TEXEL_PULL = 1.0
 #: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
 HEAD_PULL = 1.0
 #: A refit starts a gated head's f_c biases at -HEAD_START or above and its f_g biases at HEAD_START
@@ -389,36 +381,6 @@ def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: 
             "centres": {n: torch.stack(v) for n, v in centres.items()}, "sigma2": torch.tensor(sigma2)}
 
 
-def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
-                  steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL, lr: float = 0.01,
-                  progress: Optional[Progress] = None, state: Optional[dict] = None,
-                  save_state: Optional[Callable[[dict], None]] = None) -> Dict[str, torch.Tensor]:
-    """Every texel's values (n_texels, c) refined from its cluster's with the pull of the module
-    docstring: ``steps`` steps of ``rows_per_texel`` rows of every texel."""
-    lab = torch.from_numpy(labels)
-    counts = torch.from_numpy(np.diff(obs.offsets)).double()
-    every = family.raw_of_materials()
-    tau2 = value_spread(every)
-    weight = (TEXEL_PULL * clusters["sigma2"][lab].double() / (3 * counts.clamp_min(1))).float()  # sigma^2 / (3 n_t)
-    centre = {n: v[lab] for n, v in clusters["centres"].items()}
-    raw = {n: v.clone().requires_grad_() for n, v in centre.items()}
-    material_of_texel = clusters["material"][lab]
-    sampler = RowSampler(obs, rows_per_texel)
-    seen = sampler.texels
-
-    def loss(gen):
-        texel, rows = sampler.draw(gen)
-        d = data.residual(rows, family.evaluate(material_of_texel[texel], {n: v[texel] for n, v in raw.items()},
-                                                data.wi[rows], data.wo[rows]))
-        data_term = (d * d).sum() / (3 * rows_per_texel)  # sum over texels of each texel's mean
-        pull = sum((((raw[n][seen] - centre[n][seen]) ** 2) / tau2[n]).sum(1) * weight[seen] for n in raw).sum()
-        return data_term + pull
-
-    if len(seen):
-        adam_texels(raw, loss, steps, lr, seed, "texels", progress, state, save_state)
-    return {n: v.detach() for n, v in raw.items()}
-
-
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
@@ -489,7 +451,7 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
                           "centres": tuned["centres"], "sigma2": tuned["sigma2"]}
         clusters = {**clusters, "heads": {n: tuned[n] for n in ("weight", "bias", "centres", "sigma2")},
                     "network": tuned}
-    raw = refine_texels(stage_family, obs, data, labels, stage_clusters, steps, seed, rows_per_texel,
-                        progress=progress, state=state.get("texels_partial"), save_state=saver("texels_partial"))
+    raw = refine_texels(stage_family, obs, data, labels, stage_clusters, value_spread(family.raw_of_materials()),
+                        steps, seed, rows_per_texel, progress=progress, state=state.get("texels_partial"), save_state=saver("texels_partial"))
     return labels, clusters, raw
 

@@ -12,7 +12,7 @@ that overfits the directions it sees.
 2. **Candidates.** Per cluster the :data:`SELECT_CANDIDATES` materials the cluster stage scores best
    on the training shots, each fitted to them (one set of values: :func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`),
    then carried through the per-texel (p, z) fit of up to :data:`SELECT_TEXELS` of the cluster's
-   purest texels (:func:`~hybridbrdf.acquire.cluster_fit.refine_texels`, :data:`SELECT_STEPS` steps,
+   purest texels (:func:`~hybridbrdf.acquire.texel_stage.refine_texels`, :data:`SELECT_STEPS` steps,
    training shots only): the fit the texel stage will run, on the texels that show one material.
 3. **Choice.** Each candidate's *held-out loss*: the paper's mean squared log residual of those
    texels' fitted values on their held-out rows. The lowest wins.
@@ -31,11 +31,12 @@ from typing import Dict, Optional
 import numpy as np
 import torch
 
-from hybridbrdf.acquire.cluster_fit import (CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material, refine_texels,
+from hybridbrdf.acquire.cluster_fit import (CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material,
                                             value_spread)
 from hybridbrdf.acquire.network_tune import pure_texels
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress
+from hybridbrdf.acquire.texel_stage import refine_texels
 
 #: The share of the shots held out (frac((k + 1/2) phi) below it).
 HELD_OUT_SHARE = 0.2
@@ -78,7 +79,8 @@ def _held_out_loss(family, train: Observations, held: Observations, texels: np.n
     one = {"material": torch.tensor([cand["material"]]), "centres": {n: v[None] for n, v in cand["raw"].items()},
            "sigma2": torch.tensor([max(cand["loss"], 1e-8)])}
     zeros = np.zeros(len(keep), dtype=np.int64)
-    raw = refine_texels(family, mine, ObservationTensors(mine), zeros, one, SELECT_STEPS, seed)
+    raw = refine_texels(family, mine, ObservationTensors(mine), zeros, one, value_spread(family.raw_of_materials()),
+                        SELECT_STEPS, seed)
     rows = np.concatenate([np.arange(held.offsets[t], held.offsets[t + 1]) for t in texels] + [np.zeros(0, np.int64)])
     texel = torch.from_numpy(np.repeat(texels, np.diff(held.offsets)[texels]))
     data = ObservationTensors(held)
