@@ -30,6 +30,8 @@ fine-tuned on the clusters' pure texels with the prior's materials replayed, 500
 photographs (select=True; acquire.select); ``texels_pull10`` / ``texels_pull100`` the texel
 stage's pull toward its cluster's values 10 / 100 times the MAP weight (texel_stage.TEXEL_PULL);
 ``no_shrink`` the texel stage without the shrink toward the clusters' values (texel_stage.SHRINK);
+``finetune200_free`` / ``finetune200_anchor1`` the 200-step fine-tune without its anchor and with
+10 times its weight (network_tune.ANCHOR_WEIGHT 0 and 1);
 ``finetune200`` the fine-tune for 200 steps, ``finetune_lr_half`` for 500 at half the network's
 rate (network_tune.NETWORK_LR), ``finetune_pull`` for 500 with the heads pulled toward their start
 (network_tune.HEAD_PULL = 1). ``base`` is the fit of today's defaults (the cluster stage on pure
@@ -73,6 +75,8 @@ CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": Tru
            "finetune": ({"finetune_network": 500}, None), "select": ({"select": True}, None),
            "texels_pull10": ({}, ("texel_stage.TEXEL_PULL", 10.0)), "texels_pull100": ({}, ("texel_stage.TEXEL_PULL", 100.0)),
            "no_shrink": ({}, ("texel_stage.SHRINK", False)),
+           "finetune200_free": ({"finetune_network": 200}, ("network_tune.ANCHOR_WEIGHT", 0.0)),
+           "finetune200_anchor1": ({"finetune_network": 200}, ("network_tune.ANCHOR_WEIGHT", 1.0)),
            "finetune200": ({"finetune_network": 200}, None),
            "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3)),
            "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0))}

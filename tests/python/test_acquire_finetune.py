@@ -18,10 +18,10 @@ from test_acquire_report import _capture
 
 import hybridbrdf as hb
 from hybridbrdf.acquire import cluster_fit, network_tune, simulate
-from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
+from hybridbrdf.acquire.hybrid_fit import HybridFamily, fit_hybrid_texels
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
-from hybridbrdf.acquire.observations import texel_observations
+from hybridbrdf.acquire.observations import Observations, texel_observations
 from hybridbrdf.acquire.rigs import light_stage_rig
 from hybridbrdf.acquire.texel_rows import ObservationTensors
 from hybridbrdf.evaluate.metrics import smape
@@ -116,3 +116,47 @@ def test_finetune_network_on_the_command_line_writes_the_tuned_network_and_its_d
     model = hb.load_model(os.path.join(out, json.load(open(os.path.join(out, "svbrdf.json")))["model"]))
     assert not np.array_equal(model.tensors["mlp.hidden.0.weight"], prior.tensors["mlp.hidden.0.weight"])
     assert model.materials[:len(prior.materials)] == prior.materials
+
+
+def test_the_anchor_keeps_a_cluster_from_brightening_where_no_photograph_looked(monkeypatch):
+    # A capture that sees one narrow cone of directions (both near the normal) and photographs the
+    # material 3x brighter there than the prior's: the fine-tune brightens the cluster to match. Where
+    # no photograph looked (both directions beyond 60 degrees) the one-sided anchor holds it near its
+    # start: without it (network_tune.ANCHOR_WEIGHT = 0) it brightens there too, as a vch_golden_yellow
+    # capture's layer once did by orders of magnitude (docs/ACQUISITION_GAP.md). Compared: the mean
+    # log brightening there over the start, anchored and free.
+    prior = load_prior()
+    family = HybridFamily(prior)
+    m = prior.index("red-plastic")
+    every = family.raw_of_materials()
+    clusters = {"material": torch.tensor([m]), "centres": {k: v[m:m + 1].clone() for k, v in every.items()},
+                "sigma2": torch.tensor([1e-3])}
+    wi, wo = seeded_cosine_directions(20000, 1), seeded_cosine_directions(20000, 2)
+    seen = (wi[:, 2] > 0.9) & (wo[:, 2] > 0.9)
+    wi, wo = torch.from_numpy(wi[seen].astype(np.float32)), torch.from_numpy(wo[seen].astype(np.float32))
+    raw = {k: v.expand(len(wi), -1) for k, v in clusters["centres"].items()}
+    with torch.no_grad():
+        g = 3 * family.evaluate(torch.full((len(wi),), m), raw, wi, wo)
+    n = len(g)
+    obs = Observations((1, 1), np.array([0, n]), wi.numpy(), wo.numpy(), g.numpy().astype(np.float32),
+                       np.zeros((n, 2), np.float32), np.zeros(n, np.int32))
+    far_i, far_o = (torch.from_numpy(d.astype(np.float32)) for d in
+                    (seeded_cosine_directions(4000, 3), seeded_cosine_directions(4000, 4)))
+    far = (far_i[:, 2] < 0.5) & (far_o[:, 2] < 0.5)
+    far_i, far_o = far_i[far], far_o[far]
+    with torch.no_grad():
+        start = family.evaluate(torch.full((len(far_i),), m), {k: v.expand(len(far_i), -1) for k, v in
+                                                                clusters["centres"].items()}, far_i, far_o)
+    brightening, default = {}, network_tune.ANCHOR_WEIGHT
+    for weight in (default, 0.0):
+        monkeypatch.setattr(network_tune, "ANCHOR_WEIGHT", weight)
+        tuned = network_tune.finetune_network(family, obs, ObservationTensors(obs), np.zeros(1, np.int64), clusters,
+                                              cluster_fit.start_heads(family, clusters), 100, seed=0)
+        view = network_tune.tuned_family(family, tuned["network"]).with_heads(clusters["material"], tuned["weight"],
+                                                                              tuned["bias"])
+        with torch.no_grad():
+            f = view.evaluate(torch.zeros(len(far_i), dtype=torch.long),
+                              {k: v.expand(len(far_i), -1) for k, v in tuned["centres"].items()}, far_i, far_o)
+            brightening[weight] = float(torch.log(f.clamp_min(1e-8) / start.clamp_min(1e-8)).clamp_min(0).mean())
+        assert tuned["loss"][1] < 0.5 * tuned["loss"][0]  # the capture is fitted either way
+    assert brightening[default] < 0.5 * brightening[0.0], brightening  # measured 0.49 against 3.04

@@ -8,9 +8,18 @@ network cannot forget them, as ``hbrdf add --refine`` replays a base's materials
 
 Per step, with d the paper's residual log(1 + cos g) - log(1 + cos f) (docs/CONVENTIONS.md):
 
-    L = (1/K) sum_c mean_{rows of c's pure texels} d^2  +  REPLAY_WEIGHT mean_{replayed rows} d^2,
+    L = (1/K) sum_c [mean_{rows of c's pure texels} d^2 + ANCHOR_WEIGHT mean_{anchor pairs} min(0, a_c)^2]
+        + REPLAY_WEIGHT mean_{replayed rows} d^2,
 
-the replayed rows :data:`REPLAY_MATERIALS` of the prior's materials a step (their (p, z) and head
+a_c = log(1 + cos f_c,start) - log(1 + cos f_c) on :data:`ANCHOR_PAIRS` fixed cosine-distributed
+pairs over the whole hemisphere, f_c,start the cluster as it started (the frozen prior, its start
+head and values): the *anchor*, one-sided, so a cluster may darken or change its shape freely but
+pays for becoming brighter than it started. The photographs see a few direction pairs; where none
+looked, nothing else held the tuned network, and one vch_golden_yellow capture's layer rose by
+orders of magnitude there, which its energy-bound table then crushed to near black at normal
+incidence (15.9x the full measurement's cMAE; docs/ACQUISITION_GAP.md). A two-sided anchor of the
+same weight also held it but took back most of what the fine-tune buys colodur_napoli. The
+replayed rows :data:`REPLAY_MATERIALS` of the prior's materials a step (their (p, z) and head
 fixed at the prior's), each on :data:`REPLAY_PAIRS` fixed cosine-distributed direction pairs with
 the prior's own f as the target. Each cluster starts from its head and values as the head refit
 leaves them, or from its material's (cluster_fit.start_heads). A texel is *pure* when its 8 neighbours share its cluster: the
@@ -43,6 +52,10 @@ NETWORK_LR, HEAD_LR = 2e-3, 1e-2
 #: The heads' pull toward their start, a multiple of its MAP weight (0: none, the default measured in
 #: docs/ACQUISITION_GAP.md; the bench's finetune_pull sets 1).
 HEAD_PULL = 0.0
+#: The clusters' anchor (module docstring): per cluster, :data:`ANCHOR_PAIRS` fixed cosine-distributed
+#: pairs with its own start as the ceiling, weighed ANCHOR_WEIGHT against the capture; 0: none (the
+#: bench's finetune200_free).
+ANCHOR_PAIRS, ANCHOR_WEIGHT = 512, 0.1
 #: Direction pairs of the drift report per prior material.
 DRIFT_PAIRS = 2000
 
@@ -91,6 +104,18 @@ def _replay_pool(family, seed: int) -> Dict[str, torch.Tensor]:
     return {"wi": wi, "wo": wo, "material": material, "raw": raw, "target": target, "n": n_mat}
 
 
+def _anchor_pool(family, clusters: Dict, start: Tuple, seed: int) -> Dict[str, torch.Tensor]:
+    """The clusters' anchor pairs and, per cluster, log(1 + cos f) of its start on them (K, P, 3)."""
+    wi, wo = cosine_pairs(ANCHOR_PAIRS, seed + 2)
+    targets = []
+    with torch.no_grad():
+        for c in range(len(clusters["material"])):
+            own = family.with_heads(clusters["material"][c:c + 1], start[0][c:c + 1], start[1][c:c + 1])
+            raw = {n: v[c:c + 1].expand(ANCHOR_PAIRS, -1) for n, v in start[2].items()}
+            targets.append(_log_f(own, torch.zeros(ANCHOR_PAIRS, dtype=torch.long), raw, wi, wo))
+    return {"wi": wi, "wo": wo, "target": torch.stack(targets) if targets else torch.zeros(0)}
+
+
 def tuned_family(family, network: Dict[str, torch.Tensor]):
     """``family`` evaluating with the hidden layers ``network`` (state-dict tensors by name)."""
     view = copy.copy(family)
@@ -128,6 +153,14 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
         return (d * d).mean()
 
     seen = [c for c in range(k) if len(rows[c])]
+    anchor = _anchor_pool(family, clusters, start, seed)
+
+    def anchor_term(c):
+        own = tuned.with_heads(clusters["material"][c:c + 1], heads["weight"][c:c + 1], heads["bias"][c:c + 1])
+        raw = {n_: heads["raw_" + n_][c:c + 1].expand(ANCHOR_PAIRS, -1) for n_ in centres}
+        d = anchor["target"][c] - _log_f(own, torch.zeros(ANCHOR_PAIRS, dtype=torch.long), raw, anchor["wi"], anchor["wo"])
+        d = d.clamp(max=0.0)  # one-sided: only where the cluster became brighter than it started
+        return (d * d).mean()
     # The heads' MAP pull toward where they started (the head refit's, cluster_fit.refit_heads_of):
     # each element a draw around its start with the spread of that element over the prior's materials,
     # weighed against the cluster's residual variance over 3 x its photographs; HEAD_PULL times that.
@@ -150,11 +183,12 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
             group["lr"] = rate * (1.0 - 0.9 * step / steps)
         opt.zero_grad()
         fit = sum(capture_term(gen, c) for c in seen) / max(1, len(seen))
+        anchored = 0.0 if ANCHOR_WEIGHT == 0 else ANCHOR_WEIGHT * sum(anchor_term(c) for c in seen) / max(1, len(seen))
         pick = torch.randperm(pool["n"], generator=gen)[:REPLAY_MATERIALS]
         r = (pick[:, None] * REPLAY_PAIRS + torch.arange(REPLAY_PAIRS)).reshape(-1)
         d = pool["target"][r] - _log_f(tuned, pool["material"][r], {n: v[r] for n, v in pool["raw"].items()},
                                        pool["wi"][r], pool["wo"][r])
-        (fit + REPLAY_WEIGHT * (d * d).mean() + head_pull()).backward()
+        (fit + anchored + REPLAY_WEIGHT * (d * d).mean() + head_pull()).backward()
         opt.step()
         losses.append(float(fit.detach()))
         if progress is not None:

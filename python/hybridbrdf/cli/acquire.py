@@ -242,9 +242,10 @@ def _add_fit_parser(commands) -> None:
     f.add_argument("--finetune-network", type=_count(0, 1000000), default=0, metavar="N",
                    help="after the clusters, fine-tune the prior's network, each cluster's head and values on the "
                         "clusters' pure texels for N steps, the prior's materials replayed against its own output; "
-                        "the texels are then fitted on the tuned network, which OUT's model carries; each cluster a "
-                        "layer <material>.acq<k> (default 0: off; docs/ACQUISITION_GAP.md); the replay's drift "
-                        "recorded in OUT/acquisition.json")
+                        "each cluster anchored where no photograph looked (it may not brighten there); the texels "
+                        "are then fitted on the tuned network, which OUT's model carries; each cluster a layer "
+                        "<material>.acq<k> (default 0: off; 200 is the best setting measured, "
+                        "docs/ACQUISITION_GAP.md); the replay's drift recorded in OUT/acquisition.json")
     f.add_argument("--select", action="store_true",
                    help="choose each cluster's prior material on held-out photographs: about a fifth of the shots "
                         "held out, the training shots' best 3 materials each fitted to the cluster's purest texels "
