@@ -452,6 +452,7 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
         clusters = {**clusters, "heads": {n: tuned[n] for n in ("weight", "bias", "centres", "sigma2")},
                     "network": tuned}
     raw = refine_texels(stage_family, obs, data, labels, stage_clusters, value_spread(family.raw_of_materials()),
-                        steps, seed, rows_per_texel, progress=progress, state=state.get("texels_partial"), save_state=saver("texels_partial"))
+                        steps, seed, rows_per_texel, progress=progress, state=state.get("texels_partial"),
+                        save_state=saver("texels_partial"))
     return labels, clusters, raw
 

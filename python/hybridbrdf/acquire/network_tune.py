@@ -16,7 +16,7 @@ pairs over the whole hemisphere, f_c,start the cluster as it started (the frozen
 head and values): the *anchor*, one-sided, so a cluster may darken or change its shape freely but
 pays for becoming brighter than it started. The photographs see a few direction pairs; where none
 looked, nothing else held the tuned network, and one vch_golden_yellow capture's layer rose by
-orders of magnitude there, which its energy-bound table then crushed to near black at normal
+orders of magnitude there, which its energy-bound table then crushed to near black toward normal
 incidence (15.9x the full measurement's cMAE; docs/ACQUISITION_GAP.md). A two-sided anchor of the
 same weight also held it but took back most of what the fine-tune buys colodur_napoli. The
 replayed rows :data:`REPLAY_MATERIALS` of the prior's materials a step (their (p, z) and head

@@ -11,8 +11,8 @@ prior's materials). Divided by 3 n_t / sigma^2:
 
 That pull is weak by design: it knows only how far *materials* differ, so a texel seen 500 times
 follows its own rows, noise and all. Pure texels of one material photographed under noise then
-scatter around their material: on the light-stage bench (docs/ACQUISITION_GAP.md) the scatter
-alone costs paper_white 1.83x the full measurement's cMAE where its texels' mean scores 1.66x.
+scatter around their material, and on the light-stage bench (docs/ACQUISITION_GAP.md) that
+scatter was most of what high noise cost.
 
 **Twins.** How far texels of one cluster truly differ is what the capture must say. Each texel
 is fitted twice in the same pass, on disjoint halves of its rows (even and odd rows: each pixel's
@@ -27,7 +27,7 @@ those were fitted on fewer rows, and a texel's optimum sits apart from them): wi
 of d_tj^2 / 4 and s^2 the mean of (m_tj - mu_cj)^2 over the cluster's texels, each mean taken
 over the lowest :data:`TRIM` of its squares (so texels on a layer's rim, photographed as
 mixtures, do not decide how much the pure ones shrink; trimmed alike, the two keep their ratio;
-medians would too, but scatter by a third over a cluster of 64 texels),
+medians would too, but a median of squares is the less efficient estimate),
 
     b_cj = min(1, nu^2 / s^2),    theta_tj = mu_cj + (1 - b_cj) (m_tj - mu_cj):
 
@@ -125,6 +125,7 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
     weight = (TEXEL_PULL * clusters["sigma2"][lab[seen]].double() / (3 * (counts / 2).clamp_min(1))).float()
     twin_centre = {n: v[seen].repeat(2, 1) for n, v in centre.items()}
     raw = {n: v.clone().requires_grad_() for n, v in twin_centre.items()}
+    weight = weight.repeat(2)
     material_of_twin = clusters["material"][lab[seen]].repeat(2)
 
     def loss(gen):
@@ -132,7 +133,7 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
         d = data.residual(rows, family.evaluate(material_of_twin[fit], {n: v[fit] for n, v in raw.items()},
                                                 data.wi[rows], data.wo[rows]))
         data_term = (d * d).sum() / (3 * sampler.per_twin)  # sum over twins of each twin's mean
-        pull = sum((((raw[n] - twin_centre[n]) ** 2) / tau2[n]).sum(1) * weight.repeat(2) for n in raw).sum()
+        pull = sum((((raw[n] - twin_centre[n]) ** 2) / tau2[n]).sum(1) * weight for n in raw).sum()
         return data_term + pull
 
     values = {n: v.clone() for n, v in centre.items()}
