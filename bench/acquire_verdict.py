@@ -19,7 +19,7 @@ of hybrid against another model on a metric (:func:`verdict`): the gap between t
 seed means counts only when it exceeds both models' seed ranges (max - min); inside them: tie.
 
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
-        [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout]
+        [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
         [--steps 150] [--photo 48] [--map 16] [--texels 16] [--pairs 5000] [--out results/acquire_verdict_MACHINE]
     python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
 """
@@ -57,7 +57,11 @@ MODELS = {"analytic": ("analytic only (f_a p per texel)", True, "fit_analytic_te
           "neural_heldout": ("neural only, rgl44_heldout_neural_32x3 (never saw them)", True, "fit_neural_texels",
                              ac.HELD_OUT_NEURAL),
           "hybrid_shipped": ("hybrid, shipped prior (NOT held out)", False, "fit_hybrid_texels", None),
-          "neural": ("neural only, rgl54_neural_32x3 (NOT held out)", False, "fit_neural_texels", ac.NEURAL)}
+          "neural": ("neural only, rgl54_neural_32x3 (NOT held out)", False, "fit_neural_texels", ac.NEURAL),
+          "hybrid_tuned": ("hybrid, prior that never saw them, its network fine-tuned 200 steps on the capture",
+                           True, "fit_hybrid_texels", ac.HELD_OUT_PRIOR)}
+#: Model key -> the fit's keyword arguments beyond the shared budget.
+EXTRA = {"hybrid_tuned": {"finetune_network": 200}}
 #: The hybrid of the verdict and the models it is compared with.
 HYBRID, OTHERS = "hybrid_heldout", ("analytic", "neural_heldout")
 METRICS = ac.VERDICT_METRICS
@@ -115,30 +119,30 @@ def verdict(hybrid, other) -> str:
     return "better" if gap > 0 else "worse"
 
 
-def verdict_lines(rows) -> list:
+def verdict_lines(rows, hybrid: str = HYBRID) -> list:
     """The verdict table from the per-seed rows: one line per (rig, noise, N), a word per other
-    model and metric, then the counts."""
+    model and metric (``hybrid`` against each of OTHERS), then the counts."""
     groups = {}
     for r in rows:
         groups.setdefault((r["rig"], r["noise"], r["n"], r["point"]), {}).setdefault(r["model"], []).append(r)
     head = " | ".join(f"vs {o}: " + "/".join(label.split()[0] for _, label in METRICS) for o in OTHERS)
-    lines = [f"verdict table (hybrid = {HYBRID}; lower is better; rule: a gap of seed means beyond both "
+    lines = [f"verdict table (hybrid = {hybrid}; lower is better; rule: a gap of seed means beyond both "
              f"models' seed ranges (max-min) counts, inside them a tie)",
              f"{'rig':16s} {'noise':5s} {'N':>4s} {'point':>6s} | {head}"]
     counts = {o: {"better": 0, "worse": 0, "tie": 0, "n/a": 0} for o in OTHERS}
     for (rig, noise, n, point), by in sorted(groups.items(), key=lambda kv: (RIGS.index(kv[0][0]), kv[0][1], kv[0][2])):
         cells = []
         for o in OTHERS:
-            if HYBRID not in by or o not in by:
+            if hybrid not in by or o not in by:
                 cells.append("not measured")
                 continue
-            words = [verdict([r[key] for r in by[HYBRID]], [r[key] for r in by[o]]) for key, _ in METRICS]
+            words = [verdict([r[key] for r in by[hybrid]], [r[key] for r in by[o]]) for key, _ in METRICS]
             for w in words:
                 counts[o][w] += 1
             cells.append("/".join(words))
         lines.append(f"{rig:16s} {noise:5s} {n:4d} {point:>6s} | " + " | ".join(f"{c:30s}" for c in cells))
     for o in OTHERS:
-        lines.append(f"verdict counts, {HYBRID} vs {o}: " + ", ".join(f"{w} {c}" for w, c in counts[o].items() if c))
+        lines.append(f"verdict counts, {hybrid} vs {o}: " + ", ".join(f"{w} {c}" for w, c in counts[o].items() if c))
     return lines
 
 
@@ -154,7 +158,7 @@ def fitters(keys, steps: int, rows_per_texel):
         if fn is None:
             print(f"model {key}: {fn_name} not in hybridbrdf.acquire; skipped", flush=True)
             continue
-        kw = ac.budget(fn, steps, rows_per_texel)
+        kw = {**ac.budget(fn, steps, rows_per_texel), **EXTRA.get(key, {})}
         if path is None and key != "analytic":
             path = pathlib.Path(prior_path())
         if path is None:
@@ -249,7 +253,7 @@ def sweep(args) -> int:
             for key in fits:
                 out.line(summary_line(kind, point, noise[0], key, [r for r in got if r["model"] == key]))
             rows += got
-    for line in verdict_lines(rows):
+    for line in verdict_lines(rows, args.hybrid):
         out.line(line)
     out.line(f"total {time.perf_counter() - t_start:.0f} s wall")
     out.close()
@@ -265,6 +269,8 @@ def parse(argv=None):
     ap.add_argument("--seeds", type=int, default=3, help="seeds per point, 0..S-1 (default 3)")
     ap.add_argument("--models", default="analytic,hybrid_heldout,neural_heldout",
                     help=f"comma-separated, of {', '.join(MODELS)} (default the held-out three)")
+    ap.add_argument("--hybrid", default=HYBRID,
+                    help=f"the model the verdict judges against the others, of {', '.join(MODELS)} (default {HYBRID})")
     ap.add_argument("--steps", type=int, default=150, help="Adam steps per fit, the same for every model (default 150)")
     ap.add_argument("--rows-per-texel", type=int, default=ROWS_PER_TEXEL,
                     help=f"rows of each texel every step reads (default {ROWS_PER_TEXEL}; 0: every observation)")
@@ -281,7 +287,8 @@ def parse(argv=None):
     args = ap.parse_args(argv)
     args.rig = args.rig.split(",")
     args.models = args.models.split(",")
-    for name, given, known in (("--rig", args.rig, RIGS), ("--models", args.models, MODELS)):
+    for name, given, known in (("--rig", args.rig, RIGS), ("--models", args.models, MODELS),
+                               ("--hybrid", [args.hybrid], MODELS)):
         bad = [g for g in given if g not in known]
         if bad:
             ap.error(f"{name}: unknown {', '.join(bad)}; expected {', '.join(known)}")
@@ -302,7 +309,7 @@ def parse(argv=None):
 def table(jsonl: str) -> int:
     """Print the verdict table of a run's rows."""
     rows = [json.loads(line) for line in open(jsonl) if line.strip()]
-    for line in verdict_lines(rows):
+    for line in verdict_lines(rows, args.hybrid):
         print(line)
     return 0
 

@@ -160,3 +160,26 @@ def test_the_anchor_keeps_a_cluster_from_brightening_where_no_photograph_looked(
             brightening[weight] = float(torch.log(f.clamp_min(1e-8) / start.clamp_min(1e-8)).clamp_min(0).mean())
         assert tuned["loss"][1] < 0.5 * tuned["loss"][0]  # the capture is fitted either way
     assert brightening[default] < 0.5 * brightening[0.0], brightening  # measured 0.49 against 3.04
+
+
+@pytest.mark.parametrize("lights", [8, 7])
+def test_the_fit_fine_tunes_the_network_by_default_from_32_photographs_on(lights, tmp_path, monkeypatch):
+    # acquire() with no finetune_network: the fine-tune runs on a light stage of 8 x 4 = 32
+    # photographs (FINETUNE_STEPS steps, recorded, each cluster a .acq layer) and not on one of 7 x 4.
+    # The steps are cut to 5: what is checked is the rule, not what the fine-tune buys.
+    from hybridbrdf.acquire import acquisition, sizes
+    from hybridbrdf.acquire.capture import write_capture
+
+    shorten_acquire_fit(monkeypatch)
+    monkeypatch.setattr(network_tune, "DRIFT_PAIRS", 200)
+    monkeypatch.setattr(sizes, "FINETUNE_STEPS", 5)
+    prior = load_prior()
+    rig = light_stage_rig(lights, 4, size=(16, 16))
+    sample = Mixture([ModelMaterialSource(prior, "red-plastic")], np.ones((2, 2, 1)))
+    write_capture(simulate(rig, sample, NoiseModel(photons=4000.0, read_noise=1.0), seed=3), tmp_path / "capture")
+    maps = acquisition.acquire(tmp_path / "capture", tmp_path / "out", size=(2, 2), steps=10)
+    report = json.load(open(tmp_path / "out" / acquisition.REPORT_FILE))
+    tuned = lights * 4 >= sizes.FINETUNE_MIN_SHOTS
+    assert report["finetune_network"] == (5 if tuned else 0), report["finetune_network"]
+    assert all((".acq" in name) == tuned for name in maps.layers), maps.layers
+    assert ("acquisition_finetune" in maps.model.training) == tuned

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Callable, Optional, Tuple
 from hybridbrdf import spec
 from hybridbrdf.acquire.exposure import stated_noise_floor, stated_noise_model, usable_pixels
 from hybridbrdf.acquire.observations import texel_observations
-from hybridbrdf.acquire.sizes import STEPS
+from hybridbrdf.acquire.sizes import STEPS, default_finetune
 from hybridbrdf.errors import InputFileError
 from hybridbrdf.limits import check_count
 from hybridbrdf.model.file import load_model
@@ -86,7 +86,7 @@ def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
             log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
-            refit_heads: bool = False, finetune_network: int = 0, select: bool = False) -> HybridMaps:
+            refit_heads: bool = False, finetune_network: Optional[int] = None, select: bool = False) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
@@ -96,7 +96,8 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     ``refit_heads``: each cluster's output layer refitted to its rows (:func:`fit_hybrid_texels`;
     docs/ACQUISITION_GAP.md). ``finetune_network`` > 0: that many steps fine-tuning the prior's
     network on the capture, its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`); the
-    report then holds the replay's drift. ``select``: each cluster's prior material chosen among the
+    report then holds the replay's drift; None: :func:`~hybridbrdf.acquire.sizes.default_finetune`
+    of the capture's photographs (200 steps from 32 photographs on, else none); 0: none. ``select``: each cluster's prior material chosen among the
     training shots' best 3 on held-out photographs, then refitted on all (:mod:`~hybridbrdf.acquire.select`);
     the report then holds every candidate's held-out loss. Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
@@ -112,11 +113,12 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     if resume and not os.path.lexists(ckpt):
         raise checkpoint.CheckpointError(ckpt, "no checkpoint to resume (run without --resume)")
     model = load_prior() if prior is None else load_model(prior)
+    rig, obs, index, report = _observations(capture, size, log)
+    finetune_network = default_finetune(len(rig.shots)) if finetune_network is None else finetune_network
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
                 "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {}),
                 **({"finetune_network": int(finetune_network)} if finetune_network else {}),
                 **({"select": True} if select else {})}
-    rig, obs, index, report = _observations(capture, size, log)
     with file_lock(ckpt, wait=0):
         state = None
         if resume:

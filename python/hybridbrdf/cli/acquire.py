@@ -13,7 +13,7 @@ import math
 import os
 import sys
 
-from hybridbrdf.acquire.sizes import MAX_ITEMS, MAX_SIDE, STEPS
+from hybridbrdf.acquire.sizes import FINETUNE_MIN_SHOTS, FINETUNE_STEPS, MAX_ITEMS, MAX_SIDE, STEPS
 from hybridbrdf.cli import COMMANDS, layer_masks
 from hybridbrdf.errors import InputFileError
 
@@ -141,10 +141,11 @@ def run_fit(args: argparse.Namespace) -> int:
         for bar in bars.values():
             bar.close()
     h, w = maps.layer.shape
+    tuned = maps.report["finetune_network"]  # the default depends on the capture's photographs
     print(f"wrote {os.path.abspath(args.out)}: a {w}x{h} textured material, {len(maps.layers)} layer(s) "
           f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}"
           f"{', each cluster with its head refitted' if args.refit_heads else ''}"
-          f"{f', the network fine-tuned {args.finetune_network} steps' if args.finetune_network else ''}"
+          f"{f', the network fine-tuned {tuned} steps' if tuned else ''}"
           f"{', each cluster its material chosen on held-out photographs' if args.select else ''}; the clusters and "
           f"their materials in {REPORT_FILE}")
     return 0
@@ -208,11 +209,13 @@ def _add_fit_parser(commands) -> None:
     """``hbrdf acquire fit``."""
     f = commands.add_parser(
         "fit", help="fit per-texel maps on a frozen prior to a capture's photographs; write a textured material",
-        description="Fit per-texel maps (analytic parameters p and latent code z per texel) on a frozen hybrid prior "
+        description="Fit per-texel maps (analytic parameters p and latent code z per texel) on a hybrid prior "
                     "to the photographs of a capture (a capture folder, or a rig file beside its photographs) and "
                     "write a textured-material folder as hbrdf paint does (docs/SVBRDF.md): texels are clustered "
                     "(at most 4: the layers), each cluster starts at the prior's material that explains it best, "
-                    "each texel is refined from its cluster's values. Prints a line per cluster (its texels, the "
+                    "the prior's network is fine-tuned on the capture when it has 32 photographs or more, and "
+                    "each texel is refined from its cluster's values, then shrunk toward them as far as the "
+                    "texels' differences are noise. Prints a line per cluster (its texels, the "
                     "material chosen and the runner-up with their loss and relative error) and warns on stderr "
                     "when a cluster's best material leaves an error well above the noise; OUT/acquisition.json "
                     "records them. Photographs: float EXR/TIFF, or 8/16-bit PNG/TIFF decoded by capture.json's "
@@ -239,13 +242,14 @@ def _add_fit_parser(commands) -> None:
                    help="refit each cluster's output layer (its material's head) to the cluster's photographs: each "
                         "cluster becomes a layer <material>.acq<k> of its own; an option, not a clear win "
                         "(docs/ACQUISITION_GAP.md); recorded in OUT/acquisition.json")
-    f.add_argument("--finetune-network", type=_count(0, 1000000), default=0, metavar="N",
+    f.add_argument("--finetune-network", type=_count(0, 1000000), default=None, metavar="N",
                    help="after the clusters, fine-tune the prior's network, each cluster's head and values on the "
                         "clusters' pure texels for N steps, the prior's materials replayed against its own output; "
                         "each cluster anchored where no photograph looked (it may not brighten there); the texels "
                         "are then fitted on the tuned network, which OUT's model carries; each cluster a layer "
-                        "<material>.acq<k> (default 0: off; 200 is the best setting measured, "
-                        "docs/ACQUISITION_GAP.md); the replay's drift recorded in OUT/acquisition.json")
+                        f"<material>.acq<k> (default: {FINETUNE_STEPS} when the capture has at least "
+                        f"{FINETUNE_MIN_SHOTS} photographs, else 0, docs/ACQUISITION_GAP.md; 0: off); the "
+                        "replay's drift recorded in OUT/acquisition.json")
     f.add_argument("--select", action="store_true",
                    help="choose each cluster's prior material on held-out photographs: about a fifth of the shots "
                         "held out, the training shots' best 3 materials each fitted to the cluster's purest texels "
