@@ -306,14 +306,14 @@ def parse(argv=None):
     return args
 
 
-def table(jsonl: str) -> int:
-    """Print the verdict table of a run's rows."""
+def table(jsonl: str, hybrid: str = HYBRID) -> int:
+    """Print the verdict table of a run's rows, ``hybrid`` judged against the others."""
     rows = [json.loads(line) for line in open(jsonl) if line.strip()]
-    for line in verdict_lines(rows, args.hybrid):
+    for line in verdict_lines(rows, hybrid):
         print(line)
     return 0
 
 
 if __name__ == "__main__":
     ARGS = parse()
-    sys.exit(table(ARGS.table) if ARGS.table else sweep(ARGS))
+    sys.exit(table(ARGS.table, ARGS.hybrid) if ARGS.table else sweep(ARGS))

@@ -62,6 +62,13 @@ def test_verdict_table_counts_each_point_and_metric():
     assert body == [["better/better/better", "better/worse/better"], ["tie/tie/tie", "tie/tie/tie"]]
     assert lines[-2].endswith("better 3, tie 3")
     assert lines[-1].endswith("better 2, worse 1, tie 3")
+    # --hybrid: another model judged against the same others (the rows renamed, the same words).
+    renamed = [{**r, "model": "hybrid_tuned" if r["model"] == "hybrid_heldout" else r["model"]} for r in rows]
+    tuned = av.verdict_lines(renamed, "hybrid_tuned")
+    assert [line for line in tuned if line.startswith("light-stage")] == [line for line in lines if line.startswith("light-stage")]
+    assert tuned[-1] == lines[-1].replace("hybrid_heldout", "hybrid_tuned")
+    assert all(cell.strip() == "not measured" for line in av.verdict_lines(renamed) if line.startswith("light-stage")
+               for cell in line.split("|")[1:])
 
 
 def collocated(kind: str, point: str) -> tuple:
