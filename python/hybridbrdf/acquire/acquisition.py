@@ -94,13 +94,12 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     a warning per cluster no prior material explains to ``warn``). ``resume`` continues the
     checkpoint of an interrupted run with the same settings; ``force`` starts afresh over one.
     ``refit_heads``: each cluster's output layer refitted to its rows (:func:`fit_hybrid_texels`;
-    docs/ACQUISITION_GAP.md). ``finetune_network`` > 0: that many steps fine-tuning the prior's
-    network on the capture, its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`); the
-    report then holds the replay's drift; None: :func:`~hybridbrdf.acquire.sizes.default_finetune`
-    of the capture's photographs (200 steps from 32 photographs on, else none); 0: none.
+    docs/ACQUISITION_GAP.md). ``finetune_network``: steps fine-tuning the prior's network on the capture,
+    its materials replayed (:mod:`~hybridbrdf.acquire.network_tune`; the report holds the replay's drift);
+    None: :func:`~hybridbrdf.acquire.sizes.default_finetune` (200 from 32 photographs on, else 0); 0: none.
     ``select``: each cluster's prior material chosen among the training shots' best 3 on held-out
-    photographs, then refitted on all (:mod:`~hybridbrdf.acquire.select`);
-    the report then holds every candidate's held-out loss. Returns the fit, its report as ``maps.report``."""
+    photographs, then refitted on all (:mod:`~hybridbrdf.acquire.select`; the report holds every
+    candidate's held-out loss). Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
     from hybridbrdf.fit import checkpoint
