@@ -71,16 +71,16 @@ def split_shots(obs: Observations) -> tuple:
 
 
 def _held_out_loss(family, train: Observations, held: Observations, texels: np.ndarray, cand: Dict,
-                   seed: int) -> float:
-    """Candidate ``cand``'s per-texel fit on ``texels``' training rows, scored on their held-out rows."""
+                   seed: int, tau2: Dict[str, torch.Tensor]) -> float:
+    """Candidate ``cand``'s per-texel fit on ``texels``' training rows (``tau2``: the pull's variance
+    per value, :func:`~hybridbrdf.acquire.cluster_fit.value_spread`), scored on their held-out rows."""
     keep = np.zeros(len(train.offsets) - 1, dtype=bool)
     keep[texels] = True
     mine = subset(train, np.repeat(keep, np.diff(train.offsets)))
     one = {"material": torch.tensor([cand["material"]]), "centres": {n: v[None] for n, v in cand["raw"].items()},
            "sigma2": torch.tensor([max(cand["loss"], 1e-8)])}
     zeros = np.zeros(len(keep), dtype=np.int64)
-    raw = refine_texels(family, mine, ObservationTensors(mine), zeros, one, value_spread(family.raw_of_materials()),
-                        SELECT_STEPS, seed)
+    raw = refine_texels(family, mine, ObservationTensors(mine), zeros, one, tau2, SELECT_STEPS, seed)
     rows = np.concatenate([np.arange(held.offsets[t], held.offsets[t + 1]) for t in texels] + [np.zeros(0, np.int64)])
     texel = torch.from_numpy(np.repeat(texels, np.diff(held.offsets)[texels]))
     data = ObservationTensors(held)
@@ -116,7 +116,7 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
             texels = np.sort(np.random.default_rng([seed, c]).choice(texels, SELECT_TEXELS, replace=False))
         for cand in fitted:
             cand["training_loss"] = cand["loss"]
-            cand["held_out_loss"] = _held_out_loss(family, train, held, texels, cand, seed) if len(texels) else None
+            cand["held_out_loss"] = _held_out_loss(family, train, held, texels, cand, seed, tau2) if len(texels) else None
             done += 1
             if progress is not None:
                 progress("held-out choice", done, total)

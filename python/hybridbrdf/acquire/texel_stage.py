@@ -1,6 +1,6 @@
 """The texel stage of the fits on a frozen prior (:mod:`~hybridbrdf.acquire.cluster_fit`, stage 5):
 every texel's values refined from its cluster's, then shrunk toward the cluster's by as much as
-the cluster's texels say their differences are noise (docs/ACQUISITION.md, "The texel stage").
+the cluster's texels say their differences are noise (docs/ACQUISITION.md, "The fit on a frozen prior", step 3).
 
 **The fit.** Each texel's values are a MAP estimate: its rows' log residuals (variance sigma^2,
 the cluster fit's mean squared residual per row and channel) and a Gaussian pull toward the
