@@ -455,7 +455,8 @@ def main() -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=400, help="Adam steps per fit, the same for every model (default 400)")
     ap.add_argument("--rows-per-texel", type=int, default=ROWS_PER_TEXEL,
-                    help=f"rows of each texel every step of every fit reads (default {ROWS_PER_TEXEL}; 0: every observation)")
+                    help=f"rows of each texel every step of every fit reads (default {ROWS_PER_TEXEL}; 0: every "
+                         "observation, the analytic fit only: the fits on a prior refuse it)")
     ap.add_argument("--pairs", type=int, default=100_000, help="metric direction pairs per sampled texel (default 10^5)")
     ap.add_argument("--texels", type=int, default=32, help="sampled texels, half pure, half mixed (default 32)")
     ap.add_argument("--photo", type=int, default=128, help="photograph side in pixels (default 128)")

@@ -82,8 +82,9 @@ CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": Tru
            "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0))}
 
 
-def fit_config(obs, prior, config: str, steps: int, seed: int):
-    """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after."""
+def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None):
+    """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after.
+    ``on_clusters``: fit_hybrid_texels' hook (the clusters once known)."""
     keywords, pull = CONFIGS[config]
     name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
     module = {"network_tune": network_tune, "texel_stage": texel_stage}.get(name.split(".")[0], cluster_fit)
@@ -91,7 +92,7 @@ def fit_config(obs, prior, config: str, steps: int, seed: int):
     default = getattr(module, name)
     setattr(module, name, default if value is None else value)
     try:
-        return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, **keywords)
+        return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, on_clusters=on_clusters, **keywords)
     finally:
         setattr(module, name, default)
 #: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
@@ -183,7 +184,12 @@ def run_sweep(args) -> int:
                 errors, seconds, notes = {}, {}, []
                 for config in args.configs:
                     t0 = time.process_time()  # CPU seconds: the machine is shared, wall time is not the fit's
-                    fit = fit_config(obs, prior, config, args.steps, seed)
+                    merged = []
+                    fit = fit_config(obs, prior, config, args.steps, seed,
+                                     lambda family, labels, clusters: merged.append(clusters.get("merges", [])))
+                    if merged and merged[0]:  # acquire/cluster_merge.py: what k-means split and the fit merged
+                        notes.append(f"merges {config} {sample} {label} {seed}: "
+                                     + ", ".join(f"{r:.2f}" for _, _, r in merged[0]))
                     seconds[config] = time.process_time() - t0
                     errors[config] = [median_cmae(fit, t) for t in truths]
                     if "select" in args.configs:  # what the held-out choice changed: each config's layers

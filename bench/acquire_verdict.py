@@ -273,7 +273,8 @@ def parse(argv=None):
                     help=f"the model the verdict judges against the others, of {', '.join(MODELS)} (default {HYBRID})")
     ap.add_argument("--steps", type=int, default=150, help="Adam steps per fit, the same for every model (default 150)")
     ap.add_argument("--rows-per-texel", type=int, default=ROWS_PER_TEXEL,
-                    help=f"rows of each texel every step reads (default {ROWS_PER_TEXEL}; 0: every observation)")
+                    help=f"rows of each texel every step reads (default {ROWS_PER_TEXEL}; 0: every observation, the analytic "
+                         "fit only: the fits on a prior refuse it)")
     ap.add_argument("--photo", type=int, default=48, help="photograph side in pixels (default 48)")
     ap.add_argument("--map", type=int, default=16, help="texel map side (= the weights map's; default 16)")
     ap.add_argument("--texels", type=int, default=16, help="sampled texels per seed, half pure, half mixed (default 16)")

@@ -344,11 +344,13 @@ def run_shared_path(tmp_path_factory, name: str):
 
 
 def shorten_acquire_fit(monkeypatch):
-    """The acquisition fit cut to what a test of a command-line flag needs: 10 cluster steps, at
-    most 2 clusters, no energy tables for bright kd maps. Such a test checks that the flag reaches
+    """The acquisition fit cut to what a test of a command-line flag needs: 10 cluster steps, 2
+    clusters at most and none merged, no energy tables for bright kd maps. Such a test checks that the flag reaches
     the fit and its output, not what the stages buy (their own tests measure that)."""
-    from hybridbrdf.acquire import cluster_fit, hybrid_fit
+    from hybridbrdf.acquire import cluster_fit, cluster_merge, hybrid_fit
 
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
+    monkeypatch.setattr(cluster_merge, "MERGE_RATIO", 0.0)  # and keeps them: a flag's test counts its clusters
     monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))

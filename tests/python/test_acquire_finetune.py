@@ -17,7 +17,7 @@ from helpers import run_cli_here, seeded_cosine_directions, shorten_acquire_fit
 from test_acquire_report import _capture
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit, network_tune, simulate
+from hybridbrdf.acquire import cluster_fit, cluster_merge, network_tune, simulate
 from hybridbrdf.acquire.hybrid_fit import HybridFamily, fit_hybrid_texels
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -55,6 +55,7 @@ def fits():
     obs = texel_observations(rig, simulate(rig, sample, NoiseModel(photons=4000.0, read_noise=1.0), seed=3).photos, (2, 2))
     mp = pytest.MonkeyPatch()
     mp.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
+    mp.setattr(cluster_merge, "SPLIT_CLUSTERS", 1)  # k-means makes as many
     try:
         return prior, obs, {n: fit_hybrid_texels(obs, prior, steps=60, seed=0, finetune_network=n) for n in (0, 100)}
     finally:

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit, hybrid_fit
+from hybridbrdf.acquire import cluster_fit, cluster_merge, hybrid_fit
 from hybridbrdf.acquire.acquisition import acquire, checkpoint_path
 from hybridbrdf.acquire.capture import write_capture
 from hybridbrdf.acquire.exposure import usable_pixels
@@ -91,6 +91,7 @@ def test_the_written_folder_evaluates_in_libhybridbrdf_as_eval_does(halves_obser
     # materials costs ~1 s of CPU.
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     prior, obs = halves_observations
     maps = fit_hybrid_texels(obs, prior, steps=10, seed=0)
     maps.save(tmp_path / "sv")
@@ -147,6 +148,7 @@ def test_resume_continues_and_matches_and_nothing_is_half_written(tmp_path, monk
     # Two clusters (the sample's two materials; a restored state of one would not show its clusters
     # swapped): each costs ~1 s of CPU scoring the prior's 142 materials, in each of three runs.
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     # The kd edits' energy tables (5 s each) are tested with hbrdf paint's; resuming does not touch them.
     monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))
     prior = load_prior()

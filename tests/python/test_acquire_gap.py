@@ -11,7 +11,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit
+from hybridbrdf.acquire import cluster_fit, cluster_merge
 from hybridbrdf.acquire.hybrid_fit import HybridFamily, fit_hybrid_texels, with_cluster_heads
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -62,6 +62,7 @@ def test_a_refitted_head_fits_a_shape_no_prior_head_holds_better_where_photograp
     # 0.00253 with it (0.50x); the worst texel over all directions 0.00756 and 0.00637 (0.84x).
     # Without HEAD_START the refit could not move that head: 0.79x and 0.98x.
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 1)  # k-means makes as many
     prior, novel, obs = novel_capture
     n = 20000
     wi, wo = seeded_cosine_directions(n, 1), seeded_cosine_directions(n, 2)
@@ -85,6 +86,7 @@ def test_refitted_heads_are_layers_of_their_own_that_libhybridbrdf_evaluates_as_
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
     monkeypatch.setattr(cluster_fit, "HEAD_STEPS", 10)
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     prior, _, obs = novel_capture
     maps = fit_hybrid_texels(obs, prior, steps=10, seed=0, refit_heads=True)
     assert all(".acq" in name for name in maps.layers) and len(maps.layers) == maps.layer.max() + 1

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit, hybrid_fit, simulate
+from hybridbrdf.acquire import cluster_fit, cluster_merge, hybrid_fit, simulate
 from hybridbrdf.acquire.capture import write_capture
 from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, poor_fit_warnings, report_lines
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
@@ -61,6 +61,7 @@ def _report(prior, mixture, noise):
 @pytest.mark.slow
 def test_a_material_outside_the_prior_is_warned_about_and_prior_materials_are_not(monkeypatch):
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     prior = load_prior()
     noise = NoiseModel(4000.0, 1.0)
     inside = _report(prior, _halves(ModelMaterialSource(prior, PAPER), ModelMaterialSource(prior, "vch_golden_yellow_rgb.rgl")),
@@ -95,6 +96,7 @@ def _capture(tmp_path, prior):
 def test_the_command_prints_the_clusters_and_every_phase_and_records_the_choices(tmp_path, monkeypatch):
     monkeypatch.setattr(cluster_fit, "CLUSTER_STEPS", 10)
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
+    monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     real = hybrid_fit.bound_bright_kd
     calls = []
 

@@ -119,3 +119,12 @@ def test_the_texel_stage_denoises_a_uniform_material_and_keeps_a_painted_one(pai
         assert errors[True][0] < 1.08 * errors[False][0], errors
     else:  # the texels' scatter mostly gone, the error lower
         assert errors[True][1] < 0.5 * errors[False][1] and errors[True][0] < 0.6 * errors[False][0], errors
+
+
+def test_a_fit_on_a_prior_refuses_every_row_a_step_with_a_clear_error():
+    # The analytic fit reads every row a step with rows_per_texel=None; the texel stage's twins draw
+    # rows, and once failed on None with a TypeError deep inside (bench/acquire_verdict.py --rows-per-texel 0).
+    from hybridbrdf.acquire.cluster_fit import fit_on_prior
+    for bad in (None, 0, 2.5):
+        with pytest.raises(ValueError, match="rows_per_texel must be an int >= 1"):
+            fit_on_prior(None, None, steps=10, seed=0, rows_per_texel=bad)

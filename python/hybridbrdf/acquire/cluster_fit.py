@@ -4,8 +4,10 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 
 1. **analytic**: the analytic-only fit (:func:`fit_analytic_texels`), half the steps: per-texel
    features (log kd, log alpha, log(eta - 1) per channel) cheap to get and good enough to group texels by.
-2. **clusters**: k-means (K <= 4: a textured material holds a base and up to 3 layers) on the
-   standardised features; per cluster, on rows of its pure texels (:func:`_cluster_rows`), every
+2. **clusters**: k-means on the standardised features, into :data:`MAX_CLUSTERS` (a textured
+   material holds a base and up to 3 layers) or, given ``merge`` (the hybrid's and neural-only
+   fits pass :mod:`~hybridbrdf.acquire.cluster_merge`), into more and merged after the fits below
+   where one fit explains a pair; per cluster, on rows of its pure texels (:func:`_cluster_rows`), every
    material of the prior screened by a short fit of its values (:func:`screen_materials`), the
    screen's best :data:`CANDIDATES` and the best as photographed fitted (all of the family's
    per-texel values, one set for the cluster, on the frozen network), the lowest
@@ -381,12 +383,19 @@ def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: 
             "centres": {n: torch.stack(v) for n, v in centres.items()}, "sigma2": torch.tensor(sigma2)}
 
 
+def _check_rows(rows_per_texel) -> None:
+    """A fit on a prior's ``rows_per_texel``: an int >= 1, as the texel stage's twins draw rows (the
+    analytic fit alone reads every row a step with None)."""
+    if not isinstance(rows_per_texel, int) or rows_per_texel < 1:
+        raise ValueError(f"rows_per_texel must be an int >= 1 for a fit on a prior, got {rows_per_texel!r}")
+
+
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
                  on_clusters: Optional[Callable[[np.ndarray, Dict], None]] = None,
                  refit_heads: bool = False, finetune_network: int = 0,
-                 choose: Optional[Callable] = None) -> Tuple[np.ndarray, Dict, Dict]:
+                 choose: Optional[Callable] = None, merge=None) -> Tuple[np.ndarray, Dict, Dict]:
     """The stages (module docstring): (labels (n_texels,), clusters, per-texel raw values); with
     ``refit_heads`` (a family with material output layers) the heads stage too, and clusters["heads"]
     holds what :func:`refit_heads_of` returned (the texel stage's per-cluster heads and centres).
@@ -398,7 +407,9 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     the analytic and texel stages at their last checkpoint (every 50 steps). ``on_clusters(labels,
     clusters)`` is called once the clusters are known (fitted or restored), before the texel stage.
     ``choose``: the cluster stage, called as :func:`fit_clusters` is (None: :func:`fit_clusters`;
-    :func:`hybridbrdf.acquire.select.select_on_held_out` chooses on held-out shots)."""
+    :func:`hybridbrdf.acquire.select.select_on_held_out` chooses on held-out shots). ``merge``:
+    :mod:`hybridbrdf.acquire.cluster_merge` (passed in: it fits with this module); None: none merged."""
+    _check_rows(rows_per_texel)
     state = dict(state or {})
 
     def saver(key):
@@ -421,12 +432,16 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
                             "alpha": torch.from_numpy(maps.alpha)})
     a = state["analytic"]
     maps = AnalyticMaps(a["kd"].numpy(), a["eta"].numpy(), a["alpha"].numpy(), obs.counts())
-    labels = texel_clusters(maps, MAX_CLUSTERS, seed)
+    k = MAX_CLUSTERS if merge is None else merge.split_count(int((obs.counts() > 0).sum()), MAX_CLUSTERS)
+    labels = texel_clusters(maps, k, seed)
     data = ObservationTensors(obs)
     if "clusters" not in state:
-        finish("clusters", (choose or fit_clusters)(family, obs, data, labels, seed, progress,
-                                                    colour=cluster_colours(maps, labels)))
+        fitted = (choose or fit_clusters)(family, obs, data, labels, seed, progress, colour=cluster_colours(maps, labels))
+        if merge is not None:
+            fitted = merge.merge_clusters(family, obs, data, labels, fitted, seed, MAX_CLUSTERS, progress=progress)[1]
+        finish("clusters", fitted)
     clusters = state["clusters"]
+    labels = clusters["labels"].numpy() if "labels" in clusters else labels
     if on_clusters is not None:
         on_clusters(labels, clusters)
     stage_family, stage_clusters = family, clusters

@@ -17,6 +17,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 import torch
 
+from hybridbrdf.acquire import cluster_merge
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
@@ -227,10 +228,13 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     (:func:`with_network`). ``select``: each cluster's material chosen on held-out photographs
     (:mod:`~hybridbrdf.acquire.select`)."""
     family = HybridFamily(model)
-    hook = None if on_clusters is None else (lambda labels, clusters: on_clusters(family, labels, clusters))
+    def hook(labels, clusters):
+        log(cluster_merge.merge_line(clusters))
+        if on_clusters is not None:
+            on_clusters(family, labels, clusters)
     labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state, hook,
                                          refit_heads=refit_heads, finetune_network=finetune_network,
-                                         choose=select_on_held_out if select else None)
+                                         choose=select_on_held_out if select else None, merge=cluster_merge)
     w, h = obs.size
     with torch.no_grad():
         kd, eta, alpha, z = (v.numpy().astype(np.float32) for v in family.decode(raw))

@@ -13,6 +13,7 @@ from typing import Callable, Dict, Optional
 import numpy as np
 import torch
 
+from hybridbrdf.acquire import cluster_merge
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
@@ -68,7 +69,8 @@ def fit_neural_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     """Fit a latent code per texel on ``model``'s frozen network (kind neural), with the budget of
     :func:`hybridbrdf.acquire.hybrid_fit.fit_hybrid_texels` (the same stages and steps)."""
     family = NeuralFamily(model)
-    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state)
+    labels, clusters, raw = fit_on_prior(family, obs, steps, seed, rows_per_texel, progress, state, save_state,
+                                         merge=cluster_merge)
     w, h = obs.size
     material = clusters["material"].numpy()[labels].reshape(h, w)
     return NeuralMaps(model, raw["z"].numpy().astype(np.float32).reshape(h, w, -1), material, obs.counts())
