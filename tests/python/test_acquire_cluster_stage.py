@@ -90,3 +90,39 @@ def test_the_shared_evaluation_is_the_per_material_one():
                                            wi, wo) for k in m.tolist()])
     assert shared.shape == one.shape and torch.allclose(shared, one, rtol=1e-5, atol=1e-7), \
         float((shared - one).abs().max())
+
+
+def test_pixel_noise_is_the_variance_of_one_rows_target_and_pairs_only_one_texels_photograph():
+    # 400 texels x 2 photographs x 8 pixels, each cell one direction pair and one true value, each
+    # pixel its own Gaussian noise: the estimate against the delta method's variance of log(1 + cos g).
+    rng = np.random.default_rng(3)
+    cells, pixels, sigma = 800, 8, 0.02
+    wi, wo = (np.repeat(v.numpy().astype(np.float64), pixels, 0) for v in cosine_pairs(cells, 5))
+    truth = np.repeat(rng.uniform(0.1, 0.4, (cells, 3)), pixels, 0)
+    values = truth + rng.normal(0.0, sigma, truth.shape)
+    obs = _observations(values, wi, wo, size=(20, 20))
+    obs.shot = np.tile(np.repeat(np.arange(2), pixels), 400)
+    data = ObservationTensors(obs)
+    expected = float(np.mean((wi[:, 2:3] / (1 + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
+    estimate = data.pixel_noise(torch.arange(len(values)))
+    assert abs(estimate / expected - 1) < 0.05
+    # Rows of different photographs (or texels) never pair: every row its own cell leaves no pair.
+    obs.shot = np.arange(len(values)) % pixels
+    assert ObservationTensors(obs).pixel_noise(torch.arange(len(values))) == 0.0
+
+
+def test_declared_pixel_noise_leaves_the_choice_as_without_noise():
+    # Two fits of a cluster: a closer fit moved further from its material's values, and a looser fit
+    # that stayed home. Noise the photographs' pixels add to both residuals (and that thousands of
+    # rows average away) must not decide between them: declared, the objectives differ as the
+    # noiseless ones do; undeclared, the noise weighs the move 30x and turns the choice.
+    own = {"kd": torch.zeros(2, 3)}
+    raw = {"kd": torch.tensor([[0.6, 0.6, 0.6], [0.2, 0.2, 0.2]])}
+    tau2 = {"kd": torch.ones(3)}
+    misfit, nu2, shots, rows = torch.tensor([2.0e-6, 2.6e-6]), 6.0e-5, 32, 10 ** 7
+    clean = cluster_fit.map_objective(misfit, raw, own, tau2, shots)
+    noisy = cluster_fit.map_objective(misfit + nu2, raw, own, tau2, shots, noise=nu2, rows=rows)
+    undeclared = cluster_fit.map_objective(misfit + nu2, raw, own, tau2, shots)
+    assert torch.argmin(clean) == 0 and torch.argmin(noisy) == 0
+    assert torch.allclose(noisy - nu2, clean, rtol=1e-4)
+    assert torch.argmin(undeclared) == 1

@@ -27,6 +27,7 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 
 from __future__ import annotations
 
+import functools
 from typing import Callable, Dict, Optional, Tuple
 
 import numpy as np
@@ -50,6 +51,13 @@ CLUSTER_ROWS, CLUSTER_STEPS = 2048, 100
 #: (:func:`screen_materials`): a rate above the candidates' fit's (0.03) because a colour far from
 #: the material's own is several logits away in each of kd's channels (red to blue).
 SCREEN_ROWS, SCREEN_STEPS, SCREEN_LR = 256, 40, 0.1
+#: The final clusters' choice (``final``, after the merge: the clusters the texel stage keeps): the
+#: screen's rows and steps, the candidates' rows and how many are fitted. More than the split
+#: clusters' (whose fits only decide the merges): 40 steps on 256 rows rank materials by how far
+#: their values got, and in one capture colodur_napoli's best material after fitting stood 7th
+#: there (docs/ACQUISITION_GAP.md, "The final clusters chosen again"). 1,024 and 8,192 rows
+#: measured no better on the bench and cost twice the time.
+FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, FINAL_ROWS, FINAL_CANDIDATES = 512, 80, 4096, 4
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
 #: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
@@ -143,18 +151,25 @@ def value_spread(every: Dict[str, torch.Tensor]) -> Dict[str, torch.Tensor]:
 
 
 def map_objective(loss: torch.Tensor, raw: Dict[str, torch.Tensor], own: Dict[str, torch.Tensor],
-                  tau2: Dict[str, torch.Tensor], shots: int) -> torch.Tensor:
-    """The cluster stage's objective per fit, (F,) from mean squared residuals ``loss`` (F,) of values
-    ``raw`` {name: (F, c)} of materials whose own values are ``own`` {name: (F, c)}: the negative log
-    posterior of the module docstring's model divided by 3 n / sigma^2, with sigma^2 the fit's own
-    residual (held fixed) and n the photographs the rows come from (a cluster's rows in one
-    photograph see about one direction pair), so L (1 + sum_j (theta_j - own_j)^2 / tau_j^2 / (3 n)).
-    Why the move counts: a material fitted far from its own values is less likely than one that
-    explains the rows as they are (a flash capture's collocated slice is explained by almost any
-    shape once its colour is refitted, and only the move tells the white paper photographed from
-    a red one painted white)."""
+                  tau2: Dict[str, torch.Tensor], shots: int, noise: float = 0.0, rows: int = 1) -> torch.Tensor:
+    """The cluster stage's objective per fit, (F,) from mean squared residuals ``loss`` (F,) over
+    ``rows`` rows of values ``raw`` {name: (F, c)} of materials whose own values are ``own``
+    {name: (F, c)}: the negative log posterior of the module docstring's model divided by its data
+    term's weight, L (1 + sum_j (theta_j - own_j)^2 / tau_j^2 / (3 n) * w / L), n the photographs the
+    rows come from. w is the variance of the residual's mean over one photograph's rows (held fixed):
+    the fit's misfit L - nu^2, which a photograph's pixels share (they see about one direction pair),
+    plus the pixels' own noise nu^2 (``noise``, :meth:`~hybridbrdf.acquire.texel_rows.ObservationTensors.pixel_noise`,
+    at most L) over the rows a photograph gives, rows / n. Without the noise's split (w = L), a
+    capture of 200 photons a pixel let its noise, which 2,000 rows average away, weigh a move 20x
+    what its misfit did: colodur_napoli's cluster chose a material by its closeness to the prior's
+    values over its fit (docs/ACQUISITION_GAP.md). Why the move counts: a material fitted far from
+    its own values is less likely than one that explains the rows as they are (a flash capture's
+    collocated slice is explained by almost any shape once its colour is refitted, and only the move
+    tells the white paper photographed from a red one painted white)."""
     move = sum((((raw[n] - own[n]) ** 2) / tau2[n]).sum(-1) for n in raw)
-    return loss + loss.detach() * move / (3 * max(1, shots))
+    held = loss.detach()
+    pixel = torch.clamp(torch.as_tensor(noise, dtype=held.dtype), max=held)
+    return loss + (held - pixel + pixel * max(1, shots) / max(1, rows)) * move / (3 * max(1, shots))
 
 
 def _has_pure_texels(obs: Observations, labels: np.ndarray, c: int) -> bool:
@@ -164,12 +179,13 @@ def _has_pure_texels(obs: Observations, labels: np.ndarray, c: int) -> bool:
 
 
 def fit_material(family, data: ObservationTensors, rows: torch.Tensor, m: int, start: Dict[str, torch.Tensor],
-                 seed: int, stage: str, own: Optional[Dict[str, torch.Tensor]] = None, shots: int = 1
-                 ) -> Dict[str, object]:
+                 seed: int, stage: str, own: Optional[Dict[str, torch.Tensor]] = None, shots: int = 1,
+                 noise: float = 0.0) -> Dict[str, object]:
     """Material ``m``'s values (one set, from ``start`` {name: (c,)}) fitted to ``rows`` on the frozen
     network, :data:`CLUSTER_STEPS` Adam steps: {"material", "loss" (its mean squared residual after),
     "score" (:func:`map_objective` after, given ``own`` = the material's own values and their spread
-    ``own["tau2"]``; else the loss), "raw" {name: (c,)}}; with ``own`` the fit minimises the objective."""
+    ``own["tau2"]`` and the rows' ``noise``; else the loss), "raw" {name: (c,)}}; with ``own`` the fit
+    minimises the objective."""
     raw = {name: v.reshape(1, -1).clone().requires_grad_() for name, v in start.items()}
     mats = torch.full((len(rows),), m)
 
@@ -180,7 +196,7 @@ def fit_material(family, data: ObservationTensors, rows: torch.Tensor, m: int, s
         loss = data_loss()
         if own is None:
             return loss
-        return map_objective(loss[None], raw, {n: own[n][None] for n in raw}, own["tau2"], shots)[0]
+        return map_objective(loss[None], raw, {n: own[n][None] for n in raw}, own["tau2"], shots, noise, len(rows))[0]
 
     adam_texels(raw, objective, CLUSTER_STEPS, 0.03, seed, stage)
     with torch.no_grad():
@@ -189,10 +205,10 @@ def fit_material(family, data: ObservationTensors, rows: torch.Tensor, m: int, s
 
 
 def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every: Dict[str, torch.Tensor], seed: int,
-                     stage: str, colour: Optional[torch.Tensor] = None, shots: int = 1
-                     ) -> Tuple[torch.Tensor, Dict[str, torch.Tensor], torch.Tensor]:
-    """Every material's :func:`map_objective` on ``rows`` (``shots`` photographs) after
-    :data:`SCREEN_STEPS` Adam steps of its values on it, (M,), the values reached {name: (M, c)},
+                     stage: str, colour: Optional[torch.Tensor] = None, shots: int = 1, noise: float = 0.0,
+                     steps: int = SCREEN_STEPS) -> Tuple[torch.Tensor, Dict[str, torch.Tensor], torch.Tensor]:
+    """Every material's :func:`map_objective` on ``rows`` (``shots`` photographs, ``noise``) after
+    ``steps`` Adam steps of its values on it, (M,), the values reached {name: (M, c)},
     and its loss with its own values (M,) (the rule before the screen):
     all materials in one batched problem (their objectives are separate, so one Adam over all of
     them is an Adam per material). Each material starts twice, from its own values and, given
@@ -229,7 +245,7 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
 
     def per_fit(gen):
         d = data.residual(batch, evaluate())
-        objective = map_objective((d * d).reshape(n_fit, -1).mean(1), raw, own, tau2, shots)
+        objective = map_objective((d * d).reshape(n_fit, -1).mean(1), raw, own, tau2, shots, noise, n_rows)
         # Each fit's best values so far: at this rate Adam's first steps move every value by about the
         # rate whatever its gradient, so a material photographed exactly as it is leaves its optimum.
         best.setdefault("as_is", objective.detach()[:n_mat].clone())  # the first start's first step: own values
@@ -239,7 +255,7 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
             best[n] = torch.where(better[:, None], v.detach(), best[n])
         return objective
 
-    adam_texels(raw, lambda gen: per_fit(gen).sum(), SCREEN_STEPS, SCREEN_LR, seed, stage)
+    adam_texels(raw, lambda gen: per_fit(gen).sum(), steps, SCREEN_LR, seed, stage)
     with torch.no_grad():
         per_fit(None)
     objective = best["objective"].reshape(len(starts), n_mat)
@@ -249,13 +265,16 @@ def screen_materials(family, data: ObservationTensors, rows: torch.Tensor, every
 
 def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, seed: int,
                  progress: Optional[Progress] = None, candidates: int = CANDIDATES,
-                 colour: Optional[torch.Tensor] = None) -> Dict[str, object]:
+                 colour: Optional[torch.Tensor] = None, final: bool = False) -> Dict[str, object]:
     """Per cluster: the prior's material that explains its rows best after fitting (see the module
     docstring; the best ``candidates`` of :func:`screen_materials` fitted from the values the screen
     reached, ``colour`` (K, 3) each cluster's raw kd for the screen's second start), its fitted values and the fit's residual
     variance. Returns {"material" (K,), "centres" {name: (K, c)}, "sigma2" (K,), "candidates": per
     cluster the fitted candidates, best first, each {"material", "loss", "raw" {name: (c,)}} (what
-    :mod:`~hybridbrdf.acquire.cluster_report` prints)}."""
+    :mod:`~hybridbrdf.acquire.cluster_report` prints)}. ``final``: with the final clusters' rows
+    and screen (:data:`FINAL_ROWS`), the progress stage "final clusters"."""
+    n_rows, n_screen, screen_steps, bar = ((FINAL_ROWS, FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, "final clusters") if final
+                                           else (CLUSTER_ROWS, SCREEN_ROWS, SCREEN_STEPS, "clusters"))
     k = int(labels.max()) + 1
     every = family.raw_of_materials()
     tau2 = value_spread(every)
@@ -263,7 +282,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
     total = k * (candidates + 1) * CLUSTER_STEPS
     done = 0
     for c in range(k):
-        rows = _cluster_rows(obs, labels, c, CLUSTER_ROWS, seed)
+        rows = _cluster_rows(obs, labels, c, n_rows, seed)
         if not len(rows):  # a cluster of texels without observations only: the largest's values
             materials.append(materials[0] if materials else 0)
             for name in every:
@@ -272,10 +291,12 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             fitted_all.append([])
             continue
         shots = len(np.unique(obs.shot[rows.numpy()]))
+        noise = data.pixel_noise(network_tune.pure_rows(obs, labels, c))
         if _has_pure_texels(obs, labels, c):
-            score_rows = rows[::max(1, len(rows) // SCREEN_ROWS)][:SCREEN_ROWS]  # spread over the cluster's texels
+            score_rows = rows[::max(1, len(rows) // n_screen)][:n_screen]  # spread over the cluster's texels
             scores, screened, as_is = screen_materials(family, data, score_rows, every, seed, f"screen{c}",
-                                                       None if colour is None else colour[c], shots)
+                                                       None if colour is None else colour[c], shots, noise,
+                                                       screen_steps)
             # The screen's best, and the best with its own values: where the photographs cannot tell
             # shapes apart (a flash capture's collocated slice), the screen's order among near-ties is
             # chance, and a material photographed as it is keeps its lead as it is.
@@ -296,10 +317,10 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
         for m in ranked:
             own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2} if by_objective else None
             fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in starts.items()}, seed,
-                                       f"cluster{c}-{m}", own, shots))
+                                       f"cluster{c}-{m}", own, shots, noise))
             done += CLUSTER_STEPS
             if progress is not None:
-                progress("clusters", done, total)
+                progress(bar, done, total)
         fitted.sort(key=lambda cand: cand["score"])  # stable: a tie keeps the better-screened material
         best = fitted[0]
         materials.append(best["material"])
@@ -308,7 +329,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
         sigma2.append(max(best["loss"], 1e-8))
         fitted_all.append(fitted)
     if progress is not None and done < total:  # fewer fits than the bar allows (the best as photographed
-        progress("clusters", total, total)      # among the screen's, a cluster without rows): its end
+        progress(bar, total, total)             # among the screen's, a cluster without rows): its end
     return {"material": torch.tensor(materials), "centres": {n: torch.stack(v) for n, v in centres.items()},
             "sigma2": torch.tensor(sigma2), "candidates": fitted_all}
 
@@ -437,8 +458,11 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     data = ObservationTensors(obs)
     if "clusters" not in state:
         fitted = (choose or fit_clusters)(family, obs, data, labels, seed, progress, colour=cluster_colours(maps, labels))
-        if merge is not None:
+        if merge is not None:  # then each final cluster's material chosen again, more thoroughly (FINAL_ROWS)
             fitted = merge.merge_clusters(family, obs, data, labels, fitted, seed, MAX_CLUSTERS, progress=progress)[1]
+            merged = fitted["labels"].numpy()
+            final = choose or functools.partial(fit_clusters, candidates=FINAL_CANDIDATES, final=True)
+            fitted = {**fitted, **final(family, obs, data, merged, seed, progress, colour=cluster_colours(maps, merged))}
         finish("clusters", fitted)
     clusters = state["clusters"]
     labels = clusters["labels"].numpy() if "labels" in clusters else labels

@@ -73,6 +73,7 @@ def pooled_fit(family, obs, data, labels: np.ndarray, clusters: Dict, a: int, b:
     union = np.where(labels == b, a, labels)
     both = cluster_fit._cluster_rows(obs, union, a, cluster_fit.CLUSTER_ROWS, seed)
     shots = len(np.unique(obs.shot[both.numpy()]))
+    noise = data.pixel_noise(pure_rows(obs, union, a))
     every = family.raw_of_materials()
     tau2 = cluster_fit.value_spread(every)
     centres = {n: v for n, v in clusters["centres"].items()}
@@ -81,7 +82,7 @@ def pooled_fit(family, obs, data, labels: np.ndarray, clusters: Dict, a: int, b:
         m = int(clusters["material"][c])
         own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2}
         fits.append(cluster_fit.fit_material(family, data, both, m, {n: v[c] for n, v in centres.items()}, seed,
-                                 f"merge{a}-{b}-{c}", own, shots))
+                                 f"merge{a}-{b}-{c}", own, shots, noise))
     fits.sort(key=lambda f: f["score"])
     best = fits[0]
     pooled = [_loss_on(family, data, r, best["material"], best["raw"]) for r in rows]

@@ -33,7 +33,7 @@ import torch
 
 from hybridbrdf.acquire.cluster_fit import (CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material,
                                             value_spread)
-from hybridbrdf.acquire.network_tune import pure_texels
+from hybridbrdf.acquire.network_tune import pure_rows, pure_texels
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress
 from hybridbrdf.acquire.texel_stage import refine_texels
@@ -128,7 +128,7 @@ def select_on_held_out(family, obs: Observations, data: ObservationTensors, labe
             m = int(best["material"])
             own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2}
             refit = fit_material(family, data, rows, m, best["raw"], seed, f"cluster{c}-{m}", own,
-                                 len(np.unique(obs.shot[rows.numpy()])))
+                                 len(np.unique(obs.shot[rows.numpy()])), data.pixel_noise(pure_rows(obs, labels, c)))
             best.update(loss=refit["loss"], score=refit["score"], raw=refit["raw"])
         chosen.append(fitted)
     first = [f[0] if f else None for f in chosen]

@@ -52,12 +52,30 @@ class RowSampler:
 
 class ObservationTensors:
     """The observations as tensors: ``wi``, ``wo`` (M, 3), ``target`` = log(1 + cos(theta_i) g)
-    with g clamped at 0 (noise), ``cos_i`` (M, 1)."""
+    with g clamped at 0 (noise), ``cos_i`` (M, 1); ``cell`` (M,) each row's (texel, photograph) as
+    one number, for :meth:`pixel_noise`."""
 
     def __init__(self, obs: Observations):
         self.wi, self.wo = torch.from_numpy(obs.wi), torch.from_numpy(obs.wo)
         self.cos_i = self.wi[:, 2:3]
         self.target = torch.log1p(self.cos_i * torch.from_numpy(np.maximum(obs.value, 0.0)))
+        texel = np.repeat(np.arange(len(obs.offsets) - 1), np.diff(obs.offsets))
+        self.cell = texel * (int(obs.shot.max(initial=0)) + 1) + np.asarray(obs.shot, dtype=np.int64)
+
+    def pixel_noise(self, rows: torch.Tensor) -> float:
+        """The photographs' noise in the loss domain: the variance of one row's ``target`` about its
+        expectation, per channel, over ``rows``, estimated from pairs of rows next to each other that
+        belong to the same texel and photograph (neighbouring pixels: they see one direction pair
+        to within a texel's footprint, so half their squared difference is the sensor's noise, plus
+        what the BRDF changes across a texel, which makes it an upper bound). 0 without such pairs.
+        Why it is needed: a fit's mean squared residual is this noise plus what its model misses, and
+        only the second is shared by a photograph's pixels (:func:`~hybridbrdf.acquire.cluster_fit.map_objective`)."""
+        r = np.sort(np.asarray(rows, dtype=np.int64))
+        pair = (np.diff(r) == 1) & (self.cell[r[1:]] == self.cell[r[:-1]])
+        if not pair.any():
+            return 0.0
+        d = (self.target[r[1:][pair]] - self.target[r[:-1][pair]]).double()
+        return float((d * d).mean() / 2)
 
     def residual(self, rows: torch.Tensor, f: torch.Tensor) -> torch.Tensor:
         """The paper's residual per pair and channel, log(1 + cos g) - log(1 + cos f), (N, 3)."""
