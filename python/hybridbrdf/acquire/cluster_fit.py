@@ -4,15 +4,15 @@ fits run the same three stages, on a *family* (the model's network and its per-m
 
 1. **analytic**: the analytic-only fit (:func:`fit_analytic_texels`), half the steps: per-texel
    features (log kd, log alpha, log(eta - 1) per channel) cheap to get and good enough to group texels by.
-2. **clusters**: k-means on the standardised features, into :data:`MAX_CLUSTERS` (a textured
+2. **clusters**: k-means on the standardised features (:mod:`~hybridbrdf.acquire.clustering`), into :data:`MAX_CLUSTERS` (a textured
    material holds a base and up to 3 layers) or, given ``merge`` (the hybrid's and neural-only
    fits pass :mod:`~hybridbrdf.acquire.cluster_merge`), into more and merged after the fits below
    where one fit explains a pair; per cluster, on rows of its pure texels (:func:`_cluster_rows`), every
    material of the prior screened by a short fit of its values (:func:`screen_materials`), the
    screen's best :data:`CANDIDATES` and the best as photographed fitted (all of the family's
    per-texel values, one set for the cluster, on the frozen network), the lowest
-   :func:`map_objective` kept; or
-   (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
+   :func:`map_objective` kept, and after a merge every final cluster's chosen again on more rows
+   (:data:`FINAL_ROWS`); or (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
    material share one BRDF, so a cluster pools every texel's observations for the one shape a
@@ -33,13 +33,12 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 import torch
 
-from hybridbrdf import spec
 from hybridbrdf.acquire import network_tune
+from hybridbrdf.acquire.clustering import cluster_colours, texel_clusters
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, adam_texels
 from hybridbrdf.acquire.texel_stage import refine_texels
-from hybridbrdf.model.networks import raw_from_analytic
 
 #: Clusters of texels at most (a textured material's base and 3 layers).
 MAX_CLUSTERS = 4
@@ -66,61 +65,6 @@ HEAD_PULL = 1.0
 #: or below: the guard's f_t = f_a head (weights 0, biases -200 and 200: exp(-200) + sigmoid(200) f_a)
 #: has no gradient; from -8 and 8 it has, and f_t differs from f_a by about 3e-4 of f_a + 3e-4.
 HEAD_START = 8.0
-
-
-def kmeans(features: np.ndarray, k: int, seed: int, iterations: int = 30) -> np.ndarray:
-    """Labels (N,) of k-means on ``features`` (N, d), k-means++ started by ``seed``; at most ``k``
-    clusters, empty ones dropped and the labels renumbered 0.. by decreasing size."""
-    rng = np.random.default_rng(seed)
-    n = len(features)
-    k = min(k, n)
-    centres = [features[rng.integers(n)]]
-    for _ in range(1, k):
-        d2 = np.min([((features - c) ** 2).sum(1) for c in centres], axis=0)
-        if d2.sum() <= 0:
-            break
-        centres.append(features[rng.choice(n, p=d2 / d2.sum())])
-    centres = np.array(centres)
-    for _ in range(iterations):
-        labels = np.argmin(((features[:, None] - centres[None]) ** 2).sum(2), axis=1)
-        centres = np.array([features[labels == c].mean(0) if (labels == c).any() else centres[c]
-                            for c in range(len(centres))])
-    sizes = np.bincount(labels, minlength=len(centres))
-    order = [c for c in np.argsort(-sizes, kind="stable") if sizes[c] > 0]
-    renumber = np.zeros(len(centres), dtype=np.int64)
-    renumber[order] = np.arange(len(order))
-    return renumber[labels]
-
-
-def texel_clusters(maps: AnalyticMaps, k: int, seed: int) -> np.ndarray:
-    """(H * W,) cluster of every texel from its analytic fit: k-means on (log kd, log alpha,
-    log(eta - 1)), each feature standardised; texels without observations join the largest cluster.
-    All three channels of eta: a coloured metal or film shows its colour in the Fresnel term, not
-    in kd (the 512x512 capture's vch_golden_yellow fell into the metallic paint's clusters with eta's
-    first channel alone, and got a cluster of its own, 378 of 383 pure texels at 64x64, with all three)."""
-    kd = maps.kd.reshape(-1, 3).astype(np.float64)
-    feats = np.concatenate([np.log(np.maximum(kd, 1e-3)), np.log(maps.alpha.reshape(-1, 2)[:, :1]),
-                            np.log(maps.eta.reshape(-1, 3).astype(np.float64) - 1 + 1e-3)], axis=1)
-    seen = maps.counts.reshape(-1) > 0
-    labels = np.zeros(len(feats), dtype=np.int64)
-    if seen.any():
-        f = feats[seen]
-        f = (f - f.mean(0)) / np.maximum(f.std(0), 1e-6)
-        labels[seen] = kmeans(f, k, seed)
-    return labels
-
-
-def cluster_colours(maps: AnalyticMaps, labels: np.ndarray) -> torch.Tensor:
-    """(K, 3) each cluster's colour as a raw kd (the hybrid's reparameterisation): the median of
-    its pure texels' analytic kd (every texel's when none is pure), the screen's second start."""
-    kd = maps.kd.reshape(-1, 3).astype(np.float64)
-    colours = []
-    for c in range(int(labels.max()) + 1):
-        texels = network_tune.pure_texels(labels, maps.kd.shape[1::-1], c)
-        texels = texels if len(texels) else np.nonzero(labels == c)[0]
-        colours.append(np.median(kd[texels], axis=0))
-    kd = torch.tensor(np.array(colours), dtype=torch.float32).clamp(spec.KD_MIN + 1e-4, 1 - 1e-4)
-    return raw_from_analytic(kd, torch.full_like(kd, 1.5), torch.full((len(kd), 2), 0.3))[0]
 
 
 def _loss_rows(family, data: ObservationTensors, materials: torch.Tensor, raw: Dict[str, torch.Tensor],
@@ -411,6 +355,20 @@ def _check_rows(rows_per_texel) -> None:
         raise ValueError(f"rows_per_texel must be an int >= 1 for a fit on a prior, got {rows_per_texel!r}")
 
 
+def _cluster_stage(family, obs: Observations, data: ObservationTensors, maps: AnalyticMaps, labels: np.ndarray,
+                   seed: int, progress: Optional[Progress], choose: Optional[Callable], merge) -> Dict:
+    """Stage 2 of the module docstring: the clusters fitted (or chosen by ``choose``); given ``merge``,
+    merged, then each final cluster's material chosen again on more rows (:data:`FINAL_ROWS`; ``choose``
+    again where given), the merge's "merges" and "labels" kept."""
+    fitted = (choose or fit_clusters)(family, obs, data, labels, seed, progress, colour=cluster_colours(maps, labels))
+    if merge is None:
+        return fitted
+    fitted = merge.merge_clusters(family, obs, data, labels, fitted, seed, MAX_CLUSTERS, progress=progress)[1]
+    merged = fitted["labels"].numpy()
+    final = choose or functools.partial(fit_clusters, candidates=FINAL_CANDIDATES, final=True)
+    return {**fitted, **final(family, obs, data, merged, seed, progress, colour=cluster_colours(maps, merged))}
+
+
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                  progress: Optional[Progress] = None, state: Optional[dict] = None,
                  save_state: Optional[Callable[[dict], None]] = None,
@@ -457,13 +415,7 @@ def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texe
     labels = texel_clusters(maps, k, seed)
     data = ObservationTensors(obs)
     if "clusters" not in state:
-        fitted = (choose or fit_clusters)(family, obs, data, labels, seed, progress, colour=cluster_colours(maps, labels))
-        if merge is not None:  # then each final cluster's material chosen again, more thoroughly (FINAL_ROWS)
-            fitted = merge.merge_clusters(family, obs, data, labels, fitted, seed, MAX_CLUSTERS, progress=progress)[1]
-            merged = fitted["labels"].numpy()
-            final = choose or functools.partial(fit_clusters, candidates=FINAL_CANDIDATES, final=True)
-            fitted = {**fitted, **final(family, obs, data, merged, seed, progress, colour=cluster_colours(maps, merged))}
-        finish("clusters", fitted)
+        finish("clusters", _cluster_stage(family, obs, data, maps, labels, seed, progress, choose, merge))
     clusters = state["clusters"]
     labels = clusters["labels"].numpy() if "labels" in clusters else labels
     if on_clusters is not None:

@@ -1,5 +1,5 @@
 """The cluster stage's merge (docs/ACQUISITION_GAP.md, "Clusters split finely, then merged"):
-k-means on the analytic fit's features (:func:`~hybridbrdf.acquire.cluster_fit.texel_clusters`)
+k-means on the analytic fit's features (:func:`~hybridbrdf.acquire.clustering.texel_clusters`)
 knows nothing of noise, so with a fixed count it splits one material photographed under noise
 into two clusters as readily as it keeps two materials in one. Both happened on the light-stage
 bench: colodur_napoli, one uniform material, fell into two clusters that chose different
@@ -36,8 +36,8 @@ from hybridbrdf.acquire.texel_rows import Progress
 #: them allowed a split that the merge undoes).
 SPLIT_CLUSTERS = 6
 #: Photographed texels per cluster below which k-means does not split finer than the limit: a
-#: cluster's material is chosen on its pure texels (8 neighbours in it too), a 3x3 block at least,
-#: and a merged cluster keeps the better of its two clusters' materials without a new screen.
+#: cluster's material is chosen on its pure texels (8 neighbours in it too), a 3x3 block at least
+#: (after the merge, the final clusters' materials are chosen again: cluster_fit.FINAL_ROWS).
 SPLIT_TEXELS = 9
 #: A pair of clusters merges when the pooled fit explains each cluster's rows within this factor
 #: of the residual its own fit leaves (module docstring).
@@ -103,7 +103,7 @@ def _own_fit(clusters: Dict, c: int) -> dict:
 
 def _merged(labels: np.ndarray, clusters: Dict, a: int, b: int, fits: list) -> Tuple[np.ndarray, Dict, np.ndarray]:
     """Labels and clusters with ``b`` merged into ``a`` (its entry the pooled fit ``fits[0]``), renumbered
-    by decreasing size as :func:`~hybridbrdf.acquire.cluster_fit.kmeans` numbers them, and the
+    by decreasing size as :func:`~hybridbrdf.acquire.clustering.kmeans` numbers them, and the
     renumbering (old cluster -> new; ``b`` -> ``a``'s)."""
     labels = np.where(labels == b, a, labels)
     best = fits[0]
