@@ -112,8 +112,8 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, texels, energy
-    tables), a line per cluster and a message before writing; warnings on stderr."""
+    """``hbrdf acquire fit``: one progress bar per stage (analytic, clusters, merge, final clusters,
+    network, texels, energy tables), a line per cluster and a message before writing; warnings on stderr."""
     import torch
     from tqdm import tqdm
 
