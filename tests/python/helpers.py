@@ -343,6 +343,18 @@ def run_shared_path(tmp_path_factory, name: str):
         yield path
 
 
+def split_effort_final_choice(monkeypatch):
+    """The acquisition fit's final clusters chosen with the split clusters' screen, rows and
+    candidates (cluster_fit.FINAL_* as SCREEN_ROWS, SCREEN_STEPS, CLUSTER_ROWS, CANDIDATES): for a
+    test of one cluster, where nothing merges and the final choice repeats the split clusters'
+    (test_acquire_fit.py's halves keep the defaults)."""
+    from hybridbrdf.acquire import cluster_fit
+
+    for final, split in (("FINAL_SCREEN_ROWS", "SCREEN_ROWS"), ("FINAL_SCREEN_STEPS", "SCREEN_STEPS"),
+                         ("FINAL_ROWS", "CLUSTER_ROWS"), ("FINAL_CANDIDATES", "CANDIDATES")):
+        monkeypatch.setattr(cluster_fit, final, getattr(cluster_fit, split))
+
+
 def shorten_acquire_fit(monkeypatch):
     """The acquisition fit cut to what a test of a command-line flag needs: 10 cluster steps, 2
     clusters at most and none merged, no energy tables for bright kd maps. Such a test checks that the flag reaches
@@ -353,4 +365,5 @@ def shorten_acquire_fit(monkeypatch):
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 2)
     monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 2)  # k-means makes as many
     monkeypatch.setattr(cluster_merge, "MERGE_RATIO", 0.0)  # and keeps them: a flag's test counts its clusters
+    split_effort_final_choice(monkeypatch)
     monkeypatch.setattr(hybrid_fit, "bound_bright_kd", lambda model, names, kd_maps, log: (model, names))

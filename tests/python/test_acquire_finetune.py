@@ -13,7 +13,7 @@ import os
 import numpy as np
 import pytest
 import torch
-from helpers import run_cli_here, seeded_cosine_directions, shorten_acquire_fit
+from helpers import run_cli_here, seeded_cosine_directions, shorten_acquire_fit, split_effort_final_choice
 from test_acquire_report import _capture
 
 import hybridbrdf as hb
@@ -56,6 +56,7 @@ def fits():
     mp = pytest.MonkeyPatch()
     mp.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
     mp.setattr(cluster_merge, "SPLIT_CLUSTERS", 1)  # k-means makes as many
+    split_effort_final_choice(mp)
     try:
         return prior, obs, {n: fit_hybrid_texels(obs, prior, steps=60, seed=0, finetune_network=n) for n in (0, 100)}
     finally:

@@ -22,7 +22,7 @@ from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.prior import load_prior
 from hybridbrdf.sources.model import ModelMaterialSource
 
-from helpers import seeded_cosine_directions
+from helpers import seeded_cosine_directions, split_effort_final_choice
 
 SHAPE, OTHER = "vch_golden_yellow_rgb.rgl", "paper_white_rgb.rgl"
 
@@ -63,6 +63,7 @@ def test_a_refitted_head_fits_a_shape_no_prior_head_holds_better_where_photograp
     # Without HEAD_START the refit could not move that head: 0.79x and 0.98x.
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
     monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 1)  # k-means makes as many
+    split_effort_final_choice(monkeypatch)
     prior, novel, obs = novel_capture
     n = 20000
     wi, wo = seeded_cosine_directions(n, 1), seeded_cosine_directions(n, 2)

@@ -104,7 +104,7 @@ def map_objective(loss: torch.Tensor, raw: Dict[str, torch.Tensor], own: Dict[st
     the fit's misfit L - nu^2, which a photograph's pixels share (they see about one direction pair),
     plus the pixels' own noise nu^2 (``noise``, :meth:`~hybridbrdf.acquire.texel_rows.ObservationTensors.pixel_noise`,
     at most L) over the rows a photograph gives, rows / n. Without the noise's split (w = L), a
-    capture of 200 photons a pixel let its noise, which 2,000 rows average away, weigh a move 20x
+    capture of 200 photons a pixel let its noise, which 2,000 rows average away, weigh a move 25x
     what its misfit did: colodur_napoli's cluster chose a material by its closeness to the prior's
     values over its fit (docs/ACQUISITION_GAP.md). Why the move counts: a material fitted far from
     its own values is less likely than one that explains the rows as they are (a flash capture's
