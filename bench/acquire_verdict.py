@@ -43,6 +43,7 @@ from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import Rig, Shot, check_rig, photo_name
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.acquire.simulation import radiance, simulate
+from hybridbrdf.acquire.sizes import default_finetune
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
 from hybridbrdf.model.prior import prior_path
 
@@ -53,15 +54,23 @@ import acquire_compare as ac  # noqa: E402
 RIGS = ("flash", "flash-multiview", "light-stage")
 #: Model key -> (label, held out, fit function name, weights file or None).
 MODELS = {"analytic": ("analytic only (f_a p per texel)", True, "fit_analytic_texels", None),
-          "hybrid_heldout": ("hybrid, prior that never saw them", True, "fit_hybrid_texels", ac.HELD_OUT_PRIOR),
+          "hybrid_heldout": ("hybrid, prior that never saw them, hbrdf acquire fit's default (its network fine-tuned "
+                             "from 32 photographs on: acquire.sizes.default_finetune)", True, "fit_hybrid_texels",
+                             ac.HELD_OUT_PRIOR),
+          "hybrid_frozen": ("hybrid, prior that never saw them, its network frozen at every N", True,
+                            "fit_hybrid_texels", ac.HELD_OUT_PRIOR),
           "neural_heldout": ("neural only, rgl44_heldout_neural_32x3 (never saw them)", True, "fit_neural_texels",
                              ac.HELD_OUT_NEURAL),
           "hybrid_shipped": ("hybrid, shipped prior (NOT held out)", False, "fit_hybrid_texels", None),
           "neural": ("neural only, rgl54_neural_32x3 (NOT held out)", False, "fit_neural_texels", ac.NEURAL),
           "hybrid_tuned": ("hybrid, prior that never saw them, its network fine-tuned 200 steps on the capture",
                            True, "fit_hybrid_texels", ac.HELD_OUT_PRIOR)}
-#: Model key -> the fit's keyword arguments beyond the shared budget.
-EXTRA = {"hybrid_tuned": {"finetune_network": 200}}
+#: Model key -> the fit's keyword arguments beyond the shared budget, each a value or a function of
+#: the capture's photograph count (the product's default fine-tune: ``hbrdf acquire fit`` and
+#: ``acquire()`` pass default_finetune(photographs) when none is asked for).
+EXTRA = {"hybrid_tuned": {"finetune_network": 200}, "hybrid_frozen": {"finetune_network": 0},
+         "hybrid_heldout": {"finetune_network": default_finetune},
+         "hybrid_shipped": {"finetune_network": default_finetune}}
 #: The hybrid of the verdict and the models it is compared with.
 HYBRID, OTHERS = "hybrid_heldout", ("analytic", "neural_heldout")
 METRICS = ac.VERDICT_METRICS
@@ -149,8 +158,8 @@ def verdict_lines(rows, hybrid: str = HYBRID) -> list:
 # --- The sweep ---------------------------------------------------------------------------------
 
 def fitters(keys, steps: int, rows_per_texel):
-    """{key: fit(obs, seed)} of the models ``keys`` with the same budget (a fit function not in
-    hybridbrdf.acquire: skipped, printed)."""
+    """{key: fit(obs, seed, shots)} of the models ``keys`` with the same budget, ``shots`` the
+    capture's photographs (a fit function not in hybridbrdf.acquire: skipped, printed)."""
     out = {}
     for key in keys:
         label, held, fn_name, path = MODELS[key]
@@ -161,11 +170,9 @@ def fitters(keys, steps: int, rows_per_texel):
         kw = {**ac.budget(fn, steps, rows_per_texel), **EXTRA.get(key, {})}
         if path is None and key != "analytic":
             path = pathlib.Path(prior_path())
-        if path is None:
-            out[key] = (lambda f, k: lambda obs, seed: f(obs, seed=seed, **k))(fn, kw)
-        else:
-            model = hb.load_model(str(path))
-            out[key] = (lambda f, m, k: lambda obs, seed: f(obs, m, seed=seed, **k))(fn, model, kw)
+        model = () if path is None else (hb.load_model(str(path)),)
+        out[key] = (lambda f, m, k: lambda obs, seed, shots: f(
+            obs, *m, seed=seed, **{n: v(shots) if callable(v) else v for n, v in k.items()}))(fn, model, kw)
     return out
 
 
@@ -188,7 +195,7 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
     rows = []
     for key, fit_fn in fits.items():
         t0 = time.process_time()
-        fit = fit_fn(obs, seed)
+        fit = fit_fn(obs, seed, len(rig.shots))
         cpu = time.process_time() - t0
         s_err, c_err = ac.texel_errors(fit, truth)
         render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, size), true_render, mask)

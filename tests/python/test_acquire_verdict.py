@@ -93,3 +93,24 @@ def test_light_stage_sees_other_slices_than_the_collocated():
     for point, shots in (("4x2", 8), ("8x4", 32)):
         on_slice, n = collocated("light-stage", point)
         assert n == shots and on_slice <= 1, (point, on_slice)
+
+
+def test_the_verdicts_hybrid_is_the_products_default_fit(monkeypatch):
+    """hybrid_heldout is fitted as ``hbrdf acquire fit`` fits by default: its network frozen below 32
+    photographs and fine-tuned from 32 on (acquire.sizes); hybrid_frozen stays frozen at every N.
+    The verdict once judged the frozen fit at every N, which the product never ran from 32 on."""
+    from hybridbrdf.acquire import sizes
+
+    calls = []
+
+    def fit_hybrid_texels(obs, model, seed=0, **kw):
+        calls.append(kw.get("finetune_network"))
+
+    monkeypatch.setattr(av.ac, "find_fit", lambda name: fit_hybrid_texels)
+    fits = av.fitters(["hybrid_heldout", "hybrid_frozen"], 10, 64)
+    for shots in (8, 31, 32, 128):
+        fits["hybrid_heldout"](None, 0, shots)
+        fits["hybrid_frozen"](None, 0, shots)
+    tuned = sizes.FINETUNE_STEPS
+    assert tuned > 0
+    assert calls == [0, 0, 0, 0, tuned, 0, tuned, 0]
