@@ -22,8 +22,8 @@ from hybridbrdf.acquire.observations import Observations
 ROWS_PER_TEXEL = 8
 
 #: The least cos(theta_i) g a row's target is taken at. Not 0: a photograph's noise makes a dark
-#: pixel's reading negative as often as above its mean (a raw frame less its black level), and
-#: clamped at 0 the darkest rows read brighter than they are. On the light-stage bench at high
+#: pixel's reading negative (a raw frame less its black level), and clamped at 0 the darkest rows
+#: read brighter than they are. On the light-stage bench at high
 #: noise (200 photons at radiance 1, read noise 4), the darkest tenth of colodur_napoli's rows read
 #: 17% brighter on average and the next 5%; unclamped, none differs from the noiseless photograph's
 #: by more than its error (docs/ACQUISITION_GAP.md, "The target unclamped"). A floor all the
@@ -62,8 +62,8 @@ class RowSampler:
 
 class ObservationTensors:
     """The observations as tensors: ``wi``, ``wo`` (M, 3), ``target`` = log(1 + cos(theta_i) g)
-    with cos(theta_i) g at least :data:`TARGET_FLOOR` (noise may make it negative), ``cos_i`` (M, 1); ``cell`` (M,) each row's (texel, photograph) as
-    one number, for :meth:`pixel_noise`."""
+    with cos(theta_i) g at least :data:`TARGET_FLOOR` (noise may make it negative), ``cos_i``
+    (M, 1); ``cell`` (M,) each row's (texel, photograph) as one number, for :meth:`pixel_noise`."""
 
     def __init__(self, obs: Observations):
         self.wi, self.wo = torch.from_numpy(obs.wi), torch.from_numpy(obs.wo)
