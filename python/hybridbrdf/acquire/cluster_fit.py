@@ -237,7 +237,8 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             fitted_all.append([])
             continue
         shots = len(np.unique(obs.shot[rows.numpy()]))
-        noise = data.pixel_noise(network_tune.pure_rows(obs, labels, c))
+        # The pixels' noise enters the MAP objective only, which scores pure clusters alone.
+        noise = data.pixel_noise(network_tune.pure_rows(obs, labels, c)) if pure else 0.0
         if pure:
             score_rows = rows[::max(1, len(rows) // n_screen)][:n_screen]  # spread over the cluster's texels
             scores, screened, as_is = screen_materials(family, data, score_rows, every, seed, f"screen{c}",

@@ -23,12 +23,12 @@ ROWS_PER_TEXEL = 8
 
 #: The least cos(theta_i) g a row's target is taken at. Not 0: a photograph's noise makes a dark
 #: pixel's reading negative (a raw frame less its black level), and clamped at 0 the darkest rows
-#: read brighter than they are. On the light-stage bench at high
-#: noise (200 photons at radiance 1, read noise 4), the darkest tenth of colodur_napoli's rows read
-#: 17% brighter on average and the next 5%; unclamped, none differs from the noiseless photograph's
-#: by more than its error (docs/ACQUISITION_GAP.md, "The target unclamped"). A floor all the
-#: same, so that log(1 + x) stays defined (x > -1) and its slope 1 / (1 + x) at most 2: a reading
-#: that far below 0 is not noise but a bad black level.
+#: read brighter than they are. On the light-stage bench at high noise (200 photons at radiance 1,
+#: read noise 4), the darkest tenth of colodur_napoli's rows read 17% brighter on average and the
+#: next 5%; unclamped, none differs from the noiseless photograph's by more than its error
+#: (docs/ACQUISITION_GAP.md, "The target unclamped"). A floor all the same, so that log(1 + x)
+#: stays defined (x > -1) and its slope 1 / (1 + x) at most 2: a reading that far below 0 is not
+#: noise but a bad black level.
 TARGET_FLOOR = -0.5
 
 #: (stage, steps done, steps of the stage) after each step; what a progress bar shows.
