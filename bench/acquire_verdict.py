@@ -176,6 +176,15 @@ def fitters(keys, steps: int, rows_per_texel):
     return out
 
 
+def scored_texels(weights: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """The texels a seed scores: ``count`` drawn with the seed (acquire_compare.sampled_texels: half
+    pure, half mixed), or with ``count`` 0 every texel of the map, the same for every seed (so the
+    seeds' spread is the capture's and the fit's, not the draw's)."""
+    if count == 0:
+        return np.arange(weights.shape[0] * weights.shape[1])
+    return ac.sampled_texels(weights, count, seed=seed)
+
+
 def points(args):
     """[(rig kind, size point)] of the run, in the order measured."""
     sizes = {"flash": args.flash_ns, "flash-multiview": args.views, "light-stage": args.stages}
@@ -241,8 +250,7 @@ def sweep(args) -> int:
     t_start = time.perf_counter()
     size = (args.map, args.map)
     mixture = ac.sample_mixture(pathlib.Path(args.shared), args.map)
-    truths = {s: ac.Truth(mixture, ac.sampled_texels(mixture.weights, args.texels, seed=s), size, args.pairs)
-              for s in args.seeds}
+    truths = {s: ac.Truth(mixture, scored_texels(mixture.weights, args.texels, s), size, args.pairs) for s in args.seeds}
     args.novel_rig = ac.novel_rig(args.photo)
     novel = (radiance(args.novel_rig, 0, mixture), pixel_geometry(args.novel_rig, 0).mask)
     floor = ac.relative_mae(ac.render_fit(ac.CentreTruth(mixture, size), args.novel_rig, size), *novel)
@@ -284,7 +292,8 @@ def parse(argv=None):
                          "fit only: the fits on a prior refuse it)")
     ap.add_argument("--photo", type=int, default=48, help="photograph side in pixels (default 48)")
     ap.add_argument("--map", type=int, default=16, help="texel map side (= the weights map's; default 16)")
-    ap.add_argument("--texels", type=int, default=16, help="sampled texels per seed, half pure, half mixed (default 16)")
+    ap.add_argument("--texels", type=int, default=16,
+                    help="sampled texels per seed, half pure, half mixed (default 16); 0: every texel of the map, the same for every seed")
     ap.add_argument("--pairs", type=int, default=5000, help="metric direction pairs per sampled texel (default 5000)")
     ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")

@@ -114,3 +114,18 @@ def test_the_verdicts_hybrid_is_the_products_default_fit(monkeypatch):
     tuned = sizes.FINETUNE_STEPS
     assert tuned > 0
     assert calls == [0, 0, 0, 0, tuned, 0, tuned, 0]
+
+
+def test_every_texel_is_scored_alike_for_every_seed_and_a_draw_differs_by_seed():
+    # --texels 0: the seeds' spread must be the capture's and the fit's, so every seed scores the
+    # same texels, all of the map's; a count draws half pure, half mixed, differently per seed.
+    weights = np.zeros((8, 8, 2))
+    weights[..., 0] = 1.0
+    weights[:, 4:, 0], weights[:, 4:, 1] = 0.5, 0.5  # half the map mixed
+    every = [av.scored_texels(weights, 0, s) for s in (0, 1, 2)]
+    assert all(np.array_equal(e, np.arange(64)) for e in every)
+    drawn = [av.scored_texels(weights, 8, s) for s in (0, 1, 2)]
+    assert all(len(d) == 8 and len(np.unique(d)) == 8 for d in drawn)
+    assert not all(np.array_equal(drawn[0], d) for d in drawn[1:])
+    pure = [int((weights.reshape(-1, 2)[d].max(axis=1) > 0.99).sum()) for d in drawn]
+    assert pure == [4, 4, 4]
