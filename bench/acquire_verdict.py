@@ -4,7 +4,7 @@ docs/ACQUISITION_GAP.md, "Hybrid against analytic-only and neural-only on three 
 
 bench/acquire_compare.py's sample (three raw RGL measurements under the disc and stripes), its
 errors (per-texel SMAPE and cMAE against the exact mixture over all directions, medians over the
-sampled texels; the novel-view re-render's relative MAE) and its models, photographed by three
+scored texels: every texel of the map; the novel-view re-render's relative MAE) and its models, photographed by three
 rigs instead of the phone flash alone:
 
 - ``flash``: acquire.rigs.flash_rig(N), every photograph on the collocated slice (wi ~ wo);
@@ -13,14 +13,14 @@ rigs instead of the phone flash alone:
 - ``light-stage``: acquire.rigs.light_stage_rig(K, V), K lights x V cameras (no shot collocated).
 
 Each point (rig, N, noise level) is measured with several seeds (--seeds): seed s draws the
-sensor noise and the light jitter (--jitter, rig length units), the sampled texels and the fits'
-own seed. A row reports each metric's mean over the seeds and its spread (min-max). The verdict
+sensor noise and the light jitter (--jitter, rig length units) and the fits' own seed (and the
+texels scored, with --texels N > 0: drawn per seed, so the spread held the draw's too). A row reports each metric's mean over the seeds and its spread (min-max). The verdict
 of hybrid against another model on a metric (:func:`verdict`): the gap between the two models'
 seed means counts only when it exceeds both models' seed ranges (max - min); inside them: tie.
 
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
         [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
-        [--steps 150] [--photo 48] [--map 16] [--texels 16] [--pairs 5000] [--out results/acquire_verdict_MACHINE]
+        [--steps 150] [--photo 48] [--map 16] [--texels 0] [--pairs 2000] [--out results/acquire_verdict_MACHINE]
     python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
 """
 
@@ -229,11 +229,13 @@ def summary_line(kind, point, noise, model, rs) -> str:
 
 
 def header(args, out, floor, fits):
+    scored = (f"{args.texels} sampled texels per seed (half pure, half mixed, drawn with the seed)" if args.texels
+              else "every texel scored (the same for every seed)")
+    drawn = "noise, jitter, fit, texels" if args.texels else "noise, jitter, fit"
     out.line(f"acquire_verdict: {', '.join(ac.LAYERS)} under the disc/stripes masks, {args.map}x{args.map} texel map; "
              f"{args.photo}x{args.photo} photographs, light jitter {args.jitter} (rig units); {args.steps} Adam steps "
-             f"per model, {args.rows_per_texel or 'every'} rows per texel per step; {args.texels} sampled texels per seed "
-             f"(half pure, half mixed, drawn with the seed) x {args.pairs} metric pairs; seeds {args.seeds} (noise, "
-             f"jitter, texels, fit); torch threads {torch.get_num_threads()}; machine {args.machine}")
+             f"per model, {args.rows_per_texel or 'every'} rows per texel per step; {scored} x {args.pairs} metric "
+             f"pairs; seeds {args.seeds} ({drawn}); torch threads {torch.get_num_threads()}; machine {args.machine}")
     out.line("rigs: flash = flash_rig(N) (collocated slice); flash-multiview V = V phones, each flash photographed by "
              "all V (V x V shots); light-stage KxV = light_stage_rig(K, V)")
     out.line("noise: " + "; ".join(f"{l}: photons {p:g}, read noise {r:g}" for l, p, r in ac.NOISE))
@@ -292,9 +294,10 @@ def parse(argv=None):
                          "fit only: the fits on a prior refuse it)")
     ap.add_argument("--photo", type=int, default=48, help="photograph side in pixels (default 48)")
     ap.add_argument("--map", type=int, default=16, help="texel map side (= the weights map's; default 16)")
-    ap.add_argument("--texels", type=int, default=16,
-                    help="sampled texels per seed, half pure, half mixed (default 16); 0: every texel of the map, the same for every seed")
-    ap.add_argument("--pairs", type=int, default=5000, help="metric direction pairs per sampled texel (default 5000)")
+    ap.add_argument("--texels", type=int, default=0,
+                    help="texels scored: 0 (the default) every texel of the map, the same for every seed; N > 0: N drawn "
+                         "per seed, half pure, half mixed (the rule until 2026-11-30)")
+    ap.add_argument("--pairs", type=int, default=2000, help="metric direction pairs per scored texel (default 2000)")
     ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
