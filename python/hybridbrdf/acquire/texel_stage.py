@@ -49,13 +49,6 @@ from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Pr
 
 #: The texel stage's pull toward the cluster's values, a multiple of its MAP weight (module docstring).
 TEXEL_PULL = 1.0
-#: The texel stage's Adam rate (decaying linearly to a tenth, :func:`adam_texels`), 0.01 until
-#: 2026-11-30: a texel starts at its cluster's values, and one far from them (a paper texel on a
-#: coating's rim that k-means put with the coating: kd 2.5 logits brighter) got a fifth of the way
-#: in 150 steps at 0.01, 0.6 of it at 0.03 (tests/python/test_acquire_texel_stage.py); the light-stage
-#: verdict's seed 2 had such texels 3x too dark at two thirds of the directions. The rate's noise is
-#: the twins' to measure and the shrink's to remove (docs/ACQUISITION_GAP.md, "The texel stage's rate").
-TEXEL_LR = 0.1
 #: Shrink the texels toward their cluster's values after the fit (module docstring); False: the
 #: twins' mean as it is (a bench knob: bench/acquire_gap.py's ``no_shrink``).
 SHRINK = True
@@ -117,13 +110,13 @@ def shrink_to_clusters(a: Dict[str, torch.Tensor], b: Dict[str, torch.Tensor], c
 
 def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
                   tau2: Dict[str, torch.Tensor], steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
-                  lr: Optional[float] = None, progress: Optional[Progress] = None, state: Optional[dict] = None,
+                  lr: float = 0.01, progress: Optional[Progress] = None, state: Optional[dict] = None,
                   save_state: Optional[Callable[[dict], None]] = None) -> Dict[str, torch.Tensor]:
     """Every texel's values (n_texels, c) refined from its cluster's (``clusters``: "material",
     "centres", "sigma2" per cluster; ``labels`` each texel's) with the pull of the module docstring
     (``tau2``: its variance per component), as twins of ``rows_per_texel / 2`` rows a step each for
-    ``steps`` steps at Adam rate ``lr`` (None: :data:`TEXEL_LR`), then shrunk
-    (:func:`shrink_to_clusters`); texels without observations keep their cluster's values."""
+    ``steps`` steps, then shrunk (:func:`shrink_to_clusters`); texels without observations keep
+    their cluster's values."""
     lab = torch.from_numpy(labels)
     centre = {n: v[lab] for n, v in clusters["centres"].items()}
     sampler = TwinSampler(obs, max(1, rows_per_texel // 2))
@@ -145,7 +138,7 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
 
     values = {n: v.clone() for n, v in centre.items()}
     if n_seen:
-        adam_texels(raw, loss, steps, TEXEL_LR if lr is None else lr, seed, "texels", progress, state, save_state)
+        adam_texels(raw, loss, steps, lr, seed, "texels", progress, state, save_state)
         a, b = ({n: v.detach()[half * n_seen:(half + 1) * n_seen] for n, v in raw.items()} for half in (0, 1))
         shrunk, _ = shrink_to_clusters(a, b, lab[seen])
         for n in values:
