@@ -18,10 +18,15 @@ def busy(command, cores=2):
 
 
 def test_a_waiting_command_leaves_every_core_idle():
-    r, lines = busy(["sleep", "1"])
+    r, lines = busy(["sleep", "2"])
     assert r.returncode == 0, r.stderr
-    assert "runnable threads 0: 100.0%" in lines["runnable"], r.stdout
-    assert "mean idle cores 2.000 of 2" in lines["mean"], r.stdout
+    # At most the first sample may catch the command starting (exec is runnable, and slow on a
+    # loaded machine: the CI of 965c67c beside a bench saw 1 of 11 samples); a spinning one is in all.
+    shares = dict(kv.split(": ") for kv in lines["runnable"].split("runnable threads ", 1)[1].split(", "))
+    samples = int(lines["exit"].split(", ")[1].split(" ")[0])
+    assert float(shares.get("0", "0%").rstrip("%")) >= 100.0 * (samples - 1) / samples - 1e-6, r.stdout
+    idle = float(lines["mean"].split("mean idle cores ")[1].split(" ")[0])
+    assert idle >= 2 - 1.0 / samples - 1e-6, r.stdout
 
 
 def test_two_spinning_children_are_two_runnable_threads_and_the_exit_status_is_the_commands():
