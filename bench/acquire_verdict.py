@@ -3,8 +3,8 @@
 docs/ACQUISITION_GAP.md, "Hybrid against analytic-only and neural-only on three rigs").
 
 bench/acquire_compare.py's sample (three raw RGL measurements under the disc and stripes), its
-errors (per-texel SMAPE and cMAE against the exact mixture over all directions, medians over the
-scored texels: every texel of the map; the novel-view re-render's relative MAE) and its models, photographed by three
+errors (per-texel SMAPE and cMAE against the exact mixture over all directions, medians over every
+texel of the map; the novel-view re-render's relative MAE) and its models, photographed by three
 rigs instead of the phone flash alone:
 
 - ``flash``: acquire.rigs.flash_rig(N), every photograph on the collocated slice (wi ~ wo);
@@ -13,10 +13,12 @@ rigs instead of the phone flash alone:
 - ``light-stage``: acquire.rigs.light_stage_rig(K, V), K lights x V cameras (no shot collocated).
 
 Each point (rig, N, noise level) is measured with several seeds (--seeds): seed s draws the
-sensor noise and the light jitter (--jitter, rig length units) and the fits' own seed (and the
-texels scored, with --texels N > 0: drawn per seed, so the spread held the draw's too). A row reports each metric's mean over the seeds and its spread (min-max). The verdict
-of hybrid against another model on a metric (:func:`verdict`): the gap between the two models'
-seed means counts only when it exceeds both models' seed ranges (max - min); inside them: tie.
+sensor noise and the light jitter (--jitter, rig length units) and the fits' own seed; every seed
+scores the same texels (--texels N > 0: N drawn per seed instead, the rule until 2026-11-30, whose
+spread held the draw's too). A row reports each metric's mean over the seeds and its spread
+(min-max). The verdict of hybrid against another model on a metric (:func:`verdict`): the gap
+between the two models' seed means counts only when it exceeds both models' seed ranges
+(max - min); inside them: tie.
 
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
         [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
