@@ -24,10 +24,12 @@ texel; per-texel SMAPE and cMAE (hybridbrdf.evaluate.metrics), median and 95th p
 the texels. And a re-render under a novel light and camera (light at 60 deg elevation, camera at
 40 deg elevation on the opposite azimuth: a separated light and view no flash photograph has): the
 truth rendered without noise (acquire.simulation.radiance) against each fit rendered with the same
-pixel geometry, each pixel's texel by nearest; error = mean |L_fit - L_true| / mean L_true over the
-pixels that see the sample and the three channels (a relative MAE). The same error of the truth's
-own per-texel rendering (each pixel at its texel centre's weights) is the floor any per-texel map
-has at this texel resolution.
+pixel geometry, each pixel as the fit's textured material shows it (bilinear between texel
+centres, as the simulator reads its weights map: :func:`render_fit`; nearest texel until
+2026-11-30); error = mean |L_fit - L_true| / mean L_true over the pixels that see the sample and
+the three channels (a relative MAE). The same error of the truth's own map at the fit's resolution
+(:class:`CentreTruth`) is the floor (0 read bilinearly, 0.149 by nearest texel on the verdict's
+sample).
 
     python bench/acquire_compare.py [--steps 400] [--rows-per-texel 8] [--pairs 100000] [--photo 128]
         [--map 32] [--texels 32] [--ns 1,2,4,8,16,32,64] [--out results/acquire_compare_MACHINE]
@@ -173,15 +175,21 @@ def nearest_texels(uv: np.ndarray, size) -> np.ndarray:
     return j * w + i
 
 
-def render_fit(fit, rig: Rig, size) -> np.ndarray:
-    """The noiseless photograph of ``rig``'s shot 0 with ``fit`` as the sample: (H, W, 3), each
-    pixel's BRDF from its nearest texel, L = f cos(theta_i) I / d^2 as the simulator has it."""
+def render_fit(fit, rig: Rig, size, filter: str = "bilinear") -> np.ndarray:
+    """The noiseless photograph of ``rig``'s shot 0 with ``fit`` as the sample: (H, W, 3),
+    L = f cos(theta_i) I / d^2 as the simulator has it, each pixel's BRDF as the fit's textured
+    material shows it at the pixel's uv (``bilinear``, ``fit.eval_uv``: how the simulator reads its
+    weights map and an engine its textures) or from its nearest texel (``nearest``, the rule until
+    2026-11-30: the truth at texel centres then renders 0.149 off, a floor every fit shared)."""
     geo = pixel_geometry(rig, 0)
     w, h = rig.image_size
     image = np.zeros((h, w, 3))
-    f = np.asarray(fit.eval(nearest_texels(geo.uv, size), geo.wi, geo.wo), dtype=np.float64)
+    if filter == "bilinear":
+        f = fit.eval_uv(geo.uv, geo.wi, geo.wo)
+    else:
+        f = fit.eval(nearest_texels(geo.uv, size), geo.wi, geo.wo)
     cos_i = np.maximum(geo.wi[:, 2], 0.0)
-    image[geo.mask] = f * (cos_i / geo.distance2)[:, None] * rig.lights[rig.shots[0].light].intensity
+    image[geo.mask] = np.asarray(f, dtype=np.float64) * (cos_i / geo.distance2)[:, None] * rig.lights[rig.shots[0].light].intensity
     return image
 
 
@@ -192,13 +200,17 @@ def relative_mae(image: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> 
 
 class CentreTruth:
     """The truth as a per-texel map: texel t's BRDF is the mixture at t's centre weights (the
-    best any per-texel fit can be; its re-render error is the resolution floor)."""
+    best any per-texel fit can be; its re-render error is the floor of :func:`render_fit`'s filter)."""
 
     def __init__(self, mixture: Mixture, size):
         self.mixture, self.size = mixture, size
 
     def eval(self, texel, wi, wo):
         uv = texel_centres(texel, self.size)
+        return self.mixture.eval(uv, wi, wo)
+
+    def eval_uv(self, uv, wi, wo):
+        """The mixture itself: its weights map is read bilinearly between the same texel centres."""
         return self.mixture.eval(uv, wi, wo)
 
 

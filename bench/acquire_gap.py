@@ -34,7 +34,8 @@ stage's pull toward its cluster's values 10 / 100 times the MAP weight (texel_st
 10 times its weight (network_tune.ANCHOR_WEIGHT 0 and 1);
 ``finetune200`` the fine-tune for 200 steps, ``finetune_lr_half`` for 500 at half the network's
 rate (network_tune.NETWORK_LR), ``finetune_pull`` for 500 with the heads pulled toward their start
-(network_tune.HEAD_PULL = 1). ``base`` is the fit of today's defaults (the cluster stage on pure
+(network_tune.HEAD_PULL = 1); ``footprint_nearest`` finetune200 with every pixel credited to its
+cell's texel (footprint.MODEL, the observation model until 2026-11-30). ``base`` is the fit of today's defaults (the cluster stage on pure
 texels with every material screened since issue 61's second round: docs/ACQUISITION_GAP.md).
 """
 
@@ -51,6 +52,7 @@ import torch
 
 import hybridbrdf as hb
 import hybridbrdf.acquire.cluster_fit as cluster_fit
+import hybridbrdf.acquire.footprint as footprint
 import hybridbrdf.acquire.network_tune as network_tune
 import hybridbrdf.acquire.texel_stage as texel_stage
 from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
@@ -79,7 +81,8 @@ CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": Tru
            "finetune200_anchor1": ({"finetune_network": 200}, ("network_tune.ANCHOR_WEIGHT", 1.0)),
            "finetune200": ({"finetune_network": 200}, None),
            "finetune_lr_half": ({"finetune_network": 500}, ("network_tune.NETWORK_LR", 1e-3)),
-           "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0))}
+           "finetune_pull": ({"finetune_network": 500}, ("network_tune.HEAD_PULL", 1.0)),
+           "footprint_nearest": ({"finetune_network": 200}, ("footprint.MODEL", "nearest"))}
 
 
 def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None):
@@ -87,7 +90,7 @@ def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None)
     ``on_clusters``: fit_hybrid_texels' hook (the clusters once known)."""
     keywords, pull = CONFIGS[config]
     name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
-    module = {"network_tune": network_tune, "texel_stage": texel_stage}.get(name.split(".")[0], cluster_fit)
+    module = {"network_tune": network_tune, "texel_stage": texel_stage, "footprint": footprint}.get(name.split(".")[0], cluster_fit)
     name = name.split(".")[-1]
     default = getattr(module, name)
     setattr(module, name, default if value is None else value)

@@ -22,7 +22,8 @@ between the two models' seed means counts only when it exceeds both models' seed
 
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
         [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
-        [--steps 150] [--photo 48] [--map 16] [--texels 0] [--pairs 2000] [--out results/acquire_verdict_MACHINE]
+        [--steps 150] [--photo 48] [--map 16] [--texels 0] [--pairs 2000] [--render-filter bilinear]
+        [--observation-model bilinear] [--out results/acquire_verdict_MACHINE]
     python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
 """
 
@@ -39,6 +40,7 @@ import numpy as np
 import torch
 
 import hybridbrdf as hb
+from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.geometry import pixel_geometry
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
@@ -209,13 +211,14 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
         fit = fit_fn(obs, seed, len(rig.shots))
         cpu = time.process_time() - t0
         s_err, c_err = ac.texel_errors(fit, truth)
-        render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, size), true_render, mask)
+        render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, size, args.render_filter), true_render, mask)
         rows.append({"machine": args.machine, "rig": kind, "point": point, "n": len(rig.shots), "noise": label,
                      "photons": photons, "read_noise": read, "seed": seed, "capture_seed": capture_seed,
                      "model": key, "held_out": MODELS[key][1], "observations": int(len(obs.value)),
                      "fit_cpu_s": round(cpu, 2), "smape_median": float(np.median(s_err)),
                      "cmae_median": float(np.median(c_err)), "render": render, "steps": args.steps,
                      "photo": args.photo, "map": args.map, "texels": len(truth.texels), "pairs": args.pairs,
+                     "render_filter": args.render_filter, "observation_model": footprint.MODEL,
                      "jitter": args.jitter})
     return rows
 
@@ -241,8 +244,8 @@ def header(args, out, floor, fits):
     out.line("rigs: flash = flash_rig(N) (collocated slice); flash-multiview V = V phones, each flash photographed by "
              "all V (V x V shots); light-stage KxV = light_stage_rig(K, V)")
     out.line("noise: " + "; ".join(f"{l}: photons {p:g}, read noise {r:g}" for l, p, r in ac.NOISE))
-    out.line(f"re-render: acquire_compare.novel_rig ({args.photo}x{args.photo}); rel. MAE floor (truth at texel "
-             f"centres) {floor:.4f}")
+    out.line(f"re-render: acquire_compare.novel_rig ({args.photo}x{args.photo}), maps read {args.render_filter}; rel. MAE "
+             f"floor (truth at texel centres) {floor:.4f}; every fit's observation model {footprint.MODEL}")
     for key in fits:
         out.line(f"model {key}: {MODELS[key][0]}")
     out.line(f"{'rig':16s} {'point':>6s} {'N':>4s} {'noise':5s} {'model':15s} {'S':>2s} {'cpu s':>6s} "
@@ -257,7 +260,7 @@ def sweep(args) -> int:
     truths = {s: ac.Truth(mixture, scored_texels(mixture.weights, args.texels, s), size, args.pairs) for s in args.seeds}
     args.novel_rig = ac.novel_rig(args.photo)
     novel = (radiance(args.novel_rig, 0, mixture), pixel_geometry(args.novel_rig, 0).mask)
-    floor = ac.relative_mae(ac.render_fit(ac.CentreTruth(mixture, size), args.novel_rig, size), *novel)
+    floor = ac.relative_mae(ac.render_fit(ac.CentreTruth(mixture, size), args.novel_rig, size, args.render_filter), *novel)
     fits = fitters(args.models, args.steps, args.rows_per_texel)
     out = ac.Output(args.out)
     header(args, out, floor, fits)
@@ -300,6 +303,12 @@ def parse(argv=None):
                     help="texels scored: 0 (the default) every texel of the map, the same for every seed; N > 0: N drawn "
                          "per seed, half pure, half mixed (the rule until 2026-11-30)")
     ap.add_argument("--pairs", type=int, default=2000, help="metric direction pairs per scored texel (default 2000)")
+    ap.add_argument("--render-filter", choices=("bilinear", "nearest"), default="bilinear",
+                    help="the re-render reads each fit's maps bilinearly (the default: as its textured material shows "
+                         "them) or by nearest texel (the rule until 2026-11-30)")
+    ap.add_argument("--observation-model", choices=("bilinear", "nearest"), default=footprint.MODEL,
+                    help=f"every fit's observation model (acquire/footprint.py; default {footprint.MODEL}): a pixel as "
+                         "its bilinear footprint shows the map, or credited to its cell's texel (until 2026-11-30)")
     ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
@@ -325,6 +334,7 @@ def parse(argv=None):
     args.seeds = list(range(args.seeds))
     args.rows_per_texel = args.rows_per_texel or None
     args.out = args.out or str(ROOT / "results" / f"acquire_verdict_{args.machine}")
+    footprint.MODEL = args.observation_model
     return args
 
 

@@ -19,7 +19,7 @@ from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import RigError, load_rig, rig_from_dict
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
-from hybridbrdf.acquire import simulate
+from hybridbrdf.acquire import footprint, simulate
 from hybridbrdf.acquire.texel_fit import fit_analytic_texels
 from hybridbrdf.cli import main
 from hybridbrdf.render.tracer import write_exr
@@ -362,17 +362,26 @@ def test_observations_leave_out_grazing_pixels_and_refuse_bad_photographs():
         texel_observations(rig, [bad], (4, 4))
 
 
-def test_the_analytic_texel_fit_recovers_each_texels_parameters():
+@pytest.mark.parametrize("model", ["nearest", "bilinear"])
+def test_the_analytic_texel_fit_recovers_each_texels_parameters(model, monkeypatch):
     # Two f_a materials (exactly representable), left and right of u = 0.5; truth known per texel.
+    # Each observation model with the truth it represents exactly (acquire/footprint.py): "nearest"
+    # a map constant over each texel's cell (the weights map 16 times finer, the edge on a cell
+    # boundary), "bilinear" the map at the fit's resolution, looked up between texel centres, of two
+    # materials that differ in kd only (f_a is linear in kd: blending their values between texel
+    # centres, as a texture unit filters a map, is blending their BRDFs, as the simulator mixes).
+    monkeypatch.setattr(footprint, "MODEL", model)
     left = LambertGGXDielectric("left", kd=(0.45, 0.22, 0.08), eta=1.5, alpha_x=0.2, alpha_y=0.2)
-    right = LambertGGXDielectric("right", kd=(0.1, 0.3, 0.6), eta=2.2, alpha_x=0.45, alpha_y=0.45)
-    half = np.zeros((2, 64, 2))
-    half[:, :32, 0], half[:, 32:, 1] = 1, 1
+    right = LambertGGXDielectric("right", kd=(0.1, 0.3, 0.6), eta=2.2, alpha_x=0.45, alpha_y=0.45) \
+        if model == "nearest" else LambertGGXDielectric("right", kd=(0.1, 0.3, 0.6), eta=1.5, alpha_x=0.2, alpha_y=0.2)
+    width = 64 if model == "nearest" else 4
+    half = np.zeros((1 if model == "bilinear" else 2, width, 2))
+    half[:, :width // 2, 0], half[:, width // 2:, 1] = 1, 1
     rig = light_stage_rig(8, 3, size=(32, 32))
     cap = simulate(rig, Mixture([left, right], half))
     maps = fit_analytic_texels(texel_observations(rig, cap.photos, (4, 1)), steps=200, rows_per_texel=None)
     assert (maps.counts > 0).all()
-    for i, truth in ((0, left), (3, right)):  # the outer texels are pure
+    for i, truth in ((0, left), (3, right)) if model == "nearest" else enumerate((left, left, right, right)):
         np.testing.assert_allclose(maps.kd[0, i], truth.kd, atol=0.01)
         np.testing.assert_allclose(maps.alpha[0, i], [truth.alpha_x] * 2, atol=0.01)
         np.testing.assert_allclose(maps.eta[0, i], truth.eta, atol=0.05)

@@ -88,8 +88,10 @@ def _capture(family, index: int, kd_scale: np.ndarray, pairs: int, noise: float,
     wi, wo, g = (np.concatenate(x) for x in zip(*rows))
     offsets = np.arange(len(kd_scale) + 1, dtype=np.int64) * pairs
     n = len(g)
+    # Every pixel at its texel's centre: its footprint is that texel alone (acquire/footprint.py).
+    uv = np.stack([(np.repeat(np.arange(len(kd_scale)), pairs) + 0.5) / len(kd_scale), np.full(n, 0.5)], axis=1)
     return Observations((len(kd_scale), 1), offsets, wi.astype(np.float32), wo.astype(np.float32),
-                        g.astype(np.float32), np.zeros((n, 2), np.float32), np.zeros(n, np.int32))
+                        g.astype(np.float32), uv.astype(np.float32), np.zeros(n, np.int32))
 
 
 @pytest.mark.parametrize("painted", [False, True])

@@ -19,6 +19,7 @@ import torch
 
 from hybridbrdf.acquire import cluster_merge
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
+from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.select import select_on_held_out
@@ -69,6 +70,14 @@ class HybridFamily:
 
     def evaluate(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
         return self.evaluate_values(material, *self.decode(raw), wi, wo)
+
+    def values(self, raw: Dict[str, torch.Tensor]) -> Dict[str, torch.Tensor]:
+        """The decoded values {kd, eta, alpha, z} of raw values: what a textured material's maps hold."""
+        return dict(zip(("kd", "eta", "alpha", "z"), self.decode(raw)))
+
+    def evaluate_decoded(self, material: torch.Tensor, values: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+        """f (N, 3) of rows with decoded ``values`` (:meth:`values`)."""
+        return self.evaluate_values(material, *(values[n] for n in ("kd", "eta", "alpha", "z")), wi, wo)
 
     def evaluate_values(self, material, kd, eta, alpha, z, wi, wo) -> torch.Tensor:
         """f (N, 3) of rows with decoded values, grouped by material (one output layer each)."""
@@ -136,6 +145,11 @@ class HybridMaps:
             return family.evaluate_values(material[t], flat["kd"][t], flat["eta"][t], flat["alpha"][t],
                                           flat["z"][t], a, b)
         return eval_chunked(texel, wi, wo, self.layer.size, fn)
+
+    def eval_uv(self, uv: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """The fit at uv (M, 2) as its textured material (:meth:`svbrdf`) shows it, read bilinearly:
+        (M, 3) float64 (PyTorch, float64)."""
+        return self.svbrdf().eval(np.asarray(uv, np.float64), wi, wo, dtype=torch.float64)
 
     def svbrdf(self) -> SVBRDF:
         """The textured material (docs/SVBRDF.md): layer k's maps hold its texels' values and, at
@@ -248,6 +262,9 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
         chosen = list(dict.fromkeys(cluster_material))
         layer = np.array([chosen.index(m) for m in cluster_material])[labels]
         names = [model.materials[m] for m in chosen]
+    kd, capped = footprint.cap_rim_kd(kd, layer.reshape(h, w))
+    if capped:
+        log(f"{capped} rim texel(s) brighter than their layer's inner texels: kd capped at the layer's brightest inner texel")
     for k in range(len(names)):  # one layer at a time: a step of the "energy tables" bar each
         model, names = bound_bright_kd(model, names, {k: kd[layer == k]}, log)
         if progress is not None:

@@ -15,6 +15,7 @@ import torch
 
 from hybridbrdf.acquire import cluster_merge
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
+from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress
@@ -43,6 +44,14 @@ class NeuralFamily:
         then the shared MLP, f = exp(o)."""
         return self.module.evaluate_pairs(wi.to(torch.float32), wo.to(torch.float32), raw["z"]).to(wi.dtype)
 
+    @staticmethod
+    def values(raw: Dict[str, torch.Tensor]) -> Dict[str, torch.Tensor]:
+        """The decoded values: the code itself (no reparameterisation)."""
+        return {"z": raw["z"]}
+
+    def evaluate_decoded(self, material: torch.Tensor, values: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
+        return self.evaluate(material, values, wi, wo)
+
 
 @dataclass
 class NeuralMaps:
@@ -59,6 +68,14 @@ class NeuralMaps:
         family = NeuralFamily(self.model)
         z = torch.from_numpy(np.ascontiguousarray(self.z.reshape(-1, self.z.shape[-1])))
         return eval_chunked(texel, wi, wo, len(z),
+                            lambda t, a, b: family.evaluate(None, {"z": z[torch.from_numpy(t)]}, a, b))
+
+    def eval_uv(self, uv: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """The fit at uv (M, 2), its code map read bilinearly between texel centres
+        (:func:`~hybridbrdf.acquire.footprint.filtered`): (M, 3) float64."""
+        family = NeuralFamily(self.model)
+        z = torch.from_numpy(footprint.filtered({"z": self.z}, uv)["z"]).float()
+        return eval_chunked(np.arange(len(uv)), wi, wo, len(uv),
                             lambda t, a, b: family.evaluate(None, {"z": z[torch.from_numpy(t)]}, a, b))
 
 

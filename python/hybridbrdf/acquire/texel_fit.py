@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from hybridbrdf import spec
+from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, RowSampler, adam_texels
@@ -42,6 +43,13 @@ class AnalyticMaps:
                             lambda t, a, b: eval_analytic(a, b, torch.from_numpy(kd[t]).double(),
                                                           torch.from_numpy(eta[t]).double(),
                                                           torch.from_numpy(alpha[t]).double()))
+
+    def eval_uv(self, uv: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """The fit at uv (M, 2) as its maps show there, read bilinearly between texel centres
+        (:func:`~hybridbrdf.acquire.footprint.filtered`, the fits' observation model): (M, 3) float64."""
+        v = footprint.filtered({"kd": self.kd, "eta": self.eta, "alpha": self.alpha}, uv)
+        return eval_chunked(np.arange(len(uv)), wi, wo, len(uv),
+                            lambda t, a, b: eval_analytic(a, b, *(torch.from_numpy(v[n][t]) for n in ("kd", "eta", "alpha"))))
 
 
 def _logit(p: np.ndarray) -> np.ndarray:
@@ -88,10 +96,19 @@ def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, s
     sampler = RowSampler(obs, rows_per_texel or 1)
     every_row = (torch.from_numpy(np.repeat(np.arange(w * h), counts)), torch.arange(len(obs.value)))
 
+    one_layer = footprint.Footprint(obs.uv, obs.size, np.zeros(w * h, np.int64), {}) \
+        if footprint.MODEL == "bilinear" else None
+
     def loss(gen):
         texel, rows = every_row if rows_per_texel is None else sampler.draw(gen)
         kd, eta, alpha = decode_analytic(raw)
-        d = data.residual(rows, eval_analytic(data.wi[rows], data.wo[rows], kd[texel], eta[texel], alpha[texel]))
+        wi, wo = data.wi[rows], data.wo[rows]
+        if one_layer is None:
+            f = eval_analytic(wi, wo, kd[texel], eta[texel], alpha[texel])
+        else:  # each row as its footprint shows the map (:mod:`~hybridbrdf.acquire.footprint`)
+            f = one_layer.predict(lambda _, v, a, b: eval_analytic(a, b, v["kd"], v["eta"], v["alpha"]),
+                                  {"kd": kd, "eta": eta, "alpha": alpha}, torch.zeros_like(rows), rows, wi, wo)
+        d = data.residual(rows, f)
         return (d * d).sum() / (rows_per_texel or 1)
 
     if len(obs.value):

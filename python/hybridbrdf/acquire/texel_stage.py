@@ -44,6 +44,7 @@ from typing import Callable, Dict, Optional
 import numpy as np
 import torch
 
+from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, adam_texels
 
@@ -108,6 +109,23 @@ def shrink_to_clusters(a: Dict[str, torch.Tensor], b: Dict[str, torch.Tensor], c
     return out, factors
 
 
+def _footprint_model(family, obs: Observations, lab: torch.Tensor, seen: torch.Tensor, clusters: Dict):
+    """predict(raw twins {name: (2 n_seen, c)}, half (N,), rows, wi, wo) = f (N, 3): each row as its
+    footprint shows the twin map of its ``half`` (:mod:`~hybridbrdf.acquire.footprint`); the map's
+    texels without observations hold their cluster's values, as the fill outside each layer."""
+    n_tex = len(lab)
+    base = {n: v[lab].repeat(2, 1) for n, v in clusters["centres"].items()}
+    where = torch.cat([seen, seen + n_tex])
+    model = footprint.Footprint(obs.uv, obs.size, lab.numpy(), family.values(clusters["centres"]))
+    material = clusters["material"]
+
+    def predict(raw, half, rows, wi, wo):
+        table = family.values({n: base[n].index_put((where,), raw[n]) for n in base})
+        return model.predict(lambda layer, values, a, b: family.evaluate_decoded(material[layer], values, a, b),
+                             table, half * n_tex, rows, wi, wo)
+    return predict
+
+
 def refine_texels(family, obs: Observations, data: ObservationTensors, labels: np.ndarray, clusters: Dict,
                   tau2: Dict[str, torch.Tensor], steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,
                   lr: float = 0.01, progress: Optional[Progress] = None, state: Optional[dict] = None,
@@ -127,11 +145,15 @@ def refine_texels(family, obs: Observations, data: ObservationTensors, labels: n
     raw = {n: v.clone().requires_grad_() for n, v in twin_centre.items()}
     weight = weight.repeat(2)
     material_of_twin = clusters["material"][lab[seen]].repeat(2)
+    predict = _footprint_model(family, obs, lab, seen, clusters) if footprint.MODEL == "bilinear" else None
 
     def loss(gen):
         fit, texel, rows = sampler.draw(gen)
-        d = data.residual(rows, family.evaluate(material_of_twin[fit], {n: v[fit] for n, v in raw.items()},
-                                                data.wi[rows], data.wo[rows]))
+        if predict is None:
+            f = family.evaluate(material_of_twin[fit], {n: v[fit] for n, v in raw.items()}, data.wi[rows], data.wo[rows])
+        else:
+            f = predict(raw, (fit >= n_seen).long(), rows, data.wi[rows], data.wo[rows])
+        d = data.residual(rows, f)
         data_term = (d * d).sum() / (3 * sampler.per_twin)  # sum over twins of each twin's mean
         pull = sum((((raw[n] - twin_centre[n]) ** 2) / tau2[n]).sum(1) * weight for n in raw).sum()
         return data_term + pull
