@@ -107,3 +107,11 @@ def test_the_footprint_fits_the_rim_of_a_layer_to_its_own_material(monkeypatch):
         kd = fit_analytic_texels(obs, steps=300, seed=0, rows_per_texel=32).kd
         error[model] = float(np.abs(kd - truth)[2:-2, rim].mean())  # rows away from the map's clamped edge
     assert error["bilinear"] < 0.02 and error["bilinear"] < 0.3 * error["nearest"], error
+
+
+def test_an_unknown_observation_model_is_refused_by_name():
+    from hybridbrdf.acquire.observations import Observations
+    obs = Observations((1, 1), np.array([0, 0]), *(np.zeros((0, 3), np.float32),) * 3, np.zeros((0, 2), np.float32),
+                       np.zeros(0, np.int32))
+    with pytest.raises(ValueError, match="observation_model must be one of bilinear, nearest, got 'box'"):
+        fit_analytic_texels(obs, steps=1, observation_model="box")

@@ -34,6 +34,7 @@ from hybridbrdf.svbrdf.asset import texel_taps
 #: The observation model of the texel stage: "bilinear" (this module) or "nearest" (every pixel
 #: credited to the texel whose cell holds it; a bench knob, bench/acquire_gap.py's ``nearest_rows``).
 MODEL = "bilinear"
+MODELS = ("bilinear", "nearest")
 
 
 class Footprint:

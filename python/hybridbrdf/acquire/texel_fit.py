@@ -82,13 +82,18 @@ def decode_analytic(raw: Dict[str, torch.Tensor]):
 
 def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, seed: int = 0,
                         rows_per_texel: Optional[int] = ROWS_PER_TEXEL, progress: Optional[Progress] = None,
-                        state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None
-                        ) -> AnalyticMaps:
+                        state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
+                        observation_model: Optional[str] = None) -> AnalyticMaps:
     """Fit f_a per texel to ``obs``: ``steps`` Adam steps (rate ``lr`` decaying to a tenth), each
     on ``rows_per_texel`` rows drawn from every texel's own (None: every observation every step).
     Parameters are reparameterised to stay in range (:func:`decode_analytic`) and start at
     :func:`analytic_start`. ``progress`` is called after each step with ("analytic", done,
-    steps); ``save_state`` gets a resumable state every 50 steps, ``state`` resumes one."""
+    steps); ``save_state`` gets a resumable state every 50 steps, ``state`` resumes one.
+    ``observation_model``: "bilinear" (each row as its footprint shows the map,
+    :mod:`~hybridbrdf.acquire.footprint`) or "nearest" (each row credited to its cell's texel);
+    None: :data:`hybridbrdf.acquire.footprint.MODEL`."""
+    if (observation_model or footprint.MODEL) not in footprint.MODELS:
+        raise ValueError(f"observation_model must be one of {', '.join(footprint.MODELS)}, got {observation_model!r}")
     w, h = obs.size
     counts = np.diff(obs.offsets)
     raw = {k: v.requires_grad_() for k, v in analytic_start(obs).items()}
@@ -97,7 +102,7 @@ def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, s
     every_row = (torch.from_numpy(np.repeat(np.arange(w * h), counts)), torch.arange(len(obs.value)))
 
     one_layer = footprint.Footprint(obs.uv, obs.size, np.zeros(w * h, np.int64), {}) \
-        if footprint.MODEL == "bilinear" else None
+        if (observation_model or footprint.MODEL) == "bilinear" else None
 
     def loss(gen):
         texel, rows = every_row if rows_per_texel is None else sampler.draw(gen)
