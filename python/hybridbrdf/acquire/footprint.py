@@ -31,8 +31,10 @@ import torch
 
 from hybridbrdf.svbrdf.asset import texel_taps
 
-#: The observation model of the texel stage: "bilinear" (this module) or "nearest" (every pixel
-#: credited to the texel whose cell holds it; a bench knob, bench/acquire_gap.py's ``nearest_rows``).
+#: The fits' observation model (the texel stage; the analytic-only fit unless told): "bilinear"
+#: (this module) or "nearest" (every pixel credited to the texel whose cell holds it, the model until
+#: 2026-11-30; bench knobs: bench/acquire_gap.py's ``footprint_nearest``, acquire_verdict.py's
+#: ``--observation-model``).
 MODEL = "bilinear"
 MODELS = ("bilinear", "nearest")
 
