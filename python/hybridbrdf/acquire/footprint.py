@@ -1,12 +1,13 @@
-"""A pixel's footprint on the texel map: the texel stage's observation model
-(:mod:`~hybridbrdf.acquire.texel_stage`; docs/ACQUISITION.md, "The fit on a frozen prior").
+"""A pixel's footprint on the texel map: the fits' observation model (the texel stage,
+:mod:`~hybridbrdf.acquire.texel_stage`, and the analytic-only fit; docs/ACQUISITION_FOOTPRINT.md).
 
 A fit's texels are not seen one by one. The simulator renders a pixel at uv with the weights map
 looked up bilinearly between texel centres, and the textured material a fit exports
 (:meth:`~hybridbrdf.acquire.hybrid_fit.HybridMaps.svbrdf`, docs/SVBRDF.md) is rendered the same
 way: its layer weights filtered (which filters the BRDFs), each layer's values p, z filtered as
-values. A pixel in texel t's cell therefore shows t's neighbours too: a quarter to three quarters
-of what it sees comes from the three texels nearest its uv. Where they are t's own material that
+values. A pixel in texel t's cell therefore shows t's neighbours too: up to three quarters of
+what it sees (at the cell's corner; 7/16 on average over the cell) comes from the three texels
+nearest its uv. Where they are t's own material that
 changes little; where a layer boundary crosses the footprint, a fit that credits the whole pixel
 to t fits t to a mixture: the rim texels of a layer come out between the two materials and the
 pixels beside them are explained twice.
@@ -96,7 +97,7 @@ def cap_rim_kd(kd: np.ndarray, layer: np.ndarray) -> tuple:
     (:func:`hybridbrdf.fit.painting.bound_bright_kd`), and a rim texel is the least certain of all:
     what its pixels show is shared with another layer, and the footprint model extrapolates its
     values to explain it. On the light-stage bench one such texel, kd 0.91 against 0.87 inside its
-    layer, made paper_white's pure texels 1.7x worse (docs/ACQUISITION_GAP.md). A layer without
+    layer, made paper_white's pure texels 1.7x worse (docs/ACQUISITION_FOOTPRINT.md). A layer without
     inner texels keeps its kd."""
     kd = kd.copy()
     flat, rim = layer.reshape(-1), rim_texels(layer).reshape(-1)
