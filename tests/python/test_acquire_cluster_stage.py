@@ -111,6 +111,35 @@ def test_pixel_noise_is_the_variance_of_one_rows_target_and_pairs_only_one_texel
     assert ObservationTensors(obs).pixel_noise(torch.arange(len(values))) == 0.0
 
 
+def test_cell_averaged_rows_keep_their_cells_expectation_and_divide_its_noise():
+    # 400 texels x 2 photographs x 8 pixels as above, each texel's 16 rows shuffled so that a cell's
+    # rows are not next to each other: every averaged row is its own cell's mean, which keeps the
+    # noiseless target's expectation and has an eighth of one row's noise variance (the delta method's).
+    rng = np.random.default_rng(4)
+    cells, pixels, sigma = 800, 8, 0.02
+    wi, wo = (np.repeat(v.numpy().astype(np.float64), pixels, 0) for v in cosine_pairs(cells, 6))
+    truth = np.repeat(rng.uniform(0.1, 0.4, (cells, 3)), pixels, 0)
+    shot = np.tile(np.repeat(np.arange(2), pixels), 400)
+    order = np.concatenate([16 * t + rng.permutation(16) for t in range(400)])
+    wi, wo, truth, shot = wi[order], wo[order], truth[order], shot[order]
+    obs = _observations(truth + rng.normal(0.0, sigma, truth.shape), wi, wo, size=(20, 20))
+    obs.shot = shot
+    data = ObservationTensors(obs)
+    averaged = data.cell_averaged()
+    assert averaged is data.cell_averaged() and torch.equal(averaged.wi, data.wi)
+    assert torch.all(averaged.cell_size == pixels)
+    clean = np.log1p(wi[:, 2:3] * truth)
+    per_row = float(np.mean((wi[:, 2:3] / (1 + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
+    error = averaged.target.double().numpy() - clean
+    assert abs(error.mean()) < 4 * np.sqrt(per_row / pixels / (cells * 3))
+    assert abs(np.mean(error ** 2) / (per_row / pixels) - 1) < 0.1
+    # Rows of one cell read one value; of different cells (one texel's two photographs) not.
+    first = np.nonzero((np.arange(len(shot)) // 16 == 0) & (shot == 0))[0]
+    other = np.nonzero((np.arange(len(shot)) // 16 == 0) & (shot == 1))[0]
+    assert torch.all(averaged.target[first] == averaged.target[first[0]])
+    assert not torch.equal(averaged.target[first[0]], averaged.target[other[0]])
+
+
 def test_a_dark_rows_target_is_unbiased_under_the_sensors_noise():
     # A dark row (g = 0.01 at cos 0.5) photographed 100,000 times under the bench's high noise
     # (NoiseModel: 200 photons at radiance 1, read noise 4): about half its readings are negative.

@@ -63,6 +63,11 @@ SCREEN_ROWS, SCREEN_STEPS, SCREEN_LR = 256, 40, 0.1
 #: there (docs/ACQUISITION_GAP.md, "The final clusters chosen again"). 1,024 and 8,192 rows
 #: measured no better on the bench and cost twice the time.
 FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, FINAL_ROWS, FINAL_CANDIDATES = 512, 80, 4096, 4
+#: Whether the final choice scores materials on rows averaged per texel and photograph
+#: (:meth:`~hybridbrdf.acquire.texel_rows.ObservationTensors.cell_averaged`): materials that tie on
+#: the photographs are ranked by the rows' noise otherwise, and at 200 photons a pixel the fit's
+#: own seed chose among them (docs/ACQUISITION_GAP.md, "The final choice on averaged cells").
+FINAL_CELL_AVERAGED = True
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
 #: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
@@ -120,6 +125,13 @@ def map_objective(loss: torch.Tensor, raw: Dict[str, torch.Tensor], own: Dict[st
     held = loss.detach()
     pixel = torch.clamp(torch.as_tensor(noise, dtype=held.dtype), max=held)
     return loss + (held - pixel + pixel * max(1, shots) / max(1, rows)) * move / (3 * max(1, shots))
+
+
+def _pixel_loss(family, data: ObservationTensors, rows: torch.Tensor, fitted: Dict[str, object]) -> float:
+    """The mean squared residual per row and channel of a fit of :func:`fit_material` on ``rows`` of ``data``."""
+    raw = {n: v.expand(len(rows), -1) for n, v in fitted["raw"].items()}
+    with torch.no_grad():
+        return float(_loss_rows(family, data, torch.full((len(rows),), int(fitted["material"])), raw, rows))
 
 
 def _has_pure_texels(obs: Observations, labels: np.ndarray, c: int) -> bool:
@@ -223,10 +235,13 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
     cluster the fitted candidates, best first, each {"material", "loss", "raw" {name: (c,)}} (what
     :mod:`~hybridbrdf.acquire.cluster_report` prints)}. ``final``: with the final clusters' rows
     and screen (:data:`FINAL_ROWS`) where a cluster has pure texels (one without keeps the split
-    clusters' rule and counts), the progress stage "final clusters"."""
+    clusters' rule and counts), scored on rows averaged per texel and photograph
+    (:data:`FINAL_CELL_AVERAGED`; each candidate's "loss" then per pixel, as the stages after read
+    it), the progress stage "final clusters"."""
     n_rows, n_screen, screen_steps, bar = ((FINAL_ROWS, FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, "final clusters") if final
                                            else (CLUSTER_ROWS, SCREEN_ROWS, SCREEN_STEPS, "clusters"))
     k = int(labels.max()) + 1
+    averaged = final and FINAL_CELL_AVERAGED
     every = family.raw_of_materials()
     tau2 = value_spread(every)
     materials, centres, sigma2, fitted_all = [], {name: [] for name in every}, [], []
@@ -245,9 +260,12 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
         shots = len(np.unique(obs.shot[rows.numpy()]))
         # The pixels' noise enters the MAP objective only, which scores pure clusters alone.
         noise = data.pixel_noise(network_tune.pure_rows(obs, labels, c)) if pure else 0.0
+        scored = data.cell_averaged() if pure and averaged else data
+        if scored is not data:  # a row's noise is its cell's mean's: nu^2 / cell size
+            noise *= float((1.0 / scored.cell_size[rows]).mean())
         if pure:
             score_rows = rows[::max(1, len(rows) // n_screen)][:n_screen]  # spread over the cluster's texels
-            scores, screened, as_is = screen_materials(family, data, score_rows, every, seed, f"screen{c}",
+            scores, screened, as_is = screen_materials(family, scored, score_rows, every, seed, f"screen{c}",
                                                        None if colour is None else colour[c], shots, noise,
                                                        screen_steps)
             # The screen's best, and the best with its own values: where the photographs cannot tell
@@ -271,8 +289,10 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
         fitted = []
         for m in ranked:
             own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2} if by_objective else None
-            fitted.append(fit_material(family, data, rows, m, {n: v[m] for n, v in starts.items()}, seed,
+            fitted.append(fit_material(family, scored, rows, m, {n: v[m] for n, v in starts.items()}, seed,
                                        f"cluster{c}-{m}", own, shots, noise))
+            if scored is not data:  # the loss per pixel, as every stage after reads it (sigma^2, the report)
+                fitted[-1]["loss"] = _pixel_loss(family, data, rows, fitted[-1])
             done += CLUSTER_STEPS
             if progress is not None:
                 progress(bar, done, total)

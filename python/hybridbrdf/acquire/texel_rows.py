@@ -10,6 +10,7 @@ the uninterrupted one would have."""
 
 from __future__ import annotations
 
+import copy
 import hashlib
 from typing import Callable, Dict, Optional
 
@@ -86,6 +87,23 @@ class ObservationTensors:
             return 0.0
         d = (self.target[r[1:][pair]] - self.target[r[:-1][pair]]).double()
         return float((d * d).mean() / 2)
+
+    def cell_averaged(self) -> "ObservationTensors":
+        """A copy whose every row's ``target`` is the mean target of the rows of its (texel,
+        photograph) cell, with ``cell_size`` (M,) those rows' count: the pixels of a cell see one
+        direction pair to within a texel's footprint, so the mean keeps a row's expectation (the
+        loss domain's, the target's own) and divides its noise's variance by the cell's size. What
+        the final clusters' choice scores materials on (:func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`).
+        Computed once and kept."""
+        if getattr(self, "_averaged", None) is None:
+            _, cell = np.unique(self.cell, return_inverse=True)
+            cell = torch.from_numpy(cell.reshape(-1))
+            size = torch.bincount(cell).to(self.target.dtype)
+            sums = torch.zeros(len(size), self.target.shape[1], dtype=self.target.dtype).index_add_(0, cell, self.target)
+            averaged = copy.copy(self)
+            averaged.target, averaged.cell_size = (sums / size[:, None])[cell], size[cell]
+            self._averaged = averaged
+        return self._averaged
 
     def residual(self, rows: torch.Tensor, f: torch.Tensor) -> torch.Tensor:
         """The paper's residual per pair and channel, log(1 + cos g) - log(1 + cos f), (N, 3)."""
