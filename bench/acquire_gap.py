@@ -100,6 +100,9 @@ def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None)
         setattr(module, name, default)
 #: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
 JITTER = 0.001
+#: A noise level beside acquire_compare.NOISE's: photographs without noise (``--noise none``), what
+#: the rig's directions alone allow the fit (the light's 1 mm jitter kept).
+NOISELESS = (("none", None, 0.0),)
 
 
 def sample_masks(size: int):
@@ -179,7 +182,7 @@ def run_sweep(args) -> int:
         wi, wo = truths[0].wi, truths[0].wo
         full = [cmae(np.maximum(src.eval(wi, wo), 0.0), reference(n, shared, pathlib.Path(args.refs)).eval(wi, wo, n),
                      wi[:, 2]) for n, src in zip(names, sources)]
-        for label, photons, read in [x for x in NOISE if x[0] in args.noise]:
+        for label, photons, read in [x for x in NOISE + NOISELESS if x[0] in args.noise]:
             for seed in args.seeds:
                 cap = simulate(rig, mixture, NoiseModel(photons=photons, read_noise=read), light_jitter=JITTER,
                                seed=100 * seed + (label == "high"))
@@ -330,7 +333,8 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=300, help="fit_hybrid_texels steps (default 300, hbrdf acquire fit's)")
     ap.add_argument("--configs", default="base,heads", help=f"comma-separated, of {', '.join(CONFIGS)}")
     ap.add_argument("--seeds", default="0", help="capture and fit seeds, comma-separated (default 0)")
-    ap.add_argument("--noise", default="low,high", help="noise levels of acquire_compare.NOISE (default low,high)")
+    ap.add_argument("--noise", default="low,high", help="noise levels of acquire_compare.NOISE, or none: "
+                    "photographs without noise (default low,high)")
     ap.add_argument("--samples", default=",".join(SAMPLES), help=f"comma-separated, of {', '.join(SAMPLES)}")
     ap.add_argument("--refs", default="/tmp/acquire_gap_refs", help="folder caching the hbrdf add references")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")

@@ -127,6 +127,13 @@ def map_objective(loss: torch.Tensor, raw: Dict[str, torch.Tensor], own: Dict[st
     return loss + (held - pixel + pixel * max(1, shots) / max(1, rows)) * move / (3 * max(1, shots))
 
 
+def _scored_data(data: ObservationTensors, rows: torch.Tensor, noise: float) -> Tuple[ObservationTensors, float]:
+    """``data`` averaged per texel and photograph (:meth:`~hybridbrdf.acquire.texel_rows.ObservationTensors.cell_averaged`)
+    and the pixels' ``noise`` as its ``rows`` read it: a row's noise is its cell's mean's, nu^2 / cell size."""
+    averaged = data.cell_averaged()
+    return averaged, noise * float((1.0 / averaged.cell_size[rows]).mean())
+
+
 def _pixel_loss(family, data: ObservationTensors, rows: torch.Tensor, fitted: Dict[str, object]) -> float:
     """The mean squared residual per row and channel of a fit of :func:`fit_material` on ``rows`` of ``data``."""
     raw = {n: v.expand(len(rows), -1) for n, v in fitted["raw"].items()}
@@ -241,7 +248,6 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
     n_rows, n_screen, screen_steps, bar = ((FINAL_ROWS, FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, "final clusters") if final
                                            else (CLUSTER_ROWS, SCREEN_ROWS, SCREEN_STEPS, "clusters"))
     k = int(labels.max()) + 1
-    averaged = final and FINAL_CELL_AVERAGED
     every = family.raw_of_materials()
     tau2 = value_spread(every)
     materials, centres, sigma2, fitted_all = [], {name: [] for name in every}, [], []
@@ -260,9 +266,7 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
         shots = len(np.unique(obs.shot[rows.numpy()]))
         # The pixels' noise enters the MAP objective only, which scores pure clusters alone.
         noise = data.pixel_noise(network_tune.pure_rows(obs, labels, c)) if pure else 0.0
-        scored = data.cell_averaged() if pure and averaged else data
-        if scored is not data:  # a row's noise is its cell's mean's: nu^2 / cell size
-            noise *= float((1.0 / scored.cell_size[rows]).mean())
+        scored, noise = _scored_data(data, rows, noise) if pure and final and FINAL_CELL_AVERAGED else (data, noise)
         if pure:
             score_rows = rows[::max(1, len(rows) // n_screen)][:n_screen]  # spread over the cluster's texels
             scores, screened, as_is = screen_materials(family, scored, score_rows, every, seed, f"screen{c}",
