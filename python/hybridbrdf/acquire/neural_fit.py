@@ -13,9 +13,8 @@ from typing import Callable, Dict, Optional
 import numpy as np
 import torch
 
-from hybridbrdf.acquire import cluster_merge
+from hybridbrdf.acquire import cluster_merge, footprint
 from hybridbrdf.acquire.cluster_fit import fit_on_prior
-from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.evaluation import eval_chunked
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, Progress

@@ -92,7 +92,8 @@ def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, s
     ``observation_model``: "bilinear" (each row as its footprint shows the map,
     :mod:`~hybridbrdf.acquire.footprint`) or "nearest" (each row credited to its cell's texel);
     None: :data:`hybridbrdf.acquire.footprint.MODEL`."""
-    if (observation_model or footprint.MODEL) not in footprint.MODELS:
+    model = observation_model or footprint.MODEL
+    if model not in footprint.MODELS:
         raise ValueError(f"observation_model must be one of {', '.join(footprint.MODELS)}, got {observation_model!r}")
     w, h = obs.size
     counts = np.diff(obs.offsets)
@@ -101,8 +102,7 @@ def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, s
     sampler = RowSampler(obs, rows_per_texel or 1)
     every_row = (torch.from_numpy(np.repeat(np.arange(w * h), counts)), torch.arange(len(obs.value)))
 
-    one_layer = footprint.Footprint(obs.uv, obs.size, np.zeros(w * h, np.int64), {}) \
-        if (observation_model or footprint.MODEL) == "bilinear" else None
+    one_layer = footprint.Footprint(obs.uv, obs.size, np.zeros(w * h, np.int64), {}) if model == "bilinear" else None
 
     def loss(gen):
         texel, rows = every_row if rows_per_texel is None else sampler.draw(gen)

@@ -72,6 +72,7 @@ class ObservationTensors:
         self.target = torch.log1p(torch.clamp(self.cos_i * torch.from_numpy(obs.value), min=TARGET_FLOOR))
         texel = np.repeat(np.arange(len(obs.offsets) - 1), np.diff(obs.offsets))
         self.cell = texel * (int(obs.shot.max(initial=0)) + 1) + np.asarray(obs.shot, dtype=np.int64)
+        self._averaged = None  # cell_averaged's copy, made on first use
 
     def pixel_noise(self, rows: torch.Tensor) -> float:
         """The photographs' noise in the loss domain: the variance of one row's ``target`` about its
@@ -95,7 +96,7 @@ class ObservationTensors:
         loss domain's, the target's own) and divides its noise's variance by the cell's size. What
         the final clusters' choice scores materials on (:func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`).
         Computed once and kept."""
-        if getattr(self, "_averaged", None) is None:
+        if self._averaged is None:
             _, cell = np.unique(self.cell, return_inverse=True)
             cell = torch.from_numpy(cell.reshape(-1))
             size = torch.bincount(cell).to(self.target.dtype)
