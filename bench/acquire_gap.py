@@ -15,7 +15,7 @@ the same pairs against the file. The ratio hybrid / full measurement is issue 61
 
     python bench/acquire_gap.py [--stage 8x4] [--photo 96] [--map 24] [--pairs 20000]
         [--configs base,heads] [--seeds 0] [--noise low,high] [--samples paper3,napoli2]
-        [--refs /tmp/acquire_gap_refs] [--out results/acquire_gap_MACHINE]
+        [--refs /tmp/acquire_gap_refs] [--anisotropic] [--out results/acquire_gap_MACHINE]
     python bench/acquire_gap.py --budget [--configs heads]   # a 512x512 capture of 16x4 photographs
                                                              # onto 128x128: the fit's seconds
     python bench/acquire_gap.py --ceiling                    # the frozen network fitted to each truth
@@ -56,6 +56,7 @@ import hybridbrdf.acquire.footprint as footprint
 import hybridbrdf.acquire.network_tune as network_tune
 import hybridbrdf.acquire.texel_stage as texel_stage
 from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
+from hybridbrdf.acquire.isotropy import turned_about_normal
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.observations import texel_observations
@@ -161,7 +162,8 @@ def run_sweep(args) -> int:
     lines = [f"acquire_gap: light stage {k}x{v} = {k * v} photographs of {args.photo}x{args.photo}, light jitter "
              f"{JITTER}, {args.map}x{args.map} map, fit_hybrid_texels steps {args.steps} on {HELD_OUT_PRIOR.name}; "
              f"pure texels (weight > {PURE}, up to {args.texels} a material) x {args.pairs} metric pairs; "
-             f"full measurement = hbrdf add of the raw file onto the same prior; machine {args.machine}, "
+             f"full measurement = hbrdf add of the raw file onto the same prior; rows "
+             f"{'as photographed' if args.anisotropic else 'turned about the normal'}; machine {args.machine}, "
              f"torch threads {torch.get_num_threads()}"]
     header = f"{'sample':8s} {'material':24s} {'noise':5s} {'seed':>4s} {'full':>8s} " + " ".join(
         f"{c:>8s} {'ratio':>6s}" for c in args.configs) + "  fit CPU s (" + ", ".join(args.configs) + ")"
@@ -187,6 +189,8 @@ def run_sweep(args) -> int:
                 cap = simulate(rig, mixture, NoiseModel(photons=photons, read_noise=read), light_jitter=JITTER,
                                seed=100 * seed + (label == "high"))
                 obs = texel_observations(rig, cap.photos, size)
+                if not args.anisotropic:  # the fits' isotropy assumption (acquire/isotropy.py), as hbrdf acquire fit
+                    obs = turned_about_normal(obs, seed)
                 errors, seconds, notes = {}, {}, []
                 for config in args.configs:
                     t0 = time.process_time()  # CPU seconds: the machine is shared, wall time is not the fit's
@@ -229,6 +233,8 @@ def run_budget(args) -> int:
     prior = hb.load_model(str(HELD_OUT_PRIOR))
     t0 = time.perf_counter()
     obs = texel_observations(rig, cap.photos, (128, 128))
+    if not args.anisotropic:
+        obs = turned_about_normal(obs, 0)
     t_obs = time.perf_counter() - t0
     print(f"budget: 64 light-stage photographs of 512x512 onto 128x128, {len(obs.value):,} observations in "
           f"{t_obs:.1f} s; machine {args.machine}, torch threads {torch.get_num_threads()}", flush=True)
@@ -337,6 +343,9 @@ def main() -> int:
                     "photographs without noise (default low,high)")
     ap.add_argument("--samples", default=",".join(SAMPLES), help=f"comma-separated, of {', '.join(SAMPLES)}")
     ap.add_argument("--refs", default="/tmp/acquire_gap_refs", help="folder caching the hbrdf add references")
+    ap.add_argument("--anisotropic", action="store_true",
+                    help="fit the rows as photographed (before 2026-11-30: hbrdf acquire fit --anisotropic); default: "
+                         "each row turned about the normal (acquire/isotropy.py), as hbrdf acquire fit does")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--budget", action="store_true", help="time the 512x512, 64-photograph, 128x128 fit instead")
     ap.add_argument("--footprint", action="store_true",

@@ -43,6 +43,7 @@ import hybridbrdf as hb
 from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.geometry import pixel_geometry
 from hybridbrdf.acquire.noise import NoiseModel
+from hybridbrdf.acquire.isotropy import turned_about_normal
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import Rig, Shot, check_rig, photo_name
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
@@ -204,6 +205,8 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
                    seed=capture_seed)
     size = (args.map, args.map)
     obs = texel_observations(rig, cap.photos, size)
+    if not args.anisotropic:  # every model fits the same rows: turned about the normal (acquire/isotropy.py)
+        obs = turned_about_normal(obs, seed)
     true_render, mask = novel
     rows = []
     for key, fit_fn in fits.items():
@@ -219,7 +222,7 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
                      "cmae_median": float(np.median(c_err)), "render": render, "steps": args.steps,
                      "photo": args.photo, "map": args.map, "texels": len(truth.texels), "pairs": args.pairs,
                      "render_filter": args.render_filter, "observation_model": footprint.MODEL,
-                     "jitter": args.jitter})
+                     "jitter": args.jitter, "isotropic": not args.anisotropic})
     return rows
 
 
@@ -245,7 +248,8 @@ def header(args, out, floor, fits):
              "all V (V x V shots); light-stage KxV = light_stage_rig(K, V)")
     out.line("noise: " + "; ".join(f"{l}: photons {p:g}, read noise {r:g}" for l, p, r in ac.NOISE))
     out.line(f"re-render: acquire_compare.novel_rig ({args.photo}x{args.photo}), maps read {args.render_filter}; rel. MAE "
-             f"floor (truth at texel centres) {floor:.4f}; every fit's observation model {footprint.MODEL}")
+             f"floor (truth at texel centres) {floor:.4f}; every fit's observation model {footprint.MODEL}; rows "
+             f"{'as photographed' if args.anisotropic else 'turned about the normal'}")
     for key in fits:
         out.line(f"model {key}: {MODELS[key][0]}")
     out.line(f"{'rig':16s} {'point':>6s} {'N':>4s} {'noise':5s} {'model':15s} {'S':>2s} {'cpu s':>6s} "
@@ -309,6 +313,9 @@ def parse(argv=None):
     ap.add_argument("--observation-model", choices=("bilinear", "nearest"), default=footprint.MODEL,
                     help=f"every fit's observation model (acquire/footprint.py; default {footprint.MODEL}): a pixel as "
                          "its bilinear footprint shows the map, or credited to its cell's texel (until 2026-11-30)")
+    ap.add_argument("--anisotropic", action="store_true",
+                    help="every model fits the rows as photographed (the rule until 2026-11-30); default: each row "
+                         "turned about the normal (acquire/isotropy.py), as hbrdf acquire fit does")
     ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Callable, Optional, Tuple
 
 from hybridbrdf import spec
 from hybridbrdf.acquire.exposure import stated_noise_floor, stated_noise_model, usable_pixels
+from hybridbrdf.acquire.isotropy import turned_about_normal
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.sizes import STEPS, default_finetune
 from hybridbrdf.errors import InputFileError
@@ -61,9 +62,10 @@ def check_output(out: str, capture: str) -> None:
             raise InputFileError(out, f"is a folder without {spec.SVBRDF['index_file']}; refusing to replace it")
 
 
-def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None]):
+def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None], turn_seed: Optional[int] = None):
     """(rig, observations, index, usable-pixel report) of ``capture`` onto a ``size`` map: its
-    photographs read, saturated, non-finite and under-exposed pixels left out (each count logged)."""
+    photographs read, saturated, non-finite and under-exposed pixels left out (each count logged);
+    with ``turn_seed`` each observation turned about the normal (:mod:`~hybridbrdf.acquire.isotropy`)."""
     from hybridbrdf.acquire.capture import load_capture
 
     rig, photos, index, saturated = load_capture(capture, finite=False, saturation=True)
@@ -80,13 +82,29 @@ def _observations(capture: str, size: Tuple[int, int], log: Callable[[str], None
     log(f"{len(obs.value):,} observations, {int(counts.min())} to {int(counts.max())} per texel "
         f"({int((counts == 0).sum())} texels unseen); left out: "
         + (", ".join(f"{n} {why}" for why, n in obs.dropped.items() if n) or "none"))
+    if turn_seed is not None:
+        obs = turned_about_normal(obs, turn_seed)
+        log("isotropic: each observation turned about the normal by its own azimuth (--anisotropic: as photographed)")
     return rig, obs, index, report
+
+
+def _resumed_state(ckpt: str, settings: dict, log: Callable[[str], None]) -> dict:
+    """The fit state of checkpoint ``ckpt``, refused when another run's ``settings`` wrote it."""
+    from hybridbrdf.fit import checkpoint
+
+    saved, _ = checkpoint.read(ckpt)
+    if saved.get("settings") != settings:
+        raise checkpoint.CheckpointError(ckpt, f"is another run's (settings {saved.get('settings')}); --force starts afresh")
+    state = saved.get("fit")
+    log(f"resuming from {ckpt}: stages done: {', '.join(k for k in state if not k.endswith('_partial')) or 'none'}")
+    return state
 
 
 def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps: int = STEPS, seed: int = 0,
             resume: bool = False, force: bool = False, progress: Optional[Progress] = None,
             log: Callable[[str], None] = lambda msg: None, warn: Callable[[str], None] = lambda msg: None,
-            refit_heads: bool = False, finetune_network: Optional[int] = None, select: bool = False) -> HybridMaps:
+            refit_heads: bool = False, finetune_network: Optional[int] = None, select: bool = False,
+            isotropic: bool = True) -> HybridMaps:
     """Fit per-texel (p, z) maps on ``prior`` (a hybrid model file; None: the shipped prior) to the
     photographs of ``capture`` onto a ``size`` (W, H) map and write the textured material ``out``
     (:meth:`HybridMaps.save`) with :data:`REPORT_FILE`, the clusters and what each chose
@@ -99,7 +117,9 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     None: :func:`~hybridbrdf.acquire.sizes.default_finetune` (200 from 32 photographs on, else 0); 0: none.
     ``select``: each cluster's prior material chosen among the training shots' best 3 on held-out
     photographs, then refitted on all (:mod:`~hybridbrdf.acquire.select`; the report holds every
-    candidate's held-out loss). Returns the fit, its report as ``maps.report``."""
+    candidate's held-out loss). ``isotropic``: each observation turned about the normal by its own azimuth
+    before the fit (:mod:`~hybridbrdf.acquire.isotropy`; False: the azimuths as photographed, for anisotropic
+    samples). Returns the fit, its report as ``maps.report``."""
     from hybridbrdf.acquire.cluster_report import POOR_EXCESS, cluster_report, report_logger
     from hybridbrdf.acquire.hybrid_fit import fit_hybrid_texels
     from hybridbrdf.fit import checkpoint
@@ -113,21 +133,14 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
     if resume and not os.path.lexists(ckpt):
         raise checkpoint.CheckpointError(ckpt, "no checkpoint to resume (run without --resume)")
     model = load_prior() if prior is None else load_model(prior)
-    rig, obs, index, report = _observations(capture, size, log)
+    rig, obs, index, report = _observations(capture, size, log, turn_seed=seed if isotropic else None)
     finetune_network = default_finetune(len(rig.shots)) if finetune_network is None else finetune_network
     settings = {"capture": capture, "prior": model.path or "", "size": [int(size[0]), int(size[1])],
                 "steps": int(steps), "seed": int(seed), **({"refit_heads": True} if refit_heads else {}),
                 **({"finetune_network": int(finetune_network)} if finetune_network else {}),
-                **({"select": True} if select else {})}
+                **({"select": True} if select else {}), **({} if isotropic else {"anisotropic": True})}
     with file_lock(ckpt, wait=0):
-        state = None
-        if resume:
-            saved, _ = checkpoint.read(ckpt)
-            if saved.get("settings") != settings:
-                raise checkpoint.CheckpointError(ckpt, f"is another run's (settings {saved.get('settings')}); "
-                                                       f"--force starts afresh")
-            state = saved.get("fit")
-            log(f"resuming from {ckpt}: stages done: {', '.join(k for k in state if not k.endswith('_partial')) or 'none'}")
+        state = _resumed_state(ckpt, settings, log) if resume else None
 
         def save_state(fit_state):
             checkpoint.save(ckpt, {"settings": settings, "fit": fit_state})
@@ -154,7 +167,8 @@ def acquire(capture, out, prior=None, size: Tuple[int, int] = (128, 128), steps:
             log(f"network fine-tune: the prior's {len(model.materials)} materials replayed moved by SMAPE "
                 f"{drift['median_smape']:.4f} (median), {drift['worst_smape']:.4f} at worst ({drift['worst_material']})")
         maps.report = {"format_version": 1, "poor_excess": POOR_EXCESS, "refit_heads": bool(refit_heads),
-                       "finetune_network": int(finetune_network), "select": bool(select), "layers": maps.layers,
+                       "finetune_network": int(finetune_network), "select": bool(select), "isotropic": bool(isotropic),
+                       "layers": maps.layers,
                        **({"replay_drift": maps.model.training["acquisition_finetune"]["drift"]} if finetune_network else {}),
                        "clusters": [{**c, "layer": maps.layers[int(layer[labelled[0] == c["cluster"]][0])]}
                                     for c in chosen if c["texels"]]}

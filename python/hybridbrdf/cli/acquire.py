@@ -136,7 +136,7 @@ def run_fit(args: argparse.Namespace) -> int:
         maps = acquire(args.capture, args.out, prior=args.prior, size=args.size, steps=args.steps, seed=args.seed,
                        resume=args.resume, force=args.force, progress=progress, log=say,
                        warn=lambda msg: tqdm.write(msg, file=sys.stderr), refit_heads=args.refit_heads,
-                       finetune_network=args.finetune_network, select=args.select)
+                       finetune_network=args.finetune_network, select=args.select, isotropic=not args.anisotropic)
     finally:
         for bar in bars.values():
             bar.close()
@@ -146,7 +146,8 @@ def run_fit(args: argparse.Namespace) -> int:
           f"({', '.join(maps.layers)}), fitted on {args.prior or 'the shipped prior'}"
           f"{', each cluster with its head refitted' if args.refit_heads else ''}"
           f"{f', the network fine-tuned {tuned} steps' if tuned else ''}"
-          f"{', each cluster its material chosen on held-out photographs' if args.select else ''}; the clusters and "
+          f"{', each cluster its material chosen on held-out photographs' if args.select else ''}"
+          f"{', the azimuths as photographed' if args.anisotropic else ''}; the clusters and "
           f"their materials in {REPORT_FILE}")
     return 0
 
@@ -256,6 +257,10 @@ def _add_fit_parser(commands) -> None:
                         "on the rest, the lowest loss on the held-out shots kept and refitted on all; every "
                         "candidate's held-out loss printed and recorded in OUT/acquisition.json "
                         "(docs/ACQUISITION_GAP.md)")
+    f.add_argument("--anisotropic", action="store_true",
+                   help="fit the observations with the azimuths as photographed; by default each is turned about "
+                        "the normal by its own azimuth (exact for an isotropic material, and it keeps the fit from "
+                        "learning the rig's few azimuths: docs/ACQUISITION_GAP.md); recorded in OUT/acquisition.json")
     f.add_argument("--resume", action="store_true", help="continue the interrupted run's checkpoint (same settings)")
     f.add_argument("--force", action="store_true", help="start afresh over an existing checkpoint")
     f.add_argument("--quiet", action="store_true", help="no progress bars or messages (warnings still go to stderr)")
