@@ -84,3 +84,4 @@ def test_the_fit_reads_turned_rows_unless_anisotropic(tmp_path, monkeypatch, ani
     (obs,) = seen
     np.testing.assert_allclose(obs.wi[:, 2], photographed.wi[:, 2], atol=1e-6)
     assert np.array_equal(obs.wi, photographed.wi) is anisotropic
+

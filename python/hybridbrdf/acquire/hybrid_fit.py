@@ -220,6 +220,33 @@ def with_network(model: HybridModel, tuned: Dict) -> HybridModel:
     return type(model)(dict(model.arch), [dict(i) for i in model.material_info], tensors, training)
 
 
+#: Inner texels a layer needs before its upper fence is trusted (:func:`cap_outlier_kd`).
+FENCE_MIN_TEXELS = 8
+
+
+def cap_outlier_kd(kd: np.ndarray, layer: np.ndarray) -> tuple:
+    """``kd`` (H * W, 3) with every texel of a layer no brighter, per channel, than the upper fence of
+    the layer's inner texels (footprint.rim_texels), q3 + 1.5 (q3 - q1) (Tukey's outlier rule); layers
+    with fewer than :data:`FENCE_MIN_TEXELS` inner texels keep theirs. Returns (capped kd, how many
+    texels changed). Why: a layer's energy table is fitted for its brightest texel and scales every
+    texel of the layer (bound_bright_kd), so one outlier darkens them all: on the light-stage bench one
+    paper_white texel at kd 0.896 (blue) against its layer's fence 0.874 left the layer 2% dark on its
+    own photographs and its pure texels 1.83x the full measurement's cMAE; capped, 1.29x
+    (docs/ACQUISITION_GAP.md). A painted gradient's spread widens the fence and keeps it."""
+    kd = kd.copy()
+    flat, rim = layer.reshape(-1), footprint.rim_texels(layer).reshape(-1)
+    changed = 0
+    for k in np.unique(flat):
+        inner, mine = (flat == k) & ~rim, flat == k
+        if inner.sum() < FENCE_MIN_TEXELS:
+            continue
+        q1, q3 = np.percentile(kd[inner], [25, 75], axis=0)
+        capped = np.minimum(kd[mine], q3 + 1.5 * (q3 - q1))
+        changed += int((capped != kd[mine]).any(axis=1).sum())
+        kd[mine] = capped
+    return kd, changed
+
+
 def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, seed: int = 0,
                       progress: Optional[Progress] = None, rows_per_texel: int = ROWS_PER_TEXEL,
                       state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
@@ -264,6 +291,9 @@ def fit_hybrid_texels(obs: Observations, model: HybridModel, steps: int = 300, s
     kd, capped = footprint.cap_rim_kd(kd, layer.reshape(h, w))
     if capped:
         log(f"{capped} rim texel(s) brighter than their layer's inner texels: kd capped at the layer's brightest inner texel")
+    kd, capped = cap_outlier_kd(kd, layer.reshape(h, w))
+    if capped:
+        log(f"{capped} texel(s) above their layer's upper fence (Tukey's, over its inner texels): kd capped at it")
     for k in range(len(names)):  # one layer at a time: a step of the "energy tables" bar each
         model, names = bound_bright_kd(model, names, {k: kd[layer == k]}, log)
         if progress is not None:
