@@ -88,6 +88,8 @@ NOT_RUN = {
         "two acquisition fits per capture at two noise levels, scored against hbrdf add references: minutes",
     "python bench/acquire_gap.py --seeds 0,1 --configs finetune200 --machine M2":
         "eight acquisition fits (two samples, two noise levels, two seeds) against hbrdf add references: 20 minutes",
+    "python bench/acquire_gap.py --seeds 0,1 --configs finetune200 --machine X1":
+        "eight acquisition fits (two samples, two noise levels, two seeds) against hbrdf add references: 25 minutes",
     "python bench/acquire_compare.py --plot results/acquire_compare_X1.jsonl":
         "overwrites the tracked figure docs/figures/acquire_compare.png",
     "hbrdf fit --frozen results/rgl54_hybrid_32x2_e09_120k.safetensors ../shared/data/rgl ../shared/data/nbrdf/rgl "
