@@ -92,7 +92,9 @@ class ObservationTensors:
     def cell_averaged(self) -> "ObservationTensors":
         """A copy whose every row's ``target`` is the mean target of the rows of its (texel,
         photograph) cell, with ``cell_size`` (M,) those rows' count: the pixels of a cell see one
-        direction pair to within a texel's footprint, so the mean keeps a row's expectation (the
+        direction pair to within a texel's footprint (each row turned about the normal by its own
+        azimuth by default, :mod:`~hybridbrdf.acquire.isotropy`: for an isotropic material still the
+        same pair), so the mean keeps a row's expectation (the
         loss domain's, the target's own) and divides its noise's variance by the cell's size. What
         the final clusters' choice scores materials on (:func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`).
         Computed once and kept."""
