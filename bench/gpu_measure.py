@@ -14,8 +14,10 @@ extension for its Python (3.12), and no network:
 the float64 PyTorch model's f on them (ref_*.bin), a manifest (manifest.json), a copy of the
 runner, and copies of the header-only GLM and nlohmann-json (deps/, with their CMake files) for
 building the extension there; for the textured kernel its pairs with uv (tex_*.bin) and maps
-(tex_maps.bin). About 15 MB, so that .gpu travels in the run's carry list (with .gl: the Vulkan
-loader's .deb, ``apt-get download libvulkan1``, for a machine without one).
+(tex_maps.bin). About 29 MB (its lib/ included), so that .gpu travels in the run's carry list (with .gl: the Vulkan
+loader's and glvnd's .debs, ``apt-get download libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libgles2
+libopengl0``, for a machine without them). The runner's own libraries beyond the C/C++ runtimes
+(its KTX2 reader's assimp, draco, tinyexr, minizip) travel in .gpu/lib.
 
 ``device`` (plain python3 + numpy; nothing of hybridbrdf imported) does, each part guarded so
 that one failing leaves the others to run:
@@ -90,7 +92,7 @@ def prepare(args) -> int:
     from hybridbrdf.codegen.main import generate
     from hybridbrdf.codegen.literals import material_constant
     from hybridbrdf.evaluate.directions import cosine_hemisphere
-    from shader_forms import FORMS, HALF_FORMS, form_glsl, pairs4_shader
+    from shader_forms import FORMS as CODE_FORMS, HALF_FORMS, form_glsl, pairs4_shader
     from shader_kernels import eval_compute_shader
     from svbrdf_mixture import LAYERS, SIZE
 
@@ -98,6 +100,7 @@ def prepare(args) -> int:
     shutil.rmtree(GPU / "spv", ignore_errors=True)
     (GPU / "spv").mkdir(parents=True)
     shutil.copy2(ROOT / "build" / "hbrdf_vk_runner", GPU / "hbrdf_vk_runner")
+    copy_runner_libs(GPU / "lib")
     # GLM and nlohmann-json as installed here (headers + CMake package files, relocatable):
     # the extension's only build dependencies the GPU machine lacks.
     for src, dst in (("/usr/include/glm", "include/glm"), ("/usr/include/nlohmann", "include/nlohmann"),
@@ -137,7 +140,7 @@ def prepare(args) -> int:
         mc, ref = material_constant(mat), reference(tag, mat)
         glsl = generate(m, "glsl", [mat])
         add(f"{tag}.unrolled", glsl, eval_compute_shader("hbrdf_eval", mc, "model.glsl"), ref=ref)
-        for form in FORMS:
+        for form in CODE_FORMS:
             add(f"{tag}.{form}", form_glsl(m, mat, form), eval_compute_shader("hbrdf_eval", mc, "model.glsl"),
                 ref=ref, same_as=f"{tag}.unrolled")
         add(f"{tag}.pairs4", *pairs4_shader(glsl, mc), pairs_per_item=4, ref=ref, same_as=f"{tag}.unrolled")
@@ -158,7 +161,7 @@ def prepare(args) -> int:
     add("harness.syn", glsl, eval_compute_shader("hbrdf_harness_only", material_constant(GOLDEN), "model.glsl",
                                                  directions="synthetic"))
 
-    forms = lambda tag: [f"{tag}.{f}" for f in FORMS]  # noqa: E731
+    forms = lambda tag: [f"{tag}.{f}" for f in FORMS]  # noqa: E731  (the default, the forms, pairs4)
     groups = [
         {"key": "forms", "title": f"code forms, 32x2 ({MODELS['32x2']}, {models['32x2'].materials[0]}), buffer pairs",
          "baseline": "32x2.unrolled", "kernels": forms("32x2")},
@@ -186,6 +189,22 @@ def prepare(args) -> int:
     size = sum(p.stat().st_size for p in GPU.rglob("*") if p.is_file())
     print(f"wrote {GPU}: {len(kernels)} kernels, {size / 2**20:.1f} MiB")
     return 0
+
+
+# The C and C++ runtimes and the Vulkan loader are the GPU machine's own (or .gl's); every other
+# library the runner links (assimp, draco, tinyexr, minizip: its --texture reader's) travels in .gpu/lib.
+SYSTEM_LIBS = ("linux-vdso", "ld-linux", "libc.so", "libm.so", "libstdc++", "libgcc_s", "libvulkan", "libz.so")
+
+
+def copy_runner_libs(dst: pathlib.Path):
+    shutil.rmtree(dst, ignore_errors=True)
+    dst.mkdir(parents=True)
+    ldd = subprocess.run(["ldd", str(ROOT / "build" / "hbrdf_vk_runner")], check=True, capture_output=True,
+                         text=True).stdout
+    for line in ldd.splitlines():
+        m = re.match(r"\s*(\S+) => (\S+)", line)
+        if m and not m.group(1).startswith(SYSTEM_LIBS):
+            shutil.copy2(m.group(2), dst / m.group(1))
 
 
 def textured_kernels(model, wi, wo, add):
@@ -261,8 +280,11 @@ def section(title):
 
 
 def vulkan_loader():
-    """The loader from .gl/*.deb (the device notes' recipe), only where none is installed."""
-    if "libvulkan.so.1" in sh(["ldconfig", "-p"]).stdout:
+    """The loader from .gl/*.deb (the device notes' recipe), only where none is installed. NVIDIA's
+    ICD library (libGLX_nvidia) needs glvnd's libGLdispatch too: without it the loader reports
+    VK_ERROR_INCOMPATIBLE_DRIVER (H200, 2026-11-30), so .gl carries glvnd's packages as well."""
+    installed = sh(["ldconfig", "-p"]).stdout
+    if "libvulkan.so.1" in installed and "libGLdispatch.so.0" in installed:
         print("Vulkan loader: installed")
         return
     debs = sorted(glob.glob(str(ROOT / ".gl" / "*.deb")))
@@ -276,8 +298,9 @@ def vulkan_loader():
 
 def run_kernel(man, name, inp, out, n_pairs, repeat, timeout=60):
     k = man["kernels"][name]
+    libs = ":".join([str(GPU / "lib"), os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")  # copy_runner_libs
     r = sh([str(GPU / man["runner"]), str(GPU / k["spv"]), str(inp), str(out), str(n_pairs // k["pairs_per_item"]),
-            str(k["floats"]), "--repeat", str(repeat)], timeout=timeout)
+            str(k["floats"]), "--repeat", str(repeat)], timeout=timeout, env=dict(os.environ, LD_LIBRARY_PATH=libs))
     if r.returncode != 0:
         raise RuntimeError(f"{name}: runner exit {r.returncode}: {r.stderr.strip()[-400:]}")
     vals = dict(ln.split(" ", 1) for ln in r.stdout.splitlines() if " " in ln)
@@ -434,7 +457,9 @@ def build_extension():
     shutil.rmtree(pkg, ignore_errors=True)
     shutil.copytree(ROOT / "python" / "hybridbrdf", pkg / "hybridbrdf",
                     ignore=shutil.ignore_patterns("__pycache__", "*.so"))
-    shutil.copytree(ROOT / "codegen", pkg / "hybridbrdf" / "codegen")
+    # The templates, where the install puts them (CMakeLists.txt: codegen/*.j2 beside the codegen package).
+    shutil.copytree(ROOT / "codegen", pkg / "hybridbrdf" / "codegen", dirs_exist_ok=True,
+                    ignore=shutil.ignore_patterns("*.md"))
     for so in build.glob("_core*.so"):
         shutil.copy2(so, pkg / "hybridbrdf")
     print(f"extension: configure {t1 - t0:.1f} s, build {t2 - t1:.1f} s on {os.cpu_count()} cores ({' '.join(gen) or 'make'})")
