@@ -1,23 +1,25 @@
 #!/usr/bin/env python3
-"""One prepared measurement run on a lent GPU machine (an H100; docs: /work/.library/device):
-the generated shaders' speed on a real GPU through Vulkan, the CUDA fitting tests, and a short
-CUDA fit's time. Two steps, because the GPU machine has neither glslang nor this package's
-extension for its Python (3.12), and no network:
+"""One prepared measurement run on a lent GPU machine (an H100 or H200; docs: /work/.library/device):
+the generated shaders' speed on a real GPU through Vulkan, a raster frame's cost (f_a only against
+the hybrid), the CUDA fitting tests, and a short CUDA fit's time. Two steps, because the GPU
+machine has neither glslang nor this package's extension for its Python (3.12), and no network:
 
     python bench/gpu_measure.py prepare          # here: writes .gpu/ (ignored, carried)
-    python3 bench/gpu_measure.py device [--pairs 16777216] [--rounds 2] [--repeat 20]
-                                        [--skip vk,ext,tests,fit | --only vk]
+    python3 bench/gpu_measure.py device [--pairs 16777216] [--rounds 2] [--repeat 20] [--raster-repeat 50]
+                                        [--skip vk,raster,ext,tests,fit | --only vk,raster]
                                         [--groups forms,half,fa,fast,textured]   # there: numpy + the runner
 
-``prepare`` (needs the installed package, glslangValidator and build/hbrdf_vk_runner) writes
-.gpu/: the SPIR-V of every kernel below, 16384 cosine-weighted direction pairs (pairs.bin) and
-the float64 PyTorch model's f on them (ref_*.bin), a manifest (manifest.json), a copy of the
-runner, and copies of the header-only GLM and nlohmann-json (deps/, with their CMake files) for
-building the extension there; for the textured kernel its pairs with uv (tex_*.bin) and maps
-(tex_maps.bin). About 29 MB (its lib/ included), so that .gpu travels in the run's carry list (with .gl: the Vulkan
+``prepare`` (needs the installed package, glslangValidator, build/hbrdf_vk_runner and
+build/hbrdf_raster) writes .gpu/: the SPIR-V of every kernel below, 16384 cosine-weighted direction
+pairs (pairs.bin) and the float64 PyTorch model's f on them (ref_*.bin), a manifest
+(manifest.json), copies of the two tools, and copies of the header-only GLM and nlohmann-json
+(deps/, with their CMake files) for building the extension there; for the textured kernel its
+pairs with uv (tex_*.bin) and maps (tex_maps.bin); for the raster frame raster/ (bench/gpu_raster.py).
+About 35 MB (its lib/ included), so that .gpu travels in the run's carry list (with .gl: the Vulkan
 loader's and glvnd's .debs, ``apt-get download libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libgles2
-libopengl0``, for a machine without them). The runner's own libraries beyond the C/C++ runtimes
-(its KTX2 reader's assimp, draco, tinyexr, minizip) travel in .gpu/lib.
+libopengl0``, for a machine without them). The tools' own libraries beyond the C/C++ runtimes
+(the KTX2 reader's assimp, draco, tinyexr, minizip; hbrdf_raster's embree and TBB) travel in
+.gpu/lib, those over 4 MiB xz-compressed (embree is 44 MB): ``device`` unpacks them into /tmp.
 
 ``device`` (plain python3 + numpy; nothing of hybridbrdf imported) does, each part guarded so
 that one failing leaves the others to run:
@@ -37,26 +39,40 @@ that one failing leaves the others to run:
    texels against the uniform material, as in bench/svbrdf_glsl_cost.py. The first round's
    outputs (the first and last 16384 pairs) are checked against the group's default form and
    the float64 reference (textured: libhybridbrdf's Svbrdf::eval on the same maps).
-2. ``ext``: the extension hybridbrdf._core built for the machine's Python (no renderer, no C++
+2. ``raster``: bench/raster_frame.py's 1280x720 frame (docs/RASTER.md "Cost": sphere on plane,
+   paper_white_rgb.rgl, 256 sphere segments) drawn by hbrdf_raster, the driver chosen as for
+   ``vk``: f_a only, the hybrid 32x2 and 16x2 (rgl54_fast) in the per-pixel form, and the textured
+   folder of docs/RASTER.md, each at 1, 2 and 4 lights; ``--rounds`` interleaved rounds of
+   ``--raster-repeat`` frames, best and median device ms (timestamps around the render pass) and
+   their ratio to the f_a frame of the same light count; $OUT/gpu_raster.json, and one frame
+   (the 32x2 at 2 lights) as $OUT/gpu_raster_frame.png to look at.
+3. ``ext``: the extension hybridbrdf._core built for the machine's Python (no renderer, no C++
    tests: only the module), the package assembled in /tmp/hbrdf-py from python/hybridbrdf.
-3. ``tests``: tests/python/test_fit_cuda.py with that package (the two-GPU test skips on one).
-4. ``fit``: ``hbrdf fit synthetic:all --steps 3000 --device cuda`` (the README's main job; under
+4. ``tests``: tests/python/test_fit_cuda.py with that package (the two-GPU test skips on one).
+5. ``fit``: ``hbrdf fit synthetic:all --steps 3000 --device cuda`` (the README's main job; under
    a minute on this project's 2-core CPU machine), seconds per 1000 steps.
 
 Check the device step here under lavapipe first (small, quick; about 10 s):
     VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json python bench/gpu_measure.py device \
-        --pairs 65536 --rounds 1 --repeat 2 --skip ext,tests,fit
+        --pairs 65536 --rounds 1 --repeat 2 --skip raster,ext,tests,fit
+and the raster frame (12 rows; about 20 s on one core, the ratios those of bench/raster_frame.py):
+    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json LP_NUM_THREADS=1 python bench/gpu_measure.py \
+        device --only raster --rounds 1 --raster-repeat 2
 
 The shaders alone, the half forms and the textured kernel (9 kernels x 2 rounds: about a minute
 of the device's time besides its start), carrying .gpu and .gl:
     python3 bench/gpu_measure.py device --only vk --groups half,textured
+The raster frame alone (12 rows x 2 rounds of 50 frames, a run of the tool each: about a minute):
+    python3 bench/gpu_measure.py device --only raster
 """
 
 from __future__ import annotations
 
 import argparse
+import atexit
 import glob
 import json
+import lzma
 import os
 import pathlib
 import re
@@ -67,6 +83,8 @@ import tempfile
 import time
 
 import numpy as np
+
+from gpu_raster import TOOL as RASTER_TOOL, prepare_raster, raster_speed
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 GPU = ROOT / ".gpu"
@@ -96,11 +114,11 @@ def prepare(args) -> int:
     from shader_kernels import eval_compute_shader
     from svbrdf_mixture import LAYERS, SIZE
 
-    subprocess.run(["cmake", "--build", str(ROOT / "build"), "--target", "hbrdf_vk_runner"], check=True)
+    subprocess.run(["cmake", "--build", str(ROOT / "build"), "--target", "hbrdf_vk_runner", RASTER_TOOL], check=True)
     shutil.rmtree(GPU / "spv", ignore_errors=True)
     (GPU / "spv").mkdir(parents=True)
     shutil.copy2(ROOT / "build" / "hbrdf_vk_runner", GPU / "hbrdf_vk_runner")
-    copy_runner_libs(GPU / "lib")
+    copy_runner_libs([ROOT / "build" / "hbrdf_vk_runner", ROOT / "build" / RASTER_TOOL], GPU / "lib")
     # GLM and nlohmann-json as installed here (headers + CMake package files, relocatable):
     # the extension's only build dependencies the GPU machine lacks.
     for src, dst in (("/usr/include/glm", "include/glm"), ("/usr/include/nlohmann", "include/nlohmann"),
@@ -184,27 +202,37 @@ def prepare(args) -> int:
          "baseline": "tex.uniform", "kernels": ["tex.uniform", "tex.pure", "tex.mixed"]},
     ]
     manifest = {"base_pairs": BASE, "pairs": "pairs.bin", "kernels": kernels, "groups": groups,
-                "models": MODELS, "runner": "hbrdf_vk_runner"}
+                "models": MODELS, "runner": "hbrdf_vk_runner", "raster": prepare_raster(GPU)}
     (GPU / "manifest.json").write_text(json.dumps(manifest, indent=1))
     size = sum(p.stat().st_size for p in GPU.rglob("*") if p.is_file())
-    print(f"wrote {GPU}: {len(kernels)} kernels, {size / 2**20:.1f} MiB")
+    print(f"wrote {GPU}: {len(kernels)} kernels, {len(manifest['raster']['rows'])} raster rows, {size / 2**20:.1f} MiB")
     return 0
 
 
 # The C and C++ runtimes and the Vulkan loader are the GPU machine's own (or .gl's); every other
-# library the runner links (assimp, draco, tinyexr, minizip: its --texture reader's) travels in .gpu/lib.
+# library the tools link (assimp, draco, tinyexr, minizip: the runner's --texture reader's; embree and
+# TBB: hbrdf_raster's scene loader's) travels in .gpu/lib.
 SYSTEM_LIBS = ("linux-vdso", "ld-linux", "libc.so", "libm.so", "libstdc++", "libgcc_s", "libvulkan", "libz.so")
+PACK_OVER = 4 << 20  # libraries larger than this travel xz-compressed: embree alone is 44 MB of a 64 MiB carry
 
 
-def copy_runner_libs(dst: pathlib.Path):
+def copy_runner_libs(binaries, dst: pathlib.Path):
+    """The libraries ``binaries`` link beyond SYSTEM_LIBS, into ``dst``; the large ones as NAME.xz
+    (runner_env unpacks them on the device, outside .gpu, so that .gpu stays small to carry)."""
     shutil.rmtree(dst, ignore_errors=True)
     dst.mkdir(parents=True)
-    ldd = subprocess.run(["ldd", str(ROOT / "build" / "hbrdf_vk_runner")], check=True, capture_output=True,
-                         text=True).stdout
-    for line in ldd.splitlines():
-        m = re.match(r"\s*(\S+) => (\S+)", line)
-        if m and not m.group(1).startswith(SYSTEM_LIBS):
-            shutil.copy2(m.group(2), dst / m.group(1))
+    libs = {}
+    for binary in binaries:
+        ldd = subprocess.run(["ldd", str(binary)], check=True, capture_output=True, text=True).stdout
+        for line in ldd.splitlines():
+            m = re.match(r"\s*(\S+) => (\S+)", line)
+            if m and not m.group(1).startswith(SYSTEM_LIBS):
+                libs[m.group(1)] = pathlib.Path(m.group(2))
+    for name, path in libs.items():
+        if path.stat().st_size > PACK_OVER:
+            (dst / f"{name}.xz").write_bytes(lzma.compress(path.read_bytes(), preset=6))
+        else:
+            shutil.copy2(path, dst / name)
 
 
 def textured_kernels(model, wi, wo, add):
@@ -296,23 +324,38 @@ def vulkan_loader():
     print(f"Vulkan loader: unpacked {len(debs)} packages from .gl")
 
 
+_UNPACKED = []  # the folder runner_env unpacked .gpu/lib/*.xz into, once per process
+
+
+def runner_env():
+    """The environment for the tools: .gpu/lib (copy_runner_libs) and its unpacked .xz libraries
+    first on the library path (read at each call: choose_driver may add the driver's folder)."""
+    if not _UNPACKED:
+        _UNPACKED.append(tempfile.mkdtemp(prefix="hbrdf-gpu-lib-"))
+        atexit.register(shutil.rmtree, _UNPACKED[0], True)
+        for packed in (GPU / "lib").glob("*.xz"):
+            (pathlib.Path(_UNPACKED[0]) / packed.stem).write_bytes(lzma.decompress(packed.read_bytes()))
+    libs = ":".join([str(GPU / "lib"), _UNPACKED[0], os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")
+    return dict(os.environ, LD_LIBRARY_PATH=libs)
+
+
 def run_kernel(man, name, inp, out, n_pairs, repeat, timeout=60):
     k = man["kernels"][name]
-    libs = ":".join([str(GPU / "lib"), os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")  # copy_runner_libs
     r = sh([str(GPU / man["runner"]), str(GPU / k["spv"]), str(inp), str(out), str(n_pairs // k["pairs_per_item"]),
-            str(k["floats"]), "--repeat", str(repeat)], timeout=timeout, env=dict(os.environ, LD_LIBRARY_PATH=libs))
+            str(k["floats"]), "--repeat", str(repeat)], timeout=timeout, env=runner_env())
     if r.returncode != 0:
         raise RuntimeError(f"{name}: runner exit {r.returncode}: {r.stderr.strip()[-400:]}")
     vals = dict(ln.split(" ", 1) for ln in r.stdout.splitlines() if " " in ln)
     return vals
 
 
-def choose_driver(man, inp):
+def choose_driver(draw):
     """Keeps a VK_DRIVER_FILES set by the caller; else the loader's own choice, or the NVIDIA ICD
-    where that finds no GPU (the device notes: the driver's files sit under /usr/local/nvidia)."""
+    where that finds no GPU (the device notes: the driver's files sit under /usr/local/nvidia).
+    ``draw()``: a small run of a tool, returning the device's name."""
     def probe():
         try:
-            return run_kernel(man, "harness", inp, os.devnull, 256, 0, timeout=60).get("device", "?"), ""
+            return draw(), ""
         except Exception as e:  # noqa: BLE001
             return None, str(e)
     name, err = probe()
@@ -372,7 +415,7 @@ def shader_speed(args):
                 np.tile(rows, (n // base, 1)).tofile(f)
                 np.fromfile(GPU / spec["tail"], dtype=np.float32).tofile(f)
         inputs[name] = path
-    device_name = choose_driver(man, inp)
+    device_name = choose_driver(lambda: run_kernel(man, "harness", inp, os.devnull, 256, 0).get("device", "?"))
     smi = sh(["nvidia-smi", "--query-gpu=name,driver_version,clocks.sm,clocks.max.sm,temperature.gpu,power.draw",
               "--format=csv,noheader"]) if shutil.which("nvidia-smi") else None
     if smi is not None:
@@ -501,7 +544,7 @@ def cuda_fit(pkg, steps, fit_device, log_dir):
           f"{1000 * secs / steps:.2f} s per 1000 steps ({steps / secs:.0f} steps/s); whole command {wall:.1f} s")
 
 
-PARTS = ("vk", "ext", "tests", "fit")
+PARTS = ("vk", "raster", "ext", "tests", "fit")
 
 
 def device(args) -> int:
@@ -515,7 +558,8 @@ def device(args) -> int:
         skip |= set(PARTS) - only
     log_dir = os.environ.get("OUT")  # the device tool's folder of files that come back
     pkg = None
-    for key, title in (("vk", "shader speed through Vulkan"), ("ext", "the extension for this Python"),
+    for key, title in (("vk", "shader speed through Vulkan"), ("raster", "a raster frame (bench/raster_frame.py's)"),
+                       ("ext", "the extension for this Python"),
                        ("tests", "CUDA tests (tests/python/test_fit_cuda.py)"), ("fit", "a CUDA fit")):
         if key in skip:
             continue
@@ -524,6 +568,9 @@ def device(args) -> int:
         try:  # each part on its own: a failure is reported and the next part runs
             if key == "vk":
                 shader_speed(args)
+            elif key == "raster":
+                vulkan_loader()
+                raster_speed(args, GPU, choose_driver, runner_env)
             elif key == "ext":
                 pkg = build_extension()
             elif pkg is None:
@@ -541,15 +588,17 @@ def device(args) -> int:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="step", required=True)
-    sub.add_parser("prepare", help="here: write .gpu/ (SPIR-V, pairs, references, manifest, runner, headers)")
+    sub.add_parser("prepare", help="here: write .gpu/ (SPIR-V, pairs, references, raster frames, manifest, tools, "
+                   "headers)")
     d = sub.add_parser("device", help="on the GPU machine: run what .gpu/ holds")
     d.add_argument("--pairs", type=int, default=1 << 24, help="pairs per dispatch (default 2^24)")
     d.add_argument("--rounds", type=int, default=2, help="interleaved rounds over the kernels (default 2)")
     d.add_argument("--repeat", type=int, default=20, help="timed dispatches per kernel and round (default 20)")
     d.add_argument("--fit-steps", type=int, default=3000)
     d.add_argument("--fit-device", default="cuda", help="the fit's --device (cpu: check the part here)")
-    d.add_argument("--skip", default="", help="comma-separated parts to skip: vk, ext, tests, fit")
-    d.add_argument("--only", default="", help="comma-separated parts to run, the others skipped (e.g. vk)")
+    d.add_argument("--raster-repeat", type=int, default=50, help="raster: timed frames per row and round (default 50)")
+    d.add_argument("--skip", default="", help="comma-separated parts to skip: vk, raster, ext, tests, fit")
+    d.add_argument("--only", default="", help="comma-separated parts to run, the others skipped (e.g. vk,raster)")
     d.add_argument("--groups", default="", help="vk: comma-separated kernel groups to time (forms, half, fa, fast, "
                    "textured; default all), e.g. half,textured: the packed-half forms and the textured kernel")
     args = ap.parse_args()

@@ -97,7 +97,7 @@ def rows_of(args, models) -> list:
     return rows
 
 
-def parse_args():
+def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--models", nargs="+", default=[str(ROOT / "results/rgl54_hybrid_32x2.safetensors"),
                                                     str(ROOT / "results/rgl54_fast.safetensors")])
@@ -116,7 +116,7 @@ def parse_args():
     ap.add_argument("--device", choices=["lavapipe", "any"], default="lavapipe",
                     help="lavapipe: pin Mesa's CPU driver; any: the Vulkan loader's choice (a GPU first)")
     ap.add_argument("--svbrdf", nargs="+", help="textured materials' folders (hbrdf paint): one more row each per light count")
-    return ap.parse_args()
+    return ap.parse_args(argv)
 
 
 def main() -> int:
