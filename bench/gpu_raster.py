@@ -82,22 +82,14 @@ def prepare_raster(gpu: pathlib.Path) -> dict:
 
 
 def frame_args(scene: pathlib.Path, folder: pathlib.Path, per_pixel: bool) -> list:
-    """hbrdf_raster's arguments after the scene for the frame of ``scene``, as draw_frame assembles
-    them (its --out, --png and --repeat left to the device), with the SPIR-V and texture files
-    written into ``folder``; paths relative to .gpu (folder's parent's parent)."""
-    from hybridbrdf.raster.shaders import build_frame_shaders, frame_plan
-    from hybridbrdf.raster.textures import texture_args
+    """hbrdf_raster's arguments after the scene for the frame of ``scene``: draw_frame's own list
+    (hybridbrdf.raster.frame.frame_inputs; its --out, --png and --repeat left to the device), the
+    SPIR-V and texture files written into ``folder``, paths relative to .gpu (folder's grandparent)."""
+    from hybridbrdf.raster.frame import frame_inputs
+    from hybridbrdf.raster.shaders import frame_plan
 
-    plan = frame_plan(str(scene))
     folder.mkdir(parents=True)
-    vert, frag = build_frame_shaders(plan, folder, "glsl", per_pixel)
-    args = [str(vert), str(frag)]
-    for name in plan.cases:
-        args += ["--model-material", name]
-    args += ["--gltf-slots", str(plan.gltf_slots)] if plan.gltf_slots else []
-    if plan.textured is not None:
-        args += texture_args(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
-                                             "normal": plan.normal}, folder)
+    args = frame_inputs(frame_plan(str(scene)), folder, "glsl", per_pixel)
     gpu = folder.parent.parent
     return [os.path.relpath(a, gpu) if os.path.isabs(a) else a for a in args]
 

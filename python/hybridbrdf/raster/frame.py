@@ -52,6 +52,22 @@ def _parse_report(stdout: str) -> Dict[str, object]:
     return stats
 
 
+def frame_inputs(plan, folder: pathlib.Path, language: str = "glsl", per_pixel: bool = True) -> list:
+    """hbrdf_raster's arguments after the scene for the frame ``plan`` (:func:`frame_plan`'s): the
+    vertex and fragment SPIR-V, the model materials' cases, the glTF slots and the textures, the
+    shaders and texture files written into ``folder``. bench/gpu_raster.py prepares a GPU's frames
+    with the same list."""
+    vert, frag = build_frame_shaders(plan, folder, language, per_pixel)
+    args = [str(vert), str(frag)]
+    for name in plan.cases:
+        args += ["--model-material", name]
+    args += ["--gltf-slots", str(plan.gltf_slots)] if plan.gltf_slots else []
+    if plan.textured is not None:
+        args += texture_args(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
+                                             "normal": plan.normal}, folder)
+    return args
+
+
 def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, validation: bool = False,
                repeat: int = 0, sphere_segments: int = SPHERE_SEGMENTS, lavapipe: bool = False,
                tool: Optional[PathLike] = None, keep_shaders: Optional[PathLike] = None,
@@ -82,17 +98,10 @@ def draw_frame(scene: PathLike, out: PathLike, png: Optional[PathLike] = None, v
     with tempfile.TemporaryDirectory(prefix="hbrdf_raster_") as tmp:
         folder = pathlib.Path(keep_shaders) if keep_shaders is not None else pathlib.Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        vert, frag = build_frame_shaders(plan, folder, language, per_pixel)
-        args = [exe, os.fspath(scene), str(vert), str(frag), "--out", os.fspath(out),
+        args = [exe, os.fspath(scene), *frame_inputs(plan, folder, language, per_pixel), "--out", os.fspath(out),
                 "--sphere-segments", str(sphere_segments), "--repeat", str(repeat)]
         args += ["--png", os.fspath(png)] if png is not None else []
         args += ["--validation"] if validation else []
-        for name in plan.cases:
-            args += ["--model-material", name]
-        args += ["--gltf-slots", str(plan.gltf_slots)] if plan.gltf_slots else []
-        if plan.textured is not None:
-            args += texture_args(plan.textured, {"maps": plan.maps, "addressing": plan.addressing,
-                                                 "normal": plan.normal}, folder)
         r = subprocess.run(args, capture_output=True, text=True, env=env)
     if r.returncode != 0:
         # The tool's own line; the validation layer's messages (multi-line dumps) come before it.
