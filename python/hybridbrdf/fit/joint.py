@@ -30,6 +30,7 @@ from hybridbrdf.fit import distributed as dd
 from hybridbrdf.fit import guard
 from hybridbrdf import spec
 from hybridbrdf.model import energy
+from hybridbrdf.model.sizes import torch_bytes_per_pair
 from hybridbrdf.model.file import HybridModel
 from hybridbrdf.model.networks import build_model
 from hybridbrdf.limits import check_count
@@ -199,9 +200,9 @@ def _check_counts(settings: FitSettings, rows: int) -> None:
     """--pool, --batch and --eval-pairs bounded by the memory they take for ``rows`` material rows
     (hybridbrdf.limits; one line naming the flag), before the pool is drawn. A step's cost per pair
     and row: the network's float32 activations (HybridModel.bytes_per_pair's formula) three times
-    over for the backward pass, 3840 bytes at 32x3 where a step of 32768 pairs x 8 materials
+    over for the backward pass, 4608 bytes at 32x3 where a step of 32768 pairs x 8 materials
     measured 2145 (peak RSS over a fit of batch 64)."""
-    activations = 4 * (64 + 2 * settings.width * (settings.depth + 1))
+    activations = torch_bytes_per_pair(settings.width, settings.depth)
     check_count("--pool", settings.pool, pool_bytes_per_pair(rows))
     check_count("--batch", settings.batch, 3 * activations * rows)
     check_count("--eval-pairs", settings.eval_pairs, METRIC_BYTES_PER_PAIR + SOURCE_BYTES_PER_PAIR + activations)

@@ -204,12 +204,12 @@ class HybridModel:
     def bytes_per_pair(self, dtype: Optional[torch.dtype] = None) -> int:
         """Peak memory of :meth:`eval` per direction pair, what its row count is bounded by
         (hybridbrdf.limits): libhybridbrdf's float32 copies and outputs
-        (:data:`LIBRARY_BYTES_PER_PAIR`), or PyTorch's activations, two per hidden unit and layer
-        (827 bytes measured at 32x3 in float32), each with a margin."""
+        (:data:`LIBRARY_BYTES_PER_PAIR`), or PyTorch's activations (model/sizes.py's
+        torch_bytes_per_pair; 827 bytes measured at 32x3 in float32), each with a margin."""
         if dtype is None and self.path is not None:
             return self.LIBRARY_BYTES_PER_PAIR
         size = 8 if dtype is not None and dtype == _torch().float64 else 4
-        return size * (64 + 2 * self.arch["width"] * (self.arch["depth"] + 1))
+        return sizes.torch_bytes_per_pair(self.arch["width"], self.arch["depth"], size)
 
     def _rows(self, wi, wo):
         a, b = pair_arguments(("wi", "wo"), (wi, wo), (3, 3), self.bytes_per_pair())

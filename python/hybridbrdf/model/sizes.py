@@ -16,6 +16,17 @@ from hybridbrdf import spec
 #: the directions, the float32 output and its float64 copy (62 measured from float64 views), with a margin.
 LIBRARY_BYTES_PER_PAIR = 96
 
+
+def torch_bytes_per_pair(width: int, depth: int, itemsize: int = 4) -> int:
+    """Peak bytes per direction pair of a model's eval through PyTorch (HybridModel.bytes_per_pair
+    with a dtype; a fit step's activations, three times this, fit/joint.py): the inputs and f_a's
+    terms (64 values), two activations per hidden unit and layer, and one layer more, because
+    which freed buffer the allocator hands back depends on thread timing: 16x2 in float32 peaked
+    at 539-559 bytes alone and 670 beside other jobs (2026-11-30, test_hostile_api), where two
+    per layer gave 640."""
+    return itemsize * (64 + 2 * width * (depth + 2))
+
+
 # ---- the albedo profile (editing.albedo_profile, model.albedo, hbrdf info --albedo-samples) ----
 
 #: Outgoing elevations (degrees) of the albedo grid: every 10 degrees to 80, then toward grazing,
