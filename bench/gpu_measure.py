@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import functools
 import glob
 import json
 import lzma
@@ -324,18 +325,20 @@ def vulkan_loader():
     print(f"Vulkan loader: unpacked {len(debs)} packages from .gl")
 
 
-_UNPACKED = []  # the folder runner_env unpacked .gpu/lib/*.xz into, once per process
+@functools.cache
+def unpacked_libs() -> str:
+    """A folder under /tmp holding .gpu/lib/*.xz unpacked (copy_runner_libs), once per process."""
+    folder = tempfile.mkdtemp(prefix="hbrdf-gpu-lib-")
+    atexit.register(shutil.rmtree, folder, True)
+    for packed in (GPU / "lib").glob("*.xz"):
+        (pathlib.Path(folder) / packed.stem).write_bytes(lzma.decompress(packed.read_bytes()))
+    return folder
 
 
 def runner_env():
-    """The environment for the tools: .gpu/lib (copy_runner_libs) and its unpacked .xz libraries
-    first on the library path (read at each call: choose_driver may add the driver's folder)."""
-    if not _UNPACKED:
-        _UNPACKED.append(tempfile.mkdtemp(prefix="hbrdf-gpu-lib-"))
-        atexit.register(shutil.rmtree, _UNPACKED[0], True)
-        for packed in (GPU / "lib").glob("*.xz"):
-            (pathlib.Path(_UNPACKED[0]) / packed.stem).write_bytes(lzma.decompress(packed.read_bytes()))
-    libs = ":".join([str(GPU / "lib"), _UNPACKED[0], os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")
+    """The environment for the tools: .gpu/lib and its unpacked .xz libraries first on the library
+    path (read at each call: choose_driver may add the driver's folder)."""
+    libs = ":".join([str(GPU / "lib"), unpacked_libs(), os.environ.get("LD_LIBRARY_PATH", "")]).rstrip(":")
     return dict(os.environ, LD_LIBRARY_PATH=libs)
 
 
