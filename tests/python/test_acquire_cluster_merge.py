@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybridbrdf.acquire import cluster_fit
+from hybridbrdf.acquire import cluster_fit, material_fits
 from hybridbrdf.acquire.cluster_merge import merge_clusters
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
 from hybridbrdf.acquire.network_tune import cosine_pairs
@@ -49,7 +49,7 @@ def split_capture():
     labels = np.minimum(column // 3, 2).astype(np.int64)
     chosen = [prior.index(m) for m in (LEFT, WRONG, RIGHT)]
     data = ObservationTensors(obs)
-    tau2 = cluster_fit.value_spread(every)
+    tau2 = material_fits.value_spread(every)
     fits = []
     for c, m in enumerate(chosen):
         rows = cluster_fit._cluster_rows(obs, labels, c, cluster_fit.CLUSTER_ROWS, 0)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybridbrdf.acquire import cluster_fit
+from hybridbrdf.acquire import cluster_fit, material_fits
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
 from hybridbrdf.acquire.network_tune import cosine_pairs
 from hybridbrdf.acquire.observations import Observations
@@ -64,7 +64,7 @@ def test_every_material_is_screened_with_fitted_values_so_a_recoloured_shape_is_
     data = ObservationTensors(obs)
     rows = torch.arange(256)
     with torch.no_grad():  # the construction: scored with its own (red) values, SHAPE ranks far down
-        own = torch.stack([cluster_fit._loss_rows(family, data, torch.full((256,), m),
+        own = torch.stack([material_fits.loss_rows(family, data, torch.full((256,), m),
                                                   {k: v[m][None].expand(256, -1) for k, v in every.items()}, rows)
                            for m in range(len(prior.materials))])
     assert int((own < own[a]).sum()) >= 10 * cluster_fit.CANDIDATES
@@ -167,9 +167,9 @@ def test_declared_pixel_noise_leaves_the_choice_as_without_noise():
     raw = {"kd": torch.tensor([[0.6, 0.6, 0.6], [0.2, 0.2, 0.2]])}
     tau2 = {"kd": torch.ones(3)}
     misfit, nu2, shots, rows = torch.tensor([2.0e-6, 2.6e-6]), 6.0e-5, 32, 10 ** 7
-    clean = cluster_fit.map_objective(misfit, raw, own, tau2, shots)
-    noisy = cluster_fit.map_objective(misfit + nu2, raw, own, tau2, shots, noise=nu2, rows=rows)
-    undeclared = cluster_fit.map_objective(misfit + nu2, raw, own, tau2, shots)
+    clean = material_fits.map_objective(misfit, raw, own, tau2, shots)
+    noisy = material_fits.map_objective(misfit + nu2, raw, own, tau2, shots, noise=nu2, rows=rows)
+    undeclared = material_fits.map_objective(misfit + nu2, raw, own, tau2, shots)
     assert torch.argmin(clean) == 0 and torch.argmin(noisy) == 0
     assert torch.allclose(noisy - nu2, clean, rtol=1e-4)
     assert torch.argmin(undeclared) == 1

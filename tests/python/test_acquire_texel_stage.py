@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from hybridbrdf.acquire import texel_stage
-from hybridbrdf.acquire.cluster_fit import value_spread
+from hybridbrdf.acquire.material_fits import value_spread
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
 from hybridbrdf.acquire.network_tune import cosine_pairs
 from hybridbrdf.acquire.observations import Observations

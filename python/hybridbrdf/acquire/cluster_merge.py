@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from hybridbrdf.acquire import cluster_fit
+from hybridbrdf.acquire.material_fits import MaterialFit, fit_materials, loss_rows, value_spread
 from hybridbrdf.acquire.network_tune import pure_rows
 from hybridbrdf.acquire.texel_rows import Progress
 
@@ -57,41 +58,47 @@ def split_count(photographed: int, limit: int) -> int:
 def _loss_on(family, data, rows: torch.Tensor, material: int, values: Dict[str, torch.Tensor]) -> float:
     """Mean squared residual of ``material`` with one set of ``values`` {name: (c,)} on ``rows``."""
     with torch.no_grad():
-        return float(cluster_fit._loss_rows(family, data, torch.full((len(rows),), int(material)),
+        return float(loss_rows(family, data, torch.full((len(rows),), int(material)),
                                 {n: v.reshape(1, -1).expand(len(rows), -1) for n, v in values.items()}, rows))
 
 
-def pooled_fit(family, obs, data, labels: np.ndarray, clusters: Dict, a: int, b: int, seed: int
-               ) -> Tuple[float, float, list]:
-    """The merge test of clusters ``a`` and ``b`` (module docstring): (ratio, cost, the two pooled
-    fits best first, each as :func:`~hybridbrdf.acquire.cluster_fit.fit_material` returns it); the
-    cost is the residual the merge adds over both clusters' photographed rows (a forced merge's
-    measure: see :func:`merge_clusters`)."""
-    rows = [cluster_fit._cluster_rows(obs, labels, c, cluster_fit.CLUSTER_ROWS, seed) for c in (a, b)]
-    # Fitted as the merged cluster would be: on rows of its pure texels, so each cluster weighs as its
-    # size (a forced merge of a rim's cluster into a layer leaves the layer's fit nearly as it was).
-    union = np.where(labels == b, a, labels)
-    both = cluster_fit._cluster_rows(obs, union, a, cluster_fit.CLUSTER_ROWS, seed)
-    shots = len(np.unique(obs.shot[both.numpy()]))
-    noise = data.pixel_noise(pure_rows(obs, union, a))
+def pooled_fits(family, obs, data, labels: np.ndarray, clusters: Dict, pairs, seed: int,
+                progress: Optional[Progress] = None) -> Dict[Tuple[int, int], Tuple[float, float, list]]:
+    """The merge test of every pair (a, b) of ``pairs`` (module docstring), their fits all in one
+    batched problem (:func:`~hybridbrdf.acquire.material_fits.fit_materials`: the same fits as one
+    after the other): {pair: (ratio, cost, the two pooled fits best first, each as
+    :func:`~hybridbrdf.acquire.cluster_fit.fit_material` returns it)}; the cost is the residual the
+    merge adds over both clusters' photographed rows (a forced merge's measure: see :func:`merge_clusters`).
+    ``progress("merge", step, steps)`` after each step of the fits."""
     every = family.raw_of_materials()
-    tau2 = cluster_fit.value_spread(every)
-    centres = {n: v for n, v in clusters["centres"].items()}
-    fits = []
-    for c in (a, b):
-        m = int(clusters["material"][c])
-        own = {**{n: v[m] for n, v in every.items()}, "tau2": tau2}
-        fits.append(cluster_fit.fit_material(family, data, both, m, {n: v[c] for n, v in centres.items()}, seed,
-                                 f"merge{a}-{b}-{c}", own, shots, noise))
-    fits.sort(key=lambda f: f["score"])
-    best = fits[0]
-    pooled = [_loss_on(family, data, r, best["material"], best["raw"]) for r in rows]
-    own = [_loss_on(family, data, r, int(clusters["material"][c]), {n: v[c] for n, v in centres.items()})
-           for c, r in zip((a, b), rows)]
+    tau2 = value_spread(every)
+    centres = clusters["centres"]
+    jobs, own_rows = [], []
+    for a, b in pairs:
+        own_rows.append([cluster_fit._cluster_rows(obs, labels, c, cluster_fit.CLUSTER_ROWS, seed) for c in (a, b)])
+        # Fitted as the merged cluster would be: on rows of its pure texels, so each cluster weighs as its
+        # size (a forced merge of a rim's cluster into a layer leaves the layer's fit nearly as it was).
+        union = np.where(labels == b, a, labels)
+        both = cluster_fit._cluster_rows(obs, union, a, cluster_fit.CLUSTER_ROWS, seed)
+        shots = len(np.unique(obs.shot[both.numpy()]))
+        noise = data.pixel_noise(pure_rows(obs, union, a))
+        for c in (a, b):
+            m = int(clusters["material"][c])
+            jobs.append(MaterialFit(both, m, {n: v[c] for n, v in centres.items()},
+                                    {**{n: v[m] for n, v in every.items()}, "tau2": tau2}, shots, noise))
+    fitted = fit_materials(family, data, jobs, cluster_fit.CLUSTER_STEPS, seed, "merge", progress)
     counts = np.diff(obs.offsets)
-    photographed = [float(counts[labels == c].sum()) for c in (a, b)]
-    cost = sum(n * (p - o) for n, p, o in zip(photographed, pooled, own))
-    return max((p + MERGE_FLOOR) / (o + MERGE_FLOOR) for p, o in zip(pooled, own)), cost, fits
+    out = {}
+    for i, (a, b) in enumerate(pairs):
+        fits = sorted(fitted[2 * i:2 * i + 2], key=lambda f: f["score"])
+        best = fits[0]
+        pooled = [_loss_on(family, data, r, best["material"], best["raw"]) for r in own_rows[i]]
+        own = [_loss_on(family, data, r, int(clusters["material"][c]), {n: v[c] for n, v in centres.items()})
+               for c, r in zip((a, b), own_rows[i])]
+        photographed = [float(counts[labels == c].sum()) for c in (a, b)]
+        cost = sum(n * (p - o) for n, p, o in zip(photographed, pooled, own))
+        out[(a, b)] = (max((p + MERGE_FLOOR) / (o + MERGE_FLOOR) for p, o in zip(pooled, own)), cost, fits)
+    return out
 
 
 def _own_fit(clusters: Dict, c: int) -> dict:
@@ -132,17 +139,15 @@ def merge_clusters(family, obs, data, labels: np.ndarray, clusters: Dict, seed: 
     clusters remain, the pair of least added residual. Clusters without rows (texels never photographed) are not tested; the largest
     cluster takes them when too many remain. Returns clusters with "merges": [(a, b, ratio)] per
     merge in the numbering of its time, and "labels" the merged labels (a tensor: resumed fits
-    restore them with the clusters). ``progress`` gets ("merge", pairs tested, pairs to test) per round."""
+    restore them with the clusters). ``progress`` gets ("merge", step, steps) per step of a round's fits."""
     ratio_bar = MERGE_RATIO if merge_ratio is None else merge_ratio
     merges, tested = [], {}
     while len(clusters["material"]) > 1:
         k = len(clusters["material"])
         photographed = [c for c in range(k) if len(pure_rows(obs, labels, c))]
         todo = [(a, b) for a in photographed for b in photographed if a < b and (a, b) not in tested]
-        for i, (a, b) in enumerate(todo):
-            tested[(a, b)] = pooled_fit(family, obs, data, labels, clusters, a, b, seed)
-            if progress is not None:
-                progress("merge", i + 1, len(todo))
+        if todo:
+            tested.update(pooled_fits(family, obs, data, labels, clusters, todo, seed, progress))
         natural = [(v[0], pair) for pair, v in tested.items() if v[0] <= ratio_bar]
         if natural:  # the pair the photographs tell apart least
             a, b = min(natural)[1]

@@ -65,16 +65,25 @@ class Footprint:
         layer = self.labels[texel]
         out = torch.zeros((len(rows), 3), dtype=torch.float32)
         index = offset[:, None] + texel
+        # Every value in one (T, C) table, so that each layer's blend is one gather of (n, 4, C) and
+        # its backward one scatter, not one per value (the texel stage's largest cost after the network).
+        names = list(table)
+        widths = [table[n].shape[1] for n in names]
+        packed = torch.cat([table[n] for n in names], dim=1)
         for k in torch.unique(layer).tolist():
             member = (layer == k).to(weight.dtype)
             w_k = (weight * member).sum(1)
             hit = torch.nonzero(w_k > 0)[:, 0]
-            b, m = weight[hit], member[hit]
+            everyone = len(hit) == len(rows)  # a layer every footprint touches (a map of one layer): no gathers
+            b, m = (weight, member) if everyone else (weight[hit], member[hit])
+            blended = ((b * m)[..., None] * packed[index if everyone else index[hit]]).sum(1)
             outside = (b * (1 - m)).sum(1, keepdim=True)  # 0 on a map of one layer (no fill needed)
-            values = {n: ((b * m)[..., None] * v[index[hit]]).sum(1) + (outside * self.fill[n][k] if n in self.fill else 0)
-                      for n, v in table.items()}
-            f = evaluate(torch.full((len(hit),), k, dtype=torch.long), values, wi[hit], wo[hit])
-            out = out.index_add(0, hit, w_k[hit, None] * f.to(out.dtype))
+            values = {}
+            for n, v in zip(names, torch.split(blended, widths, dim=1)):
+                values[n] = v + outside * self.fill[n][k] if n in self.fill else v
+            a, c = (wi, wo) if everyone else (wi[hit], wo[hit])
+            f = evaluate(torch.full((len(hit),), k, dtype=torch.long), values, a, c)
+            out = out + w_k[:, None] * f.to(out.dtype) if everyone else out.index_add(0, hit, w_k[hit, None] * f.to(out.dtype))
         return out
 
 

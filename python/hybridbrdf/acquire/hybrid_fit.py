@@ -85,13 +85,16 @@ class HybridFamily:
         t = self.tensors
         for m in torch.unique(material).tolist():
             rows = torch.nonzero(material == m)[:, 0]
+            one = len(rows) == len(material)  # every row this material's: no gathers (the texel stage's calls)
+            pick = (lambda v: v) if one else (lambda v: v[rows])
             head = (t["materials.head_weight"][m], t["materials.head_bias"][m]) if "materials.head_weight" in t else None
-            f, _ = self.module.evaluate_pairs(wi[rows], wo[rows], kd[rows], eta[rows], alpha[rows], z[rows], head)
+            a, b = pick(wi), pick(wo)
+            f, _ = self.module.evaluate_pairs(a, b, pick(kd), pick(eta), pick(alpha), pick(z), head)
             if "materials.energy_bound" in t:  # as HybridModel.eval scales a material's f_t
                 table = t["materials.energy_bound"][m]
-                ci, co = (_normalize(w[rows])[0][:, 2] for w in (wi, wo))
+                ci, co = (_normalize(w)[0][:, 2] for w in (a, b))
                 f = f * (energy_bound_scale(table, ci) * energy_bound_scale(table, co))[:, None]
-            out = out.index_copy(0, rows, f.to(out.dtype))
+            out = f.to(out.dtype) if one else out.index_copy(0, rows, f.to(out.dtype))
         return out
 
     def evaluate_shared(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
@@ -99,7 +102,7 @@ class HybridFamily:
         on the same R direction pairs ``wi``, ``wo`` (R, 3), in one pass (the network's own
         many-materials evaluation, as the joint fit runs it: one batched product per output layer,
         not a pass per material); what :meth:`evaluate` gives for each fit's rows. The screen of
-        every prior material, :func:`~hybridbrdf.acquire.cluster_fit.screen_materials`."""
+        every prior material, :func:`~hybridbrdf.acquire.screen.screen_materials`."""
         t = self.tensors
         kd, eta, alpha, z = self.decode(raw)
         wi, wo = wi.to(torch.float32), wo.to(torch.float32)

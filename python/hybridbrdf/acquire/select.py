@@ -17,7 +17,7 @@ that overfits the directions it sees.
 3. **Choice.** Each candidate's *held-out loss*: the paper's mean squared log residual of those
    texels' fitted values on their held-out rows. The lowest wins.
 4. **Refit.** The winner's values fitted again on all of the cluster's rows (all shots), from its
-   training-shot values, by the cluster stage's objective (cluster_fit.map_objective): the
+   training-shot values, by the cluster stage's objective (material_fits.map_objective): the
    cluster's values and residual variance for the stages after. From the training values, not the
    prior's: the cluster stage's screen starts a material at the cluster's colour, and 100 steps
    from a green material's own values do not reach a white paper (paper_white 10-12x the full
@@ -31,8 +31,8 @@ from typing import Dict, Optional
 import numpy as np
 import torch
 
-from hybridbrdf.acquire.cluster_fit import (CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material,
-                                            value_spread)
+from hybridbrdf.acquire.cluster_fit import CLUSTER_ROWS, _cluster_rows, fit_clusters, fit_material
+from hybridbrdf.acquire.material_fits import value_spread
 from hybridbrdf.acquire.network_tune import pure_rows, pure_texels
 from hybridbrdf.acquire.observations import Observations
 from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress
@@ -73,7 +73,7 @@ def split_shots(obs: Observations) -> tuple:
 def _held_out_loss(family, train: Observations, held: Observations, texels: np.ndarray, cand: Dict,
                    seed: int, tau2: Dict[str, torch.Tensor]) -> float:
     """Candidate ``cand``'s per-texel fit on ``texels``' training rows (``tau2``: the pull's variance
-    per value, :func:`~hybridbrdf.acquire.cluster_fit.value_spread`), scored on their held-out rows."""
+    per value, :func:`~hybridbrdf.acquire.material_fits.value_spread`), scored on their held-out rows."""
     keep = np.zeros(len(train.offsets) - 1, dtype=bool)
     keep[texels] = True
     mine = subset(train, np.repeat(keep, np.diff(train.offsets)))

@@ -81,7 +81,7 @@ class ObservationTensors:
         to within a texel's footprint, so half their squared difference is the sensor's noise, plus
         what the BRDF changes across a texel, which makes it an upper bound). 0 without such pairs.
         Why it is needed: a fit's mean squared residual is this noise plus what its model misses, and
-        only the second is shared by a photograph's pixels (:func:`~hybridbrdf.acquire.cluster_fit.map_objective`)."""
+        only the second is shared by a photograph's pixels (:func:`~hybridbrdf.acquire.material_fits.map_objective`)."""
         r = np.sort(np.asarray(rows, dtype=np.int64))
         pair = (np.diff(r) == 1) & (self.cell[r[1:]] == self.cell[r[:-1]])
         if not pair.any():
@@ -115,11 +115,13 @@ class ObservationTensors:
 
 def adam_texels(params: Dict[str, torch.Tensor], loss_fn: Callable[[torch.Generator], torch.Tensor], steps: int,
                 lr: float, seed: int, stage: str, progress: Optional[Progress] = None, state: Optional[dict] = None,
-                save_state: Optional[Callable[[dict], None]] = None, every: int = 50) -> None:
+                save_state: Optional[Callable[[dict], None]] = None, every: int = 50,
+                stop: Optional[int] = None) -> dict:
     """Adam on ``params`` (leaf tensors, changed in place) for ``steps`` steps of
     ``loss_fn(generator)``, the rate decaying linearly from ``lr`` to ``lr / 10``; ``state`` (a dict :func:`adam_texels` passed to ``save_state``) resumes
     at its step with its parameters and moments. ``save_state`` gets {"step", "params", "adam"}
-    every ``every`` steps."""
+    every ``every`` steps. ``stop``: the steps end there (the rate's schedule still that of
+    ``steps``), to be resumed from the state returned: {"step", "params", "adam"} after the last step."""
     names = sorted(params)
     opt = torch.optim.Adam([params[n] for n in names], lr=lr)
     start = 0
@@ -129,15 +131,18 @@ def adam_texels(params: Dict[str, torch.Tensor], loss_fn: Callable[[torch.Genera
                 params[n].copy_(state["params"][n])
         opt.load_state_dict(state["adam"])
         start = int(state["step"])
-    for k in range(start, steps):
+    done = start
+    for k in range(start, steps if stop is None else min(stop, steps)):
         for group in opt.param_groups:  # linear decay to a tenth: the last steps average the draws' noise
             group["lr"] = lr * (1.0 - 0.9 * k / steps)
         opt.zero_grad()
         loss = loss_fn(step_generator(seed, stage, k))
         loss.backward()
         opt.step()
+        done = k + 1
         if progress is not None:
             progress(stage, k + 1, steps)
         if save_state is not None and (k + 1) % every == 0 and k + 1 < steps:
             save_state({"step": k + 1, "params": {n: params[n].detach().clone() for n in names},
                         "adam": opt.state_dict()})
+    return {"step": done, "params": {n: params[n].detach() for n in names}, "adam": opt.state_dict()}
