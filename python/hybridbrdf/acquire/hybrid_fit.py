@@ -83,19 +83,25 @@ class HybridFamily:
         out = torch.zeros((len(wi), 3), dtype=wi.dtype)
         wi, wo = wi.to(torch.float32), wo.to(torch.float32)
         t = self.tensors
-        for m in torch.nonzero(torch.bincount(material))[:, 0].tolist():  # torch.unique, without its sort
-            rows = torch.nonzero(material == m)[:, 0]
-            one = len(rows) == len(material)  # every row this material's: no gathers (the texel stage's calls)
-            pick = (lambda v: v) if one else (lambda v: v[rows])
+        counts = torch.bincount(material)
+        # Rows sorted by material (the texel stage's, material_fits'): each material's rows are a
+        # slice, read without a gather and written by one concatenation.
+        ends = torch.cumsum(counts, 0).tolist() if bool((material[1:] >= material[:-1]).all()) else None
+        pieces = []
+        for m in torch.nonzero(counts)[:, 0].tolist():  # torch.unique, without its sort
+            rows = slice(ends[m] - int(counts[m]), ends[m]) if ends is not None else torch.nonzero(material == m)[:, 0]
             head = (t["materials.head_weight"][m], t["materials.head_bias"][m]) if "materials.head_weight" in t else None
-            a, b = pick(wi), pick(wo)
-            f, _ = self.module.evaluate_pairs(a, b, pick(kd), pick(eta), pick(alpha), pick(z), head)
+            a, b = wi[rows], wo[rows]
+            f, _ = self.module.evaluate_pairs(a, b, kd[rows], eta[rows], alpha[rows], z[rows], head)
             if "materials.energy_bound" in t:  # as HybridModel.eval scales a material's f_t
                 table = t["materials.energy_bound"][m]
                 ci, co = (_normalize(w)[0][:, 2] for w in (a, b))
                 f = f * (energy_bound_scale(table, ci) * energy_bound_scale(table, co))[:, None]
-            out = f.to(out.dtype) if one else out.index_copy(0, rows, f.to(out.dtype))
-        return out
+            if ends is not None:
+                pieces.append(f.to(out.dtype))
+            else:
+                out = out.index_copy(0, rows, f.to(out.dtype))
+        return out if ends is None or not pieces else pieces[0] if len(pieces) == 1 else torch.cat(pieces)
 
     def evaluate_shared(self, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
         """f (G, R, 3): G fits, fit g material ``material[g]`` with values ``raw`` {name: (G, c)}, all

@@ -82,6 +82,11 @@ def fit_materials(family, data: ObservationTensors, fits: List[MaterialFit], ste
     "score" (its objective after), "raw" {name: (c,)}}. ``progress(stage, step, steps)`` after each step."""
     if not fits:
         return []
+    # Fits ordered by material, so that each material's rows are one slice (HybridFamily.evaluate_values).
+    order = sorted(range(len(fits)), key=lambda i: int(fits[i].material))
+    if order != list(range(len(fits))):
+        done = fit_materials(family, data, [fits[i] for i in order], steps, seed, stage, progress)
+        return [done[order.index(i)] for i in range(len(fits))]
     names = list(fits[0].start)
     sizes = torch.tensor([len(f.rows) for f in fits])
     job = torch.repeat_interleave(torch.arange(len(fits)), sizes)
@@ -98,7 +103,8 @@ def fit_materials(family, data: ObservationTensors, fits: List[MaterialFit], ste
     index = torch.tensor(priced, dtype=torch.long)
 
     def losses():
-        d = data.residual(rows, family.evaluate(material, {n: v[job] for n, v in raw.items()}, wi, wo))
+        values = {n: v[job] for n, v in family.values(raw).items()}  # decoded per fit, then read per row
+        d = data.residual(rows, family.evaluate_decoded(material, values, wi, wo))
         per_row = (d * d).sum(1)
         return torch.zeros(len(fits), dtype=per_row.dtype).index_add(0, job, per_row) / (3 * sizes)
 
