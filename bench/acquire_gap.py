@@ -86,9 +86,9 @@ CONFIGS = {"base": ({"refit_heads": False}, None), "heads": ({"refit_heads": Tru
            "footprint_nearest": ({"finetune_network": 200}, ("footprint.MODEL", "nearest"))}
 
 
-def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None):
+def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None, progress=None):
     """fit_hybrid_texels in configuration ``config`` (CONFIGS); cluster_fit.HEAD_PULL restored after.
-    ``on_clusters``: fit_hybrid_texels' hook (the clusters once known)."""
+    ``on_clusters``: fit_hybrid_texels' hook (the clusters once known); ``progress`` its progress."""
     keywords, pull = CONFIGS[config]
     name, value = pull if isinstance(pull, tuple) else ("HEAD_PULL", pull)
     module = {"network_tune": network_tune, "texel_stage": texel_stage, "footprint": footprint}.get(name.split(".")[0], cluster_fit)
@@ -96,7 +96,8 @@ def fit_config(obs, prior, config: str, steps: int, seed: int, on_clusters=None)
     default = getattr(module, name)
     setattr(module, name, default if value is None else value)
     try:
-        return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, on_clusters=on_clusters, **keywords)
+        return fit_hybrid_texels(obs, prior, steps=steps, seed=seed, on_clusters=on_clusters, progress=progress,
+                                 **keywords)
     finally:
         setattr(module, name, default)
 #: The light jitter of issue 61's measurement (1 mm on a 1 m light stage).
@@ -240,10 +241,36 @@ def run_budget(args) -> int:
           f"{t_obs:.1f} s; machine {args.machine}, torch threads {torch.get_num_threads()}", flush=True)
     for config in args.configs:
         t0, cpu0 = time.perf_counter(), time.process_time()
-        fit_config(obs, prior, config, args.steps, 0)
+        stages = StageClock()
+        fit_config(obs, prior, config, args.steps, 0, progress=stages)
         print(f"budget {config}: fit {time.perf_counter() - t0:.0f} s wall, {time.process_time() - cpu0:.0f} s CPU "
-              f"(+ {t_obs:.1f} s observations)", flush=True)
+              f"(+ {t_obs:.1f} s observations); by stage: {stages.line()}", flush=True)
     return 0
+
+
+class StageClock:
+    """A fit's progress callback that keeps the CPU seconds from each stage's first progress report to
+    the next stage's (the first stage's from the clock's start): where the budget goes, roughly (a
+    stage's last work before its successor reports, e.g. the first energy table, counts as its own)."""
+
+    def __init__(self):
+        self.stages, self.last = {}, time.process_time()
+        self.current = None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self.current is None:
+            self.current = stage
+        elif stage != self.current:
+            now = time.process_time()
+            self.stages[self.current] = self.stages.get(self.current, 0.0) + now - self.last
+            self.current, self.last = stage, now
+
+    def line(self) -> str:
+        now = time.process_time()
+        stages = dict(self.stages)
+        if self.current is not None:
+            stages[self.current] = stages.get(self.current, 0.0) + now - self.last
+        return ", ".join(f"{k} {v:.0f} s" for k, v in stages.items())
 
 
 def run_footprint(args) -> int:
