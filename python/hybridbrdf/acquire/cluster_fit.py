@@ -41,10 +41,9 @@ import torch
 
 from hybridbrdf.acquire import network_tune
 from hybridbrdf.acquire.clustering import cluster_colours, texel_clusters
-from hybridbrdf.acquire.material_fits import MaterialFit, fit_materials, map_objective, value_spread
-from hybridbrdf.acquire.screen import screen_materials
-from hybridbrdf.acquire.material_fits import loss_rows as _loss_rows
+from hybridbrdf.acquire.material_fits import MaterialFit, fit_materials, loss_rows, map_objective, value_spread
 from hybridbrdf.acquire.observations import Observations
+from hybridbrdf.acquire.screen import screen_materials
 from hybridbrdf.acquire.texel_fit import AnalyticMaps, fit_analytic_texels
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL, ObservationTensors, Progress, adam_texels
 from hybridbrdf.acquire.texel_stage import refine_texels
@@ -105,7 +104,7 @@ def _pixel_loss(family, data: ObservationTensors, rows: torch.Tensor, fitted: Di
     """The mean squared residual per row and channel of a fit of :func:`fit_material` on ``rows`` of ``data``."""
     raw = {n: v.expand(len(rows), -1) for n, v in fitted["raw"].items()}
     with torch.no_grad():
-        return float(_loss_rows(family, data, torch.full((len(rows),), int(fitted["material"])), raw, rows))
+        return float(loss_rows(family, data, torch.full((len(rows),), int(fitted["material"])), raw, rows))
 
 
 def _has_pure_texels(obs: Observations, labels: np.ndarray, c: int) -> bool:
@@ -220,7 +219,7 @@ def _candidates_of(family, obs: Observations, data: ObservationTensors, labels: 
         # and as many as before when final (more candidates on mixes chose worse: the verdict's 4x2).
         score_rows = rows[::max(1, len(rows) // 1024)][:1024]
         with torch.no_grad():
-            as_is = torch.stack([_loss_rows(family, data, torch.full((len(score_rows),), m),
+            as_is = torch.stack([loss_rows(family, data, torch.full((len(score_rows),), m),
                                             {n: v[m].expand(len(score_rows), -1) for n, v in every.items()},
                                             score_rows) for m in range(len(every["z"]))])
         ranked = torch.argsort(as_is)[:CANDIDATES if final else candidates].tolist()
@@ -282,7 +281,7 @@ def refit_heads_of(family, obs: Observations, data: ObservationTensors, labels: 
         def loss(gen, params=params, rows=rows, m=m, prior_head=prior_head, pull=pull):
             own = family.with_heads(torch.tensor([m]), params["head_weight"], params["head_bias"])
             raw = {n: params["raw_" + n].expand(len(rows), -1) for n in clusters["centres"]}
-            d2 = _loss_rows(own, data, torch.zeros(len(rows), dtype=torch.long), raw, rows)
+            d2 = loss_rows(own, data, torch.zeros(len(rows), dtype=torch.long), raw, rows)
             if gen is None:  # the residual alone (sigma^2 for the texel stage)
                 return d2
             return d2 + pull * sum((((params[n] - prior_head[n]) ** 2) / tau2[n]).sum() for n in tau2)
