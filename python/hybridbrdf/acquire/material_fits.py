@@ -66,7 +66,8 @@ def value_spread(every: Dict[str, torch.Tensor]) -> Dict[str, torch.Tensor]:
 class MaterialFit:
     """One fit of :func:`fit_materials`: material ``material``'s values, one set {name: (c,)} from
     ``start``, on ``rows``; with ``own`` (the material's own values and their spread ``own["tau2"]``)
-    its :func:`map_objective` for ``shots`` photographs and the rows' ``noise``, else its loss."""
+    its :func:`map_objective` for ``shots`` photographs and the rows' ``noise``, else its loss. The fits
+    of one :func:`fit_materials` call share one prior's spread (``tau2``: every caller's value_spread)."""
     rows: torch.Tensor
     material: int
     start: Dict[str, torch.Tensor]
@@ -85,8 +86,8 @@ def fit_materials(family, data: ObservationTensors, fits: List[MaterialFit], ste
     # Fits ordered by material, so that each material's rows are one slice (HybridFamily.evaluate_values).
     order = sorted(range(len(fits)), key=lambda i: int(fits[i].material))
     if order != list(range(len(fits))):
-        done = fit_materials(family, data, [fits[i] for i in order], steps, seed, stage, progress)
-        return [done[order.index(i)] for i in range(len(fits))]
+        done = dict(zip(order, fit_materials(family, data, [fits[i] for i in order], steps, seed, stage, progress)))
+        return [done[i] for i in range(len(fits))]
     names = list(fits[0].start)
     sizes = torch.tensor([len(f.rows) for f in fits])
     job = torch.repeat_interleave(torch.arange(len(fits)), sizes)
