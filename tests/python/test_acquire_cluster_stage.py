@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybridbrdf.acquire import cluster_fit, material_fits
+from hybridbrdf.acquire import cluster_fit, material_fits, network_tune
 from hybridbrdf.acquire.hybrid_fit import HybridFamily
 from hybridbrdf.acquire.network_tune import cosine_pairs
 from hybridbrdf.acquire.observations import Observations
@@ -48,6 +48,28 @@ def test_the_cluster_stage_reads_only_its_pure_texels_rows():
     labels = (np.tile(np.arange(6), 6) == 2).astype(np.int64)
     rows = cluster_fit._cluster_rows(obs, labels, 1, 10 ** 6, seed=0).numpy()
     assert set((texel_of_row[rows] % 6).tolist()) == {2} and len(rows) == 6 * 5
+
+
+def test_a_layer_of_diagonal_stripes_reads_the_texels_whose_edge_neighbours_share_it():
+    # Diagonal stripes three texels wide (the verdict sample's base at 16x16): no texel has its 8
+    # neighbours in its stripe, the middle diagonal of each has its 4 edge neighbours there; a
+    # stripe one texel wide (a rim) has neither and reads all its texels.
+    size = (8, 8)
+    i, j = np.meshgrid(np.arange(8), np.arange(8))
+    band = (i + j + 1) % 6
+    labels = (band < 3).astype(np.int64).reshape(-1)
+    assert not np.any([np.all(labels.reshape(8, 8)[max(0, y - 1):y + 2, max(0, x - 1):x + 2] == 1)
+                       for y in range(8) for x in range(8)])  # the construction: no 8-pure texel
+    texels = network_tune.pure_texels(labels, size, 1)
+    middle = np.nonzero((band == 1).reshape(-1))[0]
+    assert set(texels.tolist()) == set(middle.tolist()), (texels, middle)
+    rim = ((i + j) % 6 == 0).astype(np.int64).reshape(-1)
+    texels = network_tune.pure_texels(rim, size, 1)
+    assert len(texels) == 0
+    texel_of_row = np.repeat(np.arange(64), 2)
+    obs = _observations(np.ones((128, 3)), np.tile([[0, 0, 1.0]], (128, 1)), np.tile([[0, 0, 1.0]], (128, 1)), size)
+    rows = cluster_fit._cluster_rows(obs, rim, 1, 10 ** 6, seed=0).numpy()
+    assert set(texel_of_row[rows].tolist()) == set(np.nonzero(rim)[0].tolist())
 
 
 def test_every_material_is_screened_with_fitted_values_so_a_recoloured_shape_is_chosen():
