@@ -84,6 +84,8 @@ NOT_RUN = {
     "--light-jitter 0.001 --seed 1 --out capture --quiet": "16 photographs of 512x512: 13.5 s, after the masks above",
     "python bench/acquire_compare.py": "the acquisition sweep: an hour",
     "python bench/acquire_verdict.py --machine M2": "the acquisition sweep on three rigs with seeds: 40 minutes on M2",
+    "python bench/acquire_verdict.py --rig light-stage --models analytic,hybrid_heldout,neural_heldout --machine X1": (
+        "the light-stage verdict, 3 seeds of three models: 30 minutes on X1"),
     "python bench/acquire_gap.py --samples napoli2 --seeds 0 --configs base,select --machine M2":
         "two acquisition fits per capture at two noise levels, scored against hbrdf add references: minutes",
     "python bench/acquire_gap.py --seeds 0,1 --configs finetune200 --machine M2":
