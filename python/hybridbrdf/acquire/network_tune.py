@@ -77,11 +77,11 @@ def pure_texels(labels: np.ndarray, size, c: int) -> np.ndarray:
     mine = (labels == c).reshape(h, w)
     padded = np.pad(mine, 1, mode="edge")
 
-    def inner(offsets):
+    def inner(offsets):  # texels whose neighbours at every (dj, di) of offsets are in the cluster
         return np.all([padded[1 + dj:1 + dj + h, 1 + di:1 + di + w] for dj, di in offsets], axis=0).reshape(-1)
-    ring = [(dj, di) for dj in (-1, 0, 1) for di in (-1, 0, 1)]
-    texels = np.nonzero(inner(ring))[0]
-    return texels if len(texels) else np.nonzero(inner([(dj, di) for dj, di in ring if dj * di == 0]))[0]
+    block = [(dj, di) for dj in (-1, 0, 1) for di in (-1, 0, 1)]  # the texel and its 8 neighbours
+    texels = np.nonzero(inner(block))[0]
+    return texels if len(texels) else np.nonzero(inner([(dj, di) for dj, di in block if dj * di == 0]))[0]
 
 
 def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
