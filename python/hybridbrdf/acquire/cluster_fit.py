@@ -81,7 +81,8 @@ HEAD_START = 8.0
 
 def _cluster_rows(obs: Observations, labels: np.ndarray, c: int, n: int, seed: int) -> torch.Tensor:
     """Up to ``n`` rows of cluster ``c``'s pure texels (:func:`~hybridbrdf.acquire.network_tune.pure_rows`:
-    its 8 neighbours in the cluster too; every texel of ``c`` when none is pure), drawn without
+    its 8 neighbours in the cluster too, or its 4 edge neighbours where no texel has 8; every texel
+    of ``c`` when none is pure), drawn without
     replacement (seeded). Why pure texels: a texel on a layer's boundary is photographed as a mix
     that no material of the prior explains (bench/acquire_gap.py --footprint), and a few of them
     dominate a cluster's squared log residual: fitted on all its texels, paper3's paper_white cluster
