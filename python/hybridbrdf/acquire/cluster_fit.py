@@ -39,7 +39,7 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 import torch
 
-from hybridbrdf.acquire import network_tune
+from hybridbrdf.acquire import consensus, network_tune
 from hybridbrdf.acquire.clustering import cluster_colours, texel_clusters
 from hybridbrdf.acquire.material_fits import MaterialFit, fit_materials, loss_rows, map_objective, value_spread
 from hybridbrdf.acquire.observations import Observations
@@ -69,6 +69,9 @@ FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, FINAL_ROWS, FINAL_CANDIDATES = 512, 80, 4
 #: the photographs are ranked by the rows' noise otherwise, and at 200 photons a pixel the fit's
 #: own seed chose among them (docs/ACQUISITION_GAP.md, "The final choice on averaged cells").
 FINAL_CELL_AVERAGED = True
+#: Whether the final choice takes, among the candidates that tie on the photographs, the one whose
+#: predictions lie closest to the others' (:mod:`~hybridbrdf.acquire.consensus`).
+CONSENSUS = True
 #: Rows of a cluster its output layer is refitted on (``refit_heads``), the refit's steps and rate.
 HEAD_ROWS, HEAD_STEPS, HEAD_LR = 8192, 200, 0.01
 #: The head refit's pull toward the prior's head, a multiple of its MAP weight (see :func:`refit_heads_of`).
@@ -178,6 +181,8 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             fitted_all.append([])
             continue
         fitted = sorted(fitted_of[c], key=lambda cand: cand["score"])  # stable: a tie keeps the better-screened
+        if final and CONSENSUS:
+            fitted = consensus.medoid_first(family, fitted, plans[c]["jobs"][0].shots)
         best = fitted[0]
         materials.append(best["material"])
         for name in every:

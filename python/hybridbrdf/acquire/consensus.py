@@ -1,0 +1,91 @@
+"""A cluster's material chosen among the candidates its photographs cannot tell apart: the one whose
+predictions lie closest to the others' (docs/ACQUISITION_GAP.md, "The consensus among tied candidates").
+
+**Why.** A capture sees a material in a few direction pairs; materials of the prior fitted to those
+photographs can explain them equally well and still disagree where no photograph looked. On the
+light stage's 8x4 rig (32 photographs), the colour-changing stripes' five candidates scored within
+2% of each other, and their error against the measurement over the highlight (theta_h < 25 deg)
+ranged 0.23-0.69: in two seeds of three the best score fell on vch_ultra_pink, the farthest from
+the others and from the truth (diagnostic, not kept). The score's order among ties is the noise's.
+
+**The rule** (minimum Bayes risk, as in choosing among a posterior's samples): the candidates whose
+score is within :func:`tie_margin` of the best are taken as equally likely given the photographs, and
+the one with the least summed distance to the others is chosen, the distance the fit's own
+measure: the mean squared difference of log(1 + f cos theta_i) over :func:`probe_pairs`. With two
+tied candidates the distances are symmetric and the score's order stands.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, List
+
+import numpy as np
+import torch
+
+#: Candidates tie when their scores differ by less than TIE_Z standard errors (:func:`tie_margin`).
+TIE_Z = 2.0
+#: Direction pairs the tied candidates are compared on.
+PROBES = 4096
+#: The probes' half vectors reach THETA_H_MAX from the normal and their difference angle
+#: THETA_D_MAX: candidates of a glossy material differ most on and beside the highlight, which
+#: pairs drawn uniformly over both hemispheres rarely meet (a lobe of alpha 0.06 covers under 1%).
+THETA_H_MAX, THETA_D_MAX = math.radians(60.0), math.radians(80.0)
+#: The lowest cos(theta) of either direction: pairs at grazing angles weigh little in any image.
+MIN_COS = 0.1
+
+
+def probe_pairs(n: int = PROBES, seed: int = 0) -> tuple:
+    """(wi, wo), (m, 3) float32 each, m <= ``n``: half vectors uniform in theta_h <= :data:`THETA_H_MAX`
+    and azimuth, wi at a difference angle uniform in [0, :data:`THETA_D_MAX`] about the half vector
+    (Rusinkiewicz's parametrisation), pairs with either cosine below :data:`MIN_COS` left out."""
+    rng = np.random.default_rng(seed)
+    theta_h, phi_h = rng.uniform(0, THETA_H_MAX, n), rng.uniform(0, 2 * math.pi, n)
+    theta_d, phi_d = rng.uniform(0, THETA_D_MAX, n), rng.uniform(0, 2 * math.pi, n)
+    h = np.stack([np.sin(theta_h) * np.cos(phi_h), np.sin(theta_h) * np.sin(phi_h), np.cos(theta_h)], 1)
+    t = np.cross(h, [0.0, 1.0, 0.0])  # h is never along y: theta_h <= 60 deg
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(h, t)
+    wi = np.cos(theta_d)[:, None] * h + np.sin(theta_d)[:, None] * (np.cos(phi_d)[:, None] * t + np.sin(phi_d)[:, None] * b)
+    wo = 2 * (wi * h).sum(1, keepdims=True) * h - wi
+    keep = (wi[:, 2] >= MIN_COS) & (wo[:, 2] >= MIN_COS)
+    return torch.from_numpy(wi[keep].astype(np.float32)), torch.from_numpy(wo[keep].astype(np.float32))
+
+
+def tie_margin(shots: int) -> float:
+    """The relative margin within which two scores tie for a cluster photographed in ``shots``
+    photographs: :data:`TIE_Z` times sqrt(2 / (3 n)), the relative standard error of a mean of
+    squares of 3 n independent Gaussian residuals, n = ``shots``: a cluster's rows hold about one
+    independent direction pair per photograph (its pixels in one photograph see about one), as the
+    head refit counts them (:func:`~hybridbrdf.acquire.cluster_fit.refit_heads_of`). 0.29 at 32
+    photographs, 0.58 at 8, 0.14 at 128."""
+    return TIE_Z * math.sqrt(2.0 / (3.0 * max(1, shots)))
+
+
+def tied(fitted: List[Dict[str, object]], margin: float) -> int:
+    """How many of ``fitted`` (sorted by score, best first) score at most (1 + ``margin``) times the first."""
+    best = float(fitted[0]["score"])
+    return sum(float(c["score"]) <= best * (1 + margin) for c in fitted)
+
+
+def medoid_first(family, fitted: List[Dict[str, object]], shots: int) -> List[Dict[str, object]]:
+    """``fitted`` (a cluster's candidates, each {"material", "score", "raw" {name: (c,)}}, best score
+    first, fitted to rows of ``shots`` photographs) reordered so that among the first :func:`tied`
+    ones (within :func:`tie_margin`) the medoid of their predictions leads (the module docstring);
+    the others keep their order. Each candidate gains "tied" (how many were compared) and the
+    leader "consensus" (True when it is not the best score)."""
+    k = tied(fitted, tie_margin(shots))
+    out = [dict(c, tied=k) for c in fitted]
+    if k < 3:
+        return out
+    wi, wo = probe_pairs()
+    cos_i = wi[:, 2:3]
+    with torch.no_grad():
+        logs = torch.stack([torch.log1p(cos_i * family.evaluate(
+            torch.full((len(wi),), int(c["material"])), {n: v.reshape(1, -1).expand(len(wi), -1) for n, v in c["raw"].items()},
+            wi, wo).clamp_min(0.0)) for c in out[:k]])
+    distance = ((logs[:, None] - logs[None]) ** 2).mean(dim=(2, 3)).sum(1)
+    lead = int(torch.argmin(distance))
+    out.insert(0, out.pop(lead))
+    out[0]["consensus"] = lead != 0
+    return out
