@@ -10,9 +10,11 @@ the others and from the truth (diagnostic, not kept). The score's order among ti
 
 **The rule** (minimum Bayes risk, as in choosing among a posterior's samples): the candidates whose
 score is within :func:`tie_margin` of the best are taken as equally likely given the photographs, and
-the one with the least summed distance to the others is chosen, the distance the fit's own
-measure: the mean squared difference of log(1 + f cos theta_i) over :func:`probe_pairs`. With two
-tied candidates the distances are symmetric and the score's order stands.
+the one with the least summed distance to the others is chosen (the medoid), the distance the
+fit's own measure: the root mean squared difference of log(1 + f cos theta_i) over
+:func:`probe_pairs`. A distance, not its square: summed squares would favour the candidate
+nearest the mean, which one far-off candidate drags toward itself; summed distances choose as a
+median does. With two tied candidates the distances are symmetric and the score's order stands.
 """
 
 from __future__ import annotations
@@ -84,7 +86,7 @@ def medoid_first(family, fitted: List[Dict[str, object]], shots: int) -> List[Di
         logs = torch.stack([torch.log1p(cos_i * family.evaluate(
             torch.full((len(wi),), int(c["material"])), {n: v.reshape(1, -1).expand(len(wi), -1) for n, v in c["raw"].items()},
             wi, wo).clamp_min(0.0)) for c in out[:k]])
-    distance = ((logs[:, None] - logs[None]) ** 2).mean(dim=(2, 3)).sum(1)
+    distance = ((logs[:, None] - logs[None]) ** 2).mean(dim=(2, 3)).sqrt().sum(1)
     lead = int(torch.argmin(distance))
     out.insert(0, out.pop(lead))
     out[0]["consensus"] = lead != 0
