@@ -151,3 +151,14 @@ def test_refit_heads_on_the_command_line_gives_each_cluster_its_head_and_is_reco
         assert c["layer"].startswith(source + ".acq")
         assert not np.array_equal(model.tensors["materials.head_weight"][model.index(c["layer"])],
                                   prior.tensors["materials.head_weight"][prior.index(source)])
+
+
+def test_a_consensus_choice_says_how_many_candidates_tied():
+    def cand(name, loss, **extra):
+        return {"material": name, "loss": loss, "relative_error": 0.1, "noise": 0.02, "excess": 0.098, **extra}
+    entry = {"cluster": 0, "texels": 12, "share": 0.5, "poor": False,
+             "candidates": [cand("satin_gold_rgb.rgl", 0.0005, tied=4, consensus=True), cand("vch_ultra_pink_rgb.rgl", 0.0004, tied=4)]}
+    (line,) = report_lines([entry])
+    assert "consensus of 4 candidates" in line and line.index("satin_gold") < line.index("runner-up vch_ultra_pink")
+    plain = {**entry, "candidates": [cand("satin_gold_rgb.rgl", 0.0004, tied=1), cand("vch_ultra_pink_rgb.rgl", 0.0005, tied=1)]}
+    assert "consensus" not in report_lines([plain])[0]

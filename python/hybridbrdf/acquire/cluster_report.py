@@ -71,7 +71,8 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
                    floors: Optional[Sequence[float]] = None) -> List[dict]:
     """Per cluster: {"cluster", "texels", "share", "candidates": [{"material" (name), "loss",
     "relative_error", "noise", "excess"} (and "held_out_loss", "training_loss" when the choice was
-    made on held-out photographs), best first], "poor"}. ``family`` evaluates the prior
+    made on held-out photographs; "tied", "consensus" from the final choice,
+    :mod:`~hybridbrdf.acquire.consensus`), the chosen first], "poor"}. ``family`` evaluates the prior
     (:class:`~hybridbrdf.acquire.hybrid_fit.HybridFamily`), ``names`` its materials; ``noise`` the
     capture's stated model, ``floors`` each photograph's floor when it states none. The rows are
     the ones the cluster stage fitted (the same seeded draw)."""
@@ -91,7 +92,8 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
             err, sigma = _photometric(data_rows, obs, rig, f, noise, floors)
             entry["candidates"].append({"material": names[m], "loss": float(cand["loss"]), "relative_error": err,
                                         "noise": sigma, "excess": float(np.sqrt(max(0.0, err * err - sigma * sigma))),
-                                        **{k: cand[k] for k in ("held_out_loss", "training_loss") if k in cand}})
+                                        **{k: cand[k] for k in ("held_out_loss", "training_loss", "tied", "consensus")
+                                           if k in cand}})
         entry["poor"] = bool(entry["candidates"]) and entry["candidates"][0]["excess"] > POOR_EXCESS
         report.append(entry)
     return report
@@ -99,8 +101,9 @@ def cluster_report(family, names: Sequence[str], obs: Observations, rig: Rig, la
 
 def report_lines(report: Sequence[dict]) -> List[str]:
     """One line per cluster: its texels and share, the chosen material with its loss and relative
-    error (and the noise's), the runner-up with its own; when the choice was made on held-out
-    photographs, every candidate's held-out loss, the chosen first."""
+    error (and the noise's), the runner-up with its own; when the chosen is the consensus of tied
+    candidates (:mod:`~hybridbrdf.acquire.consensus`) rather than the best score, how many tied;
+    when the choice was made on held-out photographs, every candidate's held-out loss, the chosen first."""
     lines = []
     for e in report:
         if not e["candidates"]:
@@ -115,6 +118,8 @@ def report_lines(report: Sequence[dict]) -> List[str]:
             second = e["candidates"][1]
             line += (f"; runner-up {second['material']}, loss {second['loss']:.3g}, "
                      f"relative error {100 * second['relative_error']:.1f}%")
+        if best.get("consensus"):
+            line += f"; chosen as the consensus of {best['tied']} candidates the photographs cannot tell apart"
         if best.get("held_out_loss") is not None:  # the choice made on held-out photographs (acquire/select.py)
             line += "; held-out losses: " + ", ".join(
                 f"{c['material']} {c['held_out_loss']:.3g}" + (" (chosen)" if i == 0 else "")
