@@ -1,6 +1,5 @@
-"""The consensus among a cluster's tied candidates (acquire/consensus.py; docs/ACQUISITION_GAP.md,
-"The consensus among tied candidates"): the probe pairs it compares them on, the margin within
-which scores tie, and the medoid that leads."""
+"""The consensus among a cluster's tied candidates (acquire/consensus.py; docs/ACQUISITION_CONSENSUS.md):
+the probe pairs it compares them on, the margin within which scores tie, and the medoid that leads."""
 
 import math
 
@@ -74,3 +73,13 @@ def test_the_best_score_leads_when_it_is_the_median():
     family = ConstantFamily([1.3, 1.0, 4.0])
     out = consensus.medoid_first(family, _candidates([1.0, 1.1, 1.2]), shots=32)
     assert out[0]["material"] == 0 and out[0]["consensus"] is False
+
+
+def test_the_pixels_noise_is_taken_from_the_scores_before_they_are_compared():
+    # Scores 1.0 and 1.2 and 1.25 tie at 32 photographs (margin 0.29); with a noise floor of 0.8 in
+    # each, their excesses 0.2, 0.4 and 0.45 do not: the best score stands.
+    family = ConstantFamily([4.0, 1.0, 1.3])
+    fitted = _candidates([1.0, 1.2, 1.25])
+    assert consensus.medoid_first(family, fitted, shots=32)[0]["material"] == 2
+    kept = consensus.medoid_first(family, fitted, shots=32, noise=0.8)
+    assert [c["material"] for c in kept] == [0, 1, 2] and kept[0]["tied"] == 1

@@ -123,7 +123,8 @@ def test_the_command_prints_the_clusters_and_every_phase_and_records_the_choices
     assert [c["cluster"] for c in report["clusters"]] == [0, 1] and sum(c["texels"] for c in report["clusters"]) == 4
     for c in report["clusters"]:
         assert c["layer"] in report["layers"] and c["candidates"][0]["material"] in c["layer"]
-        assert set(c["candidates"][0]) == {"material", "loss", "relative_error", "noise", "excess"}
+        # "tied": how many of the final choice's candidates tied (acquire/consensus.py); "consensus" with 3 or more
+        assert set(c["candidates"][0]) - {"consensus"} == {"material", "loss", "relative_error", "noise", "excess", "tied"}
     quiet = run_cli_here("acquire", "fit", capture, "--out", tmp_path / "quiet", "--size", "2x2", "--steps", "10",
                          "--quiet")
     assert quiet.returncode == 0 and quiet.stdout.count("\n") == 1 and quiet.stdout.startswith("wrote ")

@@ -182,7 +182,8 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
             continue
         fitted = sorted(fitted_of[c], key=lambda cand: cand["score"])  # stable: a tie keeps the better-screened
         if final and CONSENSUS:
-            fitted = consensus.medoid_first(family, fitted, plans[c]["jobs"][0].shots)
+            job = plans[c]["jobs"][0]
+            fitted = consensus.medoid_first(family, fitted, job.shots, job.noise)
         best = fitted[0]
         materials.append(best["material"])
         for name in every:

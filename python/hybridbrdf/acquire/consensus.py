@@ -1,5 +1,5 @@
 """A cluster's material chosen among the candidates its photographs cannot tell apart: the one whose
-predictions lie closest to the others' (docs/ACQUISITION_GAP.md, "The consensus among tied candidates").
+predictions lie closest to the others' (docs/ACQUISITION_CONSENSUS.md).
 
 **Why.** A capture sees a material in a few direction pairs; materials of the prior fitted to those
 photographs can explain them equally well and still disagree where no photograph looked. On the
@@ -9,7 +9,7 @@ ranged 0.23-0.69: in two seeds of three the best score fell on vch_ultra_pink, t
 the others and from the truth (diagnostic, not kept). The score's order among ties is the noise's.
 
 **The rule** (minimum Bayes risk, as in choosing among a posterior's samples): the candidates whose
-score is within :func:`tie_margin` of the best are taken as equally likely given the photographs, and
+score less the pixels' noise is within :func:`tie_margin` of the best's are taken as equally likely given the photographs, and
 the one with the least summed distance to the others is chosen (the medoid), the distance the
 fit's own measure: the root mean squared difference of log(1 + f cos theta_i) over
 :func:`probe_pairs`. A distance, not its square: summed squares would favour the candidate
@@ -64,19 +64,21 @@ def tie_margin(shots: int) -> float:
     return TIE_Z * math.sqrt(2.0 / (3.0 * max(1, shots)))
 
 
-def tied(fitted: List[Dict[str, object]], margin: float) -> int:
-    """How many of ``fitted`` (sorted by score, best first) score at most (1 + ``margin``) times the first."""
-    best = float(fitted[0]["score"])
-    return sum(float(c["score"]) <= best * (1 + margin) for c in fitted)
+def tied(fitted: List[Dict[str, object]], margin: float, noise: float = 0.0) -> int:
+    """How many of ``fitted`` (sorted by score, best first) score at most (1 + ``margin``) times the
+    first, each score less the rows' ``noise`` (the pixels' variance, which every candidate's
+    residual holds alike: counted, it would make a noisy capture's candidates tie by its floor)."""
+    excess = [max(float(c["score"]) - noise, 0.0) for c in fitted]
+    return sum(e <= excess[0] * (1 + margin) for e in excess)
 
 
-def medoid_first(family, fitted: List[Dict[str, object]], shots: int) -> List[Dict[str, object]]:
+def medoid_first(family, fitted: List[Dict[str, object]], shots: int, noise: float = 0.0) -> List[Dict[str, object]]:
     """``fitted`` (a cluster's candidates, each {"material", "score", "raw" {name: (c,)}}, best score
-    first, fitted to rows of ``shots`` photographs) reordered so that among the first :func:`tied`
-    ones (within :func:`tie_margin`) the medoid of their predictions leads (the module docstring);
+    first, fitted to rows of ``shots`` photographs whose pixels' variance is ``noise``) reordered so
+    that among the first :func:`tied` ones (within :func:`tie_margin`) the medoid of their predictions leads (the module docstring);
     the others keep their order. Each candidate gains "tied" (how many were compared) and the
     leader "consensus" (True when it is not the best score)."""
-    k = tied(fitted, tie_margin(shots))
+    k = tied(fitted, tie_margin(shots), noise)
     out = [dict(c, tied=k) for c in fitted]
     if k < 3:
         return out
