@@ -19,8 +19,13 @@ class ConstantFamily:
         return self.values[material][:, None].expand(-1, 3)
 
 
+#: Scores in units of a capture's (mean squared log residuals): the best score's root, 0.01, is the
+#: least lead in mean distance for which the medoid overturns it.
+SCALE = 1e-4
+
+
 def _candidates(scores):
-    return [{"material": m, "score": s, "raw": {"kd": torch.zeros(3)}} for m, s in enumerate(scores)]
+    return [{"material": m, "score": s * SCALE, "raw": {"kd": torch.zeros(3)}} for m, s in enumerate(scores)]
 
 
 def test_probe_pairs_mirror_about_half_vectors_within_the_stated_cones():
@@ -81,5 +86,16 @@ def test_the_pixels_noise_is_taken_from_the_scores_before_they_are_compared():
     family = ConstantFamily([4.0, 1.0, 1.3])
     fitted = _candidates([1.0, 1.2, 1.25])
     assert consensus.medoid_first(family, fitted, shots=32)[0]["material"] == 2
-    kept = consensus.medoid_first(family, fitted, shots=32, noise=0.8)
+    kept = consensus.medoid_first(family, fitted, shots=32, noise=0.8 * SCALE)
     assert [c["material"] for c in kept] == [0, 1, 2] and kept[0]["tied"] == 1
+
+
+def test_a_medoid_the_photographs_cannot_resolve_from_the_best_score_does_not_overturn_it():
+    # Tied 1.00, 1.02 and 0.98: the medoid (1.00) leads the best score (1.02) in mean distance by
+    # about 0.005 in log(1 + f cos): under the best fit's residual, sqrt(score) = 0.01, so it stays.
+    family = ConstantFamily([1.02, 1.0, 0.98])
+    kept = consensus.medoid_first(family, _candidates([1.0, 1.1, 1.2]), shots=32)
+    assert kept[0]["material"] == 0 and kept[0]["consensus"] is False
+    # The same candidates fitted to photographs 100x better resolve it: the medoid leads.
+    sharp = [dict(c, score=c["score"] / 100) for c in _candidates([1.0, 1.1, 1.2])]
+    assert consensus.medoid_first(family, sharp, shots=32)[0]["material"] == 1
