@@ -18,7 +18,7 @@ fits run the same three stages, on a *family* (the model's network and its per-m
    screen's best :data:`CANDIDATES` and the best as photographed fitted (all of the family's
    per-texel values, one set for the cluster, on the frozen network), the lowest
    :func:`map_objective` kept, and after a merge every final cluster's chosen again on more rows
-   (:data:`FINAL_ROWS`); or (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
+   (:data:`FINAL_ROWS`; among candidates that tie there, their consensus: :mod:`~hybridbrdf.acquire.consensus`); or (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
    material share one BRDF, so a cluster pools every texel's observations for the one shape a
@@ -140,7 +140,8 @@ def fit_clusters(family, obs: Observations, data: ObservationTensors, labels: np
     and screen (:data:`FINAL_ROWS`) where a cluster has pure texels (one without keeps the split
     clusters' rule and counts), scored on rows averaged per texel and photograph
     (:data:`FINAL_CELL_AVERAGED`; each candidate's "loss" then per pixel, as the stages after read
-    it), the progress stage "final clusters"."""
+    it), the progress stage "final clusters", and the candidates that tie reordered by
+    :func:`~hybridbrdf.acquire.consensus.medoid_first` (:data:`CONSENSUS`)."""
     n_rows, n_screen, screen_steps, bar = ((FINAL_ROWS, FINAL_SCREEN_ROWS, FINAL_SCREEN_STEPS, "final clusters") if final
                                            else (CLUSTER_ROWS, SCREEN_ROWS, SCREEN_STEPS, "clusters"))
     k = int(labels.max()) + 1
