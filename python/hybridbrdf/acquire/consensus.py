@@ -32,6 +32,8 @@ from typing import Dict, List
 import numpy as np
 import torch
 
+from hybridbrdf.sources.rusinkiewicz import dirs_from_half_diff
+
 #: Candidates tie when their scores differ by less than TIE_Z standard errors (:func:`tie_margin`).
 TIE_Z = 2.0
 #: Direction pairs the tied candidates are compared on.
@@ -52,12 +54,7 @@ def probe_pairs(n: int = PROBES, seed: int = 0) -> tuple:
     rng = np.random.default_rng(seed)
     theta_h, phi_h = rng.uniform(0, THETA_H_MAX, n), rng.uniform(0, 2 * math.pi, n)
     theta_d, phi_d = rng.uniform(0, THETA_D_MAX, n), rng.uniform(0, 2 * math.pi, n)
-    h = np.stack([np.sin(theta_h) * np.cos(phi_h), np.sin(theta_h) * np.sin(phi_h), np.cos(theta_h)], 1)
-    t = np.cross(h, [0.0, 1.0, 0.0])  # h is never along y: theta_h <= 60 deg
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    b = np.cross(h, t)
-    wi = np.cos(theta_d)[:, None] * h + np.sin(theta_d)[:, None] * (np.cos(phi_d)[:, None] * t + np.sin(phi_d)[:, None] * b)
-    wo = 2 * (wi * h).sum(1, keepdims=True) * h - wi
+    wi, wo = dirs_from_half_diff(theta_h, phi_h, theta_d, phi_d)
     keep = (wi[:, 2] >= MIN_COS) & (wo[:, 2] >= MIN_COS)
     return torch.from_numpy(wi[keep].astype(np.float32)), torch.from_numpy(wo[keep].astype(np.float32))
 
