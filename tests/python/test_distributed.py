@@ -207,3 +207,45 @@ def test_a_batch_that_does_not_split_or_a_bad_world_size_is_one_line(tmp_path, m
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"hbrdf fit: error: {problem}"), r.stderr
     assert not (tmp_path / "m.safetensors").exists()
+
+
+WATCHDOG = """
+import os, signal, sys, time
+from hybridbrdf.fit import distributed as dd
+dd.error_prefix = "test: error: "
+# A stop asked for between collectives, then a collective that ends within the grace: no exit.
+stop = dd.StopRequest(0.5, lambda: "stuck 1").install()
+os.kill(os.getpid(), signal.SIGTERM)
+time.sleep(1.0)
+with stop.collective():
+    time.sleep(0.2)
+stop.restore()
+print("requested", int(stop.requested), flush=True)
+# Blocked in a collective when the stop comes (a pipe that is never written: a peer that never answers).
+stop = dd.StopRequest(0.5, lambda: "stuck 2").install()
+r, w = os.pipe()
+with stop.collective():
+    print("blocked", flush=True)
+    os.read(r, 1)
+print("not reached", flush=True)
+"""
+
+
+def test_a_step_that_cannot_end_after_a_stop_request_ends_the_rank_after_the_grace():
+    # Why: a rank whose peer died can wait for gloo work that never completes, where no Python signal
+    # handler runs (about once in 60 runs of the test above under load, until torchrun's SIGKILL).
+    proc = subprocess.Popen([sys.executable, "-c", WATCHDOG], env=ENV, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == f"requested {int(signal.SIGTERM)}"
+        assert proc.stdout.readline().strip() == "blocked"
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+        waited = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, err
+    assert err == "test: error: stuck 2\n" and "not reached" not in out
+    assert 0.5 <= waited < 10, waited

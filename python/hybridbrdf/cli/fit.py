@@ -120,6 +120,7 @@ def _train(args, settings, sources, frozen, init):
     from hybridbrdf.fit import fit
 
     log = log_function(args.quiet)
+    dd.error_prefix = "hbrdf fit: error: "  # a rank that ends itself (a stuck step) says so as main() would
     ranks = dd.join(settings.device)
     try:
         settings.device = dd.rank_device(settings.device, ranks)

@@ -14,13 +14,17 @@ model file.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import os
+import select
 import signal
+import socket
 import sys
 import threading
+import time
 from dataclasses import dataclass
-from typing import Optional
+from typing import Callable, Optional
 
 import torch
 import torch.distributed as dist
@@ -29,6 +33,18 @@ from torch.nn.parallel import DistributedDataParallel
 #: How long a rank waits in a collective for the others before it gives up (a rank that died
 #: mid-step is usually noticed at once, when its sockets close; this bounds the other cases).
 COLLECTIVE_TIMEOUT = datetime.timedelta(minutes=5)
+
+#: How long a rank asked to stop (torchrun's SIGTERM, Ctrl-C) waits in a step's collectives before it
+#: takes the other ranks for lost and ends itself (:class:`StopRequest`). torchrun follows its
+#: SIGTERM with SIGKILL after 30 s; this leaves the rank time to say why it ends. Why it exists: a
+#: rank whose peer died can wait in DistributedDataParallel's reducer for gloo work that neither
+#: completes nor fails (seen about once in 60 runs under load: rank 0 in
+#: ``Reducer::finalize_backward`` until torchrun killed it), where a Python signal handler never runs.
+STOP_GRACE_SECONDS = 20.0
+
+#: The start of the line a rank writes when it ends itself (:meth:`StopRequest` on a stuck step);
+#: ``hbrdf fit`` sets its own, "hbrdf fit: error: ", as it prints every other error.
+error_prefix = "error: "
 
 
 class RankLostError(RuntimeError):
@@ -136,24 +152,81 @@ def any_rank(flag: bool, ranks: Ranks, device: str) -> bool:
 class StopRequest:
     """SIGINT and SIGTERM (torchrun passes Ctrl-C on as SIGTERM) ask the fit to stop after the
     step in progress instead of killing it mid-way, so that a checkpoint of a finished step can
-    be written. A second signal stops at once. Installed only in the main thread."""
+    be written. A second signal stops at once. Installed only in the main thread.
 
-    def __init__(self) -> None:
+    With ``grace`` (seconds; data-parallel fits: :data:`STOP_GRACE_SECONDS`) a watchdog thread
+    bounds the wait: a signal that arrives while the main thread is in :meth:`collective` and
+    still in it ``grace`` seconds later (a lost peer whose work never completes) ends the process
+    with ``on_stuck()``'s one line, exit status 1. The thread learns of the signal from the
+    interpreter's wakeup fd, written by the C-level handler at once: the Python handler runs only
+    when the main thread returns to the interpreter, which a stuck collective never does."""
+
+    def __init__(self, grace: Optional[float] = None, on_stuck: Optional[Callable[[], str]] = None) -> None:
         self.requested: Optional[int] = None
+        self.grace, self.on_stuck = grace, on_stuck
         self._previous = {}
+        self._signalled_at: Optional[float] = None
+        self._collective_since: Optional[float] = None
+        self._watch: Optional[tuple] = None  # (thread, read socket, write socket, previous wakeup fd, done)
 
     def install(self) -> "StopRequest":
         """Take over SIGINT and SIGTERM until :meth:`restore` (main thread only)."""
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._previous[sig] = signal.signal(sig, self._handle)
+            if self.grace is not None:
+                self._start_watchdog()
         return self
 
     def restore(self) -> None:
-        """Give the signals back to the handlers they had before."""
+        """Give the signals back to the handlers they had before (and stop the watchdog)."""
+        if self._watch is not None:
+            thread, r, w, previous, done = self._watch
+            signal.set_wakeup_fd(previous)
+            done.set()
+            thread.join()
+            r.close()
+            w.close()
+            self._watch = None
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         self._previous.clear()
+
+    @contextlib.contextmanager
+    def collective(self):
+        """The part of a step that waits for the other ranks: what the watchdog bounds."""
+        self._collective_since = time.monotonic()
+        try:
+            yield
+        finally:
+            self._collective_since = None
+
+    def _start_watchdog(self) -> None:
+        r, w = socket.socketpair()
+        r.setblocking(False)
+        w.setblocking(False)
+        previous = signal.set_wakeup_fd(w.fileno(), warn_on_full_buffer=False)
+        done = threading.Event()
+        thread = threading.Thread(target=self._watchdog, args=(r, done), name="hbrdf-stop-watchdog", daemon=True)
+        self._watch = (thread, r, w, previous, done)
+        thread.start()
+
+    def _watchdog(self, r: socket.socket, done: threading.Event) -> None:
+        stops = {signal.SIGINT, signal.SIGTERM}
+        while not done.is_set():
+            if select.select([r], [], [], 0.1)[0]:
+                try:
+                    if stops & set(r.recv(64)) and self._signalled_at is None:
+                        self._signalled_at = time.monotonic()
+                except BlockingIOError:
+                    pass
+            since = self._collective_since
+            if self._signalled_at is None or since is None:
+                continue
+            if time.monotonic() - max(since, self._signalled_at) > self.grace:
+                message = self.on_stuck() if self.on_stuck is not None else "no step ended after the stop request"
+                print(f"{error_prefix}{message}", file=sys.stderr)
+                end_process(1)
 
     def _handle(self, signum, frame) -> None:
         if self.requested is not None:
@@ -166,5 +239,5 @@ class StopRequest:
         self.restore()
 
 
-__all__ = ["COLLECTIVE_TIMEOUT", "RankLostError", "Ranks", "StopRequest", "any_rank", "check_batch_split", "end_process", "join",
+__all__ = ["COLLECTIVE_TIMEOUT", "STOP_GRACE_SECONDS", "RankLostError", "Ranks", "StopRequest", "error_prefix", "any_rank", "check_batch_split", "end_process", "join",
            "launched_world_size", "leave", "rank_device", "share", "wrap"]

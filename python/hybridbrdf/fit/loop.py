@@ -93,7 +93,12 @@ def _rank_lost(exc: RuntimeError, ranks: dd.Ranks, step: int, checkpoint: Option
     """The one-line error of a rank whose collective failed: the gist of the backend's message."""
     # gloo's "[file.cc:537] Read error [addr]:port: Connection reset by peer. This is ..." -> its gist
     reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-    reason = re.sub(r"^\[[^\]]*\]\s*", "", reason).split(". ")[0]
+    return _lost_line(re.sub(r"^\[[^\]]*\]\s*", "", reason).split(". ")[0], ranks, step, checkpoint, saved_step)
+
+
+def _lost_line(reason: str, ranks: dd.Ranks, step: int, checkpoint: Optional[str],
+               saved_step: Optional[int]) -> dd.RankLostError:
+    """The lost-rank error for ``reason``: the step, and what is kept on disk."""
     kept = f"checkpoint {checkpoint} (step {saved_step})" if saved_step is not None else "no checkpoint"
     return dd.RankLostError(f"rank {ranks.rank} of {ranks.world}: lost the other ranks at step {step} "
                             f"({reason}); kept: {kept}, no model written")
@@ -125,20 +130,26 @@ def run_steps(state: FitState, pool: TrainingPool, settings: FitSettings,
     compile_seconds = None
     threads = torch.get_num_threads()
     t0 = time.perf_counter()
-    stop = dd.StopRequest().install()
+    step = state.start
+    # Asked to stop, a rank whose step cannot end (a lost peer's work that never completes) ends
+    # itself with the lost-rank line after the grace, before the launcher's SIGKILL.
+    stop = dd.StopRequest(dd.STOP_GRACE_SECONDS if ranks.distributed else None, lambda: str(_lost_line(
+        f"no step ended within {dd.STOP_GRACE_SECONDS:g} s of the stop request", ranks, step, checkpoint,
+        saved_step))).install()
     try:
         for step in range(state.start, settings.steps):
             # Every rank draws the same global batch and trains on its share of it.
             idx = dd.share(draw_batch(state.gen, settings), ranks).to(settings.device)
             wi, wo, ref = pool.wi[idx], pool.wo[idx], pool.ref[:, idx]
             try:
-                loss = batch_loss(wi, wo, ref)
-                if not torch.isfinite(loss):
-                    raise FloatingPointError(
-                        f"loss became {loss.item()} at step {step}; lower --lr or check the sources")
-                opt.zero_grad(set_to_none=True)
-                loss.backward()  # under DistributedDataParallel: gradients averaged over the ranks
-                stopping_now = dd.any_rank(stop.requested is not None, ranks, settings.device)
+                with stop.collective():
+                    loss = batch_loss(wi, wo, ref)
+                    if not torch.isfinite(loss):
+                        raise FloatingPointError(
+                            f"loss became {loss.item()} at step {step}; lower --lr or check the sources")
+                    opt.zero_grad(set_to_none=True)
+                    loss.backward()  # under DistributedDataParallel: gradients averaged over the ranks
+                    stopping_now = dd.any_rank(stop.requested is not None, ranks, settings.device)
             except RuntimeError as exc:
                 if not ranks.distributed:
                     raise
