@@ -58,9 +58,6 @@ HEAD_PULL = 0.0
 ANCHOR_PAIRS, ANCHOR_WEIGHT = 512, 0.1
 #: Direction pairs of the drift report per prior material.
 DRIFT_PAIRS = 2000
-#: The tuned values are the mean of the iterates over the steps after this fraction of them
-#: (Polyak-Ruppert averaging); None: the last iterate.
-AVERAGE_FROM = None
 
 
 def cosine_pairs(n: int, seed: int) -> tuple:
@@ -201,14 +198,8 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
         (fit + anchored + REPLAY_WEIGHT * (d * d).mean() + head_pull()).backward()
         opt.step()
         losses.append(float(fit.detach()))
-        if AVERAGE_FROM is not None and step >= int(AVERAGE_FROM * steps):
-            averaged = _accumulate(averaged if step > int(AVERAGE_FROM * steps) else None, hidden + list(heads.values()))
         if progress is not None:
             progress("network", step + 1, steps)
-    if AVERAGE_FROM is not None and steps:
-        with torch.no_grad():
-            for p, (total, n) in zip(hidden + list(heads.values()), averaged):
-                p.copy_(total / n)
     with torch.no_grad():
         sigma2 = [max(float(capture_term(None, c)), 1e-8) if len(rows[c]) else float(clusters["sigma2"][c])
                   for c in range(k)]
@@ -217,14 +208,6 @@ def finetune_network(family, obs: Observations, data: ObservationTensors, labels
             "centres": {n: heads["raw_" + n].detach() for n in centres}, "sigma2": torch.tensor(sigma2),
             "drift": replay_drift(family, tuned_family(family, network), seed),
             "loss": [losses[0], losses[-1]] if losses else []}
-
-
-def _accumulate(averaged, params):
-    """[(running sum, count)] of ``params`` with this step's values added (``averaged`` None: from here)."""
-    with torch.no_grad():
-        if averaged is None:
-            return [(p.detach().clone(), 1) for p in params]
-        return [(total + p.detach(), n + 1) for (total, n), p in zip(averaged, params)]
 
 
 def replay_drift(prior, tuned, seed: int) -> Dict[str, object]:
