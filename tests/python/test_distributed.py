@@ -1,7 +1,8 @@
 """Data-parallel fitting under torchrun (hybridbrdf.fit.distributed, docs/FITTING.md "Fitting on
 several processes"): two local ranks over loopback (gloo) give the 1-rank model, Ctrl-C leaves a
 checkpoint that resumes on another number of ranks, a rank that dies ends the run with one line
-and leaves the checkpoint and an existing --out alone, and a batch that does not split is refused."""
+and leaves the checkpoint and an existing --out alone (a step stuck after the stop request ends
+after distributed.STOP_GRACE_SECONDS), and a batch that does not split is refused."""
 
 import os
 import signal

@@ -13,28 +13,48 @@ from hybridbrdf.acquire.texel_fit import AnalyticMaps
 from hybridbrdf.model.networks import raw_from_analytic
 
 
+#: k-means++ starts per clustering; the labels of the start with the least within-cluster sum of
+#: squares are kept.
+KMEANS_STARTS = 8
+
+
 def kmeans(features: np.ndarray, k: int, seed: int, iterations: int = 30) -> np.ndarray:
-    """Labels (N,) of k-means on ``features`` (N, d), k-means++ started by ``seed``; at most ``k``
-    clusters, empty ones dropped and the labels renumbered 0.. by decreasing size."""
+    """Labels (N,) of k-means on ``features`` (N, d), :data:`KMEANS_STARTS` k-means++ starts drawn
+    from ``seed`` (the one of least within-cluster sum of squares kept); at most ``k`` clusters,
+    empty ones dropped and the labels renumbered 0.. by decreasing size."""
     rng = np.random.default_rng(seed)
+    best = None
+    for _ in range(KMEANS_STARTS):
+        labels, inertia = _lloyd(features, _plus_plus(features, min(k, len(features)), rng), iterations)
+        if best is None or inertia < best[1]:
+            best = (labels, inertia)
+    labels = best[0]
+    sizes = np.bincount(labels)
+    order = [c for c in np.argsort(-sizes, kind="stable") if sizes[c] > 0]
+    renumber = np.zeros(len(sizes), dtype=np.int64)
+    renumber[order] = np.arange(len(order))
+    return renumber[labels]
+
+
+def _plus_plus(features: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """k-means++ centres (at most ``k``: fewer when the features run out of distinct points)."""
     n = len(features)
-    k = min(k, n)
     centres = [features[rng.integers(n)]]
     for _ in range(1, k):
         d2 = np.min([((features - c) ** 2).sum(1) for c in centres], axis=0)
         if d2.sum() <= 0:
             break
         centres.append(features[rng.choice(n, p=d2 / d2.sum())])
-    centres = np.array(centres)
+    return np.array(centres)
+
+
+def _lloyd(features: np.ndarray, centres: np.ndarray, iterations: int) -> tuple:
+    """(labels, within-cluster sum of squares) after ``iterations`` of Lloyd's algorithm."""
     for _ in range(iterations):
         labels = np.argmin(((features[:, None] - centres[None]) ** 2).sum(2), axis=1)
         centres = np.array([features[labels == c].mean(0) if (labels == c).any() else centres[c]
                             for c in range(len(centres))])
-    sizes = np.bincount(labels, minlength=len(centres))
-    order = [c for c in np.argsort(-sizes, kind="stable") if sizes[c] > 0]
-    renumber = np.zeros(len(centres), dtype=np.int64)
-    renumber[order] = np.arange(len(order))
-    return renumber[labels]
+    return labels, float(((features - centres[labels]) ** 2).sum())  # centres: the means of these labels
 
 
 def texel_clusters(maps: AnalyticMaps, k: int, seed: int) -> np.ndarray:
