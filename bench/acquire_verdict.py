@@ -18,12 +18,13 @@ scores the same texels (--texels N > 0: N drawn per seed instead, the rule until
 spread held the draw's too). A row reports each metric's mean over the seeds and its spread
 (min-max). The verdict of hybrid against another model on a metric (:func:`verdict`): the gap
 between the two models' seed means counts only when it exceeds both models' seed ranges
-(max - min); inside them: tie.
+(max - min); inside them: tie. ``--ceiling`` also prints what the hybrid reaches with every
+direction measured: each layer its full-measurement fit, mixed by the true weights.
 
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
         [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
         [--steps 150] [--photo 48] [--map 16] [--texels 0] [--pairs 2000] [--render-filter bilinear]
-        [--observation-model bilinear] [--out results/acquire_verdict_MACHINE]
+        [--observation-model bilinear] [--ceiling] [--refs /tmp/acquire_gap_refs] [--out results/acquire_verdict_MACHINE]
     python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
 """
 
@@ -44,6 +45,7 @@ from hybridbrdf.acquire import footprint
 from hybridbrdf.acquire.geometry import pixel_geometry
 from hybridbrdf.acquire.noise import NoiseModel
 from hybridbrdf.acquire.isotropy import turned_about_normal
+from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.observations import texel_observations
 from hybridbrdf.acquire.rig import Rig, Shot, check_rig, photo_name
 from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
@@ -51,6 +53,7 @@ from hybridbrdf.acquire.simulation import radiance, simulate
 from hybridbrdf.acquire.sizes import default_finetune
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
 from hybridbrdf.model.prior import prior_path
+from hybridbrdf.sources.model import ModelMaterialSource
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
@@ -226,6 +229,28 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
     return rows
 
 
+def ceiling_of(mixture: Mixture, references) -> Mixture:
+    """The hybrid's ceiling on the sample: each layer's source replaced by ``references`` (one
+    :class:`~hybridbrdf.model.file.HybridModel` per layer, its last material the layer's fit), the
+    true weights kept. With the full-measurement fits (acquire_gap.reference: ``hbrdf add`` onto the
+    held-out prior) it is what the model reaches where every direction is measured."""
+    return Mixture([ModelMaterialSource(m, m.materials[-1]) for m in references], mixture.weights)
+
+
+def ceiling_line(args, mixture: Mixture, truth, novel) -> str:
+    """The ``--ceiling`` line: the scored texels' median SMAPE and cMAE and the re-render of
+    :func:`ceiling_of` with the full-measurement fits (made once, then read from ``--refs``)."""
+    import acquire_gap
+
+    refs = [acquire_gap.reference(name.removesuffix(".bsdf"), pathlib.Path(args.shared), pathlib.Path(args.refs))
+            for name in ac.LAYERS]
+    fit = ac.CentreTruth(ceiling_of(mixture, refs), (args.map, args.map))
+    s_err, c_err = ac.texel_errors(fit, truth)
+    render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, (args.map, args.map), args.render_filter), *novel)
+    return (f"ceiling (each layer its full-measurement fit, hbrdf add onto the held-out prior, mixed by the true "
+            f"weights): SMAPE median {np.median(s_err):.4f} cMAE median {np.median(c_err):.4f} re-render {render:.4f}")
+
+
 def summary_line(kind, point, noise, model, rs) -> str:
     """One point's model over its seeds: each metric's mean and min-max."""
     cells = []
@@ -268,6 +293,8 @@ def sweep(args) -> int:
     fits = fitters(args.models, args.steps, args.rows_per_texel)
     out = ac.Output(args.out)
     header(args, out, floor, fits)
+    if args.ceiling:
+        out.line(ceiling_line(args, mixture, truths[args.seeds[0]], novel))
     rows = []
     for kind, point in points(args):
         for noise in ac.NOISE:
@@ -321,6 +348,11 @@ def parse(argv=None):
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
     ap.add_argument("--machine", default=ac.machine_key(), help="machine key of docs/BENCHMARKS.md (default: detected)")
     ap.add_argument("--out", help="write PREFIX.txt and PREFIX.jsonl (default results/acquire_verdict_MACHINE)")
+    ap.add_argument("--ceiling", action="store_true",
+                    help="also print the hybrid's ceiling: each layer its full-measurement fit (hbrdf add onto the "
+                         "held-out prior), mixed by the true weights")
+    ap.add_argument("--refs", default="/tmp/acquire_gap_refs",
+                    help="folder caching the full-measurement fits of --ceiling (acquire_gap.py's)")
     ap.add_argument("--table", metavar="JSONL", help="only print the verdict table of a run's jsonl")
     args = ap.parse_args(argv)
     args.rig = args.rig.split(",")

@@ -201,9 +201,8 @@ def test_declared_pixel_noise_leaves_the_choice_as_without_noise():
 def test_kmeans_keeps_the_start_of_least_within_cluster_squares(monkeypatch):
     # Five tight groups on a line (two close pairs and one far), four clusters: one k-means++ start
     # merges the wrong pair for many seeds (a local optimum of Lloyd's algorithm); the least sum of
-    # squares over KMEANS_STARTS starts is the global one for every seed. Why it matters: on the
-    # light-stage bench one fit seed's single start grouped the texels so that a mixed cluster took a
-    # felt and the fit ended at 1.5x the cMAE of the same capture's other seeds.
+    # squares over KMEANS_STARTS starts is the global one for every seed (the default stays one start:
+    # docs/ACQUISITION_CONSENSUS.md, "The fit's own seed").
     rng = np.random.default_rng(7)
     groups = np.array([[0, 0], [1, 0], [5, 0], [6, 0], [12, 0]], float)
     features = np.concatenate([g + 0.05 * rng.standard_normal((40, 2)) for g in groups])

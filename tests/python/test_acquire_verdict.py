@@ -129,3 +129,38 @@ def test_every_texel_is_scored_alike_for_every_seed_and_a_draw_differs_by_seed()
     assert not all(np.array_equal(drawn[0], d) for d in drawn[1:])
     pure = [int((weights.reshape(-1, 2)[d].max(axis=1) > 0.99).sum()) for d in drawn]
     assert pure == [4, 4, 4]
+
+
+def test_the_ceiling_keeps_the_true_weights_and_puts_each_layers_fit_in_its_place():
+    # Each layer's "full-measurement fit" here a prior material of its own; the ceiling must evaluate
+    # every texel as the true weights mix those materials (an independent sum here), whatever the
+    # layer's source was.
+    import torch
+
+    import hybridbrdf as hb
+    from hybridbrdf.acquire.mixture import Mixture
+    from hybridbrdf.model.prior import prior_path
+
+    prior = hb.load_model(str(prior_path()))
+    names = prior.materials[:3]
+    weights = np.random.default_rng(1).dirichlet(np.ones(3), size=(4, 4))
+    truth = Mixture([hb.open_source(f"synthetic:{n}") for n in ("gold", "plastic", "velvet")], weights)
+
+    class OneMaterial:  # a "reference" whose last material is the layer's
+        def __init__(self, name):
+            self.materials, self.material_info, self.path = [name], [prior.material_info[prior.index(name)]], None
+
+        def index(self, name):
+            return 0
+
+        def eval(self, wi, wo, material, dtype=None):
+            return prior.eval(wi, wo, self.materials[0], dtype=dtype)
+    ceiling = av.ceiling_of(truth, [OneMaterial(n) for n in names])
+    rng = np.random.default_rng(2)
+    uv = rng.random((64, 2))
+    wi = np.tile([0.3, 0.1, 0.948], (64, 1)) / np.linalg.norm([0.3, 0.1, 0.948])
+    wo = np.tile([-0.4, 0.2, 0.894], (64, 1)) / np.linalg.norm([-0.4, 0.2, 0.894])
+    w = truth.weights_at(uv)
+    expect = sum(w[:, k:k + 1] * np.maximum(prior.eval(wi, wo, n, dtype=torch.float64), 0) for k, n in enumerate(names))
+    assert np.allclose(ceiling.eval(uv, wi, wo), expect, rtol=1e-9, atol=1e-12)
+    assert np.allclose(ceiling.weights, truth.weights)
