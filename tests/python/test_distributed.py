@@ -166,10 +166,11 @@ def test_a_rank_that_dies_ends_the_run_and_keeps_the_files(tmp_path):
     # The launcher checks its workers every 0.1 s (its default) and, once it sees rank 1 dead, sends
     # rank 0 SIGTERM. Rank 0 takes that as a request to stop after its step (StopRequest), and no
     # step ends without rank 1: the step's collective fails and rank 0 says so whichever comes
-    # first (seen both ways), or, where gloo's work neither completes nor fails (about 1 run in 60
-    # under load), rank 0 ends itself after distributed.STOP_GRACE_SECONDS (the test below). Until 2026-11-29 the launcher checked every 30 s here, and the test
-    # waited up to that long after rank 0 had ended (32.5 s in the run of c815511; 0.2-0.3 s from
-    # the kill to rank 0's end and ~2 s to the launcher's, three runs under load).
+    # first (seen both ways), or, where gloo's work neither completes nor fails (4 runs in about
+    # 200 under load), rank 0 ends itself after distributed.STOP_GRACE_SECONDS (the test below).
+    # Until 2026-11-29 the launcher checked every 30 s here, and the test waited up to that long
+    # after rank 0 had ended (32.5 s in the run of c815511; 0.2-0.3 s from the kill to rank 0's end
+    # and ~2 s to the launcher's, three runs under load).
     proc = subprocess.Popen(torchrun_cmd(2, *args), cwd=tmp_path, env=ENV,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
@@ -235,7 +236,7 @@ print("not reached", flush=True)
 
 def test_a_step_that_cannot_end_after_a_stop_request_ends_the_rank_after_the_grace():
     # Why: a rank whose peer died can wait for gloo work that never completes, where no Python signal
-    # handler runs (about once in 60 runs of the test above under load, until torchrun's SIGKILL).
+    # handler runs (4 times in about 200 runs of the test above under load, until torchrun's SIGKILL).
     # A grace of 2 s against a 0.1 s "collective": a loaded machine would have to stall the first
     # part for 1.9 s to end it early.
     proc = subprocess.Popen([sys.executable, "-c", WATCHDOG], env=ENV, stdout=subprocess.PIPE,
