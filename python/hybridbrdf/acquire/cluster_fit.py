@@ -19,6 +19,8 @@ fits run the same three stages, on a *family* (the model's network and its per-m
    per-texel values, one set for the cluster, on the frozen network), the lowest
    :func:`map_objective` kept, and after a merge every final cluster's chosen again on more rows
    (:data:`FINAL_ROWS`; among candidates that tie there, their consensus: :mod:`~hybridbrdf.acquire.consensus`); or (``choose``) the choice made on held-out photographs (:mod:`~hybridbrdf.acquire.select`).
+   Then each texel moves to the cluster whose choice explains its photographs clearly best
+   (:mod:`~hybridbrdf.acquire.texel_assign`).
 3. **heads** (``refit_heads``): each cluster's output layer (its material's head) refitted with
    its values on up to :data:`HEAD_ROWS` of its rows, the hidden layers frozen: pure texels of one
    material share one BRDF, so a cluster pools every texel's observations for the one shape a
@@ -39,7 +41,7 @@ from typing import Callable, Dict, Optional, Tuple
 import numpy as np
 import torch
 
-from hybridbrdf.acquire import consensus, network_tune
+from hybridbrdf.acquire import consensus, network_tune, texel_assign
 from hybridbrdf.acquire.clustering import cluster_colours, texel_clusters
 from hybridbrdf.acquire.material_fits import MaterialFit, fit_materials, loss_rows, map_objective, value_spread
 from hybridbrdf.acquire.observations import Observations
@@ -319,14 +321,19 @@ def _cluster_stage(family, obs: Observations, data: ObservationTensors, maps: An
                    seed: int, progress: Optional[Progress], choose: Optional[Callable], merge) -> Dict:
     """Stage 2 of the module docstring: the clusters fitted (or chosen by ``choose``); given ``merge``,
     merged, then each final cluster's material chosen again on more rows (:data:`FINAL_ROWS`; ``choose``
-    again where given), the merge's "merges" and "labels" kept."""
+    again where given), the merge's "merges" kept, and texels moved to the cluster that explains
+    them (:mod:`~hybridbrdf.acquire.texel_assign`): "labels" then the moved labels, "moved" their count."""
     fitted = (choose or fit_clusters)(family, obs, data, labels, seed, progress, colour=cluster_colours(maps, labels))
     if merge is None:
         return fitted
     fitted = merge.merge_clusters(family, obs, data, labels, fitted, seed, MAX_CLUSTERS, progress=progress)[1]
     merged = fitted["labels"].numpy()
     final = choose or functools.partial(fit_clusters, candidates=FINAL_CANDIDATES, final=True)
-    return {**fitted, **final(family, obs, data, merged, seed, progress, colour=cluster_colours(maps, merged))}
+    fitted = {**fitted, **final(family, obs, data, merged, seed, progress, colour=cluster_colours(maps, merged))}
+    if not texel_assign.MOVE:
+        return fitted
+    moved, count = texel_assign.move_texels(family, obs, data, merged, fitted)
+    return {**fitted, "labels": torch.from_numpy(moved), "moved": count}
 
 
 def fit_on_prior(family, obs: Observations, steps: int, seed: int, rows_per_texel: int = ROWS_PER_TEXEL,

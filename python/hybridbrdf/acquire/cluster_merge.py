@@ -169,8 +169,10 @@ def merge_clusters(family, obs, data, labels: np.ndarray, clusters: Dict, seed: 
 def merge_line(clusters: Dict) -> str:
     """What the merge did, a line for the fit's log (``hbrdf acquire fit`` prints it)."""
     merges = clusters.get("merges", [])
+    moved = ("" if "moved" not in clusters else
+             f"; {clusters['moved']:,} texel(s) moved to the cluster whose material explains their photographs best")
     if not merges:
-        return f"clusters: {len(clusters['material'])}, none merged"
+        return f"clusters: {len(clusters['material'])}, none merged" + moved
     return (f"clusters: k-means made {len(clusters['material']) + len(merges)}, merged to {len(clusters['material'])} "
             f"(a pair merges when one fit explains both within {MERGE_RATIO}x, or when too many are left; the "
-            f"merges' ratios: " + ", ".join(f"{r:.2f}" for _, _, r in merges) + ")")
+            f"merges' ratios: " + ", ".join(f"{r:.2f}" for _, _, r in merges) + ")" + moved)
