@@ -76,13 +76,17 @@ def _per_texel(values: np.ndarray, texel: np.ndarray, n_texels: int) -> np.ndarr
     return np.bincount(texel, weights=values, minlength=n_texels)
 
 
+def _texel_sums(errors: np.ndarray, texel: np.ndarray, n_texels: int) -> Tuple[np.ndarray, np.ndarray]:
+    """(cells (texels,), sums (texels, K)): each texel's cell count and its cells' errors summed per cluster."""
+    cells = np.bincount(texel, minlength=n_texels).astype(np.float64)
+    return cells, np.stack([_per_texel(errors[:, c], texel, n_texels) for c in range(errors.shape[1])], axis=1)
+
+
 def texel_scores(family, obs: Observations, data: ObservationTensors, clusters: Dict) -> np.ndarray:
     """(texels, K): each texel's mean of :func:`cell_errors` over its cells under each cluster; inf
     for a texel without observations."""
     errors, texel = cell_errors(family, obs, data, clusters)
-    n_texels = len(obs.offsets) - 1
-    cells = np.bincount(texel, minlength=n_texels).astype(np.float64)
-    sums = np.stack([_per_texel(errors[:, c], texel, n_texels) for c in range(errors.shape[1])], axis=1)
+    cells, sums = _texel_sums(errors, texel, len(obs.offsets) - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         scores = sums / cells[:, None]
     scores[cells == 0] = np.inf
@@ -102,8 +106,7 @@ def move_texels(family, obs: Observations, data: ObservationTensors, labels: np.
     numbers, materials and values are unchanged."""
     errors, texel = cell_errors(family, obs, data, clusters)
     n_texels = len(labels)
-    cells = np.bincount(texel, minlength=n_texels).astype(np.float64)
-    sums = np.stack([_per_texel(errors[:, c], texel, n_texels) for c in range(errors.shape[1])], axis=1)
+    cells, sums = _texel_sums(errors, texel, n_texels)
     best = sums.argmin(axis=1)
     own_sum, best_sum = sums[np.arange(n_texels), labels], sums[np.arange(n_texels), best]
     better = errors[np.arange(len(texel)), best[texel]] < errors[np.arange(len(texel)), labels[texel]]
