@@ -24,8 +24,12 @@ direction measured: each layer its full-measurement fit, mixed by the true weigh
     python bench/acquire_verdict.py [--rig flash,flash-multiview,light-stage] [--flash-ns 8,32]
         [--views 3,6] [--stages 4x2,8x4,16x8] [--seeds 3] [--models analytic,hybrid_heldout,neural_heldout] [--hybrid KEY]
         [--steps 150] [--photo 48] [--map 16] [--texels 0] [--pairs 2000] [--render-filter bilinear]
-        [--observation-model bilinear] [--ceiling] [--refs /tmp/acquire_gap_refs] [--out results/acquire_verdict_MACHINE]
+        [--observation-model bilinear] [--seen-degrees 5] [--ceiling] [--refs /tmp/acquire_gap_refs] [--out results/acquire_verdict_MACHINE]
     python bench/acquire_verdict.py --table results/acquire_verdict_M2.jsonl   # the verdict table again
+
+Each point also reports SMAPE and cMAE split by what the photographs saw (--seen-degrees): each
+texel's metric pairs within that angle of a direction pair photographed at it, and the rest,
+whose values no photograph constrained (the model's and its prior's extrapolation).
 """
 
 from __future__ import annotations
@@ -52,8 +56,10 @@ from hybridbrdf.acquire.rigs import flash_rig, light_stage_rig
 from hybridbrdf.acquire.simulation import radiance, simulate
 from hybridbrdf.acquire.sizes import default_finetune
 from hybridbrdf.acquire.texel_rows import ROWS_PER_TEXEL
+from hybridbrdf.evaluate.metrics import smape_terms
 from hybridbrdf.model.prior import prior_path
 from hybridbrdf.sources.model import ModelMaterialSource
+from hybridbrdf.sources.rusinkiewicz import half_diff_vectors
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
@@ -82,6 +88,10 @@ EXTRA = {"hybrid_tuned": {"finetune_network": 200}, "hybrid_frozen": {"finetune_
 #: The hybrid of the verdict and the models it is compared with.
 HYBRID, OTHERS = "hybrid_heldout", ("analytic", "neural_heldout")
 METRICS = ac.VERDICT_METRICS
+#: The SMAPE and cMAE split by what the photographs saw (:func:`seen_pairs`): each texel's metric
+#: pairs near a direction pair photographed at it, and the rest; medians over the texels.
+SPLIT_METRICS = (("smape_seen", "SMAPE-seen"), ("smape_unseen", "SMAPE-unseen"),
+                 ("cmae_seen", "cMAE-seen"), ("cmae_unseen", "cMAE-unseen"))
 
 
 # --- The rigs ----------------------------------------------------------------------------------
@@ -136,13 +146,13 @@ def verdict(hybrid, other) -> str:
     return "better" if gap > 0 else "worse"
 
 
-def verdict_lines(rows, hybrid: str = HYBRID) -> list:
+def verdict_lines(rows, hybrid: str = HYBRID, metrics=METRICS) -> list:
     """The verdict table from the per-seed rows: one line per (rig, noise, N), a word per other
-    model and metric (``hybrid`` against each of OTHERS), then the counts."""
+    model and metric of ``metrics`` (``hybrid`` against each of OTHERS), then the counts."""
     groups = {}
     for r in rows:
         groups.setdefault((r["rig"], r["noise"], r["n"], r["point"]), {}).setdefault(r["model"], []).append(r)
-    head = " | ".join(f"vs {o}: " + "/".join(label.split()[0] for _, label in METRICS) for o in OTHERS)
+    head = " | ".join(f"vs {o}: " + "/".join(label.split()[0] for _, label in metrics) for o in OTHERS)
     lines = [f"verdict table (hybrid = {hybrid}; lower is better; rule: a gap of seed means beyond both "
              f"models' seed ranges (max-min) counts, inside them a tie)",
              f"{'rig':16s} {'noise':5s} {'N':>4s} {'point':>6s} | {head}"]
@@ -153,7 +163,10 @@ def verdict_lines(rows, hybrid: str = HYBRID) -> list:
             if hybrid not in by or o not in by:
                 cells.append("not measured")
                 continue
-            words = [verdict([r[key] for r in by[hybrid]], [r[key] for r in by[o]]) for key, _ in METRICS]
+            if any(key not in r for key, _ in metrics for r in by[hybrid] + by[o]):
+                cells.append("not measured")
+                continue
+            words = [verdict([r[key] for r in by[hybrid]], [r[key] for r in by[o]]) for key, _ in metrics]
             for w in words:
                 counts[o][w] += 1
             cells.append("/".join(words))
@@ -193,6 +206,49 @@ def scored_texels(weights: np.ndarray, count: int, seed: int) -> np.ndarray:
     return ac.sampled_texels(weights, count, seed=seed)
 
 
+def isotropic_points(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """(N, 4) coordinates of direction pairs in which an isotropic, reciprocal BRDF's domain is
+    Euclidean to first order: theta_h and the difference vector d with its azimuth folded to the
+    first quadrant (phi_d -> -phi_d is isotropy's mirror, phi_d -> phi_d + pi reciprocity's swap).
+    Near pairs differ by about the angle (radians) their half and difference vectors differ by."""
+    h, d = half_diff_vectors(wi, wo)
+    theta_h = np.arctan2(np.hypot(h[:, 0], h[:, 1]), h[:, 2])
+    return np.stack([theta_h, np.abs(d[:, 0]), np.abs(d[:, 1]), d[:, 2]], axis=1)
+
+
+def seen_pairs(obs, truth, degrees: float) -> np.ndarray:
+    """(scored texels, pairs) bool: the metric pairs of each scored texel within ``degrees`` of a
+    direction pair some photograph saw at that texel (:func:`isotropic_points`). What no
+    photograph saw is the fit's extrapolation: its model's shape there, its prior's guess."""
+    from scipy.spatial import cKDTree
+
+    metric = isotropic_points(truth.wi, truth.wo)
+    seen = np.zeros((len(truth.texels), len(metric)), dtype=bool)
+    for s, t in enumerate(truth.texels):
+        lo, hi = obs.offsets[t], obs.offsets[t + 1]
+        if hi > lo:
+            dist, _ = cKDTree(isotropic_points(obs.wi[lo:hi], obs.wo[lo:hi])).query(metric, k=1)
+            seen[s] = dist <= np.radians(degrees)
+    return seen
+
+
+def split_errors(fit, truth, seen: np.ndarray) -> dict:
+    """Medians over the scored texels of SMAPE and cMAE on their seen and unseen pairs
+    (:data:`SPLIT_METRICS`; a texel without pairs of a kind is left out of that median)."""
+    out = {key: [] for key, _ in SPLIT_METRICS}
+    n = len(truth.wi)
+    cos_i = truth.wi[:, 2:3]
+    for s, t in enumerate(truth.texels):
+        f = np.asarray(fit.eval(np.full(n, t, dtype=np.int64), truth.wi, truth.wo), dtype=np.float64)
+        g = truth.at(s)
+        terms = smape_terms(g, f)
+        absolute = np.abs(np.maximum(g, 0.0) - np.maximum(f, 0.0)) * cos_i
+        for kind, mask in (("seen", seen[s]), ("unseen", ~seen[s])):
+            out[f"smape_{kind}"].append(terms[mask].mean() if mask.any() else np.nan)
+            out[f"cmae_{kind}"].append(absolute[mask].mean() if mask.any() else np.nan)
+    return {key: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan") for key, v in out.items()}
+
+
 def points(args):
     """[(rig kind, size point)] of the run, in the order measured."""
     sizes = {"flash": args.flash_ns, "flash-multiview": args.views, "light-stage": args.stages}
@@ -211,6 +267,7 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
     if not args.anisotropic:  # every model fits the same rows: turned about the normal (acquire/isotropy.py)
         obs = turned_about_normal(obs, seed)
     true_render, mask = novel
+    seen = seen_pairs(obs, truth, args.seen_degrees)
     rows = []
     for key, fit_fn in fits.items():
         t0 = time.process_time()
@@ -225,7 +282,9 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
                      "cmae_median": float(np.median(c_err)), "render": render, "steps": args.steps,
                      "photo": args.photo, "map": args.map, "texels": len(truth.texels), "pairs": args.pairs,
                      "render_filter": args.render_filter, "observation_model": footprint.MODEL,
-                     "jitter": args.jitter, "isotropic": not args.anisotropic})
+                     "jitter": args.jitter, "isotropic": not args.anisotropic,
+                     "seen_degrees": args.seen_degrees, "seen_share": float(seen.mean()),
+                     **split_errors(fit, truth, seen)})
     return rows
 
 
@@ -251,10 +310,10 @@ def ceiling_line(args, mixture: Mixture, truth, novel) -> str:
             f"weights): SMAPE median {np.median(s_err):.4f} cMAE median {np.median(c_err):.4f} re-render {render:.4f}")
 
 
-def summary_line(kind, point, noise, model, rs) -> str:
-    """One point's model over its seeds: each metric's mean and min-max."""
+def summary_line(kind, point, noise, model, rs, metrics=METRICS) -> str:
+    """One point's model over its seeds: each metric of ``metrics``' mean and min-max."""
     cells = []
-    for key, _ in METRICS:
+    for key, _ in metrics:
         v = np.array([r[key] for r in rs])
         cells.append(f"{v.mean():8.4f} [{v.min():.4f}-{v.max():.4f}]")
     cpu = np.mean([r["fit_cpu_s"] for r in rs])
@@ -277,6 +336,8 @@ def header(args, out, floor, fits):
              f"{'as photographed' if args.anisotropic else 'turned about the normal'}")
     for key in fits:
         out.line(f"model {key}: {MODELS[key][0]}")
+    out.line(f"each point's 'split' lines: " + ", ".join(label for _, label in SPLIT_METRICS) + f" (metric pairs within "
+             f"{args.seen_degrees:g} deg of a pair photographed at the texel: seen; the share in parentheses)")
     out.line(f"{'rig':16s} {'point':>6s} {'N':>4s} {'noise':5s} {'model':15s} {'S':>2s} {'cpu s':>6s} "
              + " ".join(f"{label + ' mean [min-max]':>24s}" for _, label in METRICS))
 
@@ -305,8 +366,16 @@ def sweep(args) -> int:
                     got.append(r)
             for key in fits:
                 out.line(summary_line(kind, point, noise[0], key, [r for r in got if r["model"] == key]))
+            share = np.mean([r["seen_share"] for r in got])
+            for key in fits:
+                out.line(f"  split (seen {share:.0%}): "
+                         + summary_line(kind, point, noise[0], key, [r for r in got if r["model"] == key], SPLIT_METRICS))
             rows += got
     for line in verdict_lines(rows, args.hybrid):
+        out.line(line)
+    out.line(f"by what the photographs saw (metric pairs within {args.seen_degrees:g} deg of a photographed pair at "
+             f"the texel, in (theta_h, d) with phi_d folded; the rest unseen):")
+    for line in verdict_lines(rows, args.hybrid, SPLIT_METRICS):
         out.line(line)
     out.line(f"total {time.perf_counter() - t_start:.0f} s wall")
     out.close()
@@ -343,6 +412,9 @@ def parse(argv=None):
     ap.add_argument("--anisotropic", action="store_true",
                     help="every model fits the rows as photographed (the rule until 2026-11-30); default: each row "
                          "turned about the normal (acquire/isotropy.py), as hbrdf acquire fit does")
+    ap.add_argument("--seen-degrees", type=float, default=5.0,
+                    help="a metric pair counts as seen within this angle (degrees) of a pair photographed at its "
+                         "texel, for the seen / unseen split of SMAPE and cMAE (default 5)")
     ap.add_argument("--jitter", type=float, default=0.001, help="light position jitter, rig units (default 0.001)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     ap.add_argument("--shared", default=str(ROOT.parent / "shared" / "data"), help="the shared data folder")
@@ -382,6 +454,9 @@ def table(jsonl: str, hybrid: str = HYBRID) -> int:
     rows = [json.loads(line) for line in open(jsonl) if line.strip()]
     for line in verdict_lines(rows, hybrid):
         print(line)
+    if all(key in r for key, _ in SPLIT_METRICS for r in rows):
+        for line in verdict_lines(rows, hybrid, SPLIT_METRICS):
+            print(line)
     return 0
 
 

@@ -117,7 +117,7 @@ def test_the_shared_evaluation_is_the_per_material_one():
 
 def test_pixel_noise_is_the_variance_of_one_rows_target_and_pairs_only_one_texels_photograph():
     # 400 texels x 2 photographs x 8 pixels, each cell one direction pair and one true value, each
-    # pixel its own Gaussian noise: the estimate against the delta method's variance of log(1 + cos g).
+    # pixel its own Gaussian noise: the estimate against the delta method's variance of log(eps + cos g).
     rng = np.random.default_rng(3)
     cells, pixels, sigma = 800, 8, 0.02
     wi, wo = (np.repeat(v.numpy().astype(np.float64), pixels, 0) for v in cosine_pairs(cells, 5))
@@ -125,10 +125,11 @@ def test_pixel_noise_is_the_variance_of_one_rows_target_and_pairs_only_one_texel
     values = truth + rng.normal(0.0, sigma, truth.shape)
     obs = _observations(values, wi, wo, size=(20, 20))
     obs.shot = np.tile(np.repeat(np.arange(2), pixels), 400)
-    data = ObservationTensors(obs)
-    expected = float(np.mean((wi[:, 2:3] / (1 + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
-    estimate = data.pixel_noise(torch.arange(len(values)))
-    assert abs(estimate / expected - 1) < 0.05
+    for eps in (1.0, 0.1):  # the paper's loss domain and the fits' (log(eps + cos g): slope 1 / (eps + cos g))
+        data = ObservationTensors(obs, eps)
+        expected = float(np.mean((wi[:, 2:3] / (eps + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
+        estimate = data.pixel_noise(torch.arange(len(values)))
+        assert abs(estimate / expected - 1) < 0.05, (eps, estimate, expected)
     # Rows of different photographs (or texels) never pair: every row its own cell leaves no pair.
     obs.shot = np.arange(len(values)) % pixels
     assert ObservationTensors(obs).pixel_noise(torch.arange(len(values))) == 0.0
@@ -147,12 +148,12 @@ def test_cell_averaged_rows_keep_their_cells_expectation_and_divide_its_noise():
     wi, wo, truth, shot = wi[order], wo[order], truth[order], shot[order]
     obs = _observations(truth + rng.normal(0.0, sigma, truth.shape), wi, wo, size=(20, 20))
     obs.shot = shot
-    data = ObservationTensors(obs)
+    data = ObservationTensors(obs)  # the fits' loss domain, log(eps + cos g) - log(eps)
     averaged = data.cell_averaged()
     assert averaged is data.cell_averaged() and torch.equal(averaged.wi, data.wi)
     assert torch.all(averaged.cell_size == pixels)
-    clean = np.log1p(wi[:, 2:3] * truth)
-    per_row = float(np.mean((wi[:, 2:3] / (1 + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
+    clean = np.log1p(wi[:, 2:3] * truth / data.eps)
+    per_row = float(np.mean((wi[:, 2:3] / (data.eps + wi[:, 2:3] * truth)) ** 2 * sigma ** 2))
     error = averaged.target.double().numpy() - clean
     assert abs(error.mean()) < 4 * np.sqrt(per_row / pixels / (cells * 3))
     assert abs(np.mean(error ** 2) / (per_row / pixels) - 1) < 0.1
@@ -174,11 +175,12 @@ def test_a_dark_rows_target_is_unbiased_under_the_sensors_noise():
     wi = np.tile([[np.sqrt(1 - cos ** 2), 0.0, cos]], (n, 1))
     values = NoiseModel(photons=200.0, read_noise=4.0).apply(np.full((n, 3), g), np.random.default_rng(1))
     assert (values < 0).mean() > 0.3
-    target = ObservationTensors(_observations(values, wi, wi.copy())).target.double().numpy()
-    clean = np.log1p(cos * g)
-    spread = float(np.std(cos * values))
-    assert abs(target.mean() - clean) < spread ** 2 / 2 + 4 * spread / np.sqrt(values.size)
-    assert np.log1p(cos * np.maximum(values, 0)).mean() > 1.3 * clean
+    for eps in (1.0, 0.1):  # the paper's loss domain and the fits': log(eps + x), slope 1 / (eps + x)
+        target = ObservationTensors(_observations(values, wi, wi.copy()), eps).target.double().numpy()
+        clean = np.log1p(cos * g / eps)
+        spread = float(np.std(cos * values)) / (eps + cos * g)
+        assert abs(target.mean() - clean) < spread ** 2 / 2 + 4 * spread / np.sqrt(values.size), eps
+    assert np.log1p(cos * np.maximum(values, 0)).mean() > 1.3 * np.log1p(cos * g)
 
 
 def test_declared_pixel_noise_leaves_the_choice_as_without_noise():

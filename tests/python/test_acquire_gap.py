@@ -11,7 +11,7 @@ import pytest
 import torch
 
 import hybridbrdf as hb
-from hybridbrdf.acquire import cluster_fit, cluster_merge
+from hybridbrdf.acquire import cluster_fit, cluster_merge, texel_rows
 from hybridbrdf.acquire.hybrid_fit import HybridFamily, fit_hybrid_texels, with_cluster_heads
 from hybridbrdf.acquire.mixture import Mixture
 from hybridbrdf.acquire.noise import NoiseModel
@@ -58,9 +58,12 @@ def novel_capture():
 def test_a_refitted_head_fits_a_shape_no_prior_head_holds_better_where_photographed(novel_capture, monkeypatch):
     # The cluster chooses cc_ibiza_sunset_rgb.nbrdf, a material the guard set to its f_a (head
     # weights 0, biases -200 and 200: no gradient), so this also needs the refit's start (HEAD_START).
-    # Measured: cMAE against the truth on the photographed directions 0.00509 without the refit,
-    # 0.00253 with it (0.50x); the worst texel over all directions 0.00756 and 0.00637 (0.84x).
-    # Without HEAD_START the refit could not move that head: 0.79x and 0.98x.
+    # Measured in the paper's loss domain (eps 1): cMAE against the truth on the photographed
+    # directions 0.00509 without the refit, 0.00253 with it (0.50x); the worst texel over all
+    # directions 0.00756 and 0.00637 (0.84x). Without HEAD_START the refit could not move that head:
+    # 0.79x and 0.98x. In the fits' domain (eps 0.1, texel_rows.LOSS_EPS) the fit without the refit
+    # is already better over all directions (0.00638) and the refit holds it there (0.00663, 1.04x)
+    # while it still nearly halves the photographed directions' error (0.00325 -> 0.00187, 0.58x).
     monkeypatch.setattr(cluster_fit, "MAX_CLUSTERS", 1)  # one material: one cluster
     monkeypatch.setattr(cluster_merge, "SPLIT_CLUSTERS", 1)  # k-means makes as many
     split_effort_final_choice(monkeypatch)
@@ -70,14 +73,16 @@ def test_a_refitted_head_fits_a_shape_no_prior_head_holds_better_where_photograp
     truth = novel.eval(wi, wo, "novel", dtype=torch.float64)
     rows_truth = novel.eval(obs.wi.astype(np.float64), obs.wo.astype(np.float64), "novel", dtype=torch.float64)
     texel = np.repeat(np.arange(4), np.diff(obs.offsets))
-    seen, everywhere = {}, {}
-    for refit in (False, True):
-        maps = fit_hybrid_texels(obs, prior, steps=60, seed=0, refit_heads=refit)
-        seen[refit] = float(np.mean(np.abs((maps.eval(texel, obs.wi, obs.wo) - rows_truth) * obs.wi[:, 2:3])))
-        everywhere[refit] = max(float(np.mean(np.abs((maps.eval(np.full(n, t), wi, wo) - truth) * wi[:, 2:3])))
-                                for t in range(4))
-    assert seen[True] < 0.65 * seen[False], seen
-    assert everywhere[True] < 0.95 * everywhere[False], everywhere
+    for eps, worst_ratio in ((1.0, 0.95), (texel_rows.LOSS_EPS, 1.1)):
+        monkeypatch.setattr(texel_rows, "LOSS_EPS", eps)
+        seen, everywhere = {}, {}
+        for refit in (False, True):
+            maps = fit_hybrid_texels(obs, prior, steps=60, seed=0, refit_heads=refit)
+            seen[refit] = float(np.mean(np.abs((maps.eval(texel, obs.wi, obs.wo) - rows_truth) * obs.wi[:, 2:3])))
+            everywhere[refit] = max(float(np.mean(np.abs((maps.eval(np.full(n, t), wi, wo) - truth) * wi[:, 2:3])))
+                                    for t in range(4))
+        assert seen[True] < 0.65 * seen[False], (eps, seen)
+        assert everywhere[True] < worst_ratio * everywhere[False], (eps, everywhere)
 
 
 def test_refitted_heads_are_layers_of_their_own_that_libhybridbrdf_evaluates_as_eval_does(novel_capture, tmp_path,

@@ -21,7 +21,7 @@ class ConstantFamily:
 def _capture(values_per_texel, pixels=4, shots=8, noise=0.0, seed=0):
     """Observations of texels each photographed ``shots`` times, ``pixels`` pixels a photograph, every
     row head-on (cos 1); ``values_per_texel[t]`` its BRDF, one or one per photograph (None: never
-    photographed)."""
+    photographed); and their tensors in the loss domain of eps 1."""
     rng = np.random.default_rng(seed)
     counts = [0 if v is None else pixels * shots for v in values_per_texel]
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -33,7 +33,7 @@ def _capture(values_per_texel, pixels=4, shots=8, noise=0.0, seed=0):
     up = np.tile([[0.0, 0.0, 1.0]], (n, 1)).astype(np.float32)
     obs = Observations((len(values_per_texel), 1), offsets, up, up.copy(), value.astype(np.float32),
                        np.zeros((n, 2), np.float32), shot.astype(np.int64))
-    return obs, ObservationTensors(obs)
+    return obs, ObservationTensors(obs, 1.0)  # the paper's loss domain, log(1 + cos f): the tests' midpoints are in it
 
 
 def _clusters(*kd):

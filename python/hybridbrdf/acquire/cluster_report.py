@@ -1,8 +1,8 @@
 """What the fit on a frozen prior chose, and how well (docs/ACQUISITION.md, "What the fit says"):
 per cluster of texels, the prior's material it chose and the runner-up, each with
 
-- its **loss**, the cluster stage's (the paper's mean squared log residual per row and channel,
-  after fitting the material's values to the cluster: :func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`);
+- its **loss**, the cluster stage's (the mean squared log residual per row and channel in the
+  fits' loss domain, log(eps + cos f) with :data:`~hybridbrdf.acquire.texel_rows.LOSS_EPS`, after fitting the material's values to the cluster: :func:`~hybridbrdf.acquire.cluster_fit.fit_clusters`);
 - its **relative error**, photometric and readable: the mean of |L_fit - L_obs| over the
   cluster's rows and channels divided by their mean L_obs, L = g cos(theta_i) I / d^2 the
   pixel's radiance (the row's photograph read back; the re-render's measure in bench/acquire_compare.py);

@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from hybridbrdf.sources.rusinkiewicz import dirs_from_half_diff
+from hybridbrdf.acquire.texel_rows import loss_log
 
 #: Candidates tie when their scores differ by less than TIE_Z standard errors (:func:`tie_margin`).
 TIE_Z = 2.0
@@ -83,7 +84,7 @@ def summed_distances(family, candidates: List[Dict[str, object]]) -> torch.Tenso
     wi, wo = probe_pairs()
     cos_i = wi[:, 2:3]
     with torch.no_grad():
-        logs = torch.stack([torch.log1p(cos_i * family.evaluate(
+        logs = torch.stack([loss_log(cos_i * family.evaluate(
             torch.full((len(wi),), int(c["material"])), {n: v.reshape(1, -1).expand(len(wi), -1) for n, v in c["raw"].items()},
             wi, wo).clamp_min(0.0)) for c in candidates])
     return ((logs[:, None] - logs[None]) ** 2).mean(dim=(2, 3)).sqrt().sum(1)

@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from hybridbrdf.acquire.observations import Observations
-from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress, step_generator
+from hybridbrdf.acquire.texel_rows import ObservationTensors, Progress, loss_log, step_generator
 from hybridbrdf.evaluate.directions import cosine_directions
 from hybridbrdf.evaluate.metrics import cmae, smape
 
@@ -96,7 +96,7 @@ def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
 
 def _log_f(family, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
     """log(1 + cos(theta_i) f) of rows (the paper's loss domain)."""
-    return torch.log1p(wi[:, 2:3].clamp_min(0) * family.evaluate(material, raw, wi, wo))
+    return loss_log(wi[:, 2:3].clamp_min(0) * family.evaluate(material, raw, wi, wo))
 
 
 def _replay_pool(family, seed: int) -> Dict[str, torch.Tensor]:

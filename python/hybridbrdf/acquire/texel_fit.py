@@ -2,9 +2,11 @@
 p = (kd, eta, alpha) per texel (the same Lambert + GGX as the hybrid's analytic part; isotropic
 alpha), all texels fitted at once in one batched PyTorch problem (each texel's parameters see only
 its own rows, so a step is one vectorised evaluation over rows of every texel, not a loop over
-texels; :mod:`~hybridbrdf.acquire.texel_rows`). The loss is the paper's per pair,
-L = || log(1 + cos(theta_i) g_obs) - log(1 + cos(theta_i) f_a) ||^2 (docs/CONVENTIONS.md),
-observations below 0 (noise) clamped to 0 first. The hybrid and neural-only fits start from it."""
+texels; :mod:`~hybridbrdf.acquire.texel_rows`). The loss per pair is
+L = || log(eps + cos(theta_i) g_obs) - log(eps + cos(theta_i) f_a) ||^2 (docs/CONVENTIONS.md; the
+paper's with eps 1; :data:`~hybridbrdf.acquire.texel_rows.LOSS_EPS`), observations below
+:data:`~hybridbrdf.acquire.texel_rows.TARGET_FLOOR` eps (noise) raised to it first. The hybrid
+and neural-only fits start from it (their partition of the texels at eps 1: ``cluster_fit.PARTITION_LOSS_EPS``)."""
 
 from __future__ import annotations
 
@@ -83,7 +85,7 @@ def decode_analytic(raw: Dict[str, torch.Tensor]):
 def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, seed: int = 0,
                         rows_per_texel: Optional[int] = ROWS_PER_TEXEL, progress: Optional[Progress] = None,
                         state: Optional[dict] = None, save_state: Optional[Callable[[dict], None]] = None,
-                        observation_model: Optional[str] = None) -> AnalyticMaps:
+                        observation_model: Optional[str] = None, loss_eps: Optional[float] = None) -> AnalyticMaps:
     """Fit f_a per texel to ``obs``: ``steps`` Adam steps (rate ``lr`` decaying to a tenth), each
     on ``rows_per_texel`` rows drawn from every texel's own (None: every observation every step).
     Parameters are reparameterised to stay in range (:func:`decode_analytic`) and start at
@@ -91,14 +93,15 @@ def fit_analytic_texels(obs: Observations, steps: int = 400, lr: float = 0.05, s
     steps); ``save_state`` gets a resumable state every 50 steps, ``state`` resumes one.
     ``observation_model``: "bilinear" (each row as its footprint shows the map,
     :mod:`~hybridbrdf.acquire.footprint`) or "nearest" (each row credited to its cell's texel);
-    None: :data:`hybridbrdf.acquire.footprint.MODEL`."""
+    None: :data:`hybridbrdf.acquire.footprint.MODEL`. ``loss_eps``: the loss domain's epsilon
+    (:func:`~hybridbrdf.acquire.texel_rows.loss_log`; None: :data:`~hybridbrdf.acquire.texel_rows.LOSS_EPS`)."""
     model = observation_model or footprint.MODEL
     if model not in footprint.MODELS:
         raise ValueError(f"observation_model must be one of {', '.join(footprint.MODELS)}, got {observation_model!r}")
     w, h = obs.size
     counts = np.diff(obs.offsets)
     raw = {k: v.requires_grad_() for k, v in analytic_start(obs).items()}
-    data = ObservationTensors(obs)
+    data = ObservationTensors(obs, loss_eps)
     sampler = RowSampler(obs, rows_per_texel or 1)
     every_row = (torch.from_numpy(np.repeat(np.arange(w * h), counts)), torch.arange(len(obs.value)))
 

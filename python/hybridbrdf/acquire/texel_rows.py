@@ -22,15 +22,32 @@ from hybridbrdf.acquire.observations import Observations
 #: Rows of each texel read per step (the budget unit: a step of every fit reads this many).
 ROWS_PER_TEXEL = 8
 
-#: The least cos(theta_i) g a row's target is taken at. Not 0: a photograph's noise makes a dark
+#: The least cos(theta_i) g a row's target is taken at, in units of the loss's eps. Not 0: a photograph's noise makes a dark
 #: pixel's reading negative (a raw frame less its black level), and clamped at 0 the darkest rows
 #: read brighter than they are. On the light-stage bench at high noise (200 photons at radiance 1,
 #: read noise 4), the darkest tenth of colodur_napoli's rows read 17% brighter on average and the
 #: next 5%; unclamped, none differs from the noiseless photograph's by more than its error
-#: (docs/ACQUISITION_GAP.md, "The target unclamped"). A floor all the same, so that log(1 + x)
-#: stays defined (x > -1) and its slope 1 / (1 + x) at most 2: a reading that far below 0 is not
-#: noise but a bad black level.
+#: (docs/ACQUISITION_GAP.md, "The target unclamped"). A floor all the same, so that log(eps + x)
+#: stays defined (x > -eps) and its slope 1 / (eps + x) at most 2 / eps: at eps 0.1, -0.05 is 2.5
+#: standard deviations of the bench's noisiest dark pixel; a reading further below 0 is a bad black level.
 TARGET_FLOOR = -0.5
+
+#: The loss domain's epsilon: every acquisition fit compares log(eps + cos(theta_i) f)
+#: (:func:`loss_log`), relative down to cos f ~ eps (docs/LOSS.md, "Dark regions"). The paper's
+#: 1 is absolute below cos f ~ 1, where a glossy layer spends most of its domain: on the
+#: light-stage verdict's vinyl disc the gate of the chosen material closed the blue channel to
+#: 3e-4 where the photographs (and the truth) read 4e-3, for a loss of 1e-5 (docs/ACQUISITION_LOSS.md).
+#: 0.1 is ``hbrdf fit``'s default (``--loss-eps``), and at the bench's high
+#: noise (a dark pixel's standard deviation 0.02 in cos f) the log of a noisy reading is biased by
+#: about (0.02 / 0.1)^2 / 2 = 2%; at 0.03 (``hbrdf add``'s) by 22%.
+LOSS_EPS = 0.1
+
+
+def loss_log(cos_f: torch.Tensor, eps: Optional[float] = None) -> torch.Tensor:
+    """The acquisition fits' loss domain of cos(theta_i) f: log(1 + cos f / eps) = log(eps + cos f)
+    - log(eps), eps ``eps`` or :data:`LOSS_EPS` (the constant cancels in every residual)."""
+    return torch.log1p(cos_f / (LOSS_EPS if eps is None else eps))
+
 
 #: (stage, steps done, steps of the stage) after each step; what a progress bar shows.
 Progress = Callable[[str, int, int], None]
@@ -62,14 +79,16 @@ class RowSampler:
 
 
 class ObservationTensors:
-    """The observations as tensors: ``wi``, ``wo`` (M, 3), ``target`` = log(1 + cos(theta_i) g)
-    with cos(theta_i) g at least :data:`TARGET_FLOOR` (noise may make it negative), ``cos_i``
+    """The observations as tensors: ``wi``, ``wo`` (M, 3), ``target`` = :func:`loss_log` of
+    cos(theta_i) g, in the domain of ``eps`` (None: :data:`LOSS_EPS`), with cos(theta_i) g at
+    least :data:`TARGET_FLOOR` eps (noise may make it negative), ``cos_i``
     (M, 1); ``cell`` (M,) each row's (texel, photograph) as one number, for :meth:`pixel_noise`."""
 
-    def __init__(self, obs: Observations):
+    def __init__(self, obs: Observations, eps: Optional[float] = None):
         self.wi, self.wo = torch.from_numpy(obs.wi), torch.from_numpy(obs.wo)
         self.cos_i = self.wi[:, 2:3]
-        self.target = torch.log1p(torch.clamp(self.cos_i * torch.from_numpy(obs.value), min=TARGET_FLOOR))
+        self.eps = LOSS_EPS if eps is None else float(eps)
+        self.target = loss_log(torch.clamp(self.cos_i * torch.from_numpy(obs.value), min=TARGET_FLOOR * self.eps), self.eps)
         texel = np.repeat(np.arange(len(obs.offsets) - 1), np.diff(obs.offsets))
         self.cell = texel * (int(obs.shot.max(initial=0)) + 1) + np.asarray(obs.shot, dtype=np.int64)
         self._averaged = None  # cell_averaged's copy, made on first use
@@ -109,8 +128,8 @@ class ObservationTensors:
         return self._averaged
 
     def residual(self, rows: torch.Tensor, f: torch.Tensor) -> torch.Tensor:
-        """The paper's residual per pair and channel, log(1 + cos g) - log(1 + cos f), (N, 3)."""
-        return self.target[rows] - torch.log1p(self.cos_i[rows] * f)
+        """The residual per pair and channel, log(eps + cos g) - log(eps + cos f), (N, 3) (the paper's with eps 1)."""
+        return self.target[rows] - loss_log(self.cos_i[rows] * f, self.eps)
 
 
 def adam_texels(params: Dict[str, torch.Tensor], loss_fn: Callable[[torch.Generator], torch.Tensor], steps: int,
