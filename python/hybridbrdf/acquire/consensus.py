@@ -11,7 +11,8 @@ from the others and from the truth (diagnostic, not kept). The score's order amo
 **The rule** (minimum Bayes risk, as in choosing among a posterior's samples): the candidates whose
 score less the pixels' noise is within :func:`tie_margin` of the best's are taken as equally likely given the photographs, and
 the one with the least summed distance to the others is chosen (the medoid), the distance the
-fit's own measure: the root mean squared difference of log(1 + f cos theta_i) over
+fit's own measure: the root mean squared difference of log(eps + f cos theta_i) (the fits' loss
+domain, :func:`~hybridbrdf.acquire.texel_rows.loss_log`) over
 :func:`probe_pairs`; but only where the best score stands farther from the others, on average,
 than the medoid does by more than the best fit's own root mean squared residual on the
 photographs (the square root of its score, in the same log units): a difference the photographs
@@ -80,7 +81,7 @@ def tied(fitted: List[Dict[str, object]], margin: float, noise: float = 0.0) -> 
 
 def summed_distances(family, candidates: List[Dict[str, object]]) -> torch.Tensor:
     """(k,) each candidate's summed distance to the others: the root mean squared difference of
-    log(1 + f cos theta_i) over :func:`probe_pairs`."""
+    log(eps + f cos theta_i) (:func:`~hybridbrdf.acquire.texel_rows.loss_log`) over :func:`probe_pairs`."""
     wi, wo = probe_pairs()
     cos_i = wi[:, 2:3]
     with torch.no_grad():

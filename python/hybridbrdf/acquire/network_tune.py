@@ -6,12 +6,13 @@ network cannot forget them, as ``hbrdf add --refine`` replays a base's materials
 (:class:`~hybridbrdf.sources.model.ModelMaterialSource`). The texel stage then fits every texel's
 (p, z) on the tuned network, and the written model carries it.
 
-Per step, with d the paper's residual log(1 + cos g) - log(1 + cos f) (docs/CONVENTIONS.md):
+Per step, with d the fits' residual log(eps + cos g) - log(eps + cos f) (docs/CONVENTIONS.md; eps
+:data:`~hybridbrdf.acquire.texel_rows.LOSS_EPS`):
 
     L = (1/K) sum_c [mean_{rows of c's pure texels} d^2 + ANCHOR_WEIGHT mean_{anchor pairs} min(0, a_c)^2]
         + REPLAY_WEIGHT mean_{replayed rows} d^2,
 
-a_c = log(1 + cos f_c,start) - log(1 + cos f_c) on :data:`ANCHOR_PAIRS` fixed cosine-distributed
+a_c = log(eps + cos f_c,start) - log(eps + cos f_c) on :data:`ANCHOR_PAIRS` fixed cosine-distributed
 pairs over the whole hemisphere, f_c,start the cluster as it started (the frozen prior, its start
 head and values): the *anchor*, one-sided, so a cluster may darken or change its shape freely but
 pays for becoming brighter than it started. The photographs see a few direction pairs; where none
@@ -95,12 +96,12 @@ def pure_rows(obs: Observations, labels: np.ndarray, c: int) -> torch.Tensor:
 
 
 def _log_f(family, material: torch.Tensor, raw: Dict[str, torch.Tensor], wi, wo) -> torch.Tensor:
-    """log(1 + cos(theta_i) f) of rows (the paper's loss domain)."""
+    """log(eps + cos(theta_i) f) - log(eps) of rows (the fits' loss domain, :func:`~hybridbrdf.acquire.texel_rows.loss_log`)."""
     return loss_log(wi[:, 2:3].clamp_min(0) * family.evaluate(material, raw, wi, wo))
 
 
 def _replay_pool(family, seed: int) -> Dict[str, torch.Tensor]:
-    """Every prior material's fixed replay pairs and the prior's log(1 + cos f) on them."""
+    """Every prior material's fixed replay pairs and the prior's f on them in the loss domain."""
     every = family.raw_of_materials()
     n_mat = len(every["kd"])
     wi, wo = cosine_pairs(n_mat * REPLAY_PAIRS, seed)
@@ -112,7 +113,7 @@ def _replay_pool(family, seed: int) -> Dict[str, torch.Tensor]:
 
 
 def _anchor_pool(family, clusters: Dict, start: Tuple, seed: int) -> Dict[str, torch.Tensor]:
-    """The clusters' anchor pairs and, per cluster, log(1 + cos f) of its start on them (K, P, 3)."""
+    """The clusters' anchor pairs and, per cluster, its start's f on them in the loss domain (K, P, 3)."""
     wi, wo = cosine_pairs(ANCHOR_PAIRS, seed + 2)
     targets = []
     with torch.no_grad():

@@ -14,7 +14,8 @@ the seed, and so did the results: the fit's own seed spread them as much as the 
 noise. A cluster's chosen material scored on the texel's own photographs says where it belongs,
 as a hard-EM step (k-means' assignment, in the fit's loss rather than in the features).
 
-The score: the mean squared residual of the paper's loss (log(1 + cos g) - log(1 + cos f)) over
+The score: the mean squared residual of the loss (log(eps + cos g) - log(eps + cos f), in the domain
+of the data it is given: the partition's, eps 1, in the fit) over
 the texel's cells, one row per (texel, photograph) cell with the cell's mean target
 (:meth:`~hybridbrdf.acquire.texel_rows.ObservationTensors.cell_averaged`: the noise of a cell's
 pixels averaged, and one network evaluation per cell rather than per pixel). A texel moves when

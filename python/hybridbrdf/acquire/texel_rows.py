@@ -1,5 +1,5 @@
 """What every per-texel fit of docs/ACQUISITION.md shares: rows sampled per texel per step, the
-paper's loss per pair, and the Adam loop over every texel's parameters at once.
+loss per pair (the paper's, with an epsilon: :func:`loss_log`), and the Adam loop over every texel's parameters at once.
 
 A step reads ``rows_per_texel`` rows of every texel that has observations (drawn uniformly from
 its own rows, with replacement), not every observation: a 128x128 map of a 512x512 16-photograph
