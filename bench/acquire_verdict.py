@@ -43,6 +43,7 @@ import zlib
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 
 import hybridbrdf as hb
 from hybridbrdf.acquire import footprint
@@ -220,8 +221,6 @@ def seen_pairs(obs, truth, degrees: float) -> np.ndarray:
     """(scored texels, pairs) bool: the metric pairs of each scored texel within ``degrees`` of a
     direction pair some photograph saw at that texel (:func:`isotropic_points`). What no
     photograph saw is the fit's extrapolation: its model's shape there, its prior's guess."""
-    from scipy.spatial import cKDTree
-
     metric = isotropic_points(truth.wi, truth.wo)
     seen = np.zeros((len(truth.texels), len(metric)), dtype=bool)
     for s, t in enumerate(truth.texels):

@@ -88,6 +88,8 @@ NOT_RUN = {
         "the light-stage verdict, 3 seeds of three models: 30 minutes on X1"),
     "python bench/acquire_verdict.py --rig light-stage --models analytic,hybrid_heldout,neural_heldout --machine M1": (
         "the light-stage verdict, 3 seeds of three models: 19 minutes on M1"),
+    "python bench/acquire_verdict.py --rig flash,flash-multiview --models analytic,hybrid_heldout,neural_heldout --machine M1": (
+        "the flash and multi-view flash verdict, 3 seeds of three models: 19 minutes on M1"),
     "python bench/acquire_gap.py --samples napoli2 --seeds 0 --configs base,select --machine M2":
         "two acquisition fits per capture at two noise levels, scored against hbrdf add references: minutes",
     "python bench/acquire_gap.py --seeds 0,1 --configs finetune200 --machine M2":
