@@ -231,10 +231,13 @@ def seen_pairs(obs, truth, degrees: float) -> np.ndarray:
     return seen
 
 
-def split_errors(fit, truth, seen: np.ndarray) -> dict:
-    """Medians over the scored texels of SMAPE and cMAE on their seen and unseen pairs
-    (:data:`SPLIT_METRICS`; a texel without pairs of a kind is left out of that median)."""
+def split_errors(fit, truth, seen: np.ndarray) -> tuple:
+    """(SMAPE (texels,), cMAE (texels,), split): each scored texel's errors over all its pairs, as
+    acquire_compare.texel_errors gives them, and the medians over the texels of SMAPE and cMAE on
+    their seen and unseen pairs (:data:`SPLIT_METRICS`; a texel without pairs of a kind is left out
+    of that median), from one evaluation of the fit per texel."""
     out = {key: [] for key, _ in SPLIT_METRICS}
+    s_err, c_err = np.empty(len(truth.texels)), np.empty(len(truth.texels))
     n = len(truth.wi)
     cos_i = truth.wi[:, 2:3]
     for s, t in enumerate(truth.texels):
@@ -242,10 +245,12 @@ def split_errors(fit, truth, seen: np.ndarray) -> dict:
         g = truth.at(s)
         terms = smape_terms(g, f)
         absolute = np.abs(np.maximum(g, 0.0) - np.maximum(f, 0.0)) * cos_i
+        s_err[s], c_err[s] = terms.mean(), absolute.mean()
         for kind, mask in (("seen", seen[s]), ("unseen", ~seen[s])):
             out[f"smape_{kind}"].append(terms[mask].mean() if mask.any() else np.nan)
             out[f"cmae_{kind}"].append(absolute[mask].mean() if mask.any() else np.nan)
-    return {key: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan") for key, v in out.items()}
+    split = {key: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan") for key, v in out.items()}
+    return s_err, c_err, split
 
 
 def points(args):
@@ -272,7 +277,7 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
         t0 = time.process_time()
         fit = fit_fn(obs, seed, len(rig.shots))
         cpu = time.process_time() - t0
-        s_err, c_err = ac.texel_errors(fit, truth)
+        s_err, c_err, split = split_errors(fit, truth, seen)
         render = ac.relative_mae(ac.render_fit(fit, args.novel_rig, size, args.render_filter), true_render, mask)
         rows.append({"machine": args.machine, "rig": kind, "point": point, "n": len(rig.shots), "noise": label,
                      "photons": photons, "read_noise": read, "seed": seed, "capture_seed": capture_seed,
@@ -283,7 +288,7 @@ def measure(args, kind, point, noise, seed, truth, mixture, novel, fits):
                      "render_filter": args.render_filter, "observation_model": footprint.MODEL,
                      "jitter": args.jitter, "isotropic": not args.anisotropic,
                      "seen_degrees": args.seen_degrees, "seen_share": float(seen.mean()),
-                     **split_errors(fit, truth, seen)})
+                     **split})
     return rows
 
 
